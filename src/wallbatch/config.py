@@ -1,0 +1,744 @@
+"""The config language (shared/spec/config.md): YAML loading with line numbers, Pydantic models,
+and the cross-field checks. The models are the single source of truth for a scene; the engine
+never sees raw YAML.
+
+Every problem is reported as `file:line:col: dotted.path: message` through `ConfigError`.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import yaml
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    NonNegativeFloat,
+    NonNegativeInt,
+    PositiveFloat,
+    PositiveInt,
+    PrivateAttr,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+
+FACES = ("xlo", "xhi", "ylo", "yhi", "zlo", "zhi")
+SOFT_STYLES = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "ees")
+REGION_POTENTIALS = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse")
+THERMO_KEYWORDS = (
+    "step", "time", "dt", "temp", "ke", "pe", "etot", "press", "atoms", "erot",
+    "reflect_count", "reflect_impulse", "flow_crossings",
+)
+VAR_RE = re.compile(r"^v_[A-Za-z_][A-Za-z0-9_]*$")
+NAME_RE = r"^[A-Za-z_][A-Za-z0-9_\-]*$"
+
+
+# ----------------------------------------------------------------------------- errors
+
+
+class ConfigError(ValueError):
+    """Invalid config: one line per problem, `file:line:col: path: message`."""
+
+    def __init__(self, problems: list[str]):
+        self.problems = problems
+        super().__init__("\n".join(problems))
+
+
+class SourceMap:
+    """Where each value of a YAML document stands: dotted path -> (line, column), 1-based."""
+
+    def __init__(self, filename: str, marks: dict[tuple, tuple[int, int]], data: Any):
+        self.filename = filename
+        self.marks = marks
+        self.data = data
+
+    def locate(self, loc: tuple) -> tuple[tuple, tuple[int, int] | None]:
+        """Resolve a Pydantic error location against the data: drop union tags and other loc
+        parts that index nothing, and return (clean path, nearest known mark)."""
+        path: list = []
+        node = self.data
+        for part in loc:
+            if isinstance(node, dict) and part in node:
+                node = node[part]
+                path.append(part)
+            elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
+                node = node[part]
+                path.append(part)
+            elif isinstance(node, dict) and isinstance(part, str) and part not in FACES + (
+                "lj93", "lj126", "lj1043", "colloid", "harmonic", "morse", "ees", "reflect",
+                "flow", "region", "region/ees",
+            ) and not any(c in part for c in "[]()"):
+                path.append(part)  # a missing key: name it, point at its parent
+                node = None
+            elif isinstance(node, dict) and part in FACES:
+                path.append(part)
+                node = None
+        mark = None
+        for n in range(len(path), -1, -1):
+            mark = self.marks.get(tuple(path[:n]))
+            if mark:
+                break
+        return tuple(path), mark
+
+    def format(self, loc: tuple, message: str) -> str:
+        path, mark = self.locate(loc)
+        where = f"{self.filename}:{mark[0]}:{mark[1]}" if mark else self.filename
+        dotted = ".".join(str(p) for p in path) or "(top level)"
+        return f"{where}: {dotted}: {message}"
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that reads `1e-5` as a number (YAML 1.1 wants `1.0e-5`) and refuses
+    duplicate keys."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
+
+
+def load_yaml(text: str, filename: str = "<config>") -> tuple[Any, SourceMap]:
+    """Parse YAML (safe) and keep the line/column of every value."""
+    try:
+        loader = _Loader(text)
+        try:
+            node = loader.get_single_node()
+        finally:
+            loader.dispose()
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"{filename}:{mark.line + 1}:{mark.column + 1}" if mark else filename
+        raise ConfigError([f"{where}: YAML syntax error: {getattr(exc, 'problem', exc)}"]) from None
+    if node is None:
+        raise ConfigError([f"{filename}: the file is empty"])
+    marks: dict[tuple, tuple[int, int]] = {}
+    problems: list[str] = []
+
+    def walk(n: yaml.Node, path: tuple) -> None:
+        marks[path] = (n.start_mark.line + 1, n.start_mark.column + 1)
+        if isinstance(n, yaml.MappingNode):
+            seen: dict[str, int] = {}
+            for k, v in n.value:
+                key = k.value
+                if key in seen:
+                    dotted = ".".join(str(p) for p in path + (key,))
+                    problems.append(
+                        f"{filename}:{k.start_mark.line + 1}:{k.start_mark.column + 1}: {dotted}: "
+                        f"defined twice (first at line {seen[key]}); keep one"
+                    )
+                seen[key] = k.start_mark.line + 1
+                walk(v, path + (key,))
+        elif isinstance(n, yaml.SequenceNode):
+            for i, v in enumerate(n.value):
+                walk(v, path + (i,))
+
+    walk(node, ())
+    if problems:
+        raise ConfigError(problems)
+    data = _Loader(text).get_single_data()
+    return data, SourceMap(filename, marks, data)
+
+
+# ----------------------------------------------------------------------------- value types
+
+
+def _number_or_name(v: Any, allow: tuple[str, ...]) -> Any:
+    if isinstance(v, bool):
+        raise ValueError("expected a number")
+    if isinstance(v, (int, float)):
+        return float(v)
+    if isinstance(v, str):
+        s = v.strip()
+        if s in allow or VAR_RE.match(s):
+            return s
+        try:
+            return float(s)
+        except ValueError:
+            pass
+        raise ValueError(
+            f"expected a number{', EDGE' if 'EDGE' in allow else ''} or a variable reference v_name, got {v!r}"
+        )
+    raise ValueError(f"expected a number or v_name, got {v!r}")
+
+
+def _coord(v: Any) -> Any:
+    return _number_or_name(v, ("EDGE",))
+
+
+def _param(v: Any) -> Any:
+    return _number_or_name(v, ())
+
+
+def _bound(v: Any) -> float | None:
+    """dt_reset tmin/tmax: a number, or INF / NULL / null for no bound."""
+    if v is None or (isinstance(v, str) and v.strip().upper() in ("INF", "NULL", "NONE")):
+        return None
+    if isinstance(v, bool):
+        raise ValueError("expected a number, INF or NULL")
+    return float(v)
+
+
+from pydantic import BeforeValidator  # noqa: E402
+
+Coord = Annotated[Union[float, str], BeforeValidator(_coord)]
+Param = Annotated[Union[float, str], BeforeValidator(_param)]
+Bound = Annotated[Union[float, None], BeforeValidator(_bound)]
+Vec3 = tuple[float, float, float]
+
+
+class Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+# ----------------------------------------------------------------------------- scene parts
+
+
+class Box(Model):
+    """Simulation box, always in box (distance) units."""
+
+    lo: Vec3
+    hi: Vec3
+    boundary: tuple[Literal["p", "f"], Literal["p", "f"], Literal["p", "f"]] = ("p", "p", "p")
+
+    @model_validator(mode="after")
+    def _extent(self) -> "Box":
+        for d in range(3):
+            if not self.hi[d] > self.lo[d]:
+                raise ValueError(f"box.hi[{d}] = {self.hi[d]} must be greater than box.lo[{d}] = {self.lo[d]}")
+        return self
+
+
+class Lattice(Model):
+    """`lattice STYLE SCALE`: in lj units scale is the reduced density, otherwise the lattice constant."""
+
+    style: Literal["sc", "bcc", "fcc"]
+    scale: PositiveFloat
+
+
+class RandomCreate(Model):
+    count: PositiveInt
+    region: str | None = None
+    overlap: NonNegativeFloat | None = None
+
+
+class LatticeCreate(Model):
+    region: str | None = None
+
+
+class Create(Model):
+    """Exactly one way of creating the group's atoms."""
+
+    random: RandomCreate | None = None
+    lattice: LatticeCreate | None = None
+    positions: list[Vec3] | None = None
+    file: str | None = None
+
+    @model_validator(mode="after")
+    def _one(self) -> "Create":
+        given = [k for k in ("random", "lattice", "positions", "file") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError(
+                f"give exactly one of random, lattice, positions, file (got {', '.join(given) or 'none'})"
+            )
+        if self.positions is not None and len(self.positions) == 0:
+            raise ValueError("positions is empty")
+        return self
+
+
+class Velocity(Model):
+    """Initial velocities: Maxwell-Boltzmann at `temperature` (zero net momentum), or explicit values."""
+
+    temperature: NonNegativeFloat | None = None
+    values: Union[Vec3, list[Vec3], None] = None
+
+    @model_validator(mode="after")
+    def _one(self) -> "Velocity":
+        if (self.temperature is None) == (self.values is None):
+            raise ValueError("give exactly one of temperature or values")
+        return self
+
+
+class AngMom(Model):
+    values: Union[Vec3, list[Vec3]]
+
+
+class AtomGroup(Model):
+    group: Annotated[str, Field(pattern=NAME_RE)]
+    create: Create
+    mass: PositiveFloat | None = None
+    radius: NonNegativeFloat | None = None
+    shape: tuple[PositiveFloat, PositiveFloat, PositiveFloat] | None = None
+    orientation: Union[Literal["random", "aligned"], tuple[float, float, float, float], None] = None
+    angmom: AngMom | None = None
+    velocity: Velocity | None = None
+
+
+class Pair(Model):
+    style: Literal["lj/cut"]
+    epsilon: NonNegativeFloat
+    sigma: PositiveFloat
+    cutoff: PositiveFloat
+    shift: bool = False
+
+
+class Region(Model):
+    style: Literal["block", "sphere", "cylinder"]
+    side: Literal["in", "out"] = "in"
+    units: Literal["lattice", "box"] = "lattice"
+    lo: Union[Vec3, float, None] = None
+    hi: Union[Vec3, float, None] = None
+    center: Union[Vec3, tuple[float, float], None] = None
+    radius: PositiveFloat | None = None
+    axis: Literal["x", "y", "z"] | None = None
+
+    @model_validator(mode="after")
+    def _shape(self) -> "Region":
+        need = {
+            "block": ("lo", "hi"),
+            "sphere": ("center", "radius"),
+            "cylinder": ("axis", "center", "radius", "lo", "hi"),
+        }[self.style]
+        missing = [k for k in need if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"a {self.style} region needs {', '.join(missing)}")
+        if self.style == "block" and not (isinstance(self.lo, tuple) and isinstance(self.hi, tuple)):
+            raise ValueError("a block region needs lo and hi as [x, y, z]")
+        if self.style == "sphere" and len(self.center) != 3:
+            raise ValueError("a sphere region needs center [x, y, z]")
+        if self.style == "cylinder" and (
+            len(self.center) != 2 or isinstance(self.lo, tuple) or isinstance(self.hi, tuple)
+        ):
+            raise ValueError("a cylinder region needs center [c1, c2] and numbers lo, hi along its axis")
+        return self
+
+
+# ----------------------------------------------------------------------------- walls
+
+
+class SoftFace(Model):
+    """One face of a flat soft wall: position and `epsilon sigma cutoff` (LAMMPS order)."""
+
+    coord: Coord
+    epsilon: Param
+    sigma: Param | None = None
+    cutoff: PositiveFloat
+
+
+class MorseFace(Model):
+    """One face of wall/morse: position and `D0 alpha r0 cutoff`."""
+
+    coord: Coord
+    D0: Param
+    alpha: Param
+    r0: Param
+    cutoff: PositiveFloat
+
+
+class ReflectFace(Model):
+    coord: Coord
+
+
+def _faces_from_positional(data: Any, order: tuple[str, ...]) -> Any:
+    """Turn `zlo: [coord, eps, sigma, rc]` (the LAMMPS argument order) into a mapping."""
+    if not isinstance(data, dict):
+        return data
+    out = dict(data)
+    for face in FACES:
+        val = out.get(face)
+        if isinstance(val, (list, tuple)):
+            if len(val) != len(order):
+                raise ValueError(
+                    f"{face}: the positional form takes {len(order)} values ({' '.join(order)}), got {len(val)}"
+                )
+            out[face] = dict(zip(order, val))
+    return out
+
+
+class _FaceWall(Model):
+    group: str = "all"
+    units: Literal["lattice", "box"] = "lattice"
+    energy: bool = False
+    virial: bool = False
+    pbc: bool = False
+
+    _order: tuple[str, ...] = PrivateAttr(default=FACES)
+
+    @model_validator(mode="wrap")
+    @classmethod
+    def _keep_order(cls, data: Any, handler: Any) -> Any:
+        """Remember the order the faces were written in: it is the order of the output vector."""
+        model = handler(data)
+        if isinstance(data, dict):
+            model._order = tuple(k for k in data if k in FACES)
+        elif isinstance(data, _FaceWall):
+            model._order = data._order
+        return model
+
+    def faces(self) -> list[tuple[str, Any]]:
+        """(face name, face model) in config order."""
+        return [(f, getattr(self, f)) for f in self._order if getattr(self, f) is not None]
+
+    @model_validator(mode="after")
+    def _need_face(self) -> "_FaceWall":
+        if not any(getattr(self, f) is not None for f in FACES):
+            raise ValueError(f"no walls defined: give at least one face ({' '.join(FACES)})")
+        return self
+
+
+class SoftWall(_FaceWall):
+    """fix wall/lj93 | lj126 | lj1043 | colloid | harmonic | ees."""
+
+    style: Literal["lj93", "lj126", "lj1043", "colloid", "harmonic", "ees"]
+    xlo: SoftFace | None = None
+    xhi: SoftFace | None = None
+    ylo: SoftFace | None = None
+    yhi: SoftFace | None = None
+    zlo: SoftFace | None = None
+    zhi: SoftFace | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _positional(cls, data: Any) -> Any:
+        return _faces_from_positional(data, ("coord", "epsilon", "sigma", "cutoff"))
+
+    @model_validator(mode="after")
+    def _sigma(self) -> "SoftWall":
+        if self.style != "harmonic":
+            for f in FACES:
+                face = getattr(self, f)
+                if face is not None and face.sigma is None:
+                    raise ValueError(f"{f}: sigma is required for style {self.style} (only harmonic may leave it out)")
+        return self
+
+
+class MorseWall(_FaceWall):
+    """fix wall/morse: faces take `coord D0 alpha r0 cutoff`."""
+
+    style: Literal["morse"]
+    xlo: MorseFace | None = None
+    xhi: MorseFace | None = None
+    ylo: MorseFace | None = None
+    yhi: MorseFace | None = None
+    zlo: MorseFace | None = None
+    zhi: MorseFace | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _positional(cls, data: Any) -> Any:
+        return _faces_from_positional(data, ("coord", "D0", "alpha", "r0", "cutoff"))
+
+
+class ReflectWall(_FaceWall):
+    """fix wall/reflect: faces take only a coord. `frame: wall` reflects in a moving wall's frame."""
+
+    style: Literal["reflect"]
+    frame: Literal["lab", "wall"] = "lab"
+    xlo: ReflectFace | None = None
+    xhi: ReflectFace | None = None
+    ylo: ReflectFace | None = None
+    yhi: ReflectFace | None = None
+    zlo: ReflectFace | None = None
+    zhi: ReflectFace | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _bare_coords(cls, data: Any) -> Any:
+        if isinstance(data, dict):
+            data = {k: ({"coord": v} if k in FACES and not isinstance(v, dict) else v) for k, v in data.items()}
+        return data
+
+
+class FlowWall(Model):
+    """fix wall/flow (physics.md §8)."""
+
+    style: Literal["flow"]
+    group: str = "all"
+    axis: Literal["x", "y", "z"]
+    vflow: PositiveFloat
+    temperature: PositiveFloat
+    seed: Annotated[int, Field(ge=1, le=900000000)]
+    coords: Annotated[list[float], Field(min_length=1)]
+    units: Literal["lattice", "box"] = "lattice"
+    rule: Literal["exact", "lammps"] = "exact"
+
+
+class RegionWall(Model):
+    """fix wall/region with a soft potential."""
+
+    style: Literal["region"]
+    group: str = "all"
+    region: str
+    potential: Literal["lj93", "lj126", "lj1043", "colloid", "harmonic", "morse"]
+    epsilon: Param | None = None
+    sigma: Param | None = None
+    D0: Param | None = None
+    alpha: Param | None = None
+    r0: Param | None = None
+    cutoff: PositiveFloat
+    energy: bool = False
+    virial: bool = False
+
+
+class RegionEESWall(Model):
+    """fix wall/region/ees."""
+
+    style: Literal["region/ees"]
+    group: str = "all"
+    region: str
+    epsilon: Param
+    sigma: Param
+    cutoff: PositiveFloat
+    energy: bool = False
+
+
+Wall = Annotated[
+    Union[SoftWall, MorseWall, ReflectWall, FlowWall, RegionWall, RegionEESWall],
+    Field(discriminator="style"),
+]
+
+
+# ----------------------------------------------------------------------------- the rest
+
+
+class DtReset(Model):
+    """fix dt/reset (physics.md §9)."""
+
+    every: PositiveInt
+    group: str = "all"
+    tmin: Bound = None
+    tmax: Bound = None
+    xmax: PositiveFloat
+    emax: PositiveFloat | None = None
+    units: Literal["lattice", "box"] = "lattice"
+
+    @model_validator(mode="after")
+    def _bounds(self) -> "DtReset":
+        for k in ("tmin", "tmax"):
+            v = getattr(self, k)
+            if v is not None and v < 0:
+                raise ValueError(f"{k} must be >= 0 (or INF/NULL for no bound)")
+        if self.tmin is not None and self.tmax is not None and self.tmin >= self.tmax:
+            raise ValueError(f"tmin ({self.tmin}) must be smaller than tmax ({self.tmax})")
+        return self
+
+
+class TimeInterval(Model):
+    time: PositiveFloat
+
+
+class Run(Model):
+    """Run length (`steps` or simulated `time`) and sampling interval (`thermo`)."""
+
+    steps: NonNegativeInt | None = None
+    time: PositiveFloat | None = None
+    thermo: Union[NonNegativeInt, TimeInterval] = 0
+
+    @model_validator(mode="after")
+    def _one(self) -> "Run":
+        if (self.steps is None) == (self.time is None):
+            raise ValueError("give exactly one of steps or time")
+        return self
+
+
+class Dump(Model):
+    every: PositiveInt
+    fields: list[Literal["x", "v"]] = ["x", "v"]
+
+
+class Output(Model):
+    thermo: list[Literal[THERMO_KEYWORDS]] = ["step", "time", "dt", "temp", "ke", "pe", "etot"]  # type: ignore[valid-type]
+    dump: Dump | None = None
+
+
+class Config(Model):
+    """One scene (shared/spec/config.md)."""
+
+    name: str = "wallbatch"
+    units: Literal["lj", "real", "metal"] = "lj"
+    seed: NonNegativeInt = 0
+    box: Box
+    lattice: Lattice | None = None
+    atoms: Annotated[list[AtomGroup], Field(min_length=1)]
+    pair: Pair | None = None
+    timestep: PositiveFloat | None = None
+    variables: dict[Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")], Union[float, str]] = {}
+    regions: dict[str, Region] = {}
+    walls: dict[str, Wall] = {}
+    dt_reset: DtReset | None = None
+    run: Run
+    output: Output = Output()
+    sweep: dict[str, Any] | None = None
+    _base_dir: Path = PrivateAttr(default=Path("."))  # folder that relative `file:` paths start from
+
+    @field_validator("walls", mode="before")
+    @classmethod
+    def _fix_lines(cls, walls: Any) -> Any:
+        """Walls given as LAMMPS fix lines become the mapping form."""
+        if not isinstance(walls, dict):
+            return walls
+        out = {}
+        for fid, w in walls.items():
+            if isinstance(w, (str, dict)) and (isinstance(w, str) or "fix" in w):
+                from .fixline import parse_fix_line
+            if isinstance(w, str):
+                w = parse_fix_line(w, str(fid))
+            elif isinstance(w, dict) and "fix" in w:
+                extra = {k: v for k, v in w.items() if k != "fix"}
+                w = {**parse_fix_line(str(w["fix"]), str(fid)), **extra}
+            out[fid] = w
+        return out
+
+
+# ----------------------------------------------------------------------------- loading and checks
+
+NOT_YET = {
+    "pair": "pair forces (pair: lj/cut) land with the issue 'LJ fluids and flow boundary conditions'",
+    "flow": "wall/flow lands with the issue 'LJ fluids and flow boundary conditions'",
+    "ees": "wall/ees (ellipsoids) lands with the issue 'Ellipsoids and region walls'",
+    "region": "wall/region lands with the issue 'Ellipsoids and region walls'",
+    "region/ees": "wall/region/ees lands with the issue 'Ellipsoids and region walls'",
+    "ellipsoid": "ellipsoid atoms (shape, orientation, angmom) land with the issue 'Ellipsoids and region walls'",
+    "sweep": "sweeps land with the issue 'Sweeps at scale'",
+    "dump": "per-atom trajectories (output.dump) land with the issue 'Sweeps at scale'",
+}
+
+
+def validate_data(data: Any, srcmap: SourceMap) -> Config:
+    """Validate loaded YAML data into a Config, then run the cross-field checks."""
+    try:
+        cfg = Config.model_validate(data)
+    except ValidationError as exc:
+        problems = []
+        for err in exc.errors(include_url=False):
+            msg = err["msg"]
+            msg = msg.removeprefix("Value error, ")
+            if err["type"] == "extra_forbidden":
+                msg = "unknown key (misspelled? see shared/spec/config.md for the valid keys)"
+            problems.append(srcmap.format(tuple(err["loc"]), msg))
+        raise ConfigError(problems) from None
+    except ValueError as exc:  # e.g. a fix line that could not be parsed
+        raise ConfigError([srcmap.format(("walls",), str(exc))]) from None
+    problems = [srcmap.format(path, msg) for path, msg in check_scene(cfg)]
+    if problems:
+        raise ConfigError(problems)
+    return cfg
+
+
+def load_config(path: str | Path) -> Config:
+    """Read, parse and validate a config file; raise ConfigError naming file:line:col and field."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError([f"{path}: cannot read the config: {exc.strerror}"]) from None
+    data, srcmap = load_yaml(text, str(path))
+    cfg = validate_data(data, srcmap)
+    cfg._base_dir = path.parent
+    return cfg
+
+
+def _var_refs(value: Any) -> list[str]:
+    return [value[2:]] if isinstance(value, str) and value.startswith("v_") else []
+
+
+def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
+    """Cross-field checks that the models cannot do alone: (path, message) per problem."""
+    from .expr import VariableError, Variables
+
+    problems: list[tuple[tuple, str]] = []
+    add = lambda path, msg: problems.append((path, msg))  # noqa: E731
+    groups = ["all"]
+    for i, g in enumerate(cfg.atoms):
+        if g.group in groups:
+            add(("atoms", i, "group"), f"group name '{g.group}' is {'reserved' if g.group == 'all' else 'used twice'}")
+        groups.append(g.group)
+        if g.shape is not None or g.orientation is not None or g.angmom is not None:
+            add(("atoms", i, "shape"), f"not supported yet: {NOT_YET['ellipsoid']}")
+        c = g.create
+        region = (c.random.region if c.random else None) or (c.lattice.region if c.lattice else None)
+        if region is not None and region not in cfg.regions:
+            key = "random" if c.random else "lattice"
+            add(("atoms", i, "create", key, "region"), f"unknown region '{region}' (define it under regions:)")
+        if c.lattice is not None and cfg.lattice is None:
+            add(("atoms", i, "create", "lattice"), "lattice creation needs a `lattice:` (style and scale)")
+        if c.file is None and g.mass is None:
+            add(("atoms", i, "mass"), "mass is required (or give per-atom masses in a create.file .npz)")
+        if g.velocity is not None and g.velocity.values is not None and c.positions is not None:
+            vals = g.velocity.values
+            if isinstance(vals, list) and len(vals) not in (len(c.positions),):
+                add(("atoms", i, "velocity", "values"),
+                    f"{len(vals)} velocities for {len(c.positions)} atoms: give one 3-vector, or one per atom")
+    for name, region in cfg.regions.items():
+        if region.units == "lattice" and cfg.lattice is None:
+            add(("regions", name, "units"), _LATTICE_MSG)
+
+    variables = None
+    try:
+        variables = Variables(cfg.variables)
+    except VariableError as exc:
+        add(("variables",), str(exc))
+
+    def check_var(path: tuple, value: Any) -> None:
+        for ref in _var_refs(value):
+            if ref not in cfg.variables:
+                add(path, f"unknown variable v_{ref} (define it under variables:)")
+
+    if cfg.pair is not None:
+        add(("pair",), f"not supported yet: {NOT_YET['pair']}")
+    if cfg.sweep is not None:
+        add(("sweep",), f"not supported yet: {NOT_YET['sweep']}")
+    if cfg.output.dump is not None:
+        add(("output", "dump"), f"not supported yet: {NOT_YET['dump']}")
+    radius_groups = {g.group for g in cfg.atoms if g.radius and g.radius > 0}
+    for fid, wall in cfg.walls.items():
+        if wall.group not in groups:
+            add(("walls", fid, "group"), f"unknown group '{wall.group}' (groups: {', '.join(groups)})")
+        if wall.style in NOT_YET:
+            add(("walls", fid, "style"), f"not supported yet: {NOT_YET[wall.style]}")
+            continue
+        if wall.units == "lattice" and cfg.lattice is None:
+            add(("walls", fid), _LATTICE_MSG)
+        if wall.style == "colloid":
+            members = [g.group for g in cfg.atoms] if wall.group == "all" else [wall.group]
+            bad = [g for g in members if g not in radius_groups]
+            if bad:
+                add(("walls", fid, "group"),
+                    f"wall/colloid requires extended particles: give group(s) {', '.join(bad)} a radius > 0")
+        for face, spec in wall.faces():
+            dim = "xyz".index(face[0])
+            if cfg.box.boundary[dim] == "p" and not wall.pbc:
+                add(("walls", fid, face),
+                    f"cannot use a {face} wall in periodic {face[0]} dimension: make box.boundary "
+                    f"{face[0]} 'f', or set pbc: true on this wall")
+            for key, value in spec.model_dump().items():
+                check_var(("walls", fid, face, key), value)
+                if key in ("epsilon", "sigma", "D0", "r0") and isinstance(value, float) and value < 0:
+                    add(("walls", fid, face, key), f"{key} must be >= 0")
+    if cfg.dt_reset is not None:
+        if cfg.dt_reset.group not in groups:
+            add(("dt_reset", "group"), f"unknown group '{cfg.dt_reset.group}'")
+        if cfg.dt_reset.units == "lattice" and cfg.lattice is None:
+            add(("dt_reset",), _LATTICE_MSG)
+    if isinstance(cfg.run.thermo, TimeInterval) and cfg.run.time is None:
+        add(("run", "thermo"), "time-based sampling (thermo: {time: ...}) needs a time-based run (run: {time: ...})")
+    styles = {w.style for w in cfg.walls.values()}
+    for key, needs, what in (("reflect_count", "reflect", "a reflect wall"),
+                             ("reflect_impulse", "reflect", "a reflect wall"),
+                             ("flow_crossings", "flow", "a flow wall")):
+        if key in cfg.output.thermo and needs not in styles:
+            add(("output", "thermo"), f"{key} needs {what} in the scene")
+    if "erot" in cfg.output.thermo:
+        add(("output", "thermo"), f"erot: not supported yet: {NOT_YET['ellipsoid']}")
+    return problems
+
+
+_LATTICE_MSG = (
+    "units: lattice (the default, as in LAMMPS) needs a `lattice:` in the config; "
+    "add `units: box` here or define `lattice: {style: fcc, scale: ...}`"
+)

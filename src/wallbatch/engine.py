@@ -1,0 +1,439 @@
+"""The batched NumPy engine: velocity Verlet with LAMMPS's step anatomy (physics.md §1.2).
+
+State arrays carry a leading case axis: `x` is (C, N, 3). A batch of cases with the same
+structure runs as one set of array operations; a single case is a batch of one. The run is
+"advance the batch to the next sample, then sample", so a compiled path can take over a whole
+chunk of steps later without touching the rest.
+
+One step n (counter first):
+  1. initial_integrate   v += dt/2 ftm2v f/m ; x += dt v          (fix nve)
+  2. post_integrate      wall/reflect
+  3. periodic wrap, lost-atom check
+  4. force clear, post_force: soft walls (energies only on sample steps)
+  5. final_integrate     v += dt/2 ftm2v f/m
+  6. end_of_step         dt/reset when n % every == 0
+A case that fails (atom behind a wall, lost, NaN, a bad variable value) leaves the batch with its
+message; the others go on untouched.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from .expr import EvalContext, VariableError, Variables
+from .scene import Case
+from .units import UnitSystem
+from .walls import ReflectKernel, SoftWallKernel, build_kernels
+
+BIG = 1.0e20  # dt/reset's "no limit" (LAMMPS BIG)
+
+
+@dataclass
+class CaseResult:
+    """Samples of one case: name -> array with a leading sample axis."""
+
+    status: str
+    error: str
+    seconds: float
+    data: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+def structure_key(case: Case) -> tuple:
+    """Cases with equal keys can share a batch: same atoms, groups, fixes, variables, schedule."""
+    def faces(spec):
+        return tuple((f.name, f.scale, tuple(sorted(f.params)),
+                      f.coord if isinstance(f.coord, str) else "#",
+                      tuple(v if isinstance(v, str) else "#" for v in f.params.values())) for f in spec.faces)
+
+    return (
+        case.units.name, case.natoms, case.atom_group.tobytes(), tuple(case.periodic),
+        tuple(case.box_lo), tuple(case.box_hi), case.variable_text,
+        tuple((w.fix_id, w.style.name, w.group.tobytes(), w.energy, faces(w)) for w in case.soft_walls),
+        tuple((w.fix_id, w.frame, w.group.tobytes(), faces(w)) for w in case.reflect_walls),
+        None if case.dt_reset is None else (case.dt_reset.every, case.dt_reset.group.tobytes()),
+        case.steps, case.run_time, case.thermo, case.thermo_is_time, case.outputs,
+    )
+
+
+class BatchState:
+    """Positions, velocities, forces and clocks of C cases of N atoms, plus failure bookkeeping."""
+
+    def __init__(self, cases: list[Case]):
+        c0 = cases[0]
+        self.units: UnitSystem = c0.units
+        self.rows = np.arange(len(cases))  # original index of each live row
+        self.x = np.stack([c.x for c in cases]).astype(float)
+        self.v = np.stack([c.v for c in cases]).astype(float)
+        self.f = np.zeros_like(self.x)
+        self.mass = np.stack([c.mass for c in cases])
+        self.radius = np.stack([c.radius for c in cases])
+        self.box_lo, self.box_hi = c0.box_lo, c0.box_hi
+        self.periodic = np.nonzero(c0.periodic)[0]
+        self.fixed = np.nonzero(~c0.periodic)[0]
+        self.dt = np.array([c.dt for c in cases], float)
+        self.atime = np.zeros(len(cases))  # LAMMPS time accumulator: time = atime + (step - atimestep) dt
+        self.atimestep = np.zeros(len(cases), np.int64)
+        self.step = np.zeros(len(cases), np.int64)
+        self.variables: Variables = c0.variables
+        self.var_static: dict[str, np.ndarray] = {}
+        self.var_step: dict[str, np.ndarray] = {}
+        # vdisplace/swiggle/cwiggle: LAMMPS's (n - b) dt, or elapsed simulated time when dt varies
+        self.elapsed_is_time = c0.dt_reset is not None or c0.run_time is not None
+        self.end_step = c0.steps or 0
+        self.run_time = c0.run_time
+        self.failed: dict[int, str] = {}  # live row -> message, pending removal
+
+    @property
+    def ncases(self) -> int:
+        return self.x.shape[0]
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.atime + (self.step - self.atimestep) * self.dt
+
+    def set_dt(self, new_dt: np.ndarray) -> None:
+        """Change the timestep, closing the time accumulator first (as fix dt/reset does)."""
+        changed = new_dt != self.dt
+        if changed.any():
+            self.atime = np.where(changed, self.time, self.atime)
+            self.atimestep = np.where(changed, self.step, self.atimestep)
+            self.dt = np.where(changed, new_dt, self.dt)
+
+    # -- variables -------------------------------------------------------------------------
+
+    def context(self) -> EvalContext:
+        steps_done = self.step.astype(float)
+        if self.run_time is not None:
+            ramp = self.time / self.run_time
+        else:
+            ramp = steps_done / self.end_step if self.end_step > 0 else np.zeros(self.ncases)
+        elapsed = self.time if self.elapsed_is_time else steps_done * self.dt
+        return EvalContext(step=self.step, begin_step=0, end_step=self.end_step, dt=self.dt, time=self.time,
+                           elapsed_time=elapsed, ramp_fraction=ramp, box_lo=tuple(self.box_lo),
+                           box_hi=tuple(self.box_hi), atoms=self.x.shape[1])
+
+    def variable(self, name: str) -> np.ndarray:
+        """Value (C,) of an equal-style variable at the current step; constants are evaluated once."""
+        cache = self.var_step if self.variables.depends_on_time(name) else self.var_static
+        if name not in cache:
+            try:
+                value = self.variables.evaluate(name, self.context())
+            except VariableError:
+                value = self._variable_per_case(name)
+            cache[name] = np.broadcast_to(np.asarray(value, float), (self.ncases,))
+        return cache[name]
+
+    def _variable_per_case(self, name: str) -> np.ndarray:
+        """Slow path after an evaluation error: find the cases that fail, fail them, NaN there."""
+        out = np.full(self.ncases, np.nan)
+        ctx = self.context()
+        for c in range(self.ncases):
+            one = EvalContext(**{k: (v[c:c + 1] if isinstance(v, np.ndarray) else v) for k, v in vars(ctx).items()})
+            try:
+                out[c] = self.variables.evaluate(name, one)[0]
+            except VariableError as exc:
+                self.fail(np.array([c]), lambda _c, e=exc: f"variables.{name} at step {int(self.step[_c])}: {e}")
+        return out
+
+    # -- failures --------------------------------------------------------------------------
+
+    def fail(self, rows: np.ndarray, message: Callable[[int], str]) -> None:
+        for c in np.atleast_1d(rows).tolist():
+            self.failed.setdefault(int(c), message(int(c)))
+
+    def take(self, keep: np.ndarray) -> None:
+        for name in ("rows", "x", "v", "f", "mass", "radius", "dt", "atime", "atimestep", "step"):
+            setattr(self, name, getattr(self, name)[keep])
+        self.var_static = {k: v[keep] for k, v in self.var_static.items()}
+        self.var_step = {}
+
+
+class Engine:
+    """Runs one batch of same-structure cases and collects their samples."""
+
+    def __init__(self, cases: list[Case]):
+        self.cases = cases
+        c0 = cases[0]
+        self.outputs = c0.outputs
+        self.state = BatchState(cases)
+        self.soft, self.reflect = build_kernels(cases, c0.outputs)
+        self.dt_reset = c0.dt_reset
+        if self.dt_reset is not None:
+            self.dtr_xmax = np.array([c.dt_reset.xmax for c in cases])
+            self.dtr_emax = np.array([c.dt_reset.emax or 0.0 for c in cases])
+            self.dtr_tmin = np.array([np.nan if c.dt_reset.tmin is None else c.dt_reset.tmin for c in cases])
+            self.dtr_tmax = np.array([np.nan if c.dt_reset.tmax is None else c.dt_reset.tmax for c in cases])
+        self.errors: dict[int, str] = {}
+        self.samples: list[dict[str, np.ndarray]] = []  # per sample: name -> (C_total, ...) arrays
+        self.sample_rows: list[np.ndarray] = []
+
+    # -- the step ----------------------------------------------------------------------------
+
+    def initial_integrate(self, dt: np.ndarray) -> None:
+        s = self.state
+        dtfm = (0.5 * s.units.ftm2v) * dt[:, None] / s.mass
+        s.v += dtfm[:, :, None] * s.f
+        s.x += dt[:, None, None] * s.v
+
+    def final_integrate(self, dt: np.ndarray) -> None:
+        s = self.state
+        dtfm = (0.5 * s.units.ftm2v) * dt[:, None] / s.mass
+        s.v += dtfm[:, :, None] * s.f
+
+    def wrap(self) -> None:
+        """Wrap periodic dimensions every step (x -= L past hi, x += L below lo, as LAMMPS)."""
+        s = self.state
+        for d in s.periodic:
+            length = s.box_hi[d] - s.box_lo[d]
+            xd = s.x[:, :, d]
+            xd[xd >= s.box_hi[d]] -= length
+            xd[xd < s.box_lo[d]] += length
+
+    def check_lost(self) -> None:
+        """Fail cases with atoms outside a fixed boundary (LAMMPS: Lost atoms). Runs after the wall
+        forces, so an atom behind a wall reports that wall first."""
+        s = self.state
+        for d in s.fixed:
+            xd = s.x[:, :, d]
+            lost = (xd < s.box_lo[d]) | (xd > s.box_hi[d])
+            if lost.any():
+                ci, ai = np.nonzero(lost)
+                first = {}
+                for c, a in zip(ci.tolist(), ai.tolist()):
+                    first.setdefault(c, a)
+                s.fail(np.array(sorted(first)), lambda c, d=d: (
+                    f"atom {first[c]} left the box through the fixed {'xyz'[d]} boundary at step "
+                    f"{int(s.step[c])} (LAMMPS: Lost atoms): put a wall on that face, or make it periodic"))
+
+    def compute_forces(self, outputs: bool) -> dict[str, np.ndarray]:
+        """Force clear, then post_force walls; with `outputs`, their scalars and vectors."""
+        s = self.state
+        s.f[:] = 0.0
+        out: dict[str, np.ndarray] = {}
+        for w in self.soft:
+            res = w.apply(s, outputs)
+            if outputs:
+                out[w.fix_id] = res
+        return out
+
+    def reset_dt(self) -> np.ndarray:
+        """fix dt/reset (physics.md §9): the largest dt (C,) that moves no group atom more than xmax."""
+        s, u, spec = self.state, self.state.units, self.dt_reset
+        v, f, m = s.v, s.f, s.mass
+        vsq = np.einsum("cni,cni->cn", v, v)
+        fsq = np.einsum("cni,cni->cn", f, f)
+        xmax = self.dtr_xmax[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dtv = np.where(vsq > 0, xmax / np.sqrt(vsq), BIG)
+            dtf = np.where(fsq > 0, np.sqrt(2.0 * xmax / (u.ftm2v * np.sqrt(fsq) / m)), BIG)
+            dt = np.minimum(dtv, dtf)
+            emax = self.dtr_emax[:, None]
+            dte = emax / np.sqrt(fsq * vsq) / np.sqrt(u.ftm2v * u.mvv2e)
+            dt = np.where((emax > 0) & (vsq * fsq > 0), np.minimum(dt, dte), dt)
+            disp = dt[:, :, None] * v + (0.5 * u.ftm2v) * (dt * dt / m)[:, :, None] * f
+            dr = np.sqrt(np.einsum("cni,cni->cn", disp, disp))
+            dt = np.where(dr > xmax, dt * xmax / dr, dt)
+        if not spec.group.all():
+            dt = np.where(spec.group, dt, np.inf)
+        new = np.minimum(dt.min(axis=1), BIG) if dt.shape[1] else np.full(s.ncases, BIG)
+        new = np.where(np.isnan(self.dtr_tmin), new, np.maximum(new, self.dtr_tmin))
+        return np.where(np.isnan(self.dtr_tmax), new, np.minimum(new, self.dtr_tmax))
+
+    def step(self, dt: np.ndarray, outputs: bool, active: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """One velocity-Verlet step of every live case (`active` cases only advance in time)."""
+        s = self.state
+        s.step += 1 if active is None else active
+        s.var_step = {}
+        self.initial_integrate(dt)
+        for w in self.reflect:
+            w.apply(s, dt)
+        self.wrap()
+        out = self.compute_forces(outputs)
+        self.check_lost()
+        self.final_integrate(dt)
+        if self.dt_reset is not None:
+            due = s.step % self.dt_reset.every == 0
+            if active is not None:
+                due &= active
+            if due.any():
+                s.set_dt(np.where(due, self.reset_dt(), s.dt))
+        return out
+
+    # -- samples -----------------------------------------------------------------------------
+
+    def sample(self, wall_out: dict[str, np.ndarray]) -> None:
+        """Record the thermo outputs of every live case at the current step."""
+        s, u = self.state, self.state.units
+        bad = ~(np.isfinite(s.x).all(axis=(1, 2)) & np.isfinite(s.v).all(axis=(1, 2)))
+        if bad.any():
+            s.fail(np.nonzero(bad)[0], lambda c: (
+                f"positions or velocities became NaN/inf by step {int(s.step[c])}: the timestep is too "
+                f"large for these forces (lower timestep, or add dt_reset)"))
+        n = s.x.shape[1]
+        ke = 0.5 * u.mvv2e * np.einsum("cn,cn->c", s.mass, np.einsum("cni,cni->cn", s.v, s.v))
+        dof = 3 * n - 3
+        pe = np.zeros(s.ncases)
+        rec: dict[str, np.ndarray] = {
+            "step": s.step.astype(float), "time": s.time, "dt": s.dt.copy(), "ke": ke,
+            "temp": 2.0 * ke / (dof * u.boltz) if dof > 0 else np.zeros(s.ncases),
+            "atoms": np.full(s.ncases, float(n)),
+        }
+        if self.soft:
+            rec["wall_energy"] = np.stack([wall_out[w.fix_id][0] for w in self.soft], axis=1)
+            rec["wall_force"] = np.concatenate([wall_out[w.fix_id][1] for w in self.soft], axis=1)
+            for w in self.soft:
+                if w.energy_to_pe:
+                    pe = pe + wall_out[w.fix_id][0]
+        if self.reflect and self.reflect[0].stats:
+            counts, impulses = zip(*(w.take_stats() for w in self.reflect))
+            rec["reflect_count"] = np.concatenate(counts, axis=1)
+            rec["reflect_impulse"] = np.concatenate(impulses, axis=1)
+        rec["pe"] = pe
+        rec["etot"] = pe + ke
+        self.samples.append(rec)
+        self.sample_rows.append(s.rows.copy())
+
+    def drop_failed(self) -> None:
+        s = self.state
+        if not s.failed:
+            return
+        for c, msg in s.failed.items():
+            self.errors[int(s.rows[c])] = msg
+        keep = np.array([c not in s.failed for c in range(s.ncases)])
+        s.failed = {}
+        s.take(keep)
+        for w in self.soft:
+            w.take(keep)
+        for w in self.reflect:
+            w.take(keep)
+        if self.dt_reset is not None:
+            for name in ("dtr_xmax", "dtr_emax", "dtr_tmin", "dtr_tmax"):
+                setattr(self, name, getattr(self, name)[keep])
+
+    # -- the run -----------------------------------------------------------------------------
+
+    def setup(self) -> None:
+        """Forces and outputs at step 0, then dt/reset (after all forces: the decisions table)."""
+        s = self.state
+        for w in self.reflect:
+            w.setup(s)
+        out = self.compute_forces(True)
+        if self.dt_reset is not None:
+            s.set_dt(self.reset_dt())
+        self.finish_step(out, sample=True)
+
+    def finish_step(self, out: dict[str, np.ndarray], sample: bool) -> None:
+        """Drop the cases that failed during the step (and their rows of `out`), then sample."""
+        s = self.state
+        if s.failed:
+            keep = np.array([c not in s.failed for c in range(s.ncases)])
+            out = {k: (e[keep], vec[keep]) for k, (e, vec) in out.items()}
+            self.drop_failed()
+        if sample and s.ncases:
+            self.sample(out)
+            self.drop_failed()
+
+    def advance(self, nsteps: int) -> None:
+        """Advance every live case by nsteps steps, then sample (outputs computed on the last step)."""
+        for i in range(nsteps):
+            if self.state.ncases == 0:
+                return
+            last = i == nsteps - 1
+            self.finish_step(self.step(self.state.dt, outputs=last), sample=last)
+
+    def advance_to_time(self, target: float) -> None:
+        """Step until every live case's time reaches `target`, clipping the last dt to land on it."""
+        s = self.state
+        tol = 1e-12 * max(1.0, abs(target))
+        while s.ncases and np.any(s.time < target - tol):
+            now = s.time
+            active = now < target - tol
+            base = s.dt.copy()
+            step_dt = np.where(active, np.minimum(base, target - now), 0.0)
+            landing = active & (base >= target - now - tol)
+            done_after = ~np.any(active & ~landing)
+            s.set_dt(step_dt)
+            out = self.step(s.dt, outputs=done_after, active=active.astype(np.int64))
+            # land exactly, then restore the dt in force (dt/reset may have changed it)
+            new_base = np.where(s.dt != step_dt, s.dt, base)
+            s.atime = np.where(landing, target, s.time)
+            s.atimestep = s.step.copy()
+            s.dt = new_base
+            self.finish_step(out, sample=done_after)
+            if done_after:
+                return
+
+    def run(self) -> list[CaseResult]:
+        t0 = _time.perf_counter()
+        c0 = self.cases[0]
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            self.setup()
+            if c0.run_time is None:
+                done = 0
+                for target in sample_steps(c0.steps, c0.thermo)[1:]:
+                    self.advance(target - done)
+                    done = target
+            else:
+                for target in sample_times(c0.run_time, c0.thermo if c0.thermo_is_time else 0.0)[1:]:
+                    self.advance_to_time(target)
+        seconds = (_time.perf_counter() - t0) / len(self.cases)
+        return self._collect(seconds)
+
+    def _collect(self, seconds: float) -> list[CaseResult]:
+        C = len(self.cases)
+        nsamp = len(self.samples)
+        results = []
+        names = self.samples[0].keys() if self.samples else []
+        stacked = {}
+        for name in names:
+            first = self.samples[0][name]
+            arr = np.full((C, nsamp) + first.shape[1:], np.nan)
+            for k, (rec, rows) in enumerate(zip(self.samples, self.sample_rows)):
+                arr[rows, k] = rec[name]
+            stacked[name] = arr
+        for c in range(C):
+            if c in self.errors:
+                data = {k: np.full_like(v[c], np.nan) for k, v in stacked.items()}
+                results.append(CaseResult("failed", self.errors[c], seconds, data))
+            else:
+                results.append(CaseResult("ok", "", seconds, {k: v[c] for k, v in stacked.items()}))
+        return results
+
+
+def sample_steps(steps: int, every: int) -> list[int]:
+    """Sample steps: 0, every `every` steps, and the last step (0: first and last only)."""
+    if every <= 0:
+        return sorted({0, steps})
+    return sorted(set(range(0, steps + 1, every)) | {steps})
+
+
+def sample_times(total: float, every: float) -> list[float]:
+    """Sample times: 0, every `every` time units (exact multiples), and the end time."""
+    if every <= 0:
+        return [0.0, total]
+    n = int(np.floor(total / every + 1e-9))
+    times = [k * every for k in range(n + 1)]
+    if total - times[-1] > 1e-9 * every:
+        times.append(total)
+    return times
+
+
+def run_batch(cases: list[Case]) -> list[CaseResult]:
+    """Run cases that share a structure as one batch."""
+    return Engine(cases).run()
+
+
+def run_cases(cases: list[Case]) -> list[CaseResult]:
+    """Run any cases: group them into batches by structure, return results in input order."""
+    batches: dict[tuple, list[int]] = {}
+    for i, c in enumerate(cases):
+        batches.setdefault(structure_key(c), []).append(i)
+    results: list[CaseResult | None] = [None] * len(cases)
+    for idx in batches.values():
+        for i, res in zip(idx, run_batch([cases[i] for i in idx])):
+            results[i] = res
+    return results  # type: ignore[return-value]

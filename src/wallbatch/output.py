@@ -1,0 +1,149 @@
+"""Results as a labelled xarray Dataset, written to NetCDF-4 (shared/spec/outputs.md).
+
+Dimensions: one per sweep entry (in declared order), `sample`, `fix`, `face`. A run without a
+sweep has no sweep dimensions. A failed case keeps its grid place with NaN outputs.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import xarray as xr
+
+from . import __version__
+from .engine import CaseResult, sample_steps, sample_times
+from .scene import Case
+
+
+@dataclass(frozen=True)
+class SweepDim:
+    """One output dimension of a sweep: its name, coordinate values and the path(s) it sets."""
+
+    name: str
+    values: Sequence
+    path: str
+
+
+LONG_NAMES = {
+    "time": "elapsed simulated time",
+    "dt": "timestep in force",
+    "temp": "translational temperature (3N-3 degrees of freedom)",
+    "ke": "kinetic energy",
+    "pe": "potential energy (pair + walls with energy: true)",
+    "etot": "total energy ke + pe",
+    "atoms": "number of atoms",
+    "wall_energy": "wall fix global scalar: total shifted wall energy (LAMMPS f_ID)",
+    "wall_force": "wall fix global vector entry: force of the atoms on the wall along +dim (LAMMPS f_ID[i])",
+    "reflect_count": "reflections at the face since the previous sample",
+    "reflect_impulse": "momentum given to the wall along +dim since the previous sample",
+    "step": "timestep number",
+}
+
+
+def _units(case: Case) -> dict[str, str]:
+    u = case.units
+    impulse = "1" if u.name == "lj" else f"{u.force}*{u.time}"
+    return {"time": u.time, "dt": u.time, "temp": u.temperature, "ke": u.energy, "pe": u.energy,
+            "etot": u.energy, "wall_energy": u.energy, "wall_force": u.force, "atoms": "1",
+            "reflect_count": "1", "reflect_impulse": impulse, "step": "1"}
+
+
+def build_dataset(results: list[CaseResult], cases: list[Case], *, config_text: str = "",
+                  sweep_text: str = "", dims: Sequence[SweepDim] = ()) -> xr.Dataset:
+    """Stack per-case results (in C order over `dims`) into the outputs.md layout."""
+    c0 = cases[0]
+    shape = tuple(len(d.values) for d in dims)
+    sweep_dims = tuple(d.name for d in dims)
+    if int(np.prod(shape, dtype=int)) != len(results):
+        raise ValueError(f"{len(results)} results do not fill a sweep grid of shape {shape}")
+    units = _units(c0)
+    if c0.run_time is None:
+        instants = np.asarray(sample_steps(c0.steps, int(c0.thermo)), dtype=np.int64)
+        coords: dict = {"step": ("sample", instants)}
+        per_sample = ["time", "dt", "temp", "ke", "pe", "etot", "atoms"]
+    else:
+        instants = np.asarray(sample_times(c0.run_time, float(c0.thermo) if c0.thermo_is_time else 0.0))
+        coords = {"time": ("sample", instants)}
+        per_sample = ["step", "dt", "temp", "ke", "pe", "etot", "atoms"]
+    nsamp = len(instants)
+    fixes = [w.fix_id for w in c0.soft_walls]
+    faces = [f for w in c0.soft_walls for f in w.faces]
+    rfaces = [f for w in c0.reflect_walls for f in w.faces]
+    stats = "reflect_count" in c0.outputs or "reflect_impulse" in c0.outputs
+    all_faces = faces + (rfaces if stats else [])
+    if fixes:
+        coords["fix"] = ("fix", np.asarray(fixes, dtype=object))
+    if all_faces:
+        coords["face"] = ("face", np.asarray([f.label for f in all_faces], dtype=object))
+        coords["face_fix"] = ("face", np.asarray([f.label.split("/")[0] for f in all_faces], dtype=object))
+        coords["face_name"] = ("face", np.asarray([f.name for f in all_faces], dtype=object))
+    for d in dims:
+        coords[d.name] = xr.Variable((d.name,), np.asarray(d.values), attrs={"path": d.path})
+
+    def gather(name: str, tail: tuple[int, ...]) -> np.ndarray:
+        out = np.full((len(results), nsamp) + tail, np.nan)
+        for i, r in enumerate(results):
+            if name in r.data:
+                out[i] = r.data[name]
+        return out.reshape(shape + (nsamp,) + tail)
+
+    data_vars: dict = {}
+    wanted = [k for k in per_sample if k in c0.outputs or k in ("time", "dt", "step")]
+    if "step" in wanted and c0.run_time is None:
+        wanted.remove("step")
+    for name in wanted:
+        data_vars[name] = (sweep_dims + ("sample",), gather(name, ()))
+    if fixes:
+        data_vars["wall_energy"] = (sweep_dims + ("sample", "fix"), gather("wall_energy", (len(fixes),)))
+        wf = gather("wall_force", (len(faces),))
+        if len(all_faces) > len(faces):
+            wf = np.concatenate([wf, np.full(wf.shape[:-1] + (len(all_faces) - len(faces),), np.nan)], axis=-1)
+        data_vars["wall_force"] = (sweep_dims + ("sample", "face"), wf)
+    if stats:
+        for name in ("reflect_count", "reflect_impulse"):
+            if name in c0.outputs:
+                arr = gather(name, (len(rfaces),))
+                pad = np.full(arr.shape[:-1] + (len(faces),), np.nan)
+                data_vars[name] = (sweep_dims + ("sample", "face"), np.concatenate([pad, arr], axis=-1))
+    data_vars["status"] = (sweep_dims, np.asarray([r.status for r in results], dtype=object).reshape(shape))
+    data_vars["error"] = (sweep_dims, np.asarray([r.error for r in results], dtype=object).reshape(shape))
+    data_vars["seconds"] = (sweep_dims, np.asarray([r.seconds for r in results], float).reshape(shape))
+    ds = xr.Dataset(data_vars, coords=coords)
+    for name in ds.variables:
+        if name in units:
+            ds[name].attrs["units"] = units[name]
+        if name in LONG_NAMES:
+            ds[name].attrs["long_name"] = LONG_NAMES[name]
+    ds["seconds"].attrs.update(units="s", long_name="wall-clock seconds the case took (its share of its batch)")
+    ds["status"].attrs["long_name"] = "ok or failed"
+    ds["error"].attrs["long_name"] = "error message of a failed case, empty when ok"
+    if "face" in ds.coords:
+        ds["face"].attrs["long_name"] = "wall face, as fixID/face"
+    if "fix" in ds.coords:
+        ds["fix"].attrs["long_name"] = "wall fix ID"
+    ds.attrs.update({
+        "Conventions": "CF-1.10",
+        "title": f"wallbatch results: {c0.name}",
+        "units_style": c0.units.name,
+        "config": config_text,
+        "sweep": sweep_text,
+        "wallbatch_version": __version__,
+        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+    })
+    return ds
+
+
+def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
+    """Write atomically (a temporary file renamed into place), NetCDF-4."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    encoding = {name: {"dtype": str} for name in ("status", "error") if name in ds}
+    ds.to_netcdf(tmp, format="NETCDF4", engine="netcdf4", encoding=encoding)
+    os.replace(tmp, path)
+    return path

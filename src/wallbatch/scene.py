@@ -1,0 +1,349 @@
+"""Resolve a validated Config into a `Case`: plain arrays and frozen specs in box units, what the
+engine runs. Atoms are created here (random, lattice, explicit positions, .npz file), with their
+masses, radii and initial velocities.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .config import FACES, Config, ConfigError, TimeInterval
+from .expr import Variables
+from .potentials import STYLES, WallStyle
+from .units import LATTICE_POSITIONS, UNIT_SYSTEMS, UnitSystem, lattice_constant
+
+Value = float | str  # a number, or the name of an equal-style variable (without v_)
+
+
+class CaseError(RuntimeError):
+    """A case cannot run (bad input found while building, or a failure during the run)."""
+
+
+@dataclass(frozen=True)
+class Face:
+    """One wall plane: `dim` 0/1/2, `side` -1 (lo) or +1 (hi). `coord` is a number in box units or
+    a variable name whose value is multiplied by `scale` (the lattice spacing, or 1)."""
+
+    label: str  # "fixID/face"
+    name: str
+    dim: int
+    side: int
+    coord: Value
+    scale: float
+    params: dict[str, Value]  # epsilon, sigma, cutoff, D0, alpha, r0 (box units; variables by name)
+
+
+@dataclass(frozen=True)
+class SoftWallSpec:
+    """fix wall/<style>: soft flat walls."""
+
+    fix_id: str
+    style: WallStyle
+    group: np.ndarray  # (N,) bool
+    energy: bool
+    faces: tuple[Face, ...]
+
+
+@dataclass(frozen=True)
+class ReflectSpec:
+    """fix wall/reflect; `frame` lab (v -> -v, LAMMPS) or wall (v -> 2 v_wall - v)."""
+
+    fix_id: str
+    group: np.ndarray
+    frame: str
+    faces: tuple[Face, ...]
+
+
+@dataclass(frozen=True)
+class DtResetSpec:
+    """fix dt/reset (physics.md §9); xmax in box units; None = no bound."""
+
+    every: int
+    group: np.ndarray
+    tmin: float | None
+    tmax: float | None
+    xmax: float
+    emax: float | None
+
+
+@dataclass(frozen=True)
+class Case:
+    """One runnable scene: the engine's input."""
+
+    name: str
+    units: UnitSystem
+    box_lo: np.ndarray  # (3,)
+    box_hi: np.ndarray
+    periodic: np.ndarray  # (3,) bool
+    x: np.ndarray  # (N, 3)
+    v: np.ndarray  # (N, 3)
+    mass: np.ndarray  # (N,)
+    radius: np.ndarray  # (N,)
+    atom_group: np.ndarray  # (N,) index into group_names (creation group)
+    group_names: tuple[str, ...]
+    dt: float
+    variables: Variables
+    variable_text: tuple[tuple[str, str], ...]
+    soft_walls: tuple[SoftWallSpec, ...]
+    reflect_walls: tuple[ReflectSpec, ...]
+    dt_reset: DtResetSpec | None
+    steps: int | None  # run length in steps, or None for a time-based run
+    run_time: float | None
+    thermo: int | float  # int: every n steps (0 = first and last); float: every that much time
+    thermo_is_time: bool
+    outputs: tuple[str, ...]
+    wall_order: tuple[str, ...] = field(default=())  # fix-IDs in config order
+
+    @property
+    def natoms(self) -> int:
+        return self.x.shape[0]
+
+
+def lattice_spacing(cfg: Config) -> float | None:
+    if cfg.lattice is None:
+        return None
+    return lattice_constant(cfg.lattice.style, cfg.lattice.scale, cfg.units)
+
+
+def _fail(path: str, msg: str) -> CaseError:
+    return CaseError(f"{path}: {msg}")
+
+
+# ----------------------------------------------------------------------------- atoms
+
+
+def _region_contains(cfg: Config, name: str, pts: np.ndarray) -> np.ndarray:
+    """Points inside-or-on a region (side in), or strictly outside (side out)."""
+    r = cfg.regions[name]
+    s = 1.0 if r.units == "box" else lattice_spacing(cfg)
+    if r.style == "block":
+        inside = np.all((pts >= np.asarray(r.lo) * s) & (pts <= np.asarray(r.hi) * s), axis=1)
+    elif r.style == "sphere":
+        inside = np.linalg.norm(pts - np.asarray(r.center) * s, axis=1) <= r.radius * s
+    else:
+        ax = "xyz".index(r.axis)
+        others = [d for d in range(3) if d != ax]
+        rho = np.linalg.norm(pts[:, others] - np.asarray(r.center) * s, axis=1)
+        inside = (rho <= r.radius * s) & (pts[:, ax] >= r.lo * s) & (pts[:, ax] <= r.hi * s)
+    return inside if r.side == "in" else ~inside
+
+
+def _random_positions(cfg: Config, spec: Any, rng: np.random.Generator, path: str,
+                      existing: np.ndarray) -> np.ndarray:
+    """`count` uniform random points in the box (or a region), at least `overlap` apart from each
+    other and from atoms created before (minimum image in periodic dims)."""
+    from scipy.spatial import cKDTree
+
+    lo = np.asarray(cfg.box.lo, float)
+    hi = np.asarray(cfg.box.hi, float)
+    length = hi - lo
+    periodic = np.array([b == "p" for b in cfg.box.boundary])
+    ov = spec.overlap or 0.0
+    # cKDTree wraps every dimension; a box twice as long plus the overlap makes fixed dims not wrap
+    boxsize = np.where(periodic, length, 2 * length + 2 * ov + 1.0)
+    accepted = [existing] if len(existing) else []
+    n_have = 0
+    for _ in range(200):
+        need = spec.count - n_have
+        if need <= 0:
+            break
+        cand = lo + rng.random((max(2 * need, 64), 3)) * length
+        if spec.region is not None:
+            cand = cand[_region_contains(cfg, spec.region, cand)]
+        if ov > 0 and len(cand):
+            shifted = lambda p: np.mod(p - lo, boxsize)  # noqa: E731
+            if accepted:
+                old = np.concatenate(accepted)
+                d, _ = cKDTree(shifted(old), boxsize=boxsize).query(shifted(cand), k=1)
+                cand = cand[d >= ov]
+            pairs = cKDTree(shifted(cand), boxsize=boxsize).query_pairs(ov, output_type="ndarray")
+            if len(pairs):
+                keep = np.ones(len(cand), bool)
+                keep[pairs.max(axis=1)] = False  # drop the later point of each close pair
+                cand = cand[keep]
+        cand = cand[:need]
+        accepted.append(cand)
+        n_have += len(cand)
+    if n_have < spec.count:
+        raise _fail(path, f"placed only {n_have} of {spec.count} atoms (overlap {ov}"
+                    f"{', region ' + spec.region if spec.region else ''}): lower count or overlap")
+    new = np.concatenate(accepted)[len(existing):]
+    return new
+
+
+def _lattice_positions(cfg: Config, region: str | None) -> np.ndarray:
+    a = lattice_spacing(cfg)
+    lo = np.asarray(cfg.box.lo, float)
+    hi = np.asarray(cfg.box.hi, float)
+    basis = np.asarray(LATTICE_POSITIONS[cfg.lattice.style])
+    ranges = [np.arange(np.floor(lo[d] / a) - 1, np.ceil(hi[d] / a) + 1) for d in range(3)]
+    cells = np.stack(np.meshgrid(*ranges, indexing="ij"), axis=-1).reshape(-1, 3)
+    pts = ((cells[:, None, :] + basis[None, :, :]) * a).reshape(-1, 3)
+    pts = pts[np.all((pts >= lo) & (pts < hi), axis=1)]
+    if region is not None:
+        pts = pts[_region_contains(cfg, region, pts)]
+    return pts
+
+
+def _per_atom(value: Any, n: int, width: int, path: str) -> np.ndarray:
+    arr = np.asarray(value, float)
+    if arr.ndim == 1:
+        return np.broadcast_to(arr, (n, width)).copy()
+    if arr.shape != (n, width):
+        raise _fail(path, f"expected one {width}-vector or {n} of them, got shape {arr.shape}")
+    return arr
+
+
+def _thermal_velocities(n: int, mass: np.ndarray, temperature: float, u: UnitSystem,
+                        rng: np.random.Generator) -> np.ndarray:
+    """Gaussian velocities with zero net momentum, scaled to exactly `temperature` over 3n - 3
+    degrees of freedom (LAMMPS `velocity create T seed dist gaussian mom yes`)."""
+    if n < 2 or temperature == 0.0:
+        return np.zeros((n, 3))
+    v = rng.standard_normal((n, 3)) * np.sqrt(u.boltz * temperature / u.mvv2e / mass)[:, None]
+    v -= (mass[:, None] * v).sum(axis=0) / mass.sum()
+    t_now = (u.mvv2e * mass[:, None] * v * v).sum() / ((3 * n - 3) * u.boltz)
+    return v * np.sqrt(temperature / t_now)
+
+
+def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    u = UNIT_SYSTEMS[cfg.units]
+    xs, vs, ms, rs, gid = [], [], [], [], []
+    existing = np.zeros((0, 3))
+    for i, g in enumerate(cfg.atoms):
+        path = f"atoms.{i}"
+        c = g.create
+        data: dict[str, np.ndarray] = {}
+        if c.positions is not None:
+            x = np.asarray(c.positions, float)
+        elif c.random is not None:
+            x = _random_positions(cfg, c.random, rng, f"{path}.create.random", existing)
+        elif c.lattice is not None:
+            x = _lattice_positions(cfg, c.lattice.region)
+            if len(x) == 0:
+                raise _fail(f"{path}.create.lattice", "no lattice point falls inside the box/region")
+        else:
+            file = Path(c.file)
+            file = file if file.is_absolute() else cfg._base_dir / file
+            try:
+                with np.load(file) as npz:
+                    data = {k: np.asarray(npz[k], float) for k in npz.files}
+            except (OSError, ValueError) as exc:
+                raise _fail(f"{path}.create.file", f"cannot read {file}: {exc}") from None
+            if "x" not in data or data["x"].ndim != 2 or data["x"].shape[1] != 3:
+                raise _fail(f"{path}.create.file", f"{file} needs an array x of shape (N, 3)")
+            x = data["x"]
+        n = len(x)
+        for key, given in (("mass", g.mass), ("radius", g.radius)):
+            if key in data and given is not None:
+                raise _fail(f"{path}.{key}", f"{key} is given both here and in {c.file}: keep one")
+        if "v" in data and g.velocity is not None:
+            raise _fail(f"{path}.velocity", f"velocities are given both here and in {c.file}: keep one")
+        mass = data["mass"] if "mass" in data else np.full(n, g.mass if g.mass is not None else np.nan)
+        if mass.shape != (n,) or not np.all(mass > 0):
+            raise _fail(f"{path}.mass", "masses must be positive, one per atom")
+        radius = data["radius"] if "radius" in data else np.full(n, g.radius or 0.0)
+        if "v" in data:
+            v = _per_atom(data["v"], n, 3, f"{path}.create.file")
+        elif g.velocity is None:
+            v = np.zeros((n, 3))
+        elif g.velocity.values is not None:
+            v = _per_atom(g.velocity.values, n, 3, f"{path}.velocity.values")
+        else:
+            v = _thermal_velocities(n, mass, g.velocity.temperature, u, rng)
+        xs.append(x)
+        vs.append(v)
+        ms.append(mass)
+        rs.append(radius)
+        gid.append(np.full(n, i))
+        existing = np.concatenate([existing, x])
+    x = np.concatenate(xs)
+    lo, hi = np.asarray(cfg.box.lo), np.asarray(cfg.box.hi)
+    outside = np.nonzero(np.any((x < lo) | (x > hi), axis=1))[0]
+    if len(outside):
+        i = outside[0]
+        raise CaseError(f"atoms: atom {i} at {x[i].tolist()} is outside the box {lo.tolist()} - {hi.tolist()}")
+    return {"x": x, "v": np.concatenate(vs), "mass": np.concatenate(ms),
+            "radius": np.concatenate(rs), "group": np.concatenate(gid)}
+
+
+# ----------------------------------------------------------------------------- walls
+
+
+def _value(v: Any) -> Value:
+    return v[2:] if isinstance(v, str) and v.startswith("v_") else v
+
+
+def _faces(cfg: Config, fid: str, wall: Any, params: tuple[str, ...]) -> tuple[Face, ...]:
+    spacing = 1.0 if wall.units == "box" else lattice_spacing(cfg)
+    faces = []
+    for name, spec in wall.faces():
+        dim = "xyz".index(name[0])
+        side = -1 if name.endswith("lo") else 1
+        coord = spec.coord
+        if coord == "EDGE":
+            coord, scale = float(cfg.box.lo[dim] if side < 0 else cfg.box.hi[dim]), 1.0
+        elif isinstance(coord, float):
+            coord, scale = coord * spacing, 1.0
+        else:
+            coord, scale = _value(coord), spacing
+        p = {k: _value(getattr(spec, k)) for k in params if getattr(spec, k, None) is not None}
+        faces.append(Face(f"{fid}/{name}", name, dim, side, coord, scale, p))
+    return tuple(faces)
+
+
+def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
+    """Resolve a validated config into a Case. Randomness comes from a generator seeded with the
+    master seed and `seed_key` (a case's sweep coordinates), never from the batch position."""
+    u = UNIT_SYSTEMS[cfg.units]
+    rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, *seed_key]))
+    atoms = _build_atoms(cfg, rng)
+    n = len(atoms["x"])
+    group_names = tuple(g.group for g in cfg.atoms)
+
+    def mask(group: str) -> np.ndarray:
+        if group == "all":
+            return np.ones(n, bool)
+        return atoms["group"] == group_names.index(group)
+
+    soft, reflect = [], []
+    for fid, wall in cfg.walls.items():
+        if wall.style == "reflect":
+            reflect.append(ReflectSpec(fid, mask(wall.group), wall.frame, _faces(cfg, fid, wall, ())))
+        elif wall.style in STYLES:
+            style = STYLES[wall.style]
+            if style.needs_radius and np.any(atoms["radius"][mask(wall.group)] <= 0):
+                raise CaseError(f"walls.{fid}: wall/colloid requires extended particles (radius > 0)")
+            soft.append(SoftWallSpec(fid, style, mask(wall.group), wall.energy,
+                                     _faces(cfg, fid, wall, style.params)))
+        else:
+            raise CaseError(f"walls.{fid}: style {wall.style} is not supported yet")
+    dtr = None
+    if cfg.dt_reset is not None:
+        d = cfg.dt_reset
+        xscale = 1.0 if d.units == "box" else lattice_spacing(cfg)
+        dtr = DtResetSpec(d.every, mask(d.group), d.tmin, d.tmax, d.xmax * xscale, d.emax)
+    thermo = cfg.run.thermo
+    is_time = isinstance(thermo, TimeInterval)
+    return Case(
+        name=cfg.name, units=u,
+        box_lo=np.asarray(cfg.box.lo, float), box_hi=np.asarray(cfg.box.hi, float),
+        periodic=np.array([b == "p" for b in cfg.box.boundary]),
+        x=atoms["x"], v=atoms["v"], mass=atoms["mass"], radius=atoms["radius"],
+        atom_group=atoms["group"], group_names=group_names,
+        dt=cfg.timestep if cfg.timestep is not None else u.dt,
+        variables=Variables(cfg.variables),
+        variable_text=tuple((k, str(v)) for k, v in cfg.variables.items()),
+        soft_walls=tuple(soft), reflect_walls=tuple(reflect), dt_reset=dtr,
+        steps=cfg.run.steps, run_time=cfg.run.time,
+        thermo=thermo.time if is_time else thermo, thermo_is_time=is_time,
+        outputs=tuple(cfg.output.thermo), wall_order=tuple(cfg.walls),
+    )
+
+
+__all__ = ["Case", "CaseError", "Face", "SoftWallSpec", "ReflectSpec", "DtResetSpec", "build_case",
+           "ConfigError", "FACES"]

@@ -1,0 +1,202 @@
+"""Wall kernels on a batch: flat soft walls (post_force) and reflecting walls (post_integrate).
+
+A kernel holds one fix for every case of a batch: per-face values are `(C,)` arrays (a number per
+case) or the name of an equal-style variable (the same expression for the whole batch). Only
+atoms within the cut-off of a face are touched: `np.nonzero` picks them, so the work per step
+scales with the atoms near walls, not with N.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+
+from .potentials import WallStyle
+from .scene import Case, Face, ReflectSpec, SoftWallSpec
+
+if TYPE_CHECKING:
+    from .engine import BatchState
+
+Stacked = np.ndarray | str  # per-case numbers (C,), or a variable name
+
+
+def stack_values(values: list[float | str], what: str) -> Stacked:
+    """Per-case values of one field: numbers stack into an array; a variable must be the same
+    variable in every case of a batch."""
+    if all(isinstance(v, float) for v in values):
+        return np.asarray(values, dtype=float)
+    if all(v == values[0] for v in values):
+        return values[0]
+    raise ValueError(f"{what}: cases mixing numbers and variables cannot share a batch")
+
+
+class FaceValues:
+    """The values of one face over a batch, resolved each step through `value()`."""
+
+    def __init__(self, faces: list[Face]):
+        f0 = faces[0]
+        self.label, self.name, self.dim, self.side, self.scale = f0.label, f0.name, f0.dim, f0.side, f0.scale
+        self.coord = stack_values([f.coord for f in faces], f"{f0.label} coord")
+        self.params = {k: stack_values([f.params[k] for f in faces], f"{f0.label} {k}") for k in f0.params}
+
+    def take(self, keep: np.ndarray) -> None:
+        if isinstance(self.coord, np.ndarray):
+            self.coord = self.coord[keep]
+        for k, v in self.params.items():
+            if isinstance(v, np.ndarray):
+                self.params[k] = v[keep]
+
+    def position(self, state: "BatchState") -> np.ndarray:
+        """Wall position (C,) in box units at the current step."""
+        if isinstance(self.coord, np.ndarray):
+            return self.coord
+        return state.variable(self.coord) * self.scale
+
+    def param(self, key: str, state: "BatchState") -> np.ndarray:
+        v = self.params[key]
+        return v if isinstance(v, np.ndarray) else state.variable(v)
+
+
+class SoftWallKernel:
+    """fix wall/lj93 | lj126 | lj1043 | colloid | harmonic | morse over a batch (physics.md §3-4)."""
+
+    def __init__(self, specs: list[SoftWallSpec]):
+        s0 = specs[0]
+        self.fix_id: str = s0.fix_id
+        self.style: WallStyle = s0.style
+        self.group: np.ndarray = s0.group
+        self.all_atoms = bool(s0.group.all())
+        self.energy_to_pe: bool = s0.energy
+        self.faces = [FaceValues([s.faces[i] for s in specs]) for i in range(len(s0.faces))]
+
+    def take(self, keep: np.ndarray) -> None:
+        for face in self.faces:
+            face.take(keep)
+
+    def apply(self, state: "BatchState", outputs: bool) -> tuple[np.ndarray, np.ndarray] | None:
+        """Add wall forces to state.f. With `outputs`, return the fix's global scalar (C,) (shifted
+        energy) and vector (C, faces) (sum of side*F = force of the atoms on each wall, §3.2)."""
+        C = state.ncases
+        energy = np.zeros(C) if outputs else None
+        vector = np.zeros((C, len(self.faces))) if outputs else None
+        for k, face in enumerate(self.faces):
+            coord = face.position(state)
+            p = {key: face.param(key, state) for key in self.style.params}
+            for key in ("epsilon", "sigma", "D0", "r0"):
+                if key in p and np.any(bad := p[key] < 0):
+                    state.fail(np.nonzero(bad)[0],
+                               lambda c: f"walls.{self.fix_id} {face.name}: variable {key} evaluated to "
+                               f"{p[key][c]:g} < 0: Variable evaluation in fix wall gave bad value")
+            pos = state.x[:, :, face.dim]
+            delta = pos - coord[:, None] if face.side < 0 else coord[:, None] - pos
+            near = delta < p["cutoff"][:, None]
+            if not self.all_atoms:
+                near &= self.group
+            ci, ai = np.nonzero(near)
+            if ci.size == 0:
+                continue
+            r = delta[ci, ai]
+            pa = {key: val[ci] for key, val in p.items()}
+            if self.style.needs_radius:
+                pa["radius"] = state.radius[ci, ai]
+            bad = r <= self.style.too_close(pa)
+            if bad.any():
+                self._fail_inside(state, ci[bad], ai[bad], r[bad], face.name)
+                ok = ~bad
+                ci, ai, r = ci[ok], ai[ok], r[ok]
+                pa = {key: val[ok] for key, val in pa.items()}
+            e, f = self.style.energy_force(r, pa)
+            state.f[ci, ai, face.dim] -= face.side * f
+            if outputs:
+                e_rc = self.style.energy_force(pa["cutoff"], pa)[0]
+                energy += np.bincount(ci, weights=e - e_rc, minlength=C)
+                vector[:, k] = np.bincount(ci, weights=face.side * f, minlength=C)
+        return (energy, vector) if outputs else None
+
+    def _fail_inside(self, state: "BatchState", ci: np.ndarray, ai: np.ndarray, r: np.ndarray,
+                     face: str) -> None:
+        what = "its surface touches or crosses the wall" if self.style.needs_radius else "it is on or behind the wall"
+        first: dict[int, tuple[int, float]] = {}
+        for c, a, d in zip(ci.tolist(), ai.tolist(), r.tolist()):
+            first.setdefault(c, (a, d))
+        state.fail(np.array(sorted(first)), lambda c: (
+            f"walls.{self.fix_id} (wall/{self.style.name} {face}): atom {first[c][0]} at distance "
+            f"{first[c][1]:.6g} from the wall at step {int(state.step[c])}: {what} "
+            f"(LAMMPS: Particle on or inside fix wall surface)"))
+
+
+class ReflectKernel:
+    """fix wall/reflect (physics.md §7): after the drift, an atom past a wall is mirrored about it
+    and its normal velocity flipped (frame lab, LAMMPS) or reflected in the wall's frame
+    (frame wall: v -> 2 v_wall - v, v_wall = the wall's displacement over the step / dt)."""
+
+    def __init__(self, specs: list[ReflectSpec], stats: bool):
+        s0 = specs[0]
+        self.fix_id = s0.fix_id
+        self.group = s0.group
+        self.all_atoms = bool(s0.group.all())
+        self.frame = s0.frame
+        self.faces = [FaceValues([s.faces[i] for s in specs]) for i in range(len(s0.faces))]
+        self.stats = stats
+        self.previous: list[np.ndarray | None] = [None] * len(self.faces)
+        self.count: np.ndarray | None = None
+        self.impulse: np.ndarray | None = None
+
+    def take(self, keep: np.ndarray) -> None:
+        for face in self.faces:
+            face.take(keep)
+        self.previous = [p[keep] if p is not None else None for p in self.previous]
+        if self.count is not None:
+            self.count, self.impulse = self.count[keep], self.impulse[keep]
+
+    def setup(self, state: "BatchState") -> None:
+        self.previous = [face.position(state).copy() for face in self.faces]
+        if self.stats:
+            self.count = np.zeros((state.ncases, len(self.faces)))
+            self.impulse = np.zeros((state.ncases, len(self.faces)))
+
+    def apply(self, state: "BatchState", dt: np.ndarray) -> None:
+        for k, face in enumerate(self.faces):
+            coord = face.position(state)
+            pos = state.x[:, :, face.dim]
+            out = pos < coord[:, None] if face.side < 0 else pos > coord[:, None]
+            if not self.all_atoms:
+                out &= self.group
+            ci, ai = np.nonzero(out)
+            if ci.size:
+                c = coord[ci]
+                state.x[ci, ai, face.dim] = 2.0 * c - state.x[ci, ai, face.dim]
+                v_before = state.v[ci, ai, face.dim]
+                if self.frame == "wall":
+                    with np.errstate(divide="ignore", invalid="ignore"):
+                        v_wall = np.where(dt > 0, (coord - self.previous[k]) / dt, 0.0)
+                    v_after = 2.0 * v_wall[ci] - v_before
+                else:
+                    v_after = -v_before
+                state.v[ci, ai, face.dim] = v_after
+                if self.stats:
+                    C = state.ncases
+                    self.count[:, k] += np.bincount(ci, minlength=C)
+                    # momentum given to the wall along +dim, in force*time units
+                    dp = state.mass[ci, ai] * (v_before - v_after) / state.units.ftm2v
+                    self.impulse[:, k] += np.bincount(ci, weights=dp, minlength=C)
+            self.previous[k] = coord if isinstance(face.coord, np.ndarray) else coord.copy()
+
+    def take_stats(self) -> tuple[np.ndarray, np.ndarray]:
+        """Reflections and impulse since the previous sample; resets the counters."""
+        out = (self.count.copy(), self.impulse.copy())
+        self.count[:] = 0.0
+        self.impulse[:] = 0.0
+        return out
+
+
+def build_kernels(cases: list[Case], outputs: tuple[str, ...]) -> tuple[list[SoftWallKernel], list[ReflectKernel]]:
+    soft = [SoftWallKernel([c.soft_walls[i] for c in cases]) for i in range(len(cases[0].soft_walls))]
+    stats = "reflect_count" in outputs or "reflect_impulse" in outputs
+    reflect = [ReflectKernel([c.reflect_walls[i] for c in cases], stats)
+               for i in range(len(cases[0].reflect_walls))]
+    return soft, reflect
+
+
+FailMessage = Callable[[int], str]
