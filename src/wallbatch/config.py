@@ -637,9 +637,21 @@ def load_config(path: str | Path) -> Config:
         text = path.read_text()
     except OSError as exc:
         raise ConfigError([f"{path}: cannot read the config: {exc.strerror}"]) from None
-    data, srcmap = load_yaml(text, str(path))
+    return load_config_text(text, str(path), base=path.parent)
+
+
+def load_config_text(text: str, filename: str = "<config>", base: Path = Path(".")) -> Config:
+    """Parse and validate YAML text; relative `file:` paths start from `base`."""
+    data, srcmap = load_yaml(text, filename)
     cfg = validate_data(data, srcmap)
-    cfg._base_dir = path.parent
+    cfg._base_dir = base
+    return cfg
+
+
+def config_from_dict(data: dict, base: Path = Path(".")) -> Config:
+    """Validate an already-loaded mapping (no line numbers: errors name the field path)."""
+    cfg = validate_data(data, SourceMap("<dict>", {}, data))
+    cfg._base_dir = base
     return cfg
 
 

@@ -258,7 +258,7 @@ class Engine:
         if self.dt_reset is not None:
             due = s.step % self.dt_reset.every == 0
             if active is not None:
-                due &= active
+                due &= active.astype(bool)
             if due.any():
                 s.set_dt(np.where(due, self.reset_dt(), s.dt))
         return out
@@ -434,6 +434,11 @@ def run_cases(cases: list[Case]) -> list[CaseResult]:
         batches.setdefault(structure_key(c), []).append(i)
     results: list[CaseResult | None] = [None] * len(cases)
     for idx in batches.values():
-        for i, res in zip(idx, run_batch([cases[i] for i in idx])):
+        try:
+            batch = run_batch([cases[i] for i in idx])
+        except Exception as exc:  # a bug must not take down the other batches: fail these cases
+            msg = f"internal error ({type(exc).__name__}: {exc}); please report it with the config"
+            batch = [CaseResult("failed", msg, 0.0, {}) for _ in idx]
+        for i, res in zip(idx, batch):
             results[i] = res
     return results  # type: ignore[return-value]

@@ -82,7 +82,7 @@ class SoftWallKernel:
         vector = np.zeros((C, len(self.faces))) if outputs else None
         for k, face in enumerate(self.faces):
             coord = face.position(state)
-            p = {key: face.param(key, state) for key in self.style.params}
+            p = {key: face.param(key, state) for key in face.params}
             for key in ("epsilon", "sigma", "D0", "r0"):
                 if key in p and np.any(bad := p[key] < 0):
                     state.fail(np.nonzero(bad)[0],
