@@ -21,16 +21,27 @@ def _load(config: Path):
         raise typer.Exit(2) from None
 
 
-@app.command()
-def run(config: Path = typer.Argument(..., help="scene YAML file"),
-        output: Path = typer.Option(None, "-o", "--output", help="results file (default: CONFIG with .nc)")) -> None:
-    """Run the scene of CONFIG and write its results as NetCDF."""
-    from .runner import run_config
+def _plan(config: Path, sets: list[str] | None):
+    from .sweep import load_plan
 
-    cfg = _load(config)
+    try:
+        return load_plan(config, sets or [])
+    except ConfigError as exc:
+        typer.echo(f"error: invalid config\n{exc}", err=True)
+        raise typer.Exit(2) from None
+
+
+@app.command()
+def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
+        output: Path = typer.Option(None, "-o", "--output", help="results file (default: CONFIG with .nc)"),
+        set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)")) -> None:
+    """Run the scene (and its sweep) of CONFIG and write the results as NetCDF."""
+    from .runner import run_plan
+
+    plan = _plan(config, set_)
     out = output or config.with_suffix(".nc")
     try:
-        ds = run_config(cfg, config.read_text(), out)
+        ds = run_plan(plan, out)
     except CaseError as exc:
         typer.echo(f"error: {config}: {exc}", err=True)
         raise typer.Exit(2) from None

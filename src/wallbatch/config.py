@@ -33,6 +33,9 @@ THERMO_KEYWORDS = (
     "step", "time", "dt", "temp", "ke", "pe", "etot", "press", "atoms", "erot",
     "reflect_count", "reflect_impulse", "flow_crossings",
 )
+WALL_TAGS = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse", "ees", "reflect", "flow", "region",
+             "region/ees")
+POSITIONAL = {4: ("coord", "epsilon", "sigma", "cutoff"), 5: ("coord", "D0", "alpha", "r0", "cutoff")}
 VAR_RE = re.compile(r"^v_[A-Za-z_][A-Za-z0-9_]*$")
 NAME_RE = r"^[A-Za-z_][A-Za-z0-9_\-]*$"
 
@@ -58,31 +61,34 @@ class SourceMap:
 
     def locate(self, loc: tuple) -> tuple[tuple, tuple[int, int] | None]:
         """Resolve a Pydantic error location against the data: drop union tags and other loc
-        parts that index nothing, and return (clean path, nearest known mark)."""
-        path: list = []
+        parts that index nothing, and return (path to show, nearest known mark)."""
+        path: list = []  # indexes the data (and the marks)
+        shown: list = []  # what the user reads: field names, also for positional faces
         node = self.data
         for part in loc:
             if isinstance(node, dict) and part in node:
                 node = node[part]
                 path.append(part)
+                shown.append(part)
             elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
                 node = node[part]
                 path.append(part)
-            elif isinstance(node, dict) and isinstance(part, str) and part not in FACES + (
-                "lj93", "lj126", "lj1043", "colloid", "harmonic", "morse", "ees", "reflect",
-                "flow", "region", "region/ees",
-            ) and not any(c in part for c in "[]()"):
-                path.append(part)  # a missing key: name it, point at its parent
-                node = None
-            elif isinstance(node, dict) and part in FACES:
-                path.append(part)
+                shown.append(part)
+            elif isinstance(node, list) and part in POSITIONAL.get(len(node), ()):
+                i = POSITIONAL[len(node)].index(part)  # a field of a face written positionally
+                node = node[i]
+                path.append(i)
+                shown.append(part)
+            elif isinstance(node, dict) and isinstance(part, str) and (part in FACES or (
+                    part not in WALL_TAGS and not any(c in part for c in "[]()"))):
+                shown.append(part)  # a missing key: name it, point at its parent
                 node = None
         mark = None
         for n in range(len(path), -1, -1):
             mark = self.marks.get(tuple(path[:n]))
             if mark:
                 break
-        return tuple(path), mark
+        return tuple(shown), mark
 
     def format(self, loc: tuple, message: str) -> str:
         path, mark = self.locate(loc)
@@ -206,12 +212,14 @@ class Box(Model):
     hi: Vec3
     boundary: tuple[Literal["p", "f"], Literal["p", "f"], Literal["p", "f"]] = ("p", "p", "p")
 
-    @model_validator(mode="after")
-    def _extent(self) -> "Box":
+    @field_validator("hi")
+    @classmethod
+    def _extent(cls, hi: Vec3, info: Any) -> Vec3:
+        lo = info.data.get("lo")
         for d in range(3):
-            if not self.hi[d] > self.lo[d]:
-                raise ValueError(f"box.hi[{d}] = {self.hi[d]} must be greater than box.lo[{d}] = {self.lo[d]}")
-        return self
+            if lo is not None and not hi[d] > lo[d]:
+                raise ValueError(f"box.hi[{d}] = {hi[d]} must be greater than box.lo[{d}] = {lo[d]}")
+        return hi
 
 
 class Lattice(Model):
@@ -405,7 +413,7 @@ class SoftWall(_FaceWall):
     @model_validator(mode="before")
     @classmethod
     def _positional(cls, data: Any) -> Any:
-        return _faces_from_positional(data, ("coord", "epsilon", "sigma", "cutoff"))
+        return _faces_from_positional(data, POSITIONAL[4])
 
     @model_validator(mode="after")
     def _sigma(self) -> "SoftWall":
@@ -431,7 +439,7 @@ class MorseWall(_FaceWall):
     @model_validator(mode="before")
     @classmethod
     def _positional(cls, data: Any) -> Any:
-        return _faces_from_positional(data, ("coord", "D0", "alpha", "r0", "cutoff"))
+        return _faces_from_positional(data, POSITIONAL[5])
 
 
 class ReflectWall(_FaceWall):
@@ -576,23 +584,6 @@ class Config(Model):
     sweep: dict[str, Any] | None = None
     _base_dir: Path = PrivateAttr(default=Path("."))  # folder that relative `file:` paths start from
 
-    @field_validator("walls", mode="before")
-    @classmethod
-    def _fix_lines(cls, walls: Any) -> Any:
-        """Walls given as LAMMPS fix lines become the mapping form."""
-        if not isinstance(walls, dict):
-            return walls
-        out = {}
-        for fid, w in walls.items():
-            if isinstance(w, (str, dict)) and (isinstance(w, str) or "fix" in w):
-                from .fixline import parse_fix_line
-            if isinstance(w, str):
-                w = parse_fix_line(w, str(fid))
-            elif isinstance(w, dict) and "fix" in w:
-                extra = {k: v for k, v in w.items() if k != "fix"}
-                w = {**parse_fix_line(str(w["fix"]), str(fid)), **extra}
-            out[fid] = w
-        return out
 
 
 # ----------------------------------------------------------------------------- loading and checks
@@ -604,13 +595,35 @@ NOT_YET = {
     "region": "wall/region lands with the issue 'Ellipsoids and region walls'",
     "region/ees": "wall/region/ees lands with the issue 'Ellipsoids and region walls'",
     "ellipsoid": "ellipsoid atoms (shape, orientation, angmom) land with the issue 'Ellipsoids and region walls'",
-    "sweep": "sweeps land with the issue 'Sweeps at scale'",
     "dump": "per-atom trajectories (output.dump) land with the issue 'Sweeps at scale'",
 }
 
 
+def _expand_fix_lines(data: Any, srcmap: SourceMap) -> Any:
+    """Walls given as LAMMPS fix lines (or `{fix: ..., energy: true}`) become the mapping form;
+    a line that cannot be read is reported at its own wall."""
+    if not isinstance(data, dict) or not isinstance(data.get("walls"), dict):
+        return data
+    from .fixline import FixLineError, parse_fix_line
+
+    walls, problems = {}, []
+    for fid, w in data["walls"].items():
+        try:
+            if isinstance(w, str):
+                w = parse_fix_line(w, str(fid))
+            elif isinstance(w, dict) and "fix" in w:
+                w = {**parse_fix_line(str(w["fix"]), str(fid)), **{k: v for k, v in w.items() if k != "fix"}}
+        except FixLineError as exc:
+            problems.append(srcmap.format(("walls", fid), str(exc)))
+        walls[fid] = w
+    if problems:
+        raise ConfigError(problems)
+    return {**data, "walls": walls}
+
+
 def validate_data(data: Any, srcmap: SourceMap) -> Config:
     """Validate loaded YAML data into a Config, then run the cross-field checks."""
+    data = _expand_fix_lines(data, srcmap)
     try:
         cfg = Config.model_validate(data)
     except ValidationError as exc:
@@ -618,12 +631,12 @@ def validate_data(data: Any, srcmap: SourceMap) -> Config:
         for err in exc.errors(include_url=False):
             msg = err["msg"]
             msg = msg.removeprefix("Value error, ")
-            if err["type"] == "extra_forbidden":
+            if err["type"] == "extra_forbidden" and err["loc"][-1] == "fld":
+                msg = "fld (lubrication models, fix wall ... fld yes) is not supported: remove it"
+            elif err["type"] == "extra_forbidden":
                 msg = "unknown key (misspelled? see shared/spec/config.md for the valid keys)"
             problems.append(srcmap.format(tuple(err["loc"]), msg))
         raise ConfigError(problems) from None
-    except ValueError as exc:  # e.g. a fix line that could not be parsed
-        raise ConfigError([srcmap.format(("walls",), str(exc))]) from None
     problems = [srcmap.format(path, msg) for path, msg in check_scene(cfg)]
     if problems:
         raise ConfigError(problems)
@@ -694,7 +707,7 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
     try:
         variables = Variables(cfg.variables)
     except VariableError as exc:
-        add(("variables",), str(exc))
+        add(("variables",) + ((exc.variable,) if exc.variable in cfg.variables else ()), str(exc))
 
     def check_var(path: tuple, value: Any) -> None:
         for ref in _var_refs(value):
@@ -703,8 +716,6 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
 
     if cfg.pair is not None:
         add(("pair",), f"not supported yet: {NOT_YET['pair']}")
-    if cfg.sweep is not None:
-        add(("sweep",), f"not supported yet: {NOT_YET['sweep']}")
     if cfg.output.dump is not None:
         add(("output", "dump"), f"not supported yet: {NOT_YET['dump']}")
     radius_groups = {g.group for g in cfg.atoms if g.radius and g.radius > 0}
@@ -739,6 +750,9 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
             add(("dt_reset",), _LATTICE_MSG)
     if isinstance(cfg.run.thermo, TimeInterval) and cfg.run.time is None:
         add(("run", "thermo"), "time-based sampling (thermo: {time: ...}) needs a time-based run (run: {time: ...})")
+    if cfg.run.time is not None and isinstance(cfg.run.thermo, int) and cfg.run.thermo > 0:
+        add(("run", "thermo"), "a run to a simulated time samples at times: write thermo: {time: INTERVAL} "
+            "(or 0 for the first and last instant only)")
     styles = {w.style for w in cfg.walls.values()}
     for key, needs, what in (("reflect_count", "reflect", "a reflect wall"),
                              ("reflect_impulse", "reflect", "a reflect wall"),

@@ -384,8 +384,11 @@ class Engine:
         return self._collect(seconds)
 
     def _collect(self, seconds: float) -> list[CaseResult]:
+        """Per-case samples on the full schedule (NaN where a case had failed)."""
         C = len(self.cases)
-        nsamp = len(self.samples)
+        c0 = self.cases[0]
+        nsamp = len(sample_steps(c0.steps, int(c0.thermo)) if c0.run_time is None else
+                    sample_times(c0.run_time, c0.thermo if c0.thermo_is_time else 0.0))
         results = []
         names = self.samples[0].keys() if self.samples else []
         stacked = {}

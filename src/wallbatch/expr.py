@@ -39,7 +39,12 @@ __all__ = [
 
 
 class VariableError(ValueError):
-    """An invalid variable expression, reference, cycle or evaluation (e.g. divide by zero)."""
+    """An invalid variable expression, reference, cycle or evaluation (e.g. divide by zero).
+    `variable` names the variable it belongs to, where known."""
+
+    def __init__(self, message: str, variable: str | None = None) -> None:
+        super().__init__(message)
+        self.variable = variable
 
 
 class _NamedError(VariableError):
@@ -462,7 +467,7 @@ class Variables:
         for name, text in exprs.items():
             if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_]+", name):
                 raise VariableError(
-                    f"invalid variable name {name!r}: use letters, digits and underscores"
+                    f"invalid variable name {name!r}: use letters, digits and underscores", name
                 )
             if isinstance(text, (int, float)) and not isinstance(text, bool):
                 self._ast[name] = Num(float(text))
@@ -470,14 +475,14 @@ class Variables:
             try:
                 self._ast[name] = parse(text)
             except VariableError as exc:
-                raise VariableError(f"variable {name!r}: {exc}") from None
+                raise VariableError(f"variable {name!r}: {exc}", name) from None
         self._refs: dict[str, tuple[str, ...]] = {}
         for name, node in self._ast.items():
             refs = tuple(dict.fromkeys(n.name for n in _walk(node) if isinstance(n, VarRef)))
             for ref in refs:
                 if ref not in self._ast:
                     raise VariableError(
-                        f"variable {name!r} references unknown variable 'v_{ref}'"
+                        f"variable {name!r} references unknown variable 'v_{ref}'", name
                     )
             self._refs[name] = refs
         self._check_cycles()
@@ -491,7 +496,7 @@ class Variables:
         def visit(name: str, path: list[str]) -> None:
             if name in path:
                 cycle = path[path.index(name):] + [name]
-                raise VariableError(f"cycle between variables: {' -> '.join(cycle)}")
+                raise VariableError(f"cycle between variables: {' -> '.join(cycle)}", name)
             if name in done:
                 return
             path.append(name)

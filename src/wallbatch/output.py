@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import os
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
@@ -18,15 +17,7 @@ import xarray as xr
 from . import __version__
 from .engine import CaseResult, sample_steps, sample_times
 from .scene import Case
-
-
-@dataclass(frozen=True)
-class SweepDim:
-    """One output dimension of a sweep: its name, coordinate values and the path(s) it sets."""
-
-    name: str
-    values: Sequence
-    path: str
+from .sweep import SweepDim
 
 
 LONG_NAMES = {
@@ -53,10 +44,10 @@ def _units(case: Case) -> dict[str, str]:
             "reflect_count": "1", "reflect_impulse": impulse, "step": "1"}
 
 
-def build_dataset(results: list[CaseResult], cases: list[Case], *, config_text: str = "",
+def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
                   sweep_text: str = "", dims: Sequence[SweepDim] = ()) -> xr.Dataset:
-    """Stack per-case results (in C order over `dims`) into the outputs.md layout."""
-    c0 = cases[0]
+    """Stack per-case results (in C order over `dims`) into the outputs.md layout; `c0` is any
+    case of the plan (they share sample instants, fixes and faces)."""
     shape = tuple(len(d.values) for d in dims)
     sweep_dims = tuple(d.name for d in dims)
     if int(np.prod(shape, dtype=int)) != len(results):
@@ -84,6 +75,8 @@ def build_dataset(results: list[CaseResult], cases: list[Case], *, config_text: 
         coords["face_name"] = ("face", np.asarray([f.name for f in all_faces], dtype=object))
     for d in dims:
         coords[d.name] = xr.Variable((d.name,), np.asarray(d.values), attrs={"path": d.path})
+        for k, (vals, paths) in d.extra.items():  # a zip's parameters along its dimension
+            coords[k] = xr.Variable((d.name,), np.asarray(vals), attrs={"path": ", ".join(paths)})
 
     def gather(name: str, tail: tuple[int, ...]) -> np.ndarray:
         out = np.full((len(results), nsamp) + tail, np.nan)
@@ -120,12 +113,19 @@ def build_dataset(results: list[CaseResult], cases: list[Case], *, config_text: 
         if name in LONG_NAMES:
             ds[name].attrs["long_name"] = LONG_NAMES[name]
     ds["seconds"].attrs.update(units="s", long_name="wall-clock seconds the case took (its share of its batch)")
-    ds["status"].attrs["long_name"] = "ok or failed"
-    ds["error"].attrs["long_name"] = "error message of a failed case, empty when ok"
-    if "face" in ds.coords:
-        ds["face"].attrs["long_name"] = "wall face, as fixID/face"
-    if "fix" in ds.coords:
-        ds["fix"].attrs["long_name"] = "wall fix ID"
+    text_attrs = {
+        "status": "ok or failed", "error": "error message of a failed case, empty when ok",
+        "face": "wall face, as fixID/face", "face_fix": "fix ID of the face", "face_name": "face name (xlo ... zhi)",
+        "fix": "wall fix ID",
+    }
+    for name, long_name in text_attrs.items():
+        if name in ds.variables:
+            ds[name].attrs.update(units="1", long_name=long_name)
+    for d in dims:
+        ds[d.name].attrs.setdefault("long_name", f"swept {d.path}" if d.name != "replica" else "replica (random stream)")
+        ds[d.name].attrs.setdefault("units", "1")
+        for k in d.extra:
+            ds[k].attrs.update(long_name=f"swept {ds[k].attrs['path']}", units="1")
     ds.attrs.update({
         "Conventions": "CF-1.10",
         "title": f"wallbatch results: {c0.name}",
