@@ -1,24 +1,17 @@
-"""The `wallbatch` command line: `run` a config to NetCDF, `check` a config without running."""
+"""The `wallbatch` command line: run, check, show, plot, schema."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import typer
 
-from .config import ConfigError, load_config
+from .config import ConfigError
 from .scene import CaseError
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_show_locals=False,
                   help="Batches of wall-bounded particle simulations (LAMMPS wall fixes) to labelled NetCDF.")
-
-
-def _load(config: Path):
-    try:
-        return load_config(config)
-    except ConfigError as exc:
-        typer.echo(f"error: invalid config\n{exc}", err=True)
-        raise typer.Exit(2) from None
 
 
 def _plan(config: Path, sets: list[str] | None):
@@ -34,48 +27,75 @@ def _plan(config: Path, sets: list[str] | None):
 @app.command()
 def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
         output: Path = typer.Option(None, "-o", "--output", help="results file (default: CONFIG with .nc)"),
-        set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)")) -> None:
+        set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)"),
+        jobs: int = typer.Option(os.cpu_count() or 1, "--jobs", "-j", help="local worker processes"),
+        executor: str = typer.Option("local", help="local | dask"),
+        scheduler: str = typer.Option(None, help="dask scheduler address (with --executor dask)"),
+        resume: bool = typer.Option(False, help="reuse the cases finished by an interrupted run (OUT.parts/)"),
+        ) -> None:
     """Run the scene (and its sweep) of CONFIG and write the results as NetCDF."""
     from .runner import run_plan
 
+    if executor not in ("local", "dask"):
+        typer.echo(f"error: --executor must be local or dask, not {executor!r}", err=True)
+        raise typer.Exit(2)
+    if executor == "dask" and not scheduler:
+        typer.echo("error: --executor dask needs --scheduler ADDRESS (e.g. tcp://127.0.0.1:8786)", err=True)
+        raise typer.Exit(2)
     plan = _plan(config, set_)
     out = output or config.with_suffix(".nc")
     try:
-        ds = run_plan(plan, out)
+        ds = run_plan(plan, out, jobs=jobs, executor=executor, scheduler=scheduler, resume=resume)
     except CaseError as exc:
         typer.echo(f"error: {config}: {exc}", err=True)
         raise typer.Exit(2) from None
     failed = int((ds["status"] == "failed").sum())
     total = int(ds["status"].size)
     typer.echo(f"{total - failed} of {total} case(s) ok -> {out}")
-    for err in set(ds["error"].values.ravel().tolist()) - {""}:
+    errors = sorted(set(ds["error"].values.ravel().tolist()) - {""})
+    for err in errors[:10]:
         typer.echo(f"failed: {err}", err=True)
     if failed:
         raise typer.Exit(1)
 
 
 @app.command()
-def check(config: Path = typer.Argument(..., help="scene YAML file")) -> None:
-    """Validate CONFIG and print what a run would do, without running it."""
-    from .engine import sample_steps
-    from .scene import build_case
+def check(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
+          set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)"),
+          jobs: int = typer.Option(os.cpu_count() or 1, "--jobs", "-j", help="as for run: how tasks are split"),
+          ) -> None:
+    """Validate CONFIG (every case of its sweep) and print the plan, without running anything."""
+    from .engine import sample_steps, sample_times
+    from .runner import build_cases, make_tasks
 
-    cfg = _load(config)
-    try:
-        case = build_case(cfg)
-    except CaseError as exc:
-        typer.echo(f"error: {config}: {exc}", err=True)
-        raise typer.Exit(2) from None
-    kernels = ["nve"] + [f"wall/reflect {w.fix_id}" for w in case.reflect_walls] + \
-        [f"wall/{w.style.name} {w.fix_id}" for w in case.soft_walls] + (["dt/reset"] if case.dt_reset else [])
-    typer.echo(f"{config}: valid")
-    typer.echo(f"  atoms: {case.natoms}   units: {case.units.name}   dt: {case.dt}")
-    typer.echo(f"  kernels: {', '.join(kernels)}")
-    if case.steps is not None:
-        typer.echo(f"  steps: {case.steps}   samples: {len(sample_steps(case.steps, int(case.thermo)))}"
-                   f"   atom-steps: {case.steps * case.natoms}")
-    else:
-        typer.echo(f"  run time: {case.run_time}")
+    plan = _plan(config, set_)
+    cases, errors = build_cases(plan)
+    typer.echo(f"{config}: valid, {len(plan.cases)} case(s)")
+    for d in plan.dims:
+        vals = ", ".join(str(v) for v in d.values[:8]) + (" ..." if len(d.values) > 8 else "")
+        typer.echo(f"  dimension {d.name} ({len(d.values)}): {vals}   <- {d.path}")
+    for i, msg in errors.items():
+        typer.echo(f"  case {plan.cases[i].label} cannot be built: {msg}", err=True)
+    built = {i: c for i, c in enumerate(cases) if c is not None}
+    tasks = make_tasks(built, jobs)
+    total = 0
+    for n, t in enumerate(tasks, 1):
+        c = built[t[0]]
+        kernels = (["nve"] + [f"wall/reflect {w.fix_id}" for w in c.reflect_walls]
+                   + [f"wall/{w.style.name} {w.fix_id}" for w in c.soft_walls] + (["dt/reset"] if c.dt_reset else []))
+        steps = c.steps
+        length = f"steps: {steps}" if steps is not None else f"time: {c.run_time}"
+        nsamp = (len(sample_steps(c.steps, int(c.thermo))) if c.run_time is None
+                 else len(sample_times(c.run_time, c.thermo if c.thermo_is_time else 0.0)))
+        typer.echo(f"  batch {n}: {len(t)} case(s); atoms: {c.natoms}; units: {c.units.name}; dt: {c.dt}; "
+                   f"{length}; samples: {nsamp}")
+        typer.echo(f"    kernels: {', '.join(kernels)}")
+        if steps is not None:
+            total += steps * c.natoms * len(t)
+    if total:
+        typer.echo(f"  total atom-steps: {total:,}")
+    if errors:
+        raise typer.Exit(1)
 
 
 if __name__ == "__main__":  # pragma: no cover
