@@ -794,7 +794,6 @@ NOT_YET_CASES = {
         "style: region/ees",
         "walls.around.style",
     ),
-    "dump": ("output:\n  dump: {every: 10, fields: [x]}\n", "", "every: 10", "output.dump"),
 }
 
 
@@ -943,3 +942,10 @@ def test_time_run_with_step_thermo_is_an_error():
     text = scene("").replace("run:\n  steps: 10\n", "run: {time: 1.0, thermo: 10}\n")
     err = config_error(text)
     assert "run.thermo" in str(err) and "thermo: {time: INTERVAL}" in str(err)
+
+
+def test_dump_needs_a_step_based_run():
+    text = scene("", "output:\n  dump: {every: 10, fields: [x]}\n").replace(
+        "run:\n  steps: 10\n", "run: {time: 1.0}\n")
+    err = config_error(text)
+    assert "output.dump" in str(err) and "step-based run" in str(err)

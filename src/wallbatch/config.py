@@ -595,7 +595,6 @@ NOT_YET = {
     "region": "wall/region lands with the issue 'Ellipsoids and region walls'",
     "region/ees": "wall/region/ees lands with the issue 'Ellipsoids and region walls'",
     "ellipsoid": "ellipsoid atoms (shape, orientation, angmom) land with the issue 'Ellipsoids and region walls'",
-    "dump": "per-atom trajectories (output.dump) land with the issue 'Sweeps at scale'",
 }
 
 
@@ -716,8 +715,8 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
 
     if cfg.pair is not None:
         add(("pair",), f"not supported yet: {NOT_YET['pair']}")
-    if cfg.output.dump is not None:
-        add(("output", "dump"), f"not supported yet: {NOT_YET['dump']}")
+    if cfg.output.dump is not None and cfg.run.time is not None:
+        add(("output", "dump"), "per-atom dumps count steps: they need a step-based run (run: {steps: N})")
     radius_groups = {g.group for g in cfg.atoms if g.radius and g.radius > 0}
     for fid, wall in cfg.walls.items():
         if wall.group not in groups:

@@ -40,6 +40,7 @@ class CaseResult:
     error: str
     seconds: float
     data: dict[str, np.ndarray] = field(default_factory=dict)
+    frames: dict[str, np.ndarray] = field(default_factory=dict)  # output.dump: time (F,), x/v (F, N, 3)
 
 
 def structure_key(case: Case) -> tuple:
@@ -55,7 +56,8 @@ def structure_key(case: Case) -> tuple:
         tuple((w.fix_id, w.style.name, w.group.tobytes(), w.energy, faces(w)) for w in case.soft_walls),
         tuple((w.fix_id, w.frame, w.group.tobytes(), faces(w)) for w in case.reflect_walls),
         None if case.dt_reset is None else (case.dt_reset.every, case.dt_reset.group.tobytes()),
-        case.steps, case.run_time, case.thermo, case.thermo_is_time, case.outputs,
+        case.steps, case.run_time, case.thermo, case.thermo_is_time, case.outputs, case.dump_every,
+        case.dump_fields,
     )
 
 
@@ -168,6 +170,8 @@ class Engine:
             self.dtr_tmin = np.array([np.nan if c.dt_reset.tmin is None else c.dt_reset.tmin for c in cases])
             self.dtr_tmax = np.array([np.nan if c.dt_reset.tmax is None else c.dt_reset.tmax for c in cases])
         self.errors: dict[int, str] = {}
+        self.dump_fields = c0.dump_fields
+        self.frames: list[tuple] = []  # (rows, time, x, v) per dump instant
         self.samples: list[dict[str, np.ndarray]] = []  # per sample: name -> (C_total, ...) arrays
         self.sample_rows: list[np.ndarray] = []
 
@@ -337,13 +341,19 @@ class Engine:
             self.sample(out)
             self.drop_failed()
 
-    def advance(self, nsteps: int) -> None:
+    def advance(self, nsteps: int, sample: bool = True) -> None:
         """Advance every live case by nsteps steps, then sample (outputs computed on the last step)."""
         for i in range(nsteps):
             if self.state.ncases == 0:
                 return
-            last = i == nsteps - 1
+            last = sample and i == nsteps - 1
             self.finish_step(self.step(self.state.dt, outputs=last), sample=last)
+
+    def dump_frame(self) -> None:
+        """Record positions/velocities of every live case (output.dump)."""
+        s = self.state
+        self.frames.append((s.rows.copy(), s.time.copy(), s.x.copy() if "x" in self.dump_fields else None,
+                            s.v.copy() if "v" in self.dump_fields else None))
 
     def advance_to_time(self, target: float) -> None:
         """Step until every live case's time reaches `target`, clipping the last dt to land on it."""
@@ -373,10 +383,16 @@ class Engine:
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             self.setup()
             if c0.run_time is None:
+                samples = set(sample_steps(c0.steps, c0.thermo))
+                dumps = set(range(0, c0.steps + 1, c0.dump_every)) if c0.dump_every else set()
+                if 0 in dumps:
+                    self.dump_frame()
                 done = 0
-                for target in sample_steps(c0.steps, c0.thermo)[1:]:
-                    self.advance(target - done)
+                for target in sorted(samples | dumps)[1:]:
+                    self.advance(target - done, sample=target in samples)
                     done = target
+                    if target in dumps and self.state.ncases:
+                        self.dump_frame()
             else:
                 for target in sample_times(c0.run_time, c0.thermo if c0.thermo_is_time else 0.0)[1:]:
                     self.advance_to_time(target)
@@ -398,12 +414,23 @@ class Engine:
             for k, (rec, rows) in enumerate(zip(self.samples, self.sample_rows)):
                 arr[rows, k] = rec[name]
             stacked[name] = arr
+        picks: list[list[tuple]] = [[] for _ in range(C)]  # per case: (time, x, v) of its frames
+        for rows, t, x, v in self.frames:
+            for j, c in enumerate(rows.tolist()):
+                picks[c].append((t[j], None if x is None else x[j], None if v is None else v[j]))
+        frames: list[dict[str, np.ndarray]] = []
+        for p in picks:
+            fr = {"time": np.array([f[0] for f in p])} if p else {}
+            for k, name in ((1, "x"), (2, "v")):
+                if p and name in self.dump_fields:
+                    fr[name] = np.stack([f[k] for f in p])
+            frames.append(fr)
         for c in range(C):
             if c in self.errors:
                 data = {k: np.full_like(v[c], np.nan) for k, v in stacked.items()}
-                results.append(CaseResult("failed", self.errors[c], seconds, data))
+                results.append(CaseResult("failed", self.errors[c], seconds, data, frames[c]))
             else:
-                results.append(CaseResult("ok", "", seconds, {k: v[c] for k, v in stacked.items()}))
+                results.append(CaseResult("ok", "", seconds, {k: v[c] for k, v in stacked.items()}, frames[c]))
         return results
 
 

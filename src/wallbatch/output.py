@@ -45,7 +45,8 @@ def _units(case: Case) -> dict[str, str]:
 
 
 def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
-                  sweep_text: str = "", dims: Sequence[SweepDim] = ()) -> xr.Dataset:
+                  sweep_text: str = "", dims: Sequence[SweepDim] = (),
+                  dump_paths: Sequence[str] | None = None) -> xr.Dataset:
     """Stack per-case results (in C order over `dims`) into the outputs.md layout; `c0` is any
     case of the plan (they share sample instants, fixes and faces)."""
     shape = tuple(len(d.values) for d in dims)
@@ -106,6 +107,8 @@ def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
     data_vars["status"] = (sweep_dims, np.asarray([r.status for r in results], dtype=object).reshape(shape))
     data_vars["error"] = (sweep_dims, np.asarray([r.error for r in results], dtype=object).reshape(shape))
     data_vars["seconds"] = (sweep_dims, np.asarray([r.seconds for r in results], float).reshape(shape))
+    if dump_paths is not None:
+        data_vars["dump_path"] = (sweep_dims, np.asarray(dump_paths, dtype=object).reshape(shape))
     ds = xr.Dataset(data_vars, coords=coords)
     for name in ds.variables:
         if name in units:
@@ -117,6 +120,7 @@ def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
         "status": "ok or failed", "error": "error message of a failed case, empty when ok",
         "face": "wall face, as fixID/face", "face_fix": "fix ID of the face", "face_name": "face name (xlo ... zhi)",
         "fix": "wall fix ID",
+        "dump_path": "per-atom trajectory of the case (AMBER NetCDF), relative to this file",
     }
     for name, long_name in text_attrs.items():
         if name in ds.variables:
@@ -143,7 +147,7 @@ def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
-    encoding = {name: {"dtype": str} for name in ("status", "error") if name in ds}
+    encoding = {name: {"dtype": str} for name in ("status", "error", "dump_path") if name in ds}
     ds.to_netcdf(tmp, format="NETCDF4", engine="netcdf4", encoding=encoding)
     os.replace(tmp, path)
     return path

@@ -108,6 +108,21 @@ def parts_dir(output: Path) -> Path:
     return output.with_name(output.name + ".parts")
 
 
+def dump_path(output: Path, sc: SweepCase) -> Path:
+    """Trajectory file of a case: OUT.dump/<coordinates>.nc (OUT.dump/case.nc without a sweep)."""
+    name = "_".join(f"{k}={v}" for k, v in sc.coords.items()) or "case"
+    safe = "".join(ch if ch.isalnum() or ch in "=._-" else "-" for ch in name)
+    return output.with_name(output.stem + ".dump") / f"{safe}.nc"
+
+
+def write_dump(path: Path, case: Case, res: CaseResult) -> None:
+    from .dump import write_amber
+
+    if res.frames.get("time") is not None and len(res.frames["time"]):
+        write_amber(path, res.frames["time"], res.frames.get("x"), res.frames.get("v"), case.box_lo, case.box_hi,
+                    case.units.name, title=f"wallbatch {case.name}")
+
+
 def save_part(folder: Path, key: str, res: CaseResult) -> None:
     """One finished case as a small .npz, written atomically."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -181,8 +196,10 @@ def run_plan(plan: SweepPlan, output: str | Path | None = None, *, jobs: int = 1
         results[i] = CaseResult("failed", msg, 0.0, {})
     parts = parts_dir(Path(output)) if output is not None else None
     keys = [case_key(sc) for sc in plan.cases]
-    if parts is not None and not resume and parts.exists():
-        shutil.rmtree(parts)
+    if parts is not None and not resume:
+        for old in (parts, Path(output).with_name(Path(output).stem + ".dump")):
+            if old.exists():
+                shutil.rmtree(old)
     if parts is not None and resume:
         for i in range(len(cases)):
             if results[i] is None and (res := load_part(parts, keys[i])) is not None:
@@ -191,15 +208,24 @@ def run_plan(plan: SweepPlan, output: str | Path | None = None, *, jobs: int = 1
     bar = Progress(len(cases), progress)
     bar.update([r for r in results if r is not None])
     tasks = make_tasks(todo, jobs)
+    dumps = good[0].dump_every > 0 and output is not None
     for k, batch in execute([[todo[i] for i in t] for t in tasks], jobs, executor, scheduler):
         for i, res in zip(tasks[k], batch):
+            if dumps:
+                write_dump(dump_path(Path(output), plan.cases[i]), cases[i], res)
+                res.frames = {}
             results[i] = res
             if parts is not None:
                 save_part(parts, keys[i], res)
             if on_result is not None:
                 on_result(i, res)
         bar.update(batch)
-    ds = build_dataset(results, good[0], config_text=plan.base_text, sweep_text=plan.sweep_text, dims=plan.dims)
+    paths = None
+    if dumps:
+        paths = [str(dump_path(Path(output), sc).relative_to(Path(output).parent)) if (
+            dump_path(Path(output), sc).exists()) else "" for sc in plan.cases]
+    ds = build_dataset(results, good[0], config_text=plan.base_text, sweep_text=plan.sweep_text, dims=plan.dims,
+                       dump_paths=paths)
     if output is not None:
         write_netcdf(ds, output)
         if parts is not None and parts.exists():

@@ -97,6 +97,8 @@ class Case:
     thermo_is_time: bool
     outputs: tuple[str, ...]
     wall_order: tuple[str, ...] = field(default=())  # fix-IDs in config order
+    dump_every: int = 0  # output.dump: a frame every that many steps (0: no dump)
+    dump_fields: tuple[str, ...] = ()
 
     @property
     def natoms(self) -> int:
@@ -342,6 +344,8 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
         steps=cfg.run.steps, run_time=cfg.run.time,
         thermo=thermo.time if is_time else thermo, thermo_is_time=is_time,
         outputs=tuple(cfg.output.thermo), wall_order=tuple(cfg.walls),
+        dump_every=cfg.output.dump.every if cfg.output.dump else 0,
+        dump_fields=tuple(cfg.output.dump.fields) if cfg.output.dump else (),
     )
 
 
