@@ -98,5 +98,59 @@ def check(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
         raise typer.Exit(1)
 
 
+def _open(results: Path):
+    import xarray as xr
+
+    try:
+        return xr.open_dataset(results)
+    except (OSError, ValueError) as exc:
+        typer.echo(f"error: cannot open {results}: {exc}", err=True)
+        raise typer.Exit(2) from None
+
+
+@app.command()
+def show(results: Path = typer.Argument(..., help="results NetCDF written by wallbatch run")) -> None:
+    """Print a readable summary of a results file: dimensions, status counts, value ranges, slowest cases."""
+    from .report import summary
+
+    typer.echo(summary(_open(results)))
+
+
+@app.command()
+def plot(results: Path = typer.Argument(..., help="results NetCDF written by wallbatch run"),
+         var: str = typer.Argument(..., help="variable to plot, e.g. wall_force"),
+         output: Path = typer.Option(..., "-o", "--output", help="PNG file to write"),
+         x: str = typer.Option(None, "--x", help="x axis: sample (time series, default) or a sweep dimension"),
+         hue: str = typer.Option(None, "--hue", help="sweep dimension that colours the lines"),
+         sel: list[str] = typer.Option(None, "--sel", help="dim=value selection (repeatable)"),
+         kind: str = typer.Option("auto", help="line | heatmap | auto")) -> None:
+    """A quick matplotlib look at one variable: time series per case, or a summary over sweep dims."""
+    from .report import plot as make_plot
+
+    selection = {}
+    for item in sel or []:
+        key, eq, value = item.partition("=")
+        if not eq:
+            typer.echo(f"error: --sel {item}: write dim=value", err=True)
+            raise typer.Exit(2)
+        selection[key.strip()] = value.strip()
+    try:
+        path = make_plot(_open(results), var, output, x=x, hue=hue, sel=selection, kind=kind)
+    except ValueError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from None
+    typer.echo(f"wrote {path}")
+
+
+@app.command()
+def schema() -> None:
+    """Print the config's JSON schema (for editor completion of YAML files)."""
+    import json
+
+    from .report import config_json_schema
+
+    typer.echo(json.dumps(config_json_schema(), indent=2))
+
+
 if __name__ == "__main__":  # pragma: no cover
     app()

@@ -50,9 +50,11 @@ def structure_key(case: Case) -> tuple:
                       f.coord if isinstance(f.coord, str) else "#",
                       tuple(v if isinstance(v, str) else "#" for v in f.params.values())) for f in spec.faces)
 
+    variables = tuple((k, "#" if case.variables.constant_value(k) is not None else text)
+                      for k, text in case.variable_text)  # numeric constants may differ per case
     return (
         case.units.name, case.natoms, case.atom_group.tobytes(), tuple(case.periodic),
-        tuple(case.box_lo), tuple(case.box_hi), case.variable_text,
+        tuple(case.box_lo), tuple(case.box_hi), variables,
         tuple((w.fix_id, w.style.name, w.group.tobytes(), w.energy, faces(w)) for w in case.soft_walls),
         tuple((w.fix_id, w.frame, w.group.tobytes(), faces(w)) for w in case.reflect_walls),
         None if case.dt_reset is None else (case.dt_reset.every, case.dt_reset.group.tobytes()),
@@ -81,6 +83,10 @@ class BatchState:
         self.atimestep = np.zeros(len(cases), np.int64)
         self.step = np.zeros(len(cases), np.int64)
         self.variables: Variables = c0.variables
+        # constant variables whose value differs between the cases: per-case arrays
+        consts = {k: np.array([c.variables.constant_value(k) for c in cases]) for k, _ in c0.variable_text
+                  if c0.variables.constant_value(k) is not None}
+        self.var_values = {k: v for k, v in consts.items() if np.any(v != v[0])}
         self.var_static: dict[str, np.ndarray] = {}
         self.var_step: dict[str, np.ndarray] = {}
         # vdisplace/swiggle/cwiggle: LAMMPS's (n - b) dt, or elapsed simulated time when dt varies
@@ -116,7 +122,7 @@ class BatchState:
         elapsed = self.time if self.elapsed_is_time else steps_done * self.dt
         return EvalContext(step=self.step, begin_step=0, end_step=self.end_step, dt=self.dt, time=self.time,
                            elapsed_time=elapsed, ramp_fraction=ramp, box_lo=tuple(self.box_lo),
-                           box_hi=tuple(self.box_hi), atoms=self.x.shape[1])
+                           box_hi=tuple(self.box_hi), atoms=self.x.shape[1], values=self.var_values)
 
     def variable(self, name: str) -> np.ndarray:
         """Value (C,) of an equal-style variable at the current step; constants are evaluated once."""
@@ -134,7 +140,8 @@ class BatchState:
         out = np.full(self.ncases, np.nan)
         ctx = self.context()
         for c in range(self.ncases):
-            one = EvalContext(**{k: (v[c:c + 1] if isinstance(v, np.ndarray) else v) for k, v in vars(ctx).items()})
+            one = EvalContext(**{k: (v[c:c + 1] if isinstance(v, np.ndarray) else v) for k, v in vars(ctx).items()
+                                 if k != "values"}, values={k: v[c:c + 1] for k, v in ctx.values.items()})
             try:
                 out[c] = self.variables.evaluate(name, one)[0]
             except VariableError as exc:
@@ -151,6 +158,7 @@ class BatchState:
         for name in ("rows", "x", "v", "f", "mass", "radius", "dt", "atime", "atimestep", "step"):
             setattr(self, name, getattr(self, name)[keep])
         self.var_static = {k: v[keep] for k, v in self.var_static.items()}
+        self.var_values = {k: v[keep] for k, v in self.var_values.items()}
         self.var_step = {}
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -326,6 +326,8 @@ class EvalContext:
     box_lo: tuple[float, float, float]
     box_hi: tuple[float, float, float]
     atoms: int
+    values: Mapping[str, np.ndarray] = field(default_factory=dict)  # per-case values that replace
+    # the expressions of these variables (numeric constants swept over a batch)
 
 
 Array = np.ndarray
@@ -552,7 +554,8 @@ class Variables:
         """The value as a float64 array of the case shape (C,) (or () if ctx is all scalars)."""
         self._get(name)
         shape = _case_shape(ctx)
-        value = self._evaluate(name, ctx, {}, ())
+        memo = {k: np.asarray(v, dtype=_F) for k, v in ctx.values.items()} if ctx is not None else {}
+        value = self._evaluate(name, ctx, memo, ())
         return np.array(np.broadcast_to(value, shape), dtype=_F)
 
     def _evaluate(

@@ -125,7 +125,7 @@ class SweepPlan:
 def config_to_dict(cfg: Config) -> dict:
     """The validated model as plain data, faces in their written order: the document that sweep
     paths address and that validates back to the same model."""
-    data = cfg.model_dump(mode="python", exclude_none=True)
+    data = cfg.model_dump(mode="json", exclude_none=True)
     for fid, wall in cfg.walls.items():
         order = getattr(wall, "_order", None)
         if order:
