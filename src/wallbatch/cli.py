@@ -66,10 +66,15 @@ def check(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
           ) -> None:
     """Validate CONFIG (every case of its sweep) and print the plan, without running anything."""
     from .engine import sample_steps, sample_times
-    from .runner import build_cases, make_tasks
+    from .runner import build_cases, check_layout, make_tasks
 
     plan = _plan(config, set_)
     cases, errors = build_cases(plan)
+    try:
+        check_layout(plan, cases)
+    except CaseError as exc:
+        typer.echo(f"error: {config}: {exc}", err=True)
+        raise typer.Exit(2) from None
     typer.echo(f"{config}: valid, {len(plan.cases)} case(s)")
     for d in plan.dims:
         vals = ", ".join(str(v) for v in d.values[:8]) + (" ..." if len(d.values) > 8 else "")

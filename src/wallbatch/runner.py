@@ -54,6 +54,18 @@ def _layout(case: Case) -> tuple:
             case.units.name)
 
 
+def check_layout(plan: SweepPlan, cases: list[Case | None]) -> None:
+    """All cases must share sample instants, outputs and wall faces to share one results file."""
+    good = [c for c in cases if c is not None]
+    if not good:
+        return
+    ref = _layout(good[0])
+    for sc, c in zip(plan.cases, cases):
+        if c is not None and _layout(c) != ref:
+            raise CaseError(f"case {sc.label} changes the sample instants, outputs or walls of the results "
+                            f"(e.g. run.steps, run.thermo or a wall style): such values cannot be swept into one file")
+
+
 def make_tasks(cases: dict[int, Case], jobs: int) -> list[list[int]]:
     """Group case indices by structure, then split each group into about `jobs` tasks (at most
     MAX_BATCH cases each), so every worker gets work and each task is still one batch."""
@@ -186,11 +198,7 @@ def run_plan(plan: SweepPlan, output: str | Path | None = None, *, jobs: int = 1
     good = [c for c in cases if c is not None]
     if not good:
         raise CaseError("no case could be built: " + "; ".join(sorted(set(errors.values())))[:2000])
-    ref = _layout(good[0])
-    for sc, c in zip(plan.cases, cases):
-        if c is not None and _layout(c) != ref:
-            raise CaseError(f"case {sc.label} changes the sample instants, outputs or walls of the results "
-                            f"(e.g. run.steps or a wall style): such values cannot be swept into one file")
+    check_layout(plan, cases)
     results: list[CaseResult | None] = [None] * len(cases)
     for i, msg in errors.items():
         results[i] = CaseResult("failed", msg, 0.0, {})

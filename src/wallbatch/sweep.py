@@ -82,6 +82,13 @@ def expand_values(values: Any) -> list:
 
 # ----------------------------------------------------------------------------- the grid
 
+# names of the results file that a sweep dimension or zip parameter may not take
+RESERVED = frozenset({
+    "time", "dt", "temp", "ke", "pe", "etot", "press", "atoms", "erot", "step", "sample", "fix", "face",
+    "face_fix", "face_name", "wall_energy", "wall_force", "reflect_count", "reflect_impulse", "flow_crossings",
+    "region_force", "rfix", "spatial", "status", "error", "seconds", "dump_path",
+})
+
 
 @dataclass(frozen=True)
 class SweepDim:
@@ -191,10 +198,15 @@ def _dims(sweep: Sweep, order: list[str]) -> list[SweepDim]:
             dims.append(SweepDim(sweep.zip.dim, list(range(n)), paths, extra))
     if sweep.replicas:
         dims.append(SweepDim("replica", list(range(sweep.replicas)), ("seed",)))
-    names = [d.name for d in dims]
+    names = [d.name for d in dims] + [k for d in dims for k in d.extra]
     dup = {n for n in names if names.count(n) > 1}
     if dup:
-        raise ConfigError([f"sweep: dimension name(s) {', '.join(sorted(dup))} used twice: rename"])
+        raise ConfigError([f"sweep: name(s) {', '.join(sorted(dup))} used twice (dimensions and zip "
+                           f"parameters share one namespace): rename"])
+    clash = sorted(set(names) & RESERVED)
+    if clash:
+        raise ConfigError([f"sweep: {', '.join(clash)} would clash with names of the results file "
+                           f"({', '.join(sorted(RESERVED))}): choose another name"])
     return dims
 
 
@@ -210,6 +222,8 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
         for key, value in overrides.items():
             set_path(base_data, key, value)
         base = validate_data(base_data, srcmap)
+        base_text = (f"# {srcmap.filename} with {', '.join(f'{k}={v}' for k, v in overrides.items())}\n"
+                     + yaml.safe_dump(config_to_dict(base), sort_keys=False))
     base._base_dir = base_dir
     if raw_sweep is None:
         return SweepPlan([], [SweepCase((), {}, base, ())], base_text, "")

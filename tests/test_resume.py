@@ -1,0 +1,334 @@
+"""Resuming an interrupted sweep (`wallbatch run ... --resume`, runner.run_plan(resume=True)):
+finished cases persisted under OUT.parts/ are reused, never recomputed; the final file equals an
+uninterrupted run's; a changed config invalidates exactly the changed cases."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+from typer.testing import CliRunner
+
+from wallbatch.cli import app
+from wallbatch.runner import build_cases, case_key, load_part, make_tasks, parts_dir, run_plan, save_part
+from wallbatch.sweep import load_plan
+
+cli = CliRunner()
+
+SCENE = """\
+name: resumetest
+units: lj
+seed: 3
+box: {lo: [0, 0, 0], hi: [6, 6, 10], boundary: [p, p, f]}
+regions:
+  slab: {style: block, lo: [0, 0, 1], hi: [6, 6, 8], units: box}
+atoms:
+  - group: gas
+    create: {random: {count: 40, overlap: 0.8, region: slab}}
+    mass: 1.0
+    velocity: {temperature: 1.0}
+walls:
+  zwalls:
+    style: lj93
+    units: box
+    energy: true
+    zlo: {coord: EDGE, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}
+    zhi: {coord: 9.9, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}
+run: {steps: 100, thermo: 20}
+"""
+
+
+def write_sweep(tmp_path: Path, body: str, name: str = "sweep.yaml") -> Path:
+    (tmp_path / "scene.yaml").write_text(SCENE)
+    path = tmp_path / name
+    path.write_text("base: scene.yaml\n" + textwrap.dedent(body))
+    return path
+
+
+def finished_parts(parts: Path) -> set[str]:
+    """Keys of the complete parts (a `.KEY.tmp.npz` being written does not count)."""
+    if not parts.exists():
+        return set()
+    return {p.stem for p in parts.glob("*.npz") if not p.name.startswith(".")}
+
+
+def same(a, b) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    if a.dtype.kind == "f" and b.dtype.kind == "f":
+        return a.shape == b.shape and np.array_equal(a, b, equal_nan=True)
+    return a.shape == b.shape and np.array_equal(a, b)
+
+
+def assert_same_results(ds: xr.Dataset, ref: xr.Dataset) -> None:
+    """Equal in every data variable but `seconds`, every coordinate, every attribute but `created`."""
+    assert set(ds.data_vars) == set(ref.data_vars)
+    for name in ds.data_vars:
+        assert ds[name].dims == ref[name].dims, name
+        assert ds[name].attrs == ref[name].attrs, name
+        if name != "seconds":
+            assert same(ds[name].values, ref[name].values), name
+    assert set(ds.coords) == set(ref.coords)
+    for name in ds.coords:
+        assert same(ds[name].values, ref[name].values), name
+        assert ds[name].attrs == ref[name].attrs, name
+    strip = lambda attrs: {k: v for k, v in attrs.items() if k != "created"}  # noqa: E731
+    assert strip(ds.attrs) == strip(ref.attrs)
+
+
+def open_nc(path: Path) -> xr.Dataset:
+    with xr.open_dataset(path) as ds:
+        return ds.load()
+
+
+# ============================================================================================
+# kill -9 in the middle of a run, then --resume
+
+
+KILL_SWEEP = """\
+set: {{run.steps: {steps}, run.thermo: {thermo}}}
+sweep:
+  product:
+    n: {{path: atoms.0.create.random.count, values: {{range: [40, 48, 1]}}}}
+  replicas: 2
+"""
+
+
+def _start_and_kill(tmp_path: Path, sweep: Path, out: Path, deadline_s: float = 60.0):
+    """Run the CLI in a subprocess, SIGKILL it once OUT.parts/ holds a finished part.
+    Returns the part keys found after the kill, or None if the run finished first."""
+    parts = parts_dir(out)
+    cmd = [sys.executable, "-m", "wallbatch.cli", "run", str(sweep), "-o", str(out), "-j", "1"]
+    log = (tmp_path / "run.log").open("w")
+    proc = subprocess.Popen(cmd, cwd=tmp_path, stdout=log, stderr=subprocess.STDOUT)
+    try:
+        t_end = time.monotonic() + deadline_s
+        while time.monotonic() < t_end:
+            if proc.poll() is not None:
+                return None  # finished (or died) before a part was seen: caller makes it bigger
+            if finished_parts(parts):
+                os.kill(proc.pid, signal.SIGKILL)
+                proc.wait(timeout=30)
+                if proc.returncode != -signal.SIGKILL:
+                    return None  # it finished between the look and the kill
+                return finished_parts(parts)
+            time.sleep(0.005)
+        pytest.fail(f"no part appeared in {parts} within {deadline_s} s: {(tmp_path / 'run.log').read_text()}")
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=30)
+        log.close()
+
+
+def test_kill_then_resume_recomputes_only_the_missing_cases(tmp_path):
+    out = tmp_path / "out.nc"
+    parts = parts_dir(out)
+    steps = 3000
+    for _attempt in range(4):
+        sweep = write_sweep(tmp_path, KILL_SWEEP.format(steps=steps, thermo=steps // 10))
+        found = _start_and_kill(tmp_path, sweep, out)
+        if found is not None and not out.exists():
+            break
+        for leftover in (out, parts):  # too fast to catch: make the scene bigger and retry
+            if leftover.is_dir():
+                shutil.rmtree(leftover)
+            elif leftover.exists():
+                leftover.unlink()
+        steps *= 3
+    else:
+        pytest.fail("the run always finished before it could be killed")
+
+    plan = load_plan(sweep)
+    total = len(plan.cases)
+    assert total == 16
+    # precondition: with -j 1 the cases run as several batches, so parts appear before the end
+    built, _ = build_cases(plan)
+    assert len(make_tasks(dict(enumerate(built)), jobs=1)) == 8
+    keys = [case_key(c) for c in plan.cases]
+    assert found <= set(keys)  # the parts are cases of this plan
+    assert 0 < len(found) < total
+    print(f"killed after {len(found)} of {total} cases (run.steps = {steps})")
+    assert not out.exists()  # killed: no results file yet
+    saved_seconds = {k: load_part(parts, k).seconds for k in found}
+
+    computed: list[int] = []
+    ds = run_plan(plan, out, jobs=1, resume=True, progress=False, on_result=lambda i, r: computed.append(i))
+    assert len(computed) == total - len(found)
+    assert sorted(computed) == [i for i, k in enumerate(keys) if k not in found]
+    assert not parts.exists()  # removed after success
+    assert (ds["status"] == "ok").all()
+
+    resumed = open_nc(out)
+    run_plan(plan, tmp_path / "ref.nc", jobs=1, progress=False)  # uninterrupted
+    ref = open_nc(tmp_path / "ref.nc")
+    assert_same_results(resumed, ref)
+    # the reused cases keep the seconds measured by the killed run
+    secs = resumed["seconds"].values.ravel()
+    for i, k in enumerate(keys):
+        if k in found:
+            assert secs[i] == saved_seconds[k]
+
+
+# ============================================================================================
+# a changed config invalidates exactly the changed cases
+
+
+BASE_SWEEP = """\
+set: {{walls.zwalls.zhi.sigma: {sigma}}}
+sweep:
+  product:
+    epsilon: {{path: [walls.zwalls.zlo.epsilon, walls.zwalls.zhi.epsilon], values: {eps}}}
+  replicas: {reps}
+"""
+
+
+def make_sweep(tmp_path: Path, eps="[0.5, 1.0, 2.0]", reps=2, sigma=1.0, name="sweep.yaml") -> Path:
+    return write_sweep(tmp_path, BASE_SWEEP.format(eps=eps, reps=reps, sigma=sigma), name)
+
+
+@pytest.fixture
+def first_run(tmp_path):
+    """A completed run of 3 epsilons x 2 replicas with a copy of its parts (taken from
+    `on_result`, before run_plan removes them): (out, saved parts folder, dataset)."""
+    out = tmp_path / "out.nc"
+    parts = parts_dir(out)
+    saved = tmp_path / "saved.parts"
+
+    def keep(i, res):
+        shutil.copytree(parts, saved, dirs_exist_ok=True)
+
+    ds = run_plan(load_plan(make_sweep(tmp_path)), out, jobs=1, progress=False, on_result=keep)
+    assert not parts.exists()
+    assert len(finished_parts(saved)) == 6
+    return out, saved, ds
+
+
+def restore(saved: Path, out: Path) -> None:
+    parts = parts_dir(out)
+    if parts.exists():
+        shutil.rmtree(parts)
+    shutil.copytree(saved, parts)
+
+
+def resume_counting(plan, out: Path) -> tuple[list[int], xr.Dataset]:
+    computed: list[int] = []
+    ds = run_plan(plan, out, jobs=1, resume=True, progress=False, on_result=lambda i, r: computed.append(i))
+    assert not parts_dir(out).exists()
+    return sorted(computed), ds
+
+
+def test_changed_swept_value_recomputes_only_its_cases(tmp_path, first_run):
+    out, saved, ds_a = first_run
+    restore(saved, out)
+    plan_b = load_plan(make_sweep(tmp_path, eps="[0.5, 1.0, 3.0]"))
+    computed, ds = resume_counting(plan_b, out)
+    assert computed == [i for i, c in enumerate(plan_b.cases) if c.coords["epsilon"] == 3.0] == [4, 5]
+    fresh = run_plan(plan_b, progress=False)
+    assert_same_results(open_nc(out), fresh)
+    # reused cases are those of the first run, seconds included
+    assert same(ds["seconds"].sel(epsilon=[0.5, 1.0]).values, ds_a["seconds"].sel(epsilon=[0.5, 1.0]).values)
+
+
+def test_more_replicas_recompute_only_the_new_replica(tmp_path, first_run):
+    out, saved, _ = first_run
+    restore(saved, out)
+    plan = load_plan(make_sweep(tmp_path, reps=3))
+    computed, _ = resume_counting(plan, out)
+    assert computed == [i for i, c in enumerate(plan.cases) if c.coords["replica"] == 2] == [2, 5, 8]
+    assert_same_results(open_nc(out), run_plan(plan, progress=False))
+
+
+def test_changed_base_value_recomputes_every_case(tmp_path, first_run):
+    out, saved, _ = first_run
+    restore(saved, out)
+    computed, _ = resume_counting(load_plan(make_sweep(tmp_path, sigma=1.1)), out)
+    assert computed == list(range(6))
+    # the same through a --set override
+    restore(saved, out)
+    computed, _ = resume_counting(load_plan(make_sweep(tmp_path), ["walls.zwalls.zlo.sigma=1.2"]), out)
+    assert computed == list(range(6))
+
+
+def test_unchanged_validated_config_reuses_every_case(tmp_path, first_run):
+    """The case identity is the validated config: an override that restates the scene's own value,
+    or a sweep file rewritten in another form, changes nothing."""
+    out, saved, ds_a = first_run
+    restore(saved, out)
+    computed, ds = resume_counting(load_plan(make_sweep(tmp_path), ["walls.zwalls.zlo.sigma=1.0"]), out)
+    assert computed == []
+    assert same(ds["seconds"].values, ds_a["seconds"].values)
+    restore(saved, out)
+    rewritten = write_sweep(tmp_path, """\
+        set: {walls.zwalls.zhi.sigma: 1}
+        sweep:
+          product:
+            epsilon:
+              path: [walls.zwalls.zlo.epsilon, walls.zwalls.zhi.epsilon]
+              values: {linspace: [0.5, 1.0, 2]}
+          replicas: 2
+        """, "rewritten.yaml")
+    plan = load_plan(rewritten)
+    computed, _ = resume_counting(plan, out)
+    assert computed == []  # epsilon 0.5 and 1.0 were kept, 2.0 is simply not in this grid
+
+
+def test_damaged_part_is_recomputed(tmp_path, first_run):
+    out, saved, ds_a = first_run
+    restore(saved, out)
+    plan = load_plan(make_sweep(tmp_path))
+    victim = case_key(plan.cases[3])
+    (parts_dir(out) / f"{victim}.npz").write_bytes(b"not a zip file")
+    (parts_dir(out) / f".{case_key(plan.cases[0])}.tmp.npz").write_bytes(b"half written")
+    computed, ds = resume_counting(plan, out)
+    assert computed == [3]
+    assert_same_results(open_nc(out), ds_a)
+
+
+def test_without_resume_leftover_parts_are_ignored(tmp_path, first_run):
+    out, saved, ds_a = first_run
+    restore(saved, out)
+    computed: list[int] = []
+    run_plan(load_plan(make_sweep(tmp_path)), out, jobs=1, progress=False, on_result=lambda i, r: computed.append(i))
+    assert sorted(computed) == list(range(6))
+    assert not parts_dir(out).exists()
+    assert_same_results(open_nc(out), ds_a)
+
+
+def test_parts_from_save_part_are_reused(tmp_path):
+    """Parts written by runner.save_part for some cases: a resume computes the rest only."""
+    path = make_sweep(tmp_path)
+    plan = load_plan(path)
+    ref = run_plan(plan, progress=False)
+    # hand-made parts for cases 0 and 5, from a run of those cases alone
+    from wallbatch.runner import _run_task
+
+    built, _ = build_cases(plan)
+    out = tmp_path / "out.nc"
+    for i, res in zip((0, 5), _run_task([built[0], built[5]])):
+        save_part(parts_dir(out), case_key(plan.cases[i]), res)
+    computed, _ = resume_counting(plan, out)
+    assert computed == [1, 2, 3, 4]
+    assert_same_results(open_nc(out), ref)
+
+
+def test_cli_resume_reuses_parts(tmp_path, first_run):
+    out, saved, ds_a = first_run
+    restore(saved, out)
+    path = make_sweep(tmp_path, eps="[0.5, 1.0, 3.0]")
+    res = cli.invoke(app, ["run", str(path), "-o", str(out), "-j", "1", "--resume"])
+    assert res.exit_code == 0, res.output
+    assert "6 of 6 case(s) ok" in res.output
+    assert not parts_dir(out).exists()
+    ds = open_nc(out)
+    # epsilon 0.5 and 1.0 come from the parts (their seconds are the first run's), 3.0 is new
+    assert same(ds["seconds"].sel(epsilon=[0.5, 1.0]).values, ds_a["seconds"].sel(epsilon=[0.5, 1.0]).values)
+    assert_same_results(ds, run_plan(load_plan(path), progress=False))
