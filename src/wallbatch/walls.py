@@ -83,8 +83,8 @@ class SoftWallKernel:
         for k, face in enumerate(self.faces):
             coord = face.position(state)
             p = {key: face.param(key, state) for key in face.params}
-            for key in ("epsilon", "sigma", "D0", "r0"):
-                if key in p and np.any(bad := p[key] < 0):
+            for key in ("epsilon", "sigma", "D0", "r0"):  # variables only: constants are checked up front
+                if isinstance(face.params.get(key), str) and np.any(bad := p[key] < 0):
                     state.fail(np.nonzero(bad)[0],
                                lambda c: f"walls.{self.fix_id} {face.name}: variable {key} evaluated to "
                                f"{p[key][c]:g} < 0: Variable evaluation in fix wall gave bad value")
