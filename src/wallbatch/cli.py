@@ -65,7 +65,7 @@ def check(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
           jobs: int = typer.Option(os.cpu_count() or 1, "--jobs", "-j", help="as for run: how tasks are split"),
           ) -> None:
     """Validate CONFIG (every case of its sweep) and print the plan, without running anything."""
-    from .engine import sample_steps, sample_times
+    from .engine import sample_instants
     from .runner import build_cases, check_layout, make_tasks
 
     plan = _plan(config, set_)
@@ -90,8 +90,7 @@ def check(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
                    + [f"wall/{w.style.name} {w.fix_id}" for w in c.soft_walls] + (["dt/reset"] if c.dt_reset else []))
         steps = c.steps
         length = f"steps: {steps}" if steps is not None else f"time: {c.run_time}"
-        nsamp = (len(sample_steps(c.steps, int(c.thermo))) if c.run_time is None
-                 else len(sample_times(c.run_time, c.thermo if c.thermo_is_time else 0.0)))
+        nsamp = len(sample_instants(c))
         typer.echo(f"  batch {n}: {len(t)} case(s); atoms: {c.natoms}; units: {c.units.name}; dt: {c.dt}; "
                    f"{length}; samples: {nsamp}")
         typer.echo(f"    kernels: {', '.join(kernels)}")

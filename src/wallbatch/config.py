@@ -702,9 +702,8 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
         if region.units == "lattice" and cfg.lattice is None:
             add(("regions", name, "units"), _LATTICE_MSG)
 
-    variables = None
     try:
-        variables = Variables(cfg.variables)
+        Variables(cfg.variables)
     except VariableError as exc:
         add(("variables",) + ((exc.variable,) if exc.variable in cfg.variables else ()), str(exc))
 

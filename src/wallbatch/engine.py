@@ -27,7 +27,7 @@ import numpy as np
 from .expr import EvalContext, VariableError, Variables
 from .scene import Case
 from .units import UnitSystem
-from .walls import ReflectKernel, SoftWallKernel, build_kernels
+from .walls import build_kernels
 
 BIG = 1.0e20  # dt/reset's "no limit" (LAMMPS BIG)
 
@@ -89,6 +89,7 @@ class BatchState:
         self.var_values = {k: v for k, v in consts.items() if np.any(v != v[0])}
         self.var_static: dict[str, np.ndarray] = {}
         self.var_step: dict[str, np.ndarray] = {}
+        self.ctx: EvalContext | None = None  # this step's variable context
         # vdisplace/swiggle/cwiggle: LAMMPS's (n - b) dt, or elapsed simulated time when dt varies
         self.elapsed_is_time = c0.dt_reset is not None or c0.run_time is not None
         self.end_step = c0.steps or 0
@@ -114,15 +115,19 @@ class BatchState:
     # -- variables -------------------------------------------------------------------------
 
     def context(self) -> EvalContext:
+        """What variables see at the current step (built once per step, see `variable`)."""
+        if self.ctx is not None:
+            return self.ctx
         steps_done = self.step.astype(float)
         if self.run_time is not None:
             ramp = self.time / self.run_time
         else:
             ramp = steps_done / self.end_step if self.end_step > 0 else np.zeros(self.ncases)
         elapsed = self.time if self.elapsed_is_time else steps_done * self.dt
-        return EvalContext(step=self.step, begin_step=0, end_step=self.end_step, dt=self.dt, time=self.time,
+        self.ctx = EvalContext(step=self.step, begin_step=0, end_step=self.end_step, dt=self.dt, time=self.time,
                            elapsed_time=elapsed, ramp_fraction=ramp, box_lo=tuple(self.box_lo),
                            box_hi=tuple(self.box_hi), atoms=self.x.shape[1], values=self.var_values)
+        return self.ctx
 
     def variable(self, name: str) -> np.ndarray:
         """Value (C,) of an equal-style variable at the current step; constants are evaluated once."""
@@ -159,6 +164,7 @@ class BatchState:
             setattr(self, name, getattr(self, name)[keep])
         self.var_static = {k: v[keep] for k, v in self.var_static.items()}
         self.var_values = {k: v[keep] for k, v in self.var_values.items()}
+        self.ctx = None
         self.var_step = {}
 
 
@@ -185,16 +191,15 @@ class Engine:
 
     # -- the step ----------------------------------------------------------------------------
 
-    def initial_integrate(self, dt: np.ndarray) -> None:
+    def initial_integrate(self, dt: np.ndarray, dtfm: np.ndarray) -> None:
+        """fix nve, first half: v += dtfm f (dtfm = dt/2 ftm2v / m, shape (C, N, 1)); x += dt v."""
         s = self.state
-        dtfm = (0.5 * s.units.ftm2v) * dt[:, None] / s.mass
-        s.v += dtfm[:, :, None] * s.f
+        s.v += dtfm * s.f
         s.x += dt[:, None, None] * s.v
 
-    def final_integrate(self, dt: np.ndarray) -> None:
-        s = self.state
-        dtfm = (0.5 * s.units.ftm2v) * dt[:, None] / s.mass
-        s.v += dtfm[:, :, None] * s.f
+    def final_integrate(self, dtfm: np.ndarray) -> None:
+        """fix nve, second half: v += dtfm f."""
+        self.state.v += dtfm * self.state.f
 
     def wrap(self) -> None:
         """Wrap periodic dimensions every step (x -= L past hi, x += L below lo, as LAMMPS)."""
@@ -260,13 +265,15 @@ class Engine:
         s = self.state
         s.step += 1 if active is None else active
         s.var_step = {}
-        self.initial_integrate(dt)
+        s.ctx = None
+        dtfm = ((0.5 * s.units.ftm2v) * dt[:, None] / s.mass)[:, :, None]
+        self.initial_integrate(dt, dtfm)
         for w in self.reflect:
             w.apply(s, dt)
         self.wrap()
         out = self.compute_forces(outputs)
         self.check_lost()
-        self.final_integrate(dt)
+        self.final_integrate(dtfm)
         if self.dt_reset is not None:
             due = s.step % self.dt_reset.every == 0
             if active is not None:
@@ -391,7 +398,7 @@ class Engine:
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             self.setup()
             if c0.run_time is None:
-                samples = set(sample_steps(c0.steps, c0.thermo))
+                samples = set(sample_instants(c0))
                 dumps = set(range(0, c0.steps + 1, c0.dump_every)) if c0.dump_every else set()
                 if 0 in dumps:
                     self.dump_frame()
@@ -402,7 +409,7 @@ class Engine:
                     if target in dumps and self.state.ncases:
                         self.dump_frame()
             else:
-                for target in sample_times(c0.run_time, c0.thermo if c0.thermo_is_time else 0.0)[1:]:
+                for target in sample_instants(c0)[1:]:
                     self.advance_to_time(target)
         seconds = (_time.perf_counter() - t0) / len(self.cases)
         return self._collect(seconds)
@@ -411,8 +418,7 @@ class Engine:
         """Per-case samples on the full schedule (NaN where a case had failed)."""
         C = len(self.cases)
         c0 = self.cases[0]
-        nsamp = len(sample_steps(c0.steps, int(c0.thermo)) if c0.run_time is None else
-                    sample_times(c0.run_time, c0.thermo if c0.thermo_is_time else 0.0))
+        nsamp = len(sample_instants(c0))
         results = []
         names = self.samples[0].keys() if self.samples else []
         stacked = {}
@@ -458,6 +464,13 @@ def sample_times(total: float, every: float) -> list[float]:
     if total - times[-1] > 1e-9 * every:
         times.append(total)
     return times
+
+
+def sample_instants(case: Case) -> list:
+    """The case's sample steps (step-based run) or sample times (run to a simulated time)."""
+    if case.run_time is None:
+        return sample_steps(case.steps, int(case.thermo))
+    return sample_times(case.run_time, float(case.thermo) if case.thermo_is_time else 0.0)
 
 
 def run_batch(cases: list[Case]) -> list[CaseResult]:

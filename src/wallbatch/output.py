@@ -15,7 +15,7 @@ import numpy as np
 import xarray as xr
 
 from . import __version__
-from .engine import CaseResult, sample_steps, sample_times
+from .engine import CaseResult, sample_instants
 from .scene import Case
 from .sweep import SweepDim
 
@@ -55,11 +55,11 @@ def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
         raise ValueError(f"{len(results)} results do not fill a sweep grid of shape {shape}")
     units = _units(c0)
     if c0.run_time is None:
-        instants = np.asarray(sample_steps(c0.steps, int(c0.thermo)), dtype=np.int64)
+        instants = np.asarray(sample_instants(c0), dtype=np.int64)
         coords: dict = {"step": ("sample", instants)}
         per_sample = ["time", "dt", "temp", "ke", "pe", "etot", "atoms"]
     else:
-        instants = np.asarray(sample_times(c0.run_time, float(c0.thermo) if c0.thermo_is_time else 0.0))
+        instants = np.asarray(sample_instants(c0), dtype=float)
         coords = {"time": ("sample", instants)}
         per_sample = ["step", "dt", "temp", "ke", "pe", "etot", "atoms"]
     nsamp = len(instants)

@@ -8,7 +8,6 @@ matplotlib is imported only by `plot`.
 
 from __future__ import annotations
 
-from collections import Counter
 from itertools import product
 from pathlib import Path
 from typing import Any

@@ -5,13 +5,13 @@ masses, radii and initial velocities.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .config import FACES, Config, ConfigError, TimeInterval
+from .config import Config, TimeInterval
 from .expr import Variables
 from .potentials import STYLES, WallStyle
 from .units import LATTICE_POSITIONS, UNIT_SYSTEMS, UnitSystem, lattice_constant
@@ -96,7 +96,6 @@ class Case:
     thermo: int | float  # int: every n steps (0 = first and last); float: every that much time
     thermo_is_time: bool
     outputs: tuple[str, ...]
-    wall_order: tuple[str, ...] = field(default=())  # fix-IDs in config order
     dump_every: int = 0  # output.dump: a frame every that many steps (0: no dump)
     dump_fields: tuple[str, ...] = ()
 
@@ -343,11 +342,10 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
         soft_walls=tuple(soft), reflect_walls=tuple(reflect), dt_reset=dtr,
         steps=cfg.run.steps, run_time=cfg.run.time,
         thermo=thermo.time if is_time else thermo, thermo_is_time=is_time,
-        outputs=tuple(cfg.output.thermo), wall_order=tuple(cfg.walls),
+        outputs=tuple(cfg.output.thermo),
         dump_every=cfg.output.dump.every if cfg.output.dump else 0,
         dump_fields=tuple(cfg.output.dump.fields) if cfg.output.dump else (),
     )
 
 
-__all__ = ["Case", "CaseError", "Face", "SoftWallSpec", "ReflectSpec", "DtResetSpec", "build_case",
-           "ConfigError", "FACES"]
+__all__ = ["Case", "CaseError", "Face", "SoftWallSpec", "ReflectSpec", "DtResetSpec", "build_case"]

@@ -8,7 +8,7 @@ scales with the atoms near walls, not with N.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -198,5 +198,3 @@ def build_kernels(cases: list[Case], outputs: tuple[str, ...]) -> tuple[list[Sof
                for i in range(len(cases[0].reflect_walls))]
     return soft, reflect
 
-
-FailMessage = Callable[[int], str]
