@@ -949,3 +949,10 @@ def test_dump_needs_a_step_based_run():
         "run:\n  steps: 10\n", "run: {time: 1.0}\n")
     err = config_error(text)
     assert "output.dump" in str(err) and "step-based run" in str(err)
+
+
+def test_press_output_is_not_silently_dropped():
+    text = scene("", "output:\n  thermo: [step, ke, press]\n")
+    err = config_error(text)
+    assert "output.thermo" in str(err) and "press: not supported yet" in str(err)
+    assert str(err).startswith(where(line_of(text, "thermo: [step")))

@@ -757,6 +757,9 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
                              ("flow_crossings", "flow", "a flow wall")):
         if key in cfg.output.thermo and needs not in styles:
             add(("output", "thermo"), f"{key} needs {what} in the scene")
+    if "press" in cfg.output.thermo:
+        add(("output", "thermo"), "press: not supported yet: the pressure (with pair and wall virials) lands with "
+            "the issue 'LJ fluids and flow boundary conditions'; remove it from output.thermo")
     if "erot" in cfg.output.thermo:
         add(("output", "thermo"), f"erot: not supported yet: {NOT_YET['ellipsoid']}")
     return problems
