@@ -308,14 +308,14 @@ def test_run_yaml_syntax_error_exit_2(tmp_path):
     assert not out.exists()
 
 
-def test_run_not_supported_yet_exit_2_without_traceback(tmp_path):
-    text = SCENE + "pair: {style: lj/cut, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}\n"
+def test_run_scene_error_exit_2_without_traceback(tmp_path):
+    text = SCENE + "regions:\n  ball: {style: sphere, center: [5, 5, 5], radius: 2.0, units: box, side: up}\n"
     cfg = write(tmp_path, text)
     out = tmp_path / "out.nc"
     result = run_cli("run", cfg, "-o", out)
     assert result.exit_code == 2
-    assert f"{cfg}:{line_of(text, 'pair:')}:" in result.stderr
-    assert "pair: not supported yet" in result.stderr
+    assert f"{cfg}:{line_of(text, 'ball:')}:" in result.stderr
+    assert "regions.ball.side" in result.stderr
     assert "Traceback" not in result.output
     assert not out.exists()
 

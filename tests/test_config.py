@@ -767,45 +767,71 @@ def test_unknown_style_in_mapping_form():
     assert "walls.w" in str(err) and "'lj94'" in str(err)
 
 
-# --- not supported yet ----------------------------------------------------------------------
+# --- ellipsoids, regions, flow, pair: cross-field checks -----------------------------------
 
 
-NOT_YET_CASES = {
-    "pair": ("pair:\n  style: lj/cut\n  epsilon: 1.0\n  sigma: 1.0\n  cutoff: 2.5\n", "", "style: lj/cut", "pair"),
-    "flow": (
+SCENE_ERRORS = {
+    "flow-axis-fixed": (
+        "",
+        "  inflow:\n    style: flow\n    axis: z\n    vflow: 0.4\n    temperature: 1.5\n"
+        "    seed: 593894\n    coords: [2.0, 4.0]\n    units: box\n",
+        "axis: z", "walls.inflow.axis", "non-periodic boundary along the flow axis",
+    ),
+    "flow-order": (
         "",
         "  inflow:\n    style: flow\n    axis: x\n    vflow: 0.4\n    temperature: 1.5\n"
-        "    seed: 593894\n    coords: [2.0, 4.0]\n    units: box\n",
-        "style: flow",
-        "walls.inflow.style",
+        "    seed: 593894\n    coords: [4.0, 2.0]\n    units: box\n",
+        "coords:", "walls.inflow.coords", "strictly increasing",
     ),
-    "ees": ("", "  e:\n    style: ees\n    units: box\n    zlo: [EDGE, 1.0, 1.0, 2.5]\n", "style: ees",
-            "walls.e.style"),
-    "region": (
-        "regions:\n  ball: {style: sphere, center: [5, 5, 6], radius: 3.0, units: box}\n",
+    "flow-outside": (
+        "",
+        "  inflow:\n    style: flow\n    axis: x\n    vflow: 0.4\n    temperature: 1.5\n"
+        "    seed: 593894\n    coords: [2.0, 10.0]\n    units: box\n",
+        "coords:", "walls.inflow.coords", "inside the box",
+    ),
+    "flow-temperature": (
+        "",
+        "  inflow:\n    style: flow\n    axis: x\n    vflow: 0.4\n    temperature: 0.0\n"
+        "    seed: 593894\n    coords: [2.0, 4.0]\n    units: box\n",
+        "temperature: 0.0", "walls.inflow.temperature", "greater than 0",
+    ),
+    "ees-no-shape": ("", "  e:\n    style: ees\n    units: box\n    zlo: [EDGE, 1.0, 1.0, 2.5]\n", "group",
+                     "walls.e.group", "requires ellipsoids"),
+    "region-missing": (
+        "",
         "  around:\n    style: region\n    region: ball\n    potential: lj93\n    epsilon: 1.0\n"
         "    sigma: 1.0\n    cutoff: 2.5\n",
-        "style: region",
-        "walls.around.style",
+        "region: ball", "walls.around.region", "unknown region 'ball'",
     ),
-    "region/ees": (
+    "region-morse-params": (
+        "regions:\n  ball: {style: sphere, center: [5, 5, 6], radius: 3.0, units: box}\n",
+        "  around:\n    style: region\n    region: ball\n    potential: morse\n    epsilon: 1.0\n"
+        "    sigma: 1.0\n    cutoff: 2.5\n",
+        "style: region", "walls.around.D0", "needs D0",
+    ),
+    "region-ees-no-shape": (
         "regions:\n  ball: {style: sphere, center: [5, 5, 6], radius: 3.0, units: box}\n",
         "  around:\n    style: region/ees\n    region: ball\n    epsilon: 1.0\n    sigma: 1.0\n    cutoff: 2.5\n",
-        "style: region/ees",
-        "walls.around.style",
+        "group", "walls.around.group", "requires ellipsoids",
+    ),
+    "region-colloid-no-radius": (
+        "regions:\n  ball: {style: sphere, center: [5, 5, 6], radius: 3.0, units: box}\n",
+        "  around:\n    style: region\n    region: ball\n    potential: colloid\n    epsilon: 1.0\n"
+        "    sigma: 1.0\n    cutoff: 2.5\n",
+        "group", "walls.around.group", "requires extended particles",
     ),
 }
 
 
-@pytest.mark.parametrize("case", list(NOT_YET_CASES), ids=list(NOT_YET_CASES))
-def test_not_supported_yet(case):
-    extra, walls, needle, path = NOT_YET_CASES[case]
+@pytest.mark.parametrize("case", list(SCENE_ERRORS), ids=list(SCENE_ERRORS))
+def test_scene_errors_of_new_styles(case):
+    extra, walls, needle, path, words = SCENE_ERRORS[case]
     text = scene(walls, extra=extra)
     err = config_error(text)  # a ConfigError, never a traceback of another type
-    assert len(err.problems) == 1
-    msg = err.problems[0]
-    assert msg.startswith(where(line_of(text, needle)))
-    assert f" {path}: not supported yet" in msg
+    msg = "\n".join(err.problems)
+    assert f" {path}" in msg and words in msg, msg
+    if needle != "group":  # group defaults (not written): reported at the wall
+        assert where(line_of(text, needle)) in msg
 
 
 @pytest.mark.parametrize(
@@ -813,22 +839,31 @@ def test_not_supported_yet(case):
     [
         ("fix w all wall/flow x 0.4 1.5 593894 2 2.0 4.0 units box", "w"),
         ("fix w all wall/region ball lj93 1.0 1.0 2.5", "w"),
-        ("fix w all wall/ees zlo EDGE 1.0 1.0 2.5 units box", "w"),
+        ("fix w all wall/region/ees ball 1.0 1.0 2.5", "w"),
     ],
-    ids=["flow", "region", "ees"],
+    ids=["flow", "region", "region-ees"],
 )
-def test_not_supported_yet_as_fix_line(line, fid):
-    text = scene(f'  {fid}: "{line}"\n')
-    err = config_error(text)
-    assert where(line_of(text, f"{fid}: ")) in str(err)
-    assert f"walls.{fid}" in str(err) and "not supported yet" in str(err)
+def test_new_styles_as_fix_lines_validate(line, fid):
+    extra = "regions:\n  ball: {style: sphere, center: [5, 5, 6], radius: 3.0, units: box}\n"
+    text = scene(f'  {fid}: "{line}"\n', extra=extra).replace("mass: 1.0\n", "mass: 1.0\n    shape: [1.0, 0.5, 0.5]\n")
+    cfg = load_config_text(text, FILE)
+    assert cfg.walls[fid].style == line.split()[3].removeprefix("wall/") or cfg.walls[fid].style == "flow"
 
 
-def test_ellipsoid_atoms_not_supported_yet():
-    text = HEAD.replace("    mass: 1.0\n", "    mass: 1.0\n    shape: [1.0, 0.5, 0.5]\n")
+def test_orientation_needs_a_shape():
+    text = HEAD.replace("    mass: 1.0\n", "    mass: 1.0\n    orientation: random\n")
     err = config_error(text)
-    assert where(line_of(text, "shape:")) in str(err)
-    assert "atoms.0.shape: not supported yet" in str(err)
+    assert where(line_of(text, "orientation:")) in str(err)
+    assert "atoms.0.orientation" in str(err) and "shape" in str(err)
+
+
+def test_minimize_defaults_and_errors():
+    cfg = load_config_text(scene("", "minimize: {style: fire}\n"), FILE)
+    assert (cfg.minimize.style, cfg.minimize.etol, cfg.minimize.ftol, cfg.minimize.maxiter,
+            cfg.minimize.maxeval, cfg.minimize.dmax) == ("fire", 1e-4, 1e-6, 1000, 10000, 0.1)
+    text = scene("", "minimize: {style: sd, maxiter: 0}\n")
+    err = config_error(text)
+    assert "minimize.style" in str(err) and "minimize.maxiter" in str(err)
 
 
 # --- box and run ----------------------------------------------------------------------------
@@ -951,8 +986,3 @@ def test_dump_needs_a_step_based_run():
     assert "output.dump" in str(err) and "step-based run" in str(err)
 
 
-def test_press_output_is_not_silently_dropped():
-    text = scene("", "output:\n  thermo: [step, ke, press]\n")
-    err = config_error(text)
-    assert "output.thermo" in str(err) and "press: not supported yet" in str(err)
-    assert str(err).startswith(where(line_of(text, "thermo: [step")))

@@ -1,4 +1,4 @@
-"""The `wallbatch` command line: run, check, show, plot, schema."""
+"""The `wallbatch` command line: run, check, show, plot, schema, export-lammps, validate."""
 
 from __future__ import annotations
 
@@ -154,6 +154,57 @@ def schema() -> None:
     from .report import config_json_schema
 
     typer.echo(json.dumps(config_json_schema(), indent=2))
+
+
+@app.command("export-lammps")
+def export_lammps(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
+                  output: Path = typer.Option(..., "-o", "--output", help="folder for in.NAME and data.NAME"),
+                  case: str = typer.Option(None, "--case", help="one case of a sweep: index (0, 1, ...) or "
+                                           "coordinates name=value,name=value"),
+                  steps: int = typer.Option(None, "--steps", help="run length in steps (default: the config's)"),
+                  set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)"),
+                  ) -> None:
+    """Write one case as a LAMMPS input script and data file that reproduce it exactly."""
+    from .export import ExportError, export_selected, write_export
+
+    plan = _plan(config, set_)
+    try:
+        exp = export_selected(plan, case, steps)
+    except (ExportError, CaseError, ConfigError) as exc:
+        typer.echo(f"error: {config}: {exc}", err=True)
+        raise typer.Exit(2) from None
+    script, data = write_export(exp, output)
+    typer.echo(f"wrote {script} and {data} ({exp.steps} steps; run: cd {output} && lmp -in {exp.script_name})")
+    if exp.decisions:
+        typer.echo(f"{len(exp.decisions)} place(s) where wallbatch decides differently from LAMMPS: see the "
+                   f"comment block of {exp.script_name}")
+
+
+@app.command()
+def validate(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
+             case: str = typer.Option(None, "--case", help="one case of a sweep: index (0, 1, ...) or "
+                                      "coordinates name=value,name=value"),
+             steps: int = typer.Option(None, "--steps", help="run length in steps (default: the config's)"),
+             rtol: float = typer.Option(1e-9, "--rtol", help="relative tolerance of every output"),
+             set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)"),
+             ) -> None:
+    """Run one case in wallbatch and in LAMMPS (Python module) and compare every shared output.
+    Exit 0 if all agree within --rtol, 1 if not, 2 if it cannot run (no LAMMPS, cannot export)."""
+    from .export import ExportError, select_case
+    from .validate import LammpsMissing, validate_case
+
+    plan = _plan(config, set_)
+    try:
+        report = validate_case(select_case(plan, case), steps=steps, rtol=rtol)
+    except LammpsMissing as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from None
+    except (ExportError, CaseError, ConfigError) as exc:
+        typer.echo(f"error: {config}: {exc}", err=True)
+        raise typer.Exit(2) from None
+    typer.echo(f"{config}: {report.text()}")
+    if not report.ok:
+        raise typer.Exit(1)
 
 
 if __name__ == "__main__":  # pragma: no cover

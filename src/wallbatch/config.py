@@ -514,6 +514,18 @@ Wall = Annotated[
 # ----------------------------------------------------------------------------- the rest
 
 
+class Minimize(Model):
+    """LAMMPS `minimize etol ftol maxiter maxeval` with `min_style` (cg default, or fire), run
+    before `run:`; `dmax` is `min_modify dmax` (max distance an atom moves in one line-search step)."""
+
+    style: Literal["cg", "fire"] = "cg"
+    etol: NonNegativeFloat = 1.0e-4
+    ftol: NonNegativeFloat = 1.0e-6
+    maxiter: PositiveInt = 1000
+    maxeval: PositiveInt = 10000
+    dmax: PositiveFloat = 0.1
+
+
 class DtReset(Model):
     """fix dt/reset (physics.md §9)."""
 
@@ -579,6 +591,7 @@ class Config(Model):
     regions: dict[str, Region] = {}
     walls: dict[str, Wall] = {}
     dt_reset: DtReset | None = None
+    minimize: Minimize | None = None
     run: Run
     output: Output = Output()
     sweep: dict[str, Any] | None = None
@@ -588,14 +601,7 @@ class Config(Model):
 
 # ----------------------------------------------------------------------------- loading and checks
 
-NOT_YET = {
-    "pair": "pair forces (pair: lj/cut) land with the issue 'LJ fluids and flow boundary conditions'",
-    "flow": "wall/flow lands with the issue 'LJ fluids and flow boundary conditions'",
-    "ees": "wall/ees (ellipsoids) lands with the issue 'Ellipsoids and region walls'",
-    "region": "wall/region lands with the issue 'Ellipsoids and region walls'",
-    "region/ees": "wall/region/ees lands with the issue 'Ellipsoids and region walls'",
-    "ellipsoid": "ellipsoid atoms (shape, orientation, angmom) land with the issue 'Ellipsoids and region walls'",
-}
+NOT_YET: dict[str, str] = {}  # features whose schema exists but the engine does not run yet
 
 
 def _expand_fix_lines(data: Any, srcmap: SourceMap) -> Any:
@@ -682,8 +688,9 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
         if g.group in groups:
             add(("atoms", i, "group"), f"group name '{g.group}' is {'reserved' if g.group == 'all' else 'used twice'}")
         groups.append(g.group)
-        if g.shape is not None or g.orientation is not None or g.angmom is not None:
-            add(("atoms", i, "shape"), f"not supported yet: {NOT_YET['ellipsoid']}")
+        if g.shape is None and (g.orientation is not None or g.angmom is not None):
+            add(("atoms", i, "orientation" if g.orientation is not None else "angmom"),
+                "orientation and angmom are for ellipsoids: give the group a shape [a, b, c] (semi-axes)")
         c = g.create
         region = (c.random.region if c.random else None) or (c.lattice.region if c.lattice else None)
         if region is not None and region not in cfg.regions:
@@ -712,25 +719,38 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
             if ref not in cfg.variables:
                 add(path, f"unknown variable v_{ref} (define it under variables:)")
 
-    if cfg.pair is not None:
-        add(("pair",), f"not supported yet: {NOT_YET['pair']}")
     if cfg.output.dump is not None and cfg.run.time is not None:
         add(("output", "dump"), "per-atom dumps count steps: they need a step-based run (run: {steps: N})")
     radius_groups = {g.group for g in cfg.atoms if g.radius and g.radius > 0}
+    shape_groups = {g.group for g in cfg.atoms if g.shape is not None}
+    file_groups = {g.group for g in cfg.atoms if g.create.file is not None}  # per-atom data checked later
+
+    def members_without(wall_group: str, having: set[str]) -> list[str]:
+        members = [g.group for g in cfg.atoms] if wall_group == "all" else [wall_group]
+        return [g for g in members if g in groups and g not in having and g not in file_groups]
+
     for fid, wall in cfg.walls.items():
         if wall.group not in groups:
             add(("walls", fid, "group"), f"unknown group '{wall.group}' (groups: {', '.join(groups)})")
         if wall.style in NOT_YET:
             add(("walls", fid, "style"), f"not supported yet: {NOT_YET[wall.style]}")
             continue
+        if wall.style in ("colloid", "ees", "region", "region/ees"):
+            needs_radius = wall.style == "colloid" or getattr(wall, "potential", None) == "colloid"
+            if needs_radius and (bad := members_without(wall.group, radius_groups)):
+                add(("walls", fid, "group"), f"{_fix_name(wall)} requires extended particles: give group(s) "
+                    f"{', '.join(bad)} a radius > 0")
+            if wall.style in ("ees", "region/ees") and (bad := members_without(wall.group, shape_groups)):
+                add(("walls", fid, "group"), f"{_fix_name(wall)} requires ellipsoids (LAMMPS: requires extended "
+                    f"particles): give group(s) {', '.join(bad)} a shape [a, b, c], or set this wall's group")
+        if wall.style in ("region", "region/ees"):
+            _check_region_wall(cfg, fid, wall, add, check_var)
+            continue
+        if wall.style == "flow":
+            _check_flow_wall(cfg, fid, wall, add)
+            continue
         if wall.units == "lattice" and cfg.lattice is None:
             add(("walls", fid), _LATTICE_MSG)
-        if wall.style == "colloid":
-            members = [g.group for g in cfg.atoms] if wall.group == "all" else [wall.group]
-            bad = [g for g in members if g not in radius_groups]
-            if bad:
-                add(("walls", fid, "group"),
-                    f"wall/colloid requires extended particles: give group(s) {', '.join(bad)} a radius > 0")
         for face, spec in wall.faces():
             dim = "xyz".index(face[0])
             if cfg.box.boundary[dim] == "p" and not wall.pbc:
@@ -757,12 +777,58 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
                              ("flow_crossings", "flow", "a flow wall")):
         if key in cfg.output.thermo and needs not in styles:
             add(("output", "thermo"), f"{key} needs {what} in the scene")
-    if "press" in cfg.output.thermo:
-        add(("output", "thermo"), "press: not supported yet: the pressure (with pair and wall virials) lands with "
-            "the issue 'LJ fluids and flow boundary conditions'; remove it from output.thermo")
-    if "erot" in cfg.output.thermo:
-        add(("output", "thermo"), f"erot: not supported yet: {NOT_YET['ellipsoid']}")
+    if "erot" in cfg.output.thermo and not shape_groups and not file_groups:
+        add(("output", "thermo"), "erot is the rotational energy of ellipsoids: no group has a shape")
     return problems
+
+
+def _fix_name(wall: Any) -> str:
+    return f"wall/{wall.style}" if wall.style != "region" else f"wall/region {wall.potential}"
+
+
+def _check_region_wall(cfg: "Config", fid: str, wall: Any, add: Any, check_var: Any) -> None:
+    """wall/region and wall/region/ees: the region exists, the potential's parameters are given."""
+    if wall.region not in cfg.regions:
+        add(("walls", fid, "region"), f"unknown region '{wall.region}' (LAMMPS: Region {wall.region} for fix "
+            f"wall/{wall.style} does not exist): define it under regions:")
+    if wall.style == "region":
+        need = {"morse": ("D0", "alpha", "r0"), "harmonic": ("epsilon",)}.get(wall.potential, ("epsilon", "sigma"))
+        extra = [k for k in ("epsilon", "sigma", "D0", "alpha", "r0")
+                 if getattr(wall, k) is not None and k not in need and not (k == "sigma" and wall.potential == "harmonic")]
+        for k in need:
+            if getattr(wall, k) is None:
+                add(("walls", fid, k), f"potential {wall.potential} needs {k} ({', '.join(need)}, cutoff)")
+        for k in extra:
+            add(("walls", fid, k), f"potential {wall.potential} does not take {k} (it takes {', '.join(need)}, cutoff)")
+    for k in ("epsilon", "sigma", "D0", "alpha", "r0"):
+        value = getattr(wall, k, None)
+        check_var(("walls", fid, k), value)
+        if k != "alpha" and isinstance(value, float) and value < 0:
+            add(("walls", fid, k), f"{k} must be >= 0")
+
+
+def _check_flow_wall(cfg: "Config", fid: str, wall: Any, add: Any) -> None:
+    """fix wall/flow restrictions (physics.md §8.6)."""
+    dim = "xyz".index(wall.axis)
+    if cfg.box.boundary[dim] != "p":
+        add(("walls", fid, "axis"), f"wall/flow cannot be used with a non-periodic boundary along the flow axis "
+            f"{wall.axis}: make box.boundary {wall.axis} 'p'")
+    if wall.units == "lattice" and cfg.lattice is None:
+        add(("walls", fid), _LATTICE_MSG)
+        return
+    scale = 1.0 if wall.units == "box" else _spacing(cfg)
+    w = [cfg.box.lo[dim]] + [c * scale for c in wall.coords] + [cfg.box.hi[dim]]
+    if any(b <= a for a, b in zip(w, w[1:])):
+        add(("walls", fid, "coords"), f"flow wall coordinates must be strictly increasing and strictly inside the "
+            f"box ({cfg.box.lo[dim]:g} .. {cfg.box.hi[dim]:g} along {wall.axis}), got "
+            f"{[c * scale for c in wall.coords]} (LAMMPS: Wrong fix wall/flow wall ordering or some walls are "
+            f"outside simulation domain)")
+
+
+def _spacing(cfg: "Config") -> float:
+    from .units import lattice_constant
+
+    return lattice_constant(cfg.lattice.style, cfg.lattice.scale, cfg.units)
 
 
 _LATTICE_MSG = (

@@ -25,11 +25,14 @@ from typing import Callable
 import numpy as np
 
 from .expr import EvalContext, VariableError, Variables
+from .fast import attach_fast_path
 from .scene import Case
 from .units import UnitSystem
-from .walls import build_kernels
+from .walls import build_kernels, build_region_kernels
 
 BIG = 1.0e20  # dt/reset's "no limit" (LAMMPS BIG)
+PAIR = "__pair__"  # key of the pair style's (energy, virial) among the force outputs
+VIRIAL = "__virial__"  # key of the total virial W (pair + walls with virial: true) for press
 
 
 @dataclass
@@ -59,7 +62,13 @@ def structure_key(case: Case) -> tuple:
         tuple((w.fix_id, w.frame, w.group.tobytes(), faces(w)) for w in case.reflect_walls),
         None if case.dt_reset is None else (case.dt_reset.every, case.dt_reset.group.tobytes()),
         case.steps, case.run_time, case.thermo, case.thermo_is_time, case.outputs, case.dump_every,
-        case.dump_fields,
+        case.dump_fields, case.fix_order, case.shape is not None,
+        None if case.pair is None else (case.pair.shift, case.pair.skin),  # parameters may differ per case
+        tuple((w.fix_id, w.kind, w.region, None if w.potential is None else w.potential.name, w.group.tobytes(),
+               w.energy, tuple((k, v if isinstance(v, str) else "#") for k, v in sorted(w.params.items())))
+              for w in case.region_walls),
+        tuple((w.fix_id, w.group.tobytes(), w.axis, w.walls.tobytes(), w.rule) for w in case.flow_walls),
+        None if case.minimize is None else case.minimize.style,
     )
 
 
@@ -95,6 +104,21 @@ class BatchState:
         self.end_step = c0.steps or 0
         self.run_time = c0.run_time
         self.failed: dict[int, str] = {}  # live row -> message, pending removal
+        # ellipsoids only (None otherwise): quaternions (C,N,4), angular momentum, torque, semi-axes
+        # and principal moments of inertia (C,N,3)
+        self.quat: np.ndarray | None = None
+        self.angmom: np.ndarray | None = None
+        self.torque: np.ndarray | None = None
+        self.shape: np.ndarray | None = None
+        self.inertia: np.ndarray | None = None
+        if c0.shape is not None:
+            from .ellipsoid import inertia
+
+            self.quat = np.stack([c.quat for c in cases]).astype(float)
+            self.angmom = np.stack([c.angmom for c in cases]).astype(float)
+            self.torque = np.zeros_like(self.angmom)
+            self.shape = np.stack([c.shape for c in cases]).astype(float)
+            self.inertia = inertia(self.mass, self.shape)
 
     @property
     def ncases(self) -> int:
@@ -162,6 +186,9 @@ class BatchState:
     def take(self, keep: np.ndarray) -> None:
         for name in ("rows", "x", "v", "f", "mass", "radius", "dt", "atime", "atimestep", "step"):
             setattr(self, name, getattr(self, name)[keep])
+        if self.quat is not None:
+            for name in ("quat", "angmom", "torque", "shape", "inertia"):
+                setattr(self, name, getattr(self, name)[keep])
         self.var_static = {k: v[keep] for k, v in self.var_static.items()}
         self.var_values = {k: v[keep] for k, v in self.var_values.items()}
         self.ctx = None
@@ -188,18 +215,47 @@ class Engine:
         self.frames: list[tuple] = []  # (rows, time, x, v) per dump instant
         self.samples: list[dict[str, np.ndarray]] = []  # per sample: name -> (C_total, ...) arrays
         self.sample_rows: list[np.ndarray] = []
+        # the compiled path (fast.py) runs only scenes without pair, flow, ees, region walls, ellipsoids
+        self.pair = None  # pair.PairLJCut
+        if c0.pair is not None:
+            from .pair import PairLJCut
+
+            self.pair = PairLJCut(np.array([c.pair.epsilon for c in cases]), np.array([c.pair.sigma for c in cases]),
+                                  np.array([c.pair.cutoff for c in cases]), box_lo=c0.box_lo, box_hi=c0.box_hi,
+                                  periodic=c0.periodic, shift=c0.pair.shift, skin=c0.pair.skin)
+        self.flow: list = []  # flow.FlowKernel per wall/flow fix
+        if c0.flow_walls:
+            from .flow import FlowKernel
+
+            for i in range(len(c0.flow_walls)):
+                rngs = [np.random.default_rng(np.random.SeedSequence(list(c.flow_seeds[i]))) for c in cases]
+                self.flow.append(FlowKernel([c.flow_walls[i] for c in cases], rngs, c0.box_lo, c0.box_hi, c0.units))
+        self.ees: list = [w for w in self.soft if w.style.name == "ees"]  # wall/ees (ellipsoids)
+        self.region_walls: list = build_region_kernels(cases)  # wall/region and wall/region/ees
+        self.min_info: dict[int, dict[str, np.ndarray]] = {}  # case -> minimization results
+        self.fast = attach_fast_path(self)  # compiled chunks of steps (fast.py), or None
 
     # -- the step ----------------------------------------------------------------------------
 
     def initial_integrate(self, dt: np.ndarray, dtfm: np.ndarray) -> None:
-        """fix nve, first half: v += dtfm f (dtfm = dt/2 ftm2v / m, shape (C, N, 1)); x += dt v."""
+        """fix nve, first half: v += dtfm f (dtfm = dt/2 ftm2v / m, shape (C, N, 1)); x += dt v.
+        With ellipsoids, fix nve/asphere (physics.md §11.2): also L += dt/2 ftm2v torque, then the
+        Richardson quaternion step over dt."""
         s = self.state
         s.v += dtfm * s.f
         s.x += dt[:, None, None] * s.v
+        if s.quat is not None:
+            from .ellipsoid import richardson
 
-    def final_integrate(self, dtfm: np.ndarray) -> None:
-        """fix nve, second half: v += dtfm f."""
-        self.state.v += dtfm * self.state.f
+            s.angmom += ((0.5 * s.units.ftm2v) * dt)[:, None, None] * s.torque
+            s.quat = richardson(s.quat, s.angmom, s.inertia, (0.5 * dt)[:, None])
+
+    def final_integrate(self, dtfm: np.ndarray, dt: np.ndarray) -> None:
+        """fix nve (and nve/asphere), second half: v += dtfm f; L += dt/2 ftm2v torque."""
+        s = self.state
+        s.v += dtfm * s.f
+        if s.quat is not None:
+            s.angmom += ((0.5 * s.units.ftm2v) * dt)[:, None, None] * s.torque
 
     def wrap(self) -> None:
         """Wrap periodic dimensions every step (x -= L past hi, x += L below lo, as LAMMPS)."""
@@ -226,16 +282,36 @@ class Engine:
                     f"atom {first[c]} left the box through the fixed {'xyz'[d]} boundary at step "
                     f"{int(s.step[c])} (LAMMPS: Lost atoms): put a wall on that face, or make it periodic"))
 
-    def compute_forces(self, outputs: bool) -> dict[str, np.ndarray]:
-        """Force clear, then post_force walls; with `outputs`, their scalars and vectors."""
+    def compute_forces(self, outputs: bool) -> dict[str, tuple[np.ndarray, ...]]:
+        """Force (and torque) clear, pair forces, then post_force walls; with `outputs`, the pair's
+        energy and virial (key PAIR) and each wall fix's scalar and vector (key fix-ID)."""
         s = self.state
         s.f[:] = 0.0
-        out: dict[str, np.ndarray] = {}
-        for w in self.soft:
+        if s.torque is not None:
+            s.torque[:] = 0.0
+        out: dict[str, tuple[np.ndarray, ...]] = {}
+        if self.pair is not None:
+            res = self.pair.compute(s.x, s.f, outputs)
+            if outputs:
+                out[PAIR] = res
+        for w in self.soft + self.region_walls:
             res = w.apply(s, outputs)
             if outputs:
                 out[w.fix_id] = res
+        if outputs and "press" in self.outputs:
+            virial = out[PAIR][1].copy() if PAIR in out else np.zeros(s.ncases)
+            for w in self.soft + self.region_walls:
+                if getattr(w, "virial", False):
+                    virial += w.last_virial
+            out[VIRIAL] = (virial,)
         return out
+
+    def end_of_step(self) -> None:
+        """fix wall/flow: redraw the velocity of atoms that crossed a flow wall (positions were
+        wrapped this step, so each crossing redraws once: the decisions table)."""
+        s = self.state
+        for w in self.flow:
+            w.end_of_step(s.x, s.v, s.mass)
 
     def reset_dt(self) -> np.ndarray:
         """fix dt/reset (physics.md §9): the largest dt (C,) that moves no group atom more than xmax."""
@@ -273,7 +349,8 @@ class Engine:
         self.wrap()
         out = self.compute_forces(outputs)
         self.check_lost()
-        self.final_integrate(dtfm)
+        self.final_integrate(dtfm, dt)
+        self.end_of_step()
         if self.dt_reset is not None:
             due = s.step % self.dt_reset.every == 0
             if active is not None:
@@ -284,8 +361,9 @@ class Engine:
 
     # -- samples -----------------------------------------------------------------------------
 
-    def sample(self, wall_out: dict[str, np.ndarray]) -> None:
-        """Record the thermo outputs of every live case at the current step."""
+    def sample(self, out: dict[str, tuple[np.ndarray, ...]]) -> None:
+        """Record the thermo outputs of every live case at the current step (`out`: the force
+        outputs of this step, see compute_forces)."""
         s, u = self.state, self.state.units
         bad = ~(np.isfinite(s.x).all(axis=(1, 2)) & np.isfinite(s.v).all(axis=(1, 2)))
         if bad.any():
@@ -293,24 +371,41 @@ class Engine:
                 f"positions or velocities became NaN/inf by step {int(s.step[c])}: the timestep is too "
                 f"large for these forces (lower timestep, or add dt_reset)"))
         n = s.x.shape[1]
-        ke = 0.5 * u.mvv2e * np.einsum("cn,cn->c", s.mass, np.einsum("cni,cni->cn", s.v, s.v))
+        mv2 = np.einsum("cn,cn->c", s.mass, np.einsum("cni,cni->cn", s.v, s.v))
+        ke = 0.5 * u.mvv2e * mv2  # translational
         dof = 3 * n - 3
-        pe = np.zeros(s.ncases)
         rec: dict[str, np.ndarray] = {
-            "step": s.step.astype(float), "time": s.time, "dt": s.dt.copy(), "ke": ke,
+            "step": s.step.astype(float), "time": s.time, "dt": s.dt.copy(),
             "temp": 2.0 * ke / (dof * u.boltz) if dof > 0 else np.zeros(s.ncases),
             "atoms": np.full(s.ncases, float(n)),
         }
+        if s.quat is not None:  # compute erotate/asphere joins ke, so etot is the conserved total
+            from .ellipsoid import rotational_energy
+
+            rec["erot"] = u.mvv2e * rotational_energy(s.quat, s.angmom, s.inertia).sum(axis=1)
+            ke = ke + rec["erot"]
+        pe = out[PAIR][0].copy() if PAIR in out else np.zeros(s.ncases)
+        scalar_fixes = self.soft + self.region_walls
+        if scalar_fixes:
+            by_id = {w.fix_id: w for w in scalar_fixes}
+            rec["wall_energy"] = np.stack([out[fid][0] for fid in self.cases[0].fix_order], axis=1)
+            for fid in self.cases[0].fix_order:
+                if by_id[fid].energy_to_pe:
+                    pe = pe + out[fid][0]
         if self.soft:
-            rec["wall_energy"] = np.stack([wall_out[w.fix_id][0] for w in self.soft], axis=1)
-            rec["wall_force"] = np.concatenate([wall_out[w.fix_id][1] for w in self.soft], axis=1)
-            for w in self.soft:
-                if w.energy_to_pe:
-                    pe = pe + wall_out[w.fix_id][0]
+            rec["wall_force"] = np.concatenate([out[w.fix_id][1] for w in self.soft], axis=1)
+        if self.region_walls:
+            rec["region_force"] = np.stack([out[w.fix_id][1] for w in self.region_walls], axis=1)
         if self.reflect and self.reflect[0].stats:
             counts, impulses = zip(*(w.take_stats() for w in self.reflect))
             rec["reflect_count"] = np.concatenate(counts, axis=1)
             rec["reflect_impulse"] = np.concatenate(impulses, axis=1)
+        if self.flow:
+            rec["flow_crossings"] = sum(w.take_crossings() for w in self.flow)
+        if VIRIAL in out:  # LAMMPS compute pressure: (sum m v^2 + W) / (3 V), translational ke
+            volume = float(np.prod(s.box_hi - s.box_lo))
+            rec["press"] = (u.mvv2e * mv2 + out[VIRIAL][0]) / (3.0 * volume) * u.nktv2p
+        rec["ke"] = ke
         rec["pe"] = pe
         rec["etot"] = pe + ke
         self.samples.append(rec)
@@ -325,10 +420,10 @@ class Engine:
         keep = np.array([c not in s.failed for c in range(s.ncases)])
         s.failed = {}
         s.take(keep)
-        for w in self.soft:
+        for w in self.soft + self.reflect + self.region_walls + self.flow:
             w.take(keep)
-        for w in self.reflect:
-            w.take(keep)
+        if self.pair is not None:
+            self.pair.take(keep)
         if self.dt_reset is not None:
             for name in ("dtr_xmax", "dtr_emax", "dtr_tmin", "dtr_tmax"):
                 setattr(self, name, getattr(self, name)[keep])
@@ -350,7 +445,7 @@ class Engine:
         s = self.state
         if s.failed:
             keep = np.array([c not in s.failed for c in range(s.ncases)])
-            out = {k: (e[keep], vec[keep]) for k, (e, vec) in out.items()}
+            out = {k: tuple(a[keep] for a in val) for k, val in out.items()}
             self.drop_failed()
         if sample and s.ncases:
             self.sample(out)
@@ -358,6 +453,8 @@ class Engine:
 
     def advance(self, nsteps: int, sample: bool = True) -> None:
         """Advance every live case by nsteps steps, then sample (outputs computed on the last step)."""
+        if self.fast is not None and self.fast.advance(nsteps, sample):
+            return
         for i in range(nsteps):
             if self.state.ncases == 0:
                 return
@@ -372,6 +469,8 @@ class Engine:
 
     def advance_to_time(self, target: float) -> None:
         """Step until every live case's time reaches `target`, clipping the last dt to land on it."""
+        if self.fast is not None and self.fast.advance_to_time(target):
+            return
         s = self.state
         tol = 1e-12 * max(1.0, abs(target))
         while s.ncases and np.any(s.time < target - tol):
@@ -392,10 +491,46 @@ class Engine:
             if done_after:
                 return
 
+    def minimize(self) -> None:
+        """LAMMPS `minimize` before the run (issue 8): pair and soft/region wall forces act; the
+        objective holds the pair energy and the energies of walls with `energy: true` only (LAMMPS:
+        fix_modify energy). Reflect, flow and dt/reset are skipped; orientations are not minimized.
+        Per case: min_iterations, min_evaluations, min_stop_reason, min_energy_before, min_energy,
+        min_fnorm."""
+        from .minimize import minimize
+
+        s = self.state
+        scalar_fixes = self.soft + self.region_walls
+
+        def objective(x: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            s.x[rows] = x
+            self.wrap()
+            out = self.compute_forces(True)
+            energy = out[PAIR][0].copy() if PAIR in out else np.zeros(s.ncases)
+            for w in scalar_fixes:
+                if w.energy_to_pe:
+                    energy += out[w.fix_id][0]
+            return energy[rows], s.f[rows].copy()
+
+        res = minimize(s.x.copy(), objective, self.cases[0].minimize, mass=s.mass, ftm2v=s.units.ftm2v)
+        s.x[:] = res.x
+        self.wrap()
+        for j, row in enumerate(s.rows.tolist()):
+            self.min_info[row] = {
+                "min_iterations": np.float64(res.iterations[j]), "min_evaluations": np.float64(res.evaluations[j]),
+                "min_stop_reason": np.str_(res.stop_reason[j]), "min_energy_before": np.float64(res.energy_before[j]),
+                "min_energy": np.float64(res.energy_after[j]), "min_fnorm": np.float64(res.fnorm2[j]),
+            }
+        self.drop_failed()
+
     def run(self) -> list[CaseResult]:
         t0 = _time.perf_counter()
         c0 = self.cases[0]
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            if c0.minimize is not None:
+                self.minimize()
+            if self.state.ncases == 0:
+                return self._collect((_time.perf_counter() - t0) / len(self.cases))
             self.setup()
             if c0.run_time is None:
                 samples = set(sample_instants(c0))
@@ -445,6 +580,7 @@ class Engine:
                 results.append(CaseResult("failed", self.errors[c], seconds, data, frames[c]))
             else:
                 results.append(CaseResult("ok", "", seconds, {k: v[c] for k, v in stacked.items()}, frames[c]))
+            results[-1].data.update(self.min_info.get(c, {}))
         return results
 
 

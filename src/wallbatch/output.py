@@ -31,8 +31,22 @@ LONG_NAMES = {
     "wall_energy": "wall fix global scalar: total shifted wall energy (LAMMPS f_ID)",
     "wall_force": "wall fix global vector entry: force of the atoms on the wall along +dim (LAMMPS f_ID[i])",
     "reflect_count": "reflections at the face since the previous sample",
+    "erot": "rotational kinetic energy of the ellipsoids (compute erotate/asphere)",
+    "press": "pressure: kinetic + pair virial + virial of walls with virial: true (compute pressure)",
+    "region_force": "wall/region fix global vector: force of the atoms on the region wall (LAMMPS f_ID[1..3])",
+    "flow_crossings": "flow-wall crossings (velocity redraws) since the previous sample",
     "reflect_impulse": "momentum given to the wall along +dim since the previous sample",
     "step": "timestep number",
+}
+
+
+MIN_OUTPUTS = {  # per case, with `minimize:` (name: long_name)
+    "min_iterations": "minimizer iterations",
+    "min_evaluations": "minimizer force/energy evaluations",
+    "min_stop_reason": "minimizer stopping criterion (LAMMPS wording)",
+    "min_energy_before": "minimized energy (pair + walls with energy: true) before minimization",
+    "min_energy": "minimized energy (pair + walls with energy: true) after minimization",
+    "min_fnorm": "2-norm of the force vector after minimization",
 }
 
 
@@ -41,7 +55,8 @@ def _units(case: Case) -> dict[str, str]:
     impulse = "1" if u.name == "lj" else f"{u.force}*{u.time}"
     return {"time": u.time, "dt": u.time, "temp": u.temperature, "ke": u.energy, "pe": u.energy,
             "etot": u.energy, "wall_energy": u.energy, "wall_force": u.force, "atoms": "1",
-            "reflect_count": "1", "reflect_impulse": impulse, "step": "1"}
+            "reflect_count": "1", "reflect_impulse": impulse, "step": "1", "erot": u.energy,
+            "press": u.pressure, "region_force": u.force, "flow_crossings": "1"}
 
 
 def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
@@ -57,19 +72,23 @@ def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
     if c0.run_time is None:
         instants = np.asarray(sample_instants(c0), dtype=np.int64)
         coords: dict = {"step": ("sample", instants)}
-        per_sample = ["time", "dt", "temp", "ke", "pe", "etot", "atoms"]
+        per_sample = ["time", "dt", "temp", "ke", "pe", "etot", "atoms", "erot", "press", "flow_crossings"]
     else:
         instants = np.asarray(sample_instants(c0), dtype=float)
         coords = {"time": ("sample", instants)}
-        per_sample = ["step", "dt", "temp", "ke", "pe", "etot", "atoms"]
+        per_sample = ["step", "dt", "temp", "ke", "pe", "etot", "atoms", "erot", "press", "flow_crossings"]
     nsamp = len(instants)
-    fixes = [w.fix_id for w in c0.soft_walls]
+    fixes = list(c0.fix_order)
+    rfixes = [w.fix_id for w in c0.region_walls]
     faces = [f for w in c0.soft_walls for f in w.faces]
     rfaces = [f for w in c0.reflect_walls for f in w.faces]
     stats = "reflect_count" in c0.outputs or "reflect_impulse" in c0.outputs
     all_faces = faces + (rfaces if stats else [])
     if fixes:
         coords["fix"] = ("fix", np.asarray(fixes, dtype=object))
+    if rfixes:
+        coords["rfix"] = ("rfix", np.asarray(rfixes, dtype=object))
+        coords["spatial"] = ("spatial", np.asarray(["x", "y", "z"], dtype=object))
     if all_faces:
         coords["face"] = ("face", np.asarray([f.label for f in all_faces], dtype=object))
         coords["face_fix"] = ("face", np.asarray([f.label.split("/")[0] for f in all_faces], dtype=object))
@@ -94,6 +113,10 @@ def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
         data_vars[name] = (sweep_dims + ("sample",), gather(name, ()))
     if fixes:
         data_vars["wall_energy"] = (sweep_dims + ("sample", "fix"), gather("wall_energy", (len(fixes),)))
+    if rfixes:
+        data_vars["region_force"] = (sweep_dims + ("sample", "rfix", "spatial"),
+                                     gather("region_force", (len(rfixes), 3)))
+    if faces:
         wf = gather("wall_force", (len(faces),))
         if len(all_faces) > len(faces):
             wf = np.concatenate([wf, np.full(wf.shape[:-1] + (len(all_faces) - len(faces),), np.nan)], axis=-1)
@@ -104,6 +127,13 @@ def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
                 arr = gather(name, (len(rfaces),))
                 pad = np.full(arr.shape[:-1] + (len(faces),), np.nan)
                 data_vars[name] = (sweep_dims + ("sample", "face"), np.concatenate([pad, arr], axis=-1))
+    if c0.minimize is not None:
+        for name in MIN_OUTPUTS:
+            if name == "min_stop_reason":
+                vals = np.asarray([str(r.data.get(name, "")) for r in results], dtype=object)
+            else:
+                vals = np.asarray([float(r.data.get(name, np.nan)) for r in results], float)
+            data_vars[name] = (sweep_dims, vals.reshape(shape))
     data_vars["status"] = (sweep_dims, np.asarray([r.status for r in results], dtype=object).reshape(shape))
     data_vars["error"] = (sweep_dims, np.asarray([r.error for r in results], dtype=object).reshape(shape))
     data_vars["seconds"] = (sweep_dims, np.asarray([r.seconds for r in results], float).reshape(shape))
@@ -115,11 +145,16 @@ def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
             ds[name].attrs["units"] = units[name]
         if name in LONG_NAMES:
             ds[name].attrs["long_name"] = LONG_NAMES[name]
+    u = c0.units
+    for name, long_name in MIN_OUTPUTS.items():
+        if name in ds:
+            unit = {"min_energy_before": u.energy, "min_energy": u.energy, "min_fnorm": u.force}.get(name, "1")
+            ds[name].attrs.update(units=unit, long_name=long_name)
     ds["seconds"].attrs.update(units="s", long_name="wall-clock seconds the case took (its share of its batch)")
     text_attrs = {
         "status": "ok or failed", "error": "error message of a failed case, empty when ok",
         "face": "wall face, as fixID/face", "face_fix": "fix ID of the face", "face_name": "face name (xlo ... zhi)",
-        "fix": "wall fix ID",
+        "fix": "wall fix ID", "rfix": "region wall fix ID", "spatial": "force component",
         "dump_path": "per-atom trajectory of the case (AMBER NetCDF), relative to this file",
     }
     for name, long_name in text_attrs.items():
@@ -147,7 +182,7 @@ def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
-    encoding = {name: {"dtype": str} for name in ("status", "error", "dump_path") if name in ds}
+    encoding = {name: {"dtype": str} for name in ("status", "error", "dump_path", "min_stop_reason") if name in ds}
     ds.to_netcdf(tmp, format="NETCDF4", engine="netcdf4", encoding=encoding)
     os.replace(tmp, path)
     return path

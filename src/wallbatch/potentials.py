@@ -9,7 +9,18 @@ Every style is a function ``energy_force(r, p) -> (E, F)``:
   parameters ``(C, 1)`` and a per-atom ``radius`` ``(C, N)``.
 * ``E`` [energy] is the *unshifted* energy, ``F = -dE/dr`` [force] the scalar wall force with
   ``F > 0`` repulsive. The engine applies ``f[dim] += -side * F`` and ``vec += side * F``
-  (§3.2); :func:`shifted_energy_force` gives the shifted energy ``E(r) - E(rc)``.
+  (§3.2).
+
+Each style also has ``<style>_shifted(r, p) -> E(r) - E(rc)`` (``WallStyle.shifted_energy``),
+written so that the difference never cancels: as r -> rc it is a factor (rc - r), formed from
+the exact difference of the inputs, times a sum of positive terms (LJ: a^n - b^n = (a - b) sum
+a^k b^(n-1-k); Morse: expm1; colloid: the same for its two terms, plus the atanh addition theorem
+and a series in (R/r)^2 for the far field).
+
+Accuracy: relative error <= 1e-13 against a 50-digit evaluation of the closed forms for E, F and
+the shifted energy, wherever the value is not near one of its own roots (tests/test_stability.py
+defines this precisely); lengths enter only as ratios (sigma/r, R/r, (rc - r)/rc), so any length
+scale works as long as the result is representable.
 
 No state, no cut-off or error logic here: masking ``r >= rc`` and the "on or inside the wall"
 test (:meth:`WallStyle.too_close`) belong to the engine (§3.3).
@@ -24,6 +35,7 @@ import numpy as np
 
 Params = Mapping[str, np.ndarray | float]
 EnergyForce = Callable[[np.ndarray, Params], tuple[np.ndarray, np.ndarray]]
+ShiftedEnergy = Callable[[np.ndarray, Params], np.ndarray]
 
 _SQRT2 = np.sqrt(2.0)
 _TWO_PI = 2.0 * np.pi
@@ -101,11 +113,45 @@ def morse(r, p: Params) -> tuple[np.ndarray, np.ndarray]:
     d0 = p["D0"]
     alpha = p["alpha"]
     x = -alpha * (r - p["r0"])
-    em1 = np.expm1(x)  # e^x - 1, exact near r0 where F -> 0
-    ex = em1 + 1.0
+    ex = np.exp(x)
+    em1 = np.expm1(x)  # e^x - 1, exact near r0 where F -> 0 (em1 + 1 is not: x << 0)
     energy = d0 * ex * (em1 - 1.0)
     force = 2.0 * alpha * d0 * ex * em1
     return energy, force
+
+
+# Colloid's attraction g(x) = 2x/(1 - x^2) - 2 atanh(x) = sum_k>=1 4k/(2k+1) x^(2k+1), x = R/r.
+# The closed form cancels (both terms ~ 2x while g ~ (4/3) x^3, error ~ 4 ulp/x^2): below x = 0.2
+# the series is used (12 terms: truncation < 3e-17 relative); above, the closed form loses
+# < 100 ulp (1.1e-14).
+_G_SWITCH = 0.2
+_G_COEF = tuple(4.0 * k / (2.0 * k + 1.0) for k in range(1, 13))
+
+
+def _colloid_g_series(x: np.ndarray) -> np.ndarray:
+    """g(x) = x^3 sum_k 4k/(2k+1) x^(2k-2), Horner in x^2 (x <= 0.2)."""
+    y = x * x
+    acc = _G_COEF[-1]
+    for c in _G_COEF[-2::-1]:
+        acc = acc * y + c
+    return x * y * acc
+
+
+def _colloid_g_closed(x: np.ndarray, d: np.ndarray, dp: np.ndarray) -> np.ndarray:
+    """g(x) = 2x/(1 - x^2) - log1p(2x/(1 - x)), with d = 1 - x, dp = 1 - x^2 formed exactly."""
+    return 2.0 * x / dp - np.log1p(2.0 * x / d)
+
+
+def _colloid_g(x: np.ndarray, d: np.ndarray, dp: np.ndarray) -> np.ndarray:
+    """g(x) for x of any shape: the closed form, with the series where x < 0.2 (far field)."""
+    small = x < _G_SWITCH
+    if small.all():
+        return _colloid_g_series(x)
+    g = _colloid_g_closed(x, d, dp)
+    if small.any():  # only reached for ndim >= 1
+        idx = np.nonzero(small)
+        g[idx] = _colloid_g_series(x[idx])
+    return g
 
 
 def colloid(r, p: Params) -> tuple[np.ndarray, np.ndarray]:
@@ -116,46 +162,202 @@ def colloid(r, p: Params) -> tuple[np.ndarray, np.ndarray]:
     E = eps { sigma^6/7560 [ (6R - D)/D^7 + (D + 8R)/(D + 2R)^7 ]
               - (1/6) [ 2R(D+R) + D(D+2R) (ln D - ln(D+2R)) ] / [D(D+2R)] }
 
-    evaluated here in the algebraically equal, cancellation-free form (D + R = r,
-    D(D+2R) = (r-R)(r+R) = q)
+    evaluated here in the algebraically equal, cancellation-free form in the dimensionless
+    x = R/r, d = D/r (from the exact r - R), 1 - x^2 = d (1 + x) = (r^2 - R^2)/r^2 and
+    u = (sigma/r) / (1 - x^2):
 
-    E = eps { 4 sigma^6 r R^3 (7 r^4 + 14 r^2 R^2 + 3 R^4) / (945 q^7)
-              - (1/6) [ 2 R r / q - log1p(2R/D) ] }
-    F = (4/315) eps sigma^6 (R^9 + 27 R^7 r^2 + 63 R^5 r^4 + 21 R^3 r^6) / q^8
-        - (2/3) eps R^3 / q^2
+    E = eps { (4/945) u^6 x^3 (7 + 14 x^2 + 3 x^4) / (1 - x^2)  -  g(x) / 6 }
+    F = (eps/r) x^3 / (1 - x^2)^2 [ (4/315) u^6 (21 + 63 x^2 + 27 x^4 + x^6) - 2/3 ]
 
-    The attractive bracket still loses about (r/R)^2 ulps for R << r (the leading terms of
-    2Rr/q and log1p(2R/D) cancel).
+    with g(x) = 2x/(1 - x^2) - 2 atanh(x) = 2x/(1 - x^2) - log1p(2R/D), replaced by its series
+    (4/3) x^3 + (8/5) x^5 + ... for x < 0.2 where the two terms cancel (far field).
     """
     eps = p["epsilon"]
-    sigma = p["sigma"]
     big_r = p["radius"]
-    s2 = sigma * sigma
-    s6 = s2 * s2 * s2
-    r2 = r * r
-    rad2 = big_r * big_r
-    rad3 = rad2 * big_r
-    q = (r - big_r) * (r + big_r)  # r^2 - R^2 = D (D + 2R)
-    q2 = q * q
-    q4 = q2 * q2
-    q7 = q4 * q2 * q
-    rep_e = (4.0 / 945.0) * s6 * r * rad3 * ((7.0 * r2 + 14.0 * rad2) * r2 + 3.0 * rad2 * rad2) / q7
-    att_e = (2.0 * big_r * r / q - np.log1p(2.0 * big_r / (r - big_r))) / 6.0
-    energy = eps * (rep_e - att_e)
-    poly = rad3 * (((21.0 * r2 + 63.0 * rad2) * r2 + 27.0 * rad2 * rad2) * r2 + rad2 * rad2 * rad2)
-    force = eps * ((4.0 / 315.0) * s6 * poly / (q4 * q4) - (2.0 / 3.0) * rad3 / q2)
+    x = np.asarray(big_r / r, dtype=float)
+    d = (r - big_r) / r  # D/r; r - R is exact near contact
+    dp = d * (1.0 + x)  # 1 - x^2
+    y = x * x
+    u = p["sigma"] / r / dp
+    u2 = u * u
+    u6 = u2 * u2 * u2
+    v = x / dp  # x^3/(1-x^2)^2 = x v^2: no intermediate (1-x^2)^2 to underflow
+    g = _colloid_g(x, d, dp)
+    energy = eps * ((4.0 / 945.0) * u6 * x * y * ((3.0 * y + 14.0) * y + 7.0) / dp - g / 6.0)
+    poly = ((y + 27.0) * y + 63.0) * y + 21.0
+    force = eps * (x * v * v / r) * ((4.0 / 315.0) * u6 * poly - 2.0 / 3.0)
     return energy, force
+
+
+# ---- shifted energies E(r) - E(rc), cancellation-free ----
+
+
+def lj93_shifted(r, p: Params) -> np.ndarray:
+    """E(r) - E(rc) of lj93 (§4.1). [energy]
+
+    With s = sigma/r, c = sigma/rc and s - c = s (rc - r)/rc:
+    s^3 - c^3 = (s - c)(s^2 + s c + c^2),  s^9 - c^9 = (s^3 - c^3)(s^6 + s^3 c^3 + c^6),
+    E(r) - E(rc) = eps (s^3 - c^3) [ (2/15)(s^6 + s^3 c^3 + c^6) - 1 ].
+    """
+    rc = p["cutoff"]
+    s = p["sigma"] / r
+    c = p["sigma"] / rc
+    d3 = s * ((rc - r) / rc) * (s * s + s * c + c * c)
+    s3 = s * s * s
+    c3 = c * c * c
+    return p["epsilon"] * d3 * ((2.0 / 15.0) * (s3 * s3 + s3 * c3 + c3 * c3) - 1.0)
+
+
+def lj126_shifted(r, p: Params) -> np.ndarray:
+    """E(r) - E(rc) of lj126 (§4.2). [energy]
+
+    s^6 - c^6 = (s - c)(s^2 + s c + c^2)(s^3 + c^3), s^12 - c^12 = (s^6 - c^6)(s^6 + c^6):
+    E(r) - E(rc) = 4 eps (s^6 - c^6) (s^6 + c^6 - 1).
+    """
+    rc = p["cutoff"]
+    s = p["sigma"] / r
+    c = p["sigma"] / rc
+    s3 = s * s * s
+    c3 = c * c * c
+    d6 = s * ((rc - r) / rc) * (s * s + s * c + c * c) * (s3 + c3)
+    return 4.0 * p["epsilon"] * d6 * (s3 * s3 + c3 * c3 - 1.0)
+
+
+def lj1043_shifted(r, p: Params) -> np.ndarray:
+    """E(r) - E(rc) of lj1043 (§4.3). [energy]
+
+    s^4 - c^4 = (s - c)(s + c)(s^2 + c^2), s^10 - c^10 = (s - c)(s^4 + s^3 c + ... + c^4)(s^5 + c^5),
+    and with w = sigma/(r + s'), w_c = sigma/(rc + s'), w - w_c = w (rc - r)/(rc + s'):
+    w^3 - w_c^3 = (w - w_c)(w^2 + w w_c + w_c^2);
+    E(r) - E(rc) = 2 pi eps [ (2/5)(s^10 - c^10) - (s^4 - c^4) - (sqrt2/3)(w^3 - w_c^3) ].
+    """
+    rc = p["cutoff"]
+    sigma = p["sigma"]
+    h = rc - r
+    s = sigma / r
+    c = sigma / rc
+    ds = s * (h / rc)
+    s2, c2, sc = s * s, c * c, s * c
+    d4 = ds * (s + c) * (s2 + c2)
+    d10 = ds * (s2 * s2 + c2 * c2 + sc * (s2 + c2) + sc * sc) * (s2 * s2 * s + c2 * c2 * c)
+    shift = _LJ1043_SHIFT * sigma
+    w = sigma / (r + shift)
+    wc = sigma / (rc + shift)
+    dw3 = w * (h / (rc + shift)) * (w * w + w * wc + wc * wc)
+    return _TWO_PI * p["epsilon"] * (0.4 * d10 - d4 - (_SQRT2 / 3.0) * dw3)
+
+
+def harmonic_shifted(r, p: Params) -> np.ndarray:
+    """E(r) - E(rc) = E(r) = eps (r - rc)^2 of harmonic (§4.4). [energy]"""
+    dr = p["cutoff"] - r
+    return p["epsilon"] * dr * dr
+
+
+def morse_shifted(r, p: Params) -> np.ndarray:
+    """E(r) - E(rc) of morse (§4.5). [energy]
+
+    With e = exp(-a (r - r0)), e_c = exp(-a (rc - r0)):
+    E(r) - E(rc) = D0 (e - e_c)(e + e_c - 2) = D0 (e - e_c) [ expm1(-a(r-r0)) + expm1(-a(rc-r0)) ],
+    e - e_c = -e expm1(-a (rc - r)).
+    """
+    alpha = p["alpha"]
+    rc = p["cutoff"]
+    r0 = p["r0"]
+    x = -alpha * (r - r0)
+    em1 = np.expm1(x)
+    emc1 = np.expm1(-alpha * (rc - r0))
+    diff = -np.exp(x) * np.expm1(-alpha * (rc - r))
+    return p["D0"] * diff * (em1 + emc1)
+
+
+def _colloid_dg_series(x: np.ndarray, xc: np.ndarray, dx: np.ndarray) -> np.ndarray:
+    """g(x) - g(xc) = (x - xc) sum_k 4k/(2k+1) P_{2k+1}(x, xc) for x, xc <= 0.2 (far field),
+    P_n = (x^n - xc^n)/(x - xc) = sum_j x^j xc^(n-1-j) from P_{n+2} = x^2 P_n + xc^n (x + xc)."""
+    x2 = x * x
+    xc2 = xc * xc
+    xsum = x + xc
+    pn = 1.0  # P_1
+    xcn = xc  # xc^1
+    acc = 0.0
+    for c in _G_COEF:
+        pn = x2 * pn + xcn * xsum
+        xcn = xcn * xc2
+        acc = acc + c * pn
+    return dx * acc
+
+
+def _colloid_dg_closed(x: np.ndarray, xc: np.ndarray, dx: np.ndarray, dp: np.ndarray, dpc: np.ndarray,
+                       one_m: np.ndarray) -> np.ndarray:
+    """g(x) - g(xc) = 2 dx (1 + x xc)/(dp dpc) - 2 atanh(dx/one_m) (atanh addition theorem), with
+    dx = x - xc, dp = 1 - x^2, dpc = 1 - xc^2 and one_m = 1 - x xc formed without cancellation."""
+    return 2.0 * dx * (1.0 + x * xc) / (dp * dpc) - 2.0 * np.arctanh(dx / one_m)
+
+
+def colloid_shifted(r, p: Params) -> np.ndarray:
+    """E(r) - E(rc) of colloid (§4.6), the particle's own R in both terms. [energy]
+
+    In units of rc (rho = r/rc, b = R/rc, s = sigma/rc, h = (r - rc)/rc; q = rho^2 - b^2 and
+    q_c = 1 - b^2 formed from the exact r - R and rc - R) the repulsion is (4/945) s^6 b^3 phi
+    with phi(rho) = N(rho)/q^7, N(rho) = 7 rho^5 + 14 rho^3 b^2 + 3 rho b^4, and
+
+    phi(rho) - phi(1) = h [ A/q_c^7 - N(rho) (rho + 1) sum_{j=0..6} q^(j-7) q_c^(-1-j) ],
+    A = (N(rho) - N(1))/h = 7 (1 + rho + ... + rho^4) + 14 b^2 (1 + rho + rho^2) + 3 b^4
+
+    (opposite signs, but the second term is at least 2.8 times the first, the minimum being at
+    rho -> 1, b -> 0: the difference loses at most a factor 2.1). The
+    attraction -g(x)/6, x = R/r, x_c = R/rc, by the atanh addition theorem (_colloid_dg_closed)
+    with x - x_c = -x h and 1 - x x_c = D/r + x (rc - R)/rc; for x, x_c < 0.2 (far field) by
+    the difference of the series (_colloid_dg_series).
+    """
+    big_r = p["radius"]
+    rc = p["cutoff"]
+    h = (r - rc) / rc
+    rho = r / rc
+    b = big_r / rc
+    dct = (rc - big_r) / rc  # (rc - R)/rc
+    a = 1.0 / ((r - big_r) / rc * (rho + b))  # 1/q
+    ac = 1.0 / (dct * (1.0 + b))  # 1/q_c
+    b2 = b * b
+    big_a = (7.0 * ((((rho + 1.0) * rho + 1.0) * rho + 1.0) * rho + 1.0)
+             + 14.0 * b2 * ((rho + 1.0) * rho + 1.0) + 3.0 * b2 * b2)
+    rho2 = rho * rho
+    n_rho = rho * ((7.0 * rho2 + 14.0 * b2) * rho2 + 3.0 * b2 * b2)
+    p7 = 1.0  # sum_{j=0..6} a^(6-j) ac^j, from P_{n+1} = a P_n + ac^n
+    acn = 1.0
+    for _ in range(6):
+        acn = acn * ac
+        p7 = a * p7 + acn
+    ac2 = ac * ac
+    dphi = h * (big_a * (ac2 * ac2 * ac2 * ac) - n_rho * (rho + 1.0) * a * ac * p7)
+    s2 = (p["sigma"] / rc) ** 2
+    rep = (4.0 / 945.0) * s2 * s2 * s2 * b2 * b * dphi
+
+    shape = np.broadcast_shapes(np.shape(r), np.shape(big_r), np.shape(rc))
+    x = np.broadcast_to(np.asarray(big_r / r, dtype=float), shape)
+    dx = -x * h
+    small = np.maximum(x, b) < _G_SWITCH
+    if small.all():
+        dg = _colloid_dg_series(x, b, dx)
+    else:
+        d = (r - big_r) / r
+        dg = _colloid_dg_closed(x, b, dx, d * (1.0 + x), dct * (1.0 + b), d + x * dct)
+        if small.any():  # only reached for ndim >= 1
+            idx = np.nonzero(small)
+            dg[idx] = _colloid_dg_series(x[idx], np.broadcast_to(b, x.shape)[idx], dx[idx])
+    return p["epsilon"] * (rep - dg / 6.0)
 
 
 @dataclass(frozen=True)
 class WallStyle:
-    """One flat-wall style: its LAMMPS per-face argument names and its energy/force function."""
+    """One flat-wall style: its LAMMPS per-face argument names, its energy/force function and its
+    cancellation-free shifted energy E(r) - E(rc)."""
 
     name: str
     params: tuple[str, ...]  # per-face arguments after coord, in LAMMPS order
     energy_force: EnergyForce
     shifted: bool = True  # energy reported as E(r) - E(rc)
     needs_radius: bool = False  # per-atom radius required (colloid)
+    shifted_fn: ShiftedEnergy | None = None  # E(r) - E(rc) computed stably; None: plain difference
 
     def too_close(self, p: Params) -> np.ndarray | float:
         """Threshold t: an atom within the cut-off with delta <= t is "on or inside" the wall (§3.3).
@@ -164,18 +366,30 @@ class WallStyle:
         """
         return p["radius"] if self.needs_radius else 0.0
 
+    def shifted_energy(self, r, p: Params) -> np.ndarray:
+        """The reported energy: E(r) - E(rc), rc = p["cutoff"] (E(r) if ``shifted`` is False). [energy]
+
+        The offset uses the same (per-atom) parameters, e.g. colloid's own radius. Computed
+        without cancellation as r -> rc by ``shifted_fn`` when the style has one.
+        """
+        if not self.shifted:
+            return self.energy_force(r, p)[0]
+        if self.shifted_fn is not None:
+            return self.shifted_fn(r, p)
+        return self.energy_force(r, p)[0] - self.energy_force(p["cutoff"], p)[0]
+
 
 _LJ_ARGS = ("epsilon", "sigma", "cutoff")
 
 STYLES: dict[str, WallStyle] = {
     s.name: s
     for s in (
-        WallStyle("lj93", _LJ_ARGS, lj93),
-        WallStyle("lj126", _LJ_ARGS, lj126),
-        WallStyle("lj1043", _LJ_ARGS, lj1043),
-        WallStyle("colloid", _LJ_ARGS, colloid, needs_radius=True),
-        WallStyle("harmonic", _LJ_ARGS, harmonic),  # sigma is read but ignored
-        WallStyle("morse", ("D0", "alpha", "r0", "cutoff"), morse),
+        WallStyle("lj93", _LJ_ARGS, lj93, shifted_fn=lj93_shifted),
+        WallStyle("lj126", _LJ_ARGS, lj126, shifted_fn=lj126_shifted),
+        WallStyle("lj1043", _LJ_ARGS, lj1043, shifted_fn=lj1043_shifted),
+        WallStyle("colloid", _LJ_ARGS, colloid, needs_radius=True, shifted_fn=colloid_shifted),
+        WallStyle("harmonic", _LJ_ARGS, harmonic, shifted_fn=harmonic_shifted),  # sigma is read but ignored
+        WallStyle("morse", ("D0", "alpha", "r0", "cutoff"), morse, shifted_fn=morse_shifted),
     )
 }
 
@@ -183,10 +397,10 @@ STYLES: dict[str, WallStyle] = {
 def shifted_energy_force(style: WallStyle, r, p: Params) -> tuple[np.ndarray, np.ndarray]:
     """(E(r) - E(rc), F(r)) for ``style``, rc = p["cutoff"]. [energy], [force]
 
-    The offset E(rc) uses the same (per-atom) parameters, e.g. colloid's own radius. For a
-    style with ``shifted=False`` the energy is returned unshifted.
+    See :meth:`WallStyle.shifted_energy`; for a style with ``shifted=False`` the energy is
+    returned unshifted.
     """
     energy, force = style.energy_force(r, p)
     if style.shifted:
-        energy = energy - style.energy_force(p["cutoff"], p)[0]
+        energy = style.shifted_energy(r, p)
     return energy, force

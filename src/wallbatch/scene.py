@@ -5,6 +5,7 @@ masses, radii and initial velocities.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,10 @@ from .potentials import STYLES, WallStyle
 from .units import LATTICE_POSITIONS, UNIT_SYSTEMS, UnitSystem, lattice_constant
 
 Value = float | str  # a number, or the name of an equal-style variable (without v_)
+
+
+class MinimizeWarning(UserWarning):
+    """A minimization whose objective lacks some wall energies (LAMMPS behaviour, reproduced)."""
 
 
 class CaseError(RuntimeError):
@@ -46,6 +51,7 @@ class SoftWallSpec:
     group: np.ndarray  # (N,) bool
     energy: bool
     faces: tuple[Face, ...]
+    virial: bool = False  # fix_modify virial: the wall virial joins press
 
 
 @dataclass(frozen=True)
@@ -68,6 +74,32 @@ class DtResetSpec:
     tmax: float | None
     xmax: float
     emax: float | None
+
+
+@dataclass(frozen=True)
+class PairSpec:
+    """pair_style lj/cut with one atom type (physics.md §12); `skin` is the neighbor skin."""
+
+    epsilon: float
+    sigma: float
+    cutoff: float
+    shift: bool
+    skin: float
+
+
+@dataclass(frozen=True)
+class RegionWallSpec:
+    """fix wall/region (`potential` a flat-wall style) or wall/region/ees (`potential` None)."""
+
+    fix_id: str
+    kind: str  # "region" | "region/ees"
+    region_name: str
+    region: Any  # regions.RegionGeom, box units
+    potential: WallStyle | None
+    group: np.ndarray
+    energy: bool
+    params: dict[str, Value]  # epsilon, sigma, cutoff, D0, alpha, r0 (box units; variables by name)
+    virial: bool = False
 
 
 @dataclass(frozen=True)
@@ -98,10 +130,30 @@ class Case:
     outputs: tuple[str, ...]
     dump_every: int = 0  # output.dump: a frame every that many steps (0: no dump)
     dump_fields: tuple[str, ...] = ()
+    # ellipsoids (None when no atom has a shape): semi-axes (N,3) (0 for point atoms), unit
+    # quaternions (N,4) (w, x, y, z), space-frame angular momentum (N,3)
+    shape: np.ndarray | None = None
+    quat: np.ndarray | None = None
+    angmom: np.ndarray | None = None
+    pair: PairSpec | None = None
+    region_walls: tuple[RegionWallSpec, ...] = ()
+    flow_walls: tuple = ()  # flow.FlowSpec per wall/flow fix
+    flow_seeds: tuple[tuple[int, ...], ...] = ()  # random stream key per flow wall
+    fix_order: tuple[str, ...] = ()  # fixes with a global scalar (soft, ees, region), config order
+    minimize: Any = None  # minimize.MinSettings, or None
 
     @property
     def natoms(self) -> int:
         return self.x.shape[0]
+
+
+def _no_closed_form(r, p):  # noqa: ANN001, ANN202
+    raise TypeError("wall/ees needs orientations: its kernel calls ellipsoid.ees_energy_force_torque")
+
+
+# wall/ees on flat faces: its energy needs the ellipsoid's orientation, so no (r, p) function;
+# its energy is not shifted at the cut-off (LAMMPS, physics.md §4.7)
+EES_STYLE = WallStyle("ees", ("epsilon", "sigma", "cutoff"), _no_closed_form, shifted=False)
 
 
 def lattice_spacing(cfg: Config) -> float | None:
@@ -214,6 +266,7 @@ def _thermal_velocities(n: int, mass: np.ndarray, temperature: float, u: UnitSys
 def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]:
     u = UNIT_SYSTEMS[cfg.units]
     xs, vs, ms, rs, gid = [], [], [], [], []
+    shapes, quats, angmoms = [], [], []
     existing = np.zeros((0, 3))
     for i, g in enumerate(cfg.atoms):
         path = f"atoms.{i}"
@@ -248,6 +301,11 @@ def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]
         if mass.shape != (n,) or not np.all(mass > 0):
             raise _fail(f"{path}.mass", "masses must be positive, one per atom")
         radius = data["radius"] if "radius" in data else np.full(n, g.radius or 0.0)
+        for key, given in (("shape", g.shape), ("quat", g.orientation), ("angmom", g.angmom)):
+            if key in data and given is not None:
+                raise _fail(f"{path}.{'orientation' if key == 'quat' else key}",
+                            f"{key} is given both here and in {c.file}: keep one")
+        shape, quat, angmom = _ellipsoid_state(g, data, n, rng, path)
         if "v" in data:
             v = _per_atom(data["v"], n, 3, f"{path}.create.file")
         elif g.velocity is None:
@@ -260,6 +318,9 @@ def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]
         vs.append(v)
         ms.append(mass)
         rs.append(radius)
+        shapes.append(shape)
+        quats.append(quat)
+        angmoms.append(angmom)
         gid.append(np.full(n, i))
         existing = np.concatenate([existing, x])
     x = np.concatenate(xs)
@@ -268,8 +329,45 @@ def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]
     if len(outside):
         i = outside[0]
         raise CaseError(f"atoms: atom {i} at {x[i].tolist()} is outside the box {lo.tolist()} - {hi.tolist()}")
-    return {"x": x, "v": np.concatenate(vs), "mass": np.concatenate(ms),
-            "radius": np.concatenate(rs), "group": np.concatenate(gid)}
+    out = {"x": x, "v": np.concatenate(vs), "mass": np.concatenate(ms),
+           "radius": np.concatenate(rs), "group": np.concatenate(gid)}
+    shape = np.concatenate(shapes)
+    if np.any(shape > 0):  # only scenes with ellipsoids carry orientation state
+        out.update(shape=shape, quat=np.concatenate(quats), angmom=np.concatenate(angmoms))
+    return out
+
+
+def _ellipsoid_state(g: Any, data: dict[str, np.ndarray], n: int, rng: np.random.Generator,
+                     path: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Semi-axes (n,3) (zeros: point atoms), unit quaternions (n,4) and angular momenta (n,3) of a
+    group. Orientation: aligned (identity, the default), random (uniform on SO(3)), one
+    quaternion [qw, qx, qy, qz] or a `quat` array from the .npz; quaternions are normalised."""
+    from .ellipsoid import normalize, random_quaternions
+
+    if "shape" in data:
+        shape = _per_atom(data["shape"], n, 3, f"{path}.create.file")
+    else:
+        shape = np.broadcast_to(np.asarray(g.shape if g.shape is not None else (0.0, 0.0, 0.0), float), (n, 3)).copy()
+    if np.any(shape < 0) or np.any((shape > 0).any(axis=1) & ~(shape > 0).all(axis=1)):
+        raise _fail(f"{path}.shape", "ellipsoid semi-axes must all be > 0 (or all 0 for a point atom)")
+    if "quat" in data:
+        quat = _per_atom(data["quat"], n, 4, f"{path}.create.file")
+    elif g.orientation == "random":
+        quat = random_quaternions(rng, (n,))
+    elif isinstance(g.orientation, tuple):
+        quat = np.broadcast_to(np.asarray(g.orientation, float), (n, 4)).copy()
+    else:
+        quat = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    if not np.all(np.linalg.norm(quat, axis=1) > 0):
+        raise _fail(f"{path}.orientation", "a quaternion of length 0 has no orientation")
+    quat = normalize(quat)
+    if "angmom" in data:
+        angmom = _per_atom(data["angmom"], n, 3, f"{path}.create.file")
+    elif g.angmom is not None:
+        angmom = _per_atom(g.angmom.values, n, 3, f"{path}.angmom.values")
+    else:
+        angmom = np.zeros((n, 3))
+    return shape, quat, angmom
 
 
 # ----------------------------------------------------------------------------- walls
@@ -311,18 +409,43 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
             return np.ones(n, bool)
         return atoms["group"] == group_names.index(group)
 
-    soft, reflect = [], []
+    soft, reflect, regional, flows, flow_seeds, fix_order = [], [], [], [], [], []
     for fid, wall in cfg.walls.items():
         if wall.style == "reflect":
             reflect.append(ReflectSpec(fid, mask(wall.group), wall.frame, _faces(cfg, fid, wall, ())))
-        elif wall.style in STYLES:
-            style = STYLES[wall.style]
-            if style.needs_radius and np.any(atoms["radius"][mask(wall.group)] <= 0):
-                raise CaseError(f"walls.{fid}: wall/colloid requires extended particles (radius > 0)")
-            soft.append(SoftWallSpec(fid, style, mask(wall.group), wall.energy,
-                                     _faces(cfg, fid, wall, style.params)))
+            continue
+        if wall.style == "flow":
+            from .flow import FlowSpec
+
+            scale = 1.0 if wall.units == "box" else lattice_spacing(cfg)
+            flows.append(FlowSpec(fid, mask(wall.group), "xyz".index(wall.axis), wall.vflow, wall.temperature,
+                                  np.asarray(wall.coords, float) * scale, wall.rule))
+            flow_seeds.append((cfg.seed, *seed_key, wall.seed, len(flows)))
+            continue
+        group = mask(wall.group)
+        if wall.style in ("colloid", "ees", "region", "region/ees"):
+            colloid = wall.style == "colloid" or getattr(wall, "potential", None) == "colloid"
+            if colloid and np.any(atoms["radius"][group] <= 0):
+                raise CaseError(f"walls.{fid}: wall/{wall.style} colloid requires extended particles (radius > 0)")
+            if wall.style in ("ees", "region/ees") and ("shape" not in atoms or np.any(atoms["shape"][group] <= 0)):
+                raise CaseError(f"walls.{fid}: wall/{wall.style} requires extended particles: every atom of group "
+                                f"{wall.group} needs a shape (ellipsoid semi-axes)")
+        fix_order.append(fid)
+        if wall.style in ("region", "region/ees"):
+            from .regions import RegionGeom
+
+            region = cfg.regions[wall.region]
+            spacing = None if region.units == "box" else lattice_spacing(cfg)
+            potential = STYLES[wall.potential] if wall.style == "region" else None
+            keys = ("epsilon", "sigma", "D0", "alpha", "r0", "cutoff")
+            params = {k: _value(getattr(wall, k)) for k in keys if getattr(wall, k, None) is not None}
+            regional.append(RegionWallSpec(fid, wall.style, wall.region, RegionGeom.from_config(region, spacing),
+                                           potential, group, wall.energy, params,
+                                           getattr(wall, "virial", False)))
         else:
-            raise CaseError(f"walls.{fid}: style {wall.style} is not supported yet")
+            style = EES_STYLE if wall.style == "ees" else STYLES[wall.style]
+            soft.append(SoftWallSpec(fid, style, group, wall.energy, _faces(cfg, fid, wall, style.params),
+                                     wall.virial and wall.style != "ees"))  # wall/ees has no virial
     dtr = None
     if cfg.dt_reset is not None:
         d = cfg.dt_reset
@@ -330,22 +453,52 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
         dtr = DtResetSpec(d.every, mask(d.group), d.tmin, d.tmax, d.xmax * xscale, d.emax)
     thermo = cfg.run.thermo
     is_time = isinstance(thermo, TimeInterval)
+    dt = cfg.timestep if cfg.timestep is not None else u.dt
     return Case(
         name=cfg.name, units=u,
         box_lo=np.asarray(cfg.box.lo, float), box_hi=np.asarray(cfg.box.hi, float),
         periodic=np.array([b == "p" for b in cfg.box.boundary]),
         x=atoms["x"], v=atoms["v"], mass=atoms["mass"], radius=atoms["radius"],
         atom_group=atoms["group"], group_names=group_names,
-        dt=cfg.timestep if cfg.timestep is not None else u.dt,
+        dt=dt,
         variables=Variables(cfg.variables),
         variable_text=tuple((k, str(v)) for k, v in cfg.variables.items()),
         soft_walls=tuple(soft), reflect_walls=tuple(reflect), dt_reset=dtr,
         steps=cfg.run.steps, run_time=cfg.run.time,
         thermo=thermo.time if is_time else thermo, thermo_is_time=is_time,
-        outputs=tuple(cfg.output.thermo),
+        outputs=tuple(cfg.output.thermo) + (("flow_crossings",) if flows and "flow_crossings" not in
+                                             cfg.output.thermo else ()),
         dump_every=cfg.output.dump.every if cfg.output.dump else 0,
         dump_fields=tuple(cfg.output.dump.fields) if cfg.output.dump else (),
+        shape=atoms.get("shape"), quat=atoms.get("quat"), angmom=atoms.get("angmom"),
+        pair=_pair_spec(cfg), region_walls=tuple(regional), flow_walls=tuple(flows),
+        flow_seeds=tuple(flow_seeds), fix_order=tuple(fix_order), minimize=_min_settings(cfg, dt),
     )
 
 
-__all__ = ["Case", "CaseError", "Face", "SoftWallSpec", "ReflectSpec", "DtResetSpec", "build_case"]
+def _pair_spec(cfg: Config) -> PairSpec | None:
+    if cfg.pair is None:
+        return None
+    p = cfg.pair
+    skin = 0.3 if cfg.units == "lj" else 2.0  # LAMMPS's default neighbor skin
+    return PairSpec(p.epsilon, p.sigma, p.cutoff, p.shift, skin)
+
+
+def _min_settings(cfg: Config, dt: float) -> Any:
+    if cfg.minimize is None:
+        return None
+    from .minimize import MinSettings
+
+    quiet = [fid for fid, w in cfg.walls.items() if w.style not in ("reflect", "flow") and not w.energy]
+    if quiet:
+        warnings.warn(
+            f"minimize: wall(s) {', '.join(quiet)} have energy: false, so (as in LAMMPS without fix_modify "
+            f"energy yes) their forces act during minimization but their energy is not in the minimized "
+            f"quantity; set energy: true on them for a consistent minimization", MinimizeWarning, stacklevel=2)
+    m = cfg.minimize
+    return MinSettings(etol=m.etol, ftol=m.ftol, maxiter=m.maxiter, maxeval=m.maxeval, style=m.style,
+                       dmax=m.dmax, timestep=dt)
+
+
+__all__ = ["Case", "CaseError", "Face", "SoftWallSpec", "ReflectSpec", "DtResetSpec", "PairSpec", "RegionWallSpec",
+           "build_case"]

@@ -25,17 +25,18 @@ class UnitSystem:
     pressure: str
     velocity: str
     mass: str
+    nktv2p: float = 1.0  # pressure from energy/volume (LAMMPS force->nktv2p)
 
 
 UNIT_SYSTEMS: dict[str, UnitSystem] = {
     "lj": UnitSystem("lj", 1.0, 1.0, 1.0, 0.005, "1", "1", "1", "1", "1", "1", "1", "1"),
     "real": UnitSystem(
         "real", 0.0019872067, 48.88821291 * 48.88821291, 1.0 / 48.88821291 / 48.88821291, 1.0,
-        "kcal/mol", "Angstrom", "fs", "K", "kcal/mol/Angstrom", "atm", "Angstrom/fs", "g/mol",
+        "kcal/mol", "Angstrom", "fs", "K", "kcal/mol/Angstrom", "atm", "Angstrom/fs", "g/mol", 68568.415,
     ),
     "metal": UnitSystem(
         "metal", 8.617343e-5, 1.0364269e-4, 1.0 / 1.0364269e-4, 0.001,
-        "eV", "Angstrom", "ps", "K", "eV/Angstrom", "bar", "Angstrom/ps", "g/mol",
+        "eV", "Angstrom", "ps", "K", "eV/Angstrom", "bar", "Angstrom/ps", "g/mol", 1.6021765e6,
     ),
 }
 

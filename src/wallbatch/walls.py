@@ -68,6 +68,8 @@ class SoftWallKernel:
         self.group: np.ndarray = s0.group
         self.all_atoms = bool(s0.group.all())
         self.energy_to_pe: bool = s0.energy
+        self.virial: bool = s0.virial  # fix_modify virial: sum of F r, set on output steps
+        self.last_virial: np.ndarray | None = None
         self.faces = [FaceValues([s.faces[i] for s in specs]) for i in range(len(s0.faces))]
 
     def take(self, keep: np.ndarray) -> None:
@@ -80,6 +82,8 @@ class SoftWallKernel:
         C = state.ncases
         energy = np.zeros(C) if outputs else None
         vector = np.zeros((C, len(self.faces))) if outputs else None
+        if outputs and self.virial:
+            self.last_virial = np.zeros(C)
         for k, face in enumerate(self.faces):
             coord = face.position(state)
             p = {key: face.param(key, state) for key in face.params}
@@ -109,14 +113,17 @@ class SoftWallKernel:
             e, f = self.style.energy_force(r, pa)
             state.f[ci, ai, face.dim] -= face.side * f
             if outputs:
-                e_rc = self.style.energy_force(pa["cutoff"], pa)[0]
-                energy += np.bincount(ci, weights=e - e_rc, minlength=C)
+                e_shifted = self.style.shifted_energy(r, pa)  # E(r) - E(rc) without cancellation
+                energy += np.bincount(ci, weights=e_shifted, minlength=C)
                 vector[:, k] = np.bincount(ci, weights=face.side * f, minlength=C)
+                if self.virial:  # +F r on the (dim, dim) component, lo and hi alike (physics.md §3.4)
+                    self.last_virial += np.bincount(ci, weights=f * r, minlength=C)
         return (energy, vector) if outputs else None
 
     def _fail_inside(self, state: "BatchState", ci: np.ndarray, ai: np.ndarray, r: np.ndarray,
                      face: str) -> None:
-        what = "its surface touches or crosses the wall" if self.style.needs_radius else "it is on or behind the wall"
+        what = ("its surface touches or crosses the wall" if self.style.needs_radius or self.style.name == "ees"
+                else "it is on or behind the wall")
         first: dict[int, tuple[int, float]] = {}
         for c, a, d in zip(ci.tolist(), ai.tolist(), r.tolist()):
             first.setdefault(c, (a, d))
@@ -124,6 +131,48 @@ class SoftWallKernel:
             f"walls.{self.fix_id} (wall/{self.style.name} {face}): atom {first[c][0]} at distance "
             f"{first[c][1]:.6g} from the wall at step {int(state.step[c])}: {what} "
             f"(LAMMPS: Particle on or inside fix wall surface)"))
+
+
+class EESWallKernel(SoftWallKernel):
+    """fix wall/ees over a batch (physics.md §4.7): ellipsoids against flat faces. The normal
+    n = -side e_dim points from the wall into the allowed region; sigma_n is the centre-to-tangent
+    plane distance along n. Force -side F along dim, torque T_w (n x A S^2 A^T n), energy
+    unshifted (LAMMPS); an atom with delta <= sigma_n is on or inside the wall."""
+
+    def apply(self, state: "BatchState", outputs: bool) -> tuple[np.ndarray, np.ndarray] | None:
+        from .ellipsoid import ees_energy_force_torque, ees_torque, sigma_n
+
+        C = state.ncases
+        energy = np.zeros(C) if outputs else None
+        vector = np.zeros((C, len(self.faces))) if outputs else None
+        for k, face in enumerate(self.faces):
+            coord = face.position(state)
+            p = {key: face.param(key, state) for key in face.params}
+            pos = state.x[:, :, face.dim]
+            delta = pos - coord[:, None] if face.side < 0 else coord[:, None] - pos
+            near = delta < p["cutoff"][:, None]
+            if not self.all_atoms:
+                near &= self.group
+            ci, ai = np.nonzero(near)
+            if ci.size == 0:
+                continue
+            r = delta[ci, ai]
+            normal = np.zeros(3)
+            normal[face.dim] = -face.side
+            q, shape = state.quat[ci, ai], state.shape[ci, ai]
+            sn = sigma_n(q, shape, normal)
+            bad = r <= sn
+            if bad.any():
+                self._fail_inside(state, ci[bad], ai[bad], r[bad], face.name)
+                ok = ~bad
+                ci, ai, r, sn, q, shape = ci[ok], ai[ok], r[ok], sn[ok], q[ok], shape[ok]
+            e, f, tw = ees_energy_force_torque(r, sn, p["epsilon"][ci], p["sigma"][ci])
+            state.f[ci, ai, face.dim] -= face.side * f
+            state.torque[ci, ai] += ees_torque(q, shape, normal, tw)
+            if outputs:
+                energy += np.bincount(ci, weights=e, minlength=C)
+                vector[:, k] = np.bincount(ci, weights=face.side * f, minlength=C)
+        return (energy, vector) if outputs else None
 
 
 class ReflectKernel:
@@ -192,9 +241,22 @@ class ReflectKernel:
 
 
 def build_kernels(cases: list[Case], outputs: tuple[str, ...]) -> tuple[list[SoftWallKernel], list[ReflectKernel]]:
-    soft = [SoftWallKernel([c.soft_walls[i] for c in cases]) for i in range(len(cases[0].soft_walls))]
+    """Flat soft walls (wall/ees included, as EESWallKernel) and reflecting walls of a batch."""
+    soft = [(EESWallKernel if cases[0].soft_walls[i].style.name == "ees" else SoftWallKernel)(
+        [c.soft_walls[i] for c in cases]) for i in range(len(cases[0].soft_walls))]
     stats = "reflect_count" in outputs or "reflect_impulse" in outputs
     reflect = [ReflectKernel([c.reflect_walls[i] for c in cases], stats)
                for i in range(len(cases[0].reflect_walls))]
     return soft, reflect
 
+
+
+def build_region_kernels(cases: list[Case]) -> list:
+    """wall/region and wall/region/ees kernels of a batch, in config order."""
+    from .regions import RegionEESKernel, RegionWallKernel
+
+    kernels = []
+    for i, spec in enumerate(cases[0].region_walls):
+        kind = RegionEESKernel if spec.kind == "region/ees" else RegionWallKernel
+        kernels.append(kind([c.region_walls[i] for c in cases]))
+    return kernels

@@ -1,0 +1,331 @@
+"""Ellipsoid mathematics: quaternions, inertia, the nve/asphere rotation step and the wall/ees
+ellipsoid-wall interaction (physics.md §4.7, §6, §11.2, §11.3).
+
+Everything is batched over arbitrary leading axes: quaternions are ``(..., 4)`` arrays
+``(w, i, j, k)``, semi-axes ``(..., 3)``, angular momenta and normals ``(..., 3)``, scalars
+``(...)``; leading axes broadcast (e.g. ``(C, N, 4)`` quaternions with ``(C, N, 3)`` shapes).
+
+Conventions (§11.3): ``A = rotation_matrix(q)`` maps body to space, its columns are the body
+axes in the space frame. ``shape`` holds the semi-axes (a, b, c) (LAMMPS's ``set shape`` and
+data-file ``Ellipsoids`` section take *diameters*). Angular momentum ``L`` is in the space frame.
+
+wall/ees (§4.7): with r the distance of the centre from the wall and sigma_n the distance from the
+centre to the tangent plane parallel to the wall (:func:`sigma_n`),
+
+    E = eps [ 2 sigma^12 (7r^5 + 14r^3 sn^2 + 3r sn^4) / (945 h^7)
+              - sigma^6 (2r sn^3 + sn^2 h ln((r - sn)/(r + sn))) / (12 sn^5 h) ],   h = r^2 - sn^2
+
+is exactly the 12-6 Lennard-Jones energy integrated over the ellipsoid volume and the wall
+half-space, 4 eps_LJ rho_e rho_w \\int\\int [(s/d)^12 - (s/d)^6], with
+``eps = 8 pi^2 rho_wall rho_ellipsoid eps_LJ a b c`` (a, b, c the semi-axes); the far field is
+E -> -eps sigma^6 / (9 r^3). :func:`ees_energy_force_torque` evaluates it without the
+cancellation of the closed form (see there).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "aligned",
+    "angular_velocity",
+    "ees_energy_force_torque",
+    "ees_torque",
+    "from_axis_angle",
+    "inertia",
+    "multiply",
+    "normalize",
+    "random_quaternions",
+    "richardson",
+    "rotation_matrix",
+    "rotational_energy",
+    "sigma_n",
+]
+
+INERTIA = 0.2  # moment of inertia prefactor of a uniform solid ellipsoid, I = (m/5)(b^2 + c^2), ...
+
+
+# --------------------------------------------------------------------------------------------
+# quaternions (§11.3)
+
+
+def normalize(q: np.ndarray) -> np.ndarray:
+    """Unit quaternion q / |q|, (..., 4) -> (..., 4). Computed as q * (1/sqrt(w^2+i^2+j^2+k^2))."""
+    q = np.asarray(q, dtype=np.float64)
+    w, i, j, k = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    inv = 1.0 / np.sqrt(w * w + i * i + j * j + k * k)
+    return q * inv[..., None]
+
+
+def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product p ⊗ q of (..., 4) quaternions (rotation q first, then p)."""
+    p = np.asarray(p, dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64)
+    p0, p1, p2, p3 = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+    q0, q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack(
+        [
+            p0 * q0 - p1 * q1 - p2 * q2 - p3 * q3,
+            p0 * q1 + p1 * q0 + p2 * q3 - p3 * q2,
+            p0 * q2 - p1 * q3 + p2 * q0 + p3 * q1,
+            p0 * q3 + p1 * q2 - p2 * q1 + p3 * q0,
+        ],
+        axis=-1,
+    )
+
+
+def rotation_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix A(q), (..., 4) -> (..., 3, 3), body -> space (§11.3); q must be unit.
+
+    A = [[w²+i²-j²-k², 2(ij-wk),     2(ik+wj)    ],
+         [2(ij+wk),     w²-i²+j²-k², 2(jk-wi)    ],
+         [2(ik-wj),     2(jk+wi),     w²-i²-j²+k²]]
+    """
+    q = np.asarray(q, dtype=np.float64)
+    w, i, j, k = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    w2, i2, j2, k2 = w * w, i * i, j * j, k * k
+    ij, ik, jk = 2.0 * i * j, 2.0 * i * k, 2.0 * j * k
+    wi, wj, wk = 2.0 * w * i, 2.0 * w * j, 2.0 * w * k
+    rows = [
+        [w2 + i2 - j2 - k2, ij - wk, ik + wj],
+        [ij + wk, w2 - i2 + j2 - k2, jk - wi],
+        [ik - wj, jk + wi, w2 - i2 - j2 + k2],
+    ]
+    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+
+
+def from_axis_angle(axis: np.ndarray, angle: np.ndarray, *, degrees: bool = False,
+                    normalize_axis: bool = True) -> np.ndarray:
+    """Unit quaternion of a rotation by ``angle`` about ``axis`` (..., 3) -> (..., 4).
+
+    q = (cos(θ/2), sin(θ/2) â). With ``normalize_axis=False`` the axis is used as given and the
+    whole quaternion is normalised afterwards: LAMMPS's ``set ... quat a b c θ`` (note after
+    §11.3), so ``(1, 1, 0), 50°`` is then a 66.8° rotation.
+    """
+    axis = np.asarray(axis, dtype=np.float64)
+    theta = np.asarray(angle, dtype=np.float64)
+    if degrees:
+        theta = np.deg2rad(theta)
+    if normalize_axis:
+        axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+    half = 0.5 * theta
+    axis, half = np.broadcast_arrays(axis, half[..., None])
+    q = np.concatenate([np.cos(half[..., :1]), np.sin(half) * axis], axis=-1)
+    return normalize(q)
+
+
+def random_quaternions(rng: np.random.Generator, shape: int | tuple[int, ...]) -> np.ndarray:
+    """Unit quaternions (*shape, 4) uniformly distributed on SO(3) (normalised 4-d Gaussians)."""
+    shape = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
+    return normalize(rng.standard_normal(shape + (4,)))
+
+
+def aligned(shape: int | tuple[int, ...] = ()) -> np.ndarray:
+    """Identity quaternions (1, 0, 0, 0) of shape (*shape, 4): body axes along x, y, z."""
+    shape = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
+    q = np.zeros(shape + (4,))
+    q[..., 0] = 1.0
+    return q
+
+
+# --------------------------------------------------------------------------------------------
+# rigid-body rotation (§11.2)
+
+
+def inertia(mass: np.ndarray, shape: np.ndarray) -> np.ndarray:
+    """Principal moments of a uniform solid ellipsoid [mass*length^2], (...,) and (..., 3) -> (..., 3).
+
+    I = (m/5) (b² + c², a² + c², a² + b²) for semi-axes (a, b, c).
+    """
+    m = INERTIA * np.asarray(mass, dtype=np.float64)[..., None]
+    s = np.asarray(shape, dtype=np.float64)
+    a2, b2, c2 = s[..., 0] * s[..., 0], s[..., 1] * s[..., 1], s[..., 2] * s[..., 2]
+    return m * np.stack([b2 + c2, a2 + c2, a2 + b2], axis=-1)
+
+
+def _to_body(a: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """A^T v for (..., 3, 3) and (..., 3), summed in index order."""
+    return a[..., 0, :] * v[..., 0, None] + a[..., 1, :] * v[..., 1, None] + a[..., 2, :] * v[..., 2, None]
+
+
+def _to_space(a: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """A v for (..., 3, 3) and (..., 3), summed in index order."""
+    return a[..., :, 0] * v[..., 0, None] + a[..., :, 1] * v[..., 1, None] + a[..., :, 2] * v[..., 2, None]
+
+
+def _body_omega(a: np.ndarray, angmom: np.ndarray, moments: np.ndarray) -> np.ndarray:
+    """Body-frame angular velocity diag(1/I) A^T L, with 0 where I = 0."""
+    wbody = _to_body(a, angmom)
+    nonzero = moments != 0.0
+    return np.where(nonzero, wbody / np.where(nonzero, moments, 1.0), 0.0)
+
+
+def angular_velocity(q: np.ndarray, angmom: np.ndarray, inertia: np.ndarray) -> np.ndarray:
+    """Space-frame angular velocity ω = A diag(1/I) A^T L [1/time], (..., 3); 0 where I = 0."""
+    a = rotation_matrix(q)
+    return _to_space(a, _body_omega(a, np.asarray(angmom, dtype=np.float64), np.asarray(inertia)))
+
+
+def _omega_quat(omega: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """(0, ω) ⊗ q, the pure-vector Hamilton product of §11.2."""
+    a0, a1, a2 = omega[..., 0], omega[..., 1], omega[..., 2]
+    b0, b1, b2, b3 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack(
+        [
+            -a0 * b1 - a1 * b2 - a2 * b3,
+            b0 * a0 + a1 * b3 - a2 * b2,
+            b0 * a1 + a2 * b1 - a0 * b3,
+            b0 * a2 + a0 * b2 - a1 * b1,
+        ],
+        axis=-1,
+    )
+
+
+def richardson(q: np.ndarray, angmom: np.ndarray, inertia: np.ndarray, dtq) -> np.ndarray:
+    """One Richardson step of dq/dt = ½ (0,ω) ⊗ q over dt = 2 dtq (§11.2, fix nve/asphere).
+
+    q (..., 4) unit, angmom L (..., 3) space frame, inertia (..., 3) principal moments; ``dtq``
+    (= dt/2) a float or an array broadcastable against ``q.shape[:-1]`` (e.g. ``dtq[:, None]`` for
+    per-case values with (C, N, 4) quaternions). Same order of operations as LAMMPS:
+
+        ω = ω(q, L);  wq = (0,ω) ⊗ q
+        q_full = normalize(q + dtq wq);  q_half = normalize(q + ½ dtq wq)
+        ω' = ω(q_half, L);  q_half = normalize(q_half + ½ dtq (0,ω') ⊗ q_half)
+        q_new = normalize(2 q_half - q_full)
+
+    Atoms whose three moments are all 0 (point particles) keep q unchanged, bit for bit.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    angmom = np.asarray(angmom, dtype=np.float64)
+    moments = np.asarray(inertia, dtype=np.float64)
+    dtq = np.asarray(dtq, dtype=np.float64)[..., None]
+    half = 0.5 * dtq
+    wq = _omega_quat(angular_velocity(q, angmom, moments), q)
+    q_full = normalize(q + dtq * wq)
+    q_half = normalize(q + half * wq)
+    wq = _omega_quat(angular_velocity(q_half, angmom, moments), q_half)
+    q_half = normalize(q_half + half * wq)
+    q_new = normalize(2.0 * q_half - q_full)
+    point = np.all(moments == 0.0, axis=-1)[..., None]
+    return np.where(point, q, q_new)
+
+
+def rotational_energy(q: np.ndarray, angmom: np.ndarray, inertia: np.ndarray) -> np.ndarray:
+    """Rotational kinetic energy ½ L·ω = ½ Σ_k I_k ω_body,k² [mass*velocity^2], (...).
+
+    Multiply by mvv2e for energy units (compute erotate/asphere). Components with I = 0 count 0.
+    """
+    a = rotation_matrix(q)
+    moments = np.asarray(inertia, dtype=np.float64)
+    wb = _body_omega(a, np.asarray(angmom, dtype=np.float64), moments)
+    iw2 = moments * wb * wb
+    return 0.5 * (iw2[..., 0] + iw2[..., 1] + iw2[..., 2])
+
+
+# --------------------------------------------------------------------------------------------
+# wall/ees (§4.7, §6)
+
+
+def sigma_n(q: np.ndarray, shape: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Distance [length] from the centre to the tangent plane with unit normal n̂ (§4.7), (...).
+
+    sigma_n = |S A^T n̂| = sqrt(n̂^T A S² A^T n̂), S = diag(a, b, c); ``normal`` (..., 3) broadcasts.
+    """
+    a = rotation_matrix(q)
+    n = np.asarray(normal, dtype=np.float64)
+    a, n = np.broadcast_arrays(a, n[..., None, :])
+    u = np.asarray(shape, dtype=np.float64) * _to_body(a, n[..., 0, :])
+    return np.sqrt(u[..., 0] * u[..., 0] + u[..., 1] * u[..., 1] + u[..., 2] * u[..., 2])
+
+
+def ees_torque(q: np.ndarray, shape: np.ndarray, normal: np.ndarray, tw: np.ndarray) -> np.ndarray:
+    """wall/ees torque [energy] τ = T_w (n̂ × (A S² A^T) n̂), (..., 3) (§4.7).
+
+    ``tw`` is T_w = (1/σn) ∂E/∂σn of :func:`ees_energy_force_torque`. τ = -∂E/∂θ for rotations of
+    the ellipsoid about space-fixed axes; a sphere (A S² A^T ∝ 1) gets none. Same for n̂ and -n̂.
+    """
+    a = rotation_matrix(q)
+    n = np.asarray(normal, dtype=np.float64)
+    a, n = np.broadcast_arrays(a, n[..., None, :])
+    n = n[..., 0, :]
+    s = np.asarray(shape, dtype=np.float64)
+    mn = _to_space(a, s * s * _to_body(a, n))
+    return np.asarray(tw, dtype=np.float64)[..., None] * np.cross(n, mn)
+
+
+# Taylor coefficients in s = t², t = sn/r, of the two bracketed attractive terms:
+#   G(t) = Σ_j t^2j / ((2j+1)(2j+3))          = (2t - 2(1-t²) atanh t) / (4t³)
+#   K(t) = Σ_j t^2j / ((2j+1)(2j+3)(2j+5))    = -(6t - 10t³ - 6(1-t²)² atanh t) / (48 t^5)
+# 28 terms reach the double-precision tail (< 1e-19 relative) for t < 1/2; fewer for smaller t.
+_SERIES_T = 0.5
+_J = np.arange(28, dtype=np.float64)
+_G_COEF = 1.0 / ((2 * _J + 1) * (2 * _J + 3))
+_K_COEF = 1.0 / ((2 * _J + 1) * (2 * _J + 3) * (2 * _J + 5))
+
+
+def _horner(coef: np.ndarray, s: np.ndarray) -> np.ndarray:
+    out = np.full_like(s, coef[-1])
+    for c in coef[-2::-1]:
+        out = out * s + c
+    return out
+
+
+def ees_energy_force_torque(r, sn, epsilon, sigma) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """wall/ees energy, force and torque factor (§4.7), arrays broadcast.
+
+    r [length] distance of the centre from the wall, sn = sigma_n [length] (r > sn >= 0, else the
+    result is not finite), epsilon [energy/length^3] (the effective Hamaker constant
+    8π² ρ_wall ρ_ellipsoid ε_LJ a b c), sigma [length]. Returns
+
+    * E [energy], *unshifted* (LAMMPS applies no cut-off shift to ees),
+    * F = -∂E/∂r [force], F > 0 repulsive,
+    * T_w = (1/sn) ∂E/∂sn [energy/length^2]; the torque is T_w (n̂ × A S² A^T n̂) (:func:`ees_torque`).
+
+    With t = sn/r, p = 1 - t² = h/r² (formed as ((r-sn)/r)((r+sn)/r), exact near contact) and
+    x = σ/r the closed forms of §4.7 are rewritten as
+
+        E   = εσ³ [ -(1/3) x³ G(t)/p  + (2/945) x⁹ (7 + 14t² + 3t⁴)/p⁷ ]
+        F   = εσ² [ -(1/3) x⁴ / p²    + (2/315) x¹⁰ (21 + 63t² + 27t⁴ + t⁶)/p⁸ ]
+        T_w = εσ  [ -4 x⁵ K(t)/p²     + (4/315) x¹¹ (21 + 30t² + 5t⁴)/p⁸ ]
+
+    where only G and K hide a cancellation (the ln term against the rational part, all digits
+    lost as t -> 0). They are summed as Taylor series in t² for t < 1/2, and from the closed forms
+    with ln((r-sn)/(r+sn)) for t >= 1/2, where at most ~1 digit cancels. Far field:
+    E -> -εσ⁶/(9r³), F -> -εσ⁶/(3r⁴), T_w -> -4εσ⁶/(15r⁵).
+    """
+    r, sn, eps, sig = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (r, sn, epsilon, sigma)))
+    out_shape = r.shape
+    r, sn, eps, sig = (v.reshape(-1) for v in (r, sn, eps, sig))
+    t = sn / r
+    s = t * t
+    p = ((r - sn) / r) * ((r + sn) / r)
+
+    far = t < _SERIES_T
+    # always all 28 terms: each element's value must not depend on the others in the array, so a
+    # case gives bit-identical numbers alone or in any batch
+    g = _horner(_G_COEF, s)
+    k = _horner(_K_COEF, s)
+    if not np.all(far):
+        near = ~far
+        tn, pn = t[near], p[near]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ln = np.log((r[near] - sn[near]) / (r[near] + sn[near]))
+        t3 = tn * tn * tn
+        g[near] = (2.0 * tn + pn * ln) / (4.0 * t3)
+        k[near] = -(6.0 * tn - 10.0 * t3 + 3.0 * pn * pn * ln) / (48.0 * t3 * tn * tn)
+
+    x = sig / r
+    x2 = x * x
+    x3 = x2 * x
+    x9 = x3 * x3 * x3
+    p2 = p * p
+    p4 = p2 * p2
+    p7 = p4 * p2 * p
+    p8 = p4 * p4
+    s2 = s * s
+    energy = eps * sig**3 * (-(1.0 / 3.0) * x3 * g / p + (2.0 / 945.0) * x9 * (7.0 + 14.0 * s + 3.0 * s2) / p7)
+    force = eps * sig**2 * (
+        -(1.0 / 3.0) * x3 * x / p2 + (2.0 / 315.0) * x9 * x * (21.0 + 63.0 * s + 27.0 * s2 + s2 * s) / p8
+    )
+    torque = eps * sig * (-4.0 * x3 * x2 * k / p2 + (4.0 / 315.0) * x9 * x2 * (21.0 + 30.0 * s + 5.0 * s2) / p8)
+    return energy.reshape(out_shape), force.reshape(out_shape), torque.reshape(out_shape)

@@ -1,0 +1,606 @@
+"""Compiled chunks of steps (numba): the engine's step, fused per atom, for scenes of flat walls.
+
+The NumPy engine (engine.py, walls.py) is the reference; this module runs the same arithmetic,
+operation for operation, in one compiled call per chunk of steps (the steps between two samples):
+
+  per atom:  v += dtfm f ; x += dt v ; wall/reflect faces ; periodic wrap ; f = 0 ;
+             soft faces f[dim] -= side F(r) ; lost-atom test ; v += dtfm f
+  per step:  reflect statistics, wall velocities, fix dt/reset (min over the atoms)
+
+With no dt/reset the atoms of a case are independent between two samples, so the kernel runs
+every step of a block of atoms before moving to the next block (the block stays in L1 cache; the
+wall values of each step are precomputed per case). With dt/reset (the smallest dt over the atoms
+couples them every step) and in time-based runs it runs step by step over the whole case.
+The kernel computes forces only: on the last step of a sampled chunk, the outputs (energies,
+wall forces, virial) come from the NumPy `Engine.compute_forces` at the final positions, where
+the NumPy loop computes them too.
+
+Eligibility is a whitelist: soft flat walls (lj93, lj126, lj1043, colloid, harmonic, morse),
+wall/reflect, dt/reset and equal-style variables (their per-step values are computed in NumPy
+before the chunk, vectorised over steps). Anything else (pair forces, flow, ees, region walls,
+ellipsoids) runs in NumPy. A chunk that meets trouble (an atom on/behind a wall, a lost atom, a
+non-finite value, a variable error or a negative variable parameter) is undone from a copy taken
+at its start and handed back to the NumPy loop, which re-runs it and reports exactly as always.
+`WALLBATCH_NUMBA=0` (or numba missing) selects the NumPy path everywhere.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import types
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+try:  # numba is a dependency, but the NumPy path must keep working without it
+    from numba import njit
+except Exception:  # noqa: BLE001 - any import failure means "no compiled path"
+    njit = None
+
+if TYPE_CHECKING:
+    from .engine import Engine
+
+STYLE_IDS = {"lj93": 0, "lj126": 1, "lj1043": 2, "colloid": 3, "harmonic": 4, "morse": 5}
+BIG = 1.0e20  # dt/reset's "no limit" (engine.BIG)
+BLOCK = 256  # atoms per block in the uncoupled (no dt/reset) kernel
+VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
+
+_SQRT2 = math.sqrt(2.0)  # == np.sqrt(2.0): both correctly rounded
+_TWO_PI = 2.0 * math.pi
+_LJ1043_SHIFT = 0.61 / _SQRT2
+
+
+def enabled() -> bool:
+    """True if the compiled path may be used (numba importable, WALLBATCH_NUMBA not 0)."""
+    return njit is not None and os.environ.get("WALLBATCH_NUMBA", "1").strip().lower() not in ("0", "false", "no", "off")
+
+
+# ----------------------------------------------------------------------------- compiled kernels
+# The style formulas below are the ones of potentials.py written out for scalars, with the same
+# operations in the same order (tests/test_fast.py checks them against potentials.py).
+
+if njit is not None:
+    jit = njit(cache=True, nogil=True)
+    inline = njit(cache=True, nogil=True, inline="always")  # helpers: no call, no array refcounts
+
+    @inline
+    def _nmin(a: float, b: float) -> float:
+        """np.minimum for two scalars (NaN propagates)."""
+        if a != a:
+            return a
+        if b != b:
+            return b
+        return a if a <= b else b
+
+    @inline
+    def _nmax(a: float, b: float) -> float:
+        """np.maximum for two scalars (NaN propagates)."""
+        if a != a:
+            return a
+        if b != b:
+            return b
+        return a if a >= b else b
+
+    @inline
+    def _force(style, r, p0, p1, p2, cut, rad):
+        """F = -dE/dr of one style at distance r (potentials.py): p = (epsilon, sigma, -) or
+        (D0, alpha, r0); rad is the particle radius (colloid)."""
+        if style == 0:  # lj93
+            sr = p1 / r
+            sr3 = sr * sr * sr
+            sr9 = sr3 * sr3 * sr3
+            return p0 * (1.2 * sr9 - 3.0 * sr3) / r
+        if style == 1:  # lj126
+            sr = p1 / r
+            sr2 = sr * sr
+            sr6 = sr2 * sr2 * sr2
+            sr12 = sr6 * sr6
+            return p0 * (48.0 * sr12 - 24.0 * sr6) / r
+        if style == 2:  # lj1043
+            sr = p1 / r
+            sr2 = sr * sr
+            sr4 = sr2 * sr2
+            sr10 = sr4 * sr4 * sr2
+            rs = r + _LJ1043_SHIFT * p1
+            ss = p1 / rs
+            ss3 = ss * ss * ss
+            return _TWO_PI * p0 * (4.0 * (sr10 - sr4) / r - _SQRT2 * ss3 / rs)
+        if style == 3:  # colloid: r = centre distance, x = R/r, d = D/r, dp = 1 - x^2
+            x = rad / r
+            d = (r - rad) / r
+            dp = d * (1.0 + x)
+            y = x * x
+            u = p1 / r / dp
+            u2 = u * u
+            u6 = u2 * u2 * u2
+            v = x / dp
+            poly = ((y + 27.0) * y + 63.0) * y + 21.0
+            return p0 * (x * v * v / r) * ((4.0 / 315.0) * u6 * poly - 2.0 / 3.0)
+        if style == 4:  # harmonic
+            return 2.0 * p0 * (cut - r)
+        # morse
+        x = -p1 * (r - p2)
+        return 2.0 * p1 * p0 * math.exp(x) * math.expm1(x)
+
+    @inline
+    def _dt_candidate(v0, v1, v2, f0, f1, f2, m, ftm2v, mvv2e, xmax, emax):
+        """fix dt/reset's largest dt for one atom (engine.Engine.reset_dt, per atom)."""
+        vsq = v0 * v0 + v1 * v1 + v2 * v2
+        fsq = f0 * f0 + f1 * f1 + f2 * f2
+        dtv = xmax / math.sqrt(vsq) if vsq > 0 else BIG
+        dtf = math.sqrt(2.0 * xmax / (ftm2v * math.sqrt(fsq) / m)) if fsq > 0 else BIG
+        dt = _nmin(dtv, dtf)
+        if emax > 0 and vsq * fsq > 0:
+            dte = emax / math.sqrt(fsq * vsq) / math.sqrt(ftm2v * mvv2e)
+            dt = _nmin(dt, dte)
+        k = (0.5 * ftm2v) * (dt * dt / m)
+        d0 = dt * v0 + k * f0
+        d1 = dt * v1 + k * f1
+        d2 = dt * v2 + k * f2
+        dr = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        if dr > xmax:
+            dt = dt * xmax / dr
+        return dt
+
+    @inline
+    def _pick(d, a0, a1, a2):
+        return a0 if d == 0 else (a1 if d == 1 else a2)
+
+    @jit
+    def _step_atoms(c, a0, a1, si, dtc, dtfm_buf, x, v, f, mass, radius, lo, hi, periodic,
+                    sf_meta, sf_val, groups, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e,
+                    due, dtr_group, xmax, emax):
+        """One velocity-Verlet step (engine.Engine.step) of atoms a0..a1-1 of case c, per atom:
+        v += dtfm f; x += dt v; reflect faces (vw: this step's wall velocities, rstat: this step's
+        reflections and impulse per face); wrap; f = 0; soft faces; lost-atom test; v += dtfm f;
+        with `due`, the smallest dt/reset candidate over the atoms. dtfm = dt/2 ftm2v / m comes
+        from dtfm_buf when it has one value per atom. Returns (status, smallest dt): status 0, or
+        1 (an atom on/behind a soft wall) / 2 (an atom left through a fixed boundary)."""
+        hdt = (0.5 * ftm2v) * dtc
+        use_buf = dtfm_buf.shape[0] > 0
+        nsf = sf_meta.shape[0]
+        nrf = rf_meta.shape[0]
+        per0, per1, per2 = periodic[0] != 0, periodic[1] != 0, periodic[2] != 0
+        lo0, lo1, lo2 = lo[0], lo[1], lo[2]
+        hi0, hi1, hi2 = hi[0], hi[1], hi[2]
+        len0, len1, len2 = hi0 - lo0, hi1 - lo1, hi2 - lo2
+        new = np.inf
+        for a in range(a0, a1):
+            dtfm = dtfm_buf[a] if use_buf else hdt / mass[c, a]
+            v0 = v[c, a, 0] + dtfm * f[c, a, 0]  # initial_integrate
+            v1 = v[c, a, 1] + dtfm * f[c, a, 1]
+            v2 = v[c, a, 2] + dtfm * f[c, a, 2]
+            x0 = x[c, a, 0] + dtc * v0
+            x1 = x[c, a, 1] + dtc * v1
+            x2 = x[c, a, 2] + dtc * v2
+            for k in range(nrf):  # wall/reflect
+                g = rf_meta[k, 3]
+                if g >= 0 and groups[g, a] == 0:
+                    continue
+                d = rf_meta[k, 0]
+                coord = rf_val[c, si, k]
+                pos = _pick(d, x0, x1, x2)
+                if (pos < coord) if rf_meta[k, 1] < 0 else (pos > coord):
+                    vb = _pick(d, v0, v1, v2)
+                    va = 2.0 * vw[k] - vb if rf_meta[k, 2] == 1 else -vb
+                    xn = 2.0 * coord - pos
+                    if d == 0:
+                        x0, v0 = xn, va
+                    elif d == 1:
+                        x1, v1 = xn, va
+                    else:
+                        x2, v2 = xn, va
+                    if stats:
+                        rstat[k, 0] += 1.0
+                        rstat[k, 1] += mass[c, a] * (vb - va) / ftm2v
+            if per0:  # periodic wrap
+                if x0 >= hi0:
+                    x0 -= len0
+                if x0 < lo0:
+                    x0 += len0
+            if per1:
+                if x1 >= hi1:
+                    x1 -= len1
+                if x1 < lo1:
+                    x1 += len1
+            if per2:
+                if x2 >= hi2:
+                    x2 -= len2
+                if x2 < lo2:
+                    x2 += len2
+            fa0 = 0.0  # force clear, soft walls (post_force)
+            fa1 = 0.0
+            fa2 = 0.0
+            for k in range(nsf):
+                g = sf_meta[k, 3]
+                if g >= 0 and groups[g, a] == 0:
+                    continue
+                d = sf_meta[k, 1]
+                coord = sf_val[c, si, k, 0]
+                pos = _pick(d, x0, x1, x2)
+                r = pos - coord if sf_meta[k, 2] < 0 else coord - pos
+                cut = sf_val[c, si, k, 4]
+                if not r < cut:
+                    continue
+                style = sf_meta[k, 0]
+                rad = radius[c, a] if style == 3 else 0.0
+                if r <= rad:
+                    return 1, new
+                sf = float(sf_meta[k, 2]) * _force(style, r, sf_val[c, si, k, 1], sf_val[c, si, k, 2],
+                                                   sf_val[c, si, k, 3], cut, rad)
+                if d == 0:
+                    fa0 -= sf
+                elif d == 1:
+                    fa1 -= sf
+                else:
+                    fa2 -= sf
+            if not per0 and (x0 < lo0 or x0 > hi0):  # lost atoms
+                return 2, new
+            if not per1 and (x1 < lo1 or x1 > hi1):
+                return 2, new
+            if not per2 and (x2 < lo2 or x2 > hi2):
+                return 2, new
+            v0 += dtfm * fa0  # final_integrate
+            v1 += dtfm * fa1
+            v2 += dtfm * fa2
+            x[c, a, 0] = x0
+            x[c, a, 1] = x1
+            x[c, a, 2] = x2
+            v[c, a, 0] = v0
+            v[c, a, 1] = v1
+            v[c, a, 2] = v2
+            f[c, a, 0] = fa0
+            f[c, a, 1] = fa1
+            f[c, a, 2] = fa2
+            if due and (dtr_group < 0 or groups[dtr_group, a] != 0):
+                new = _nmin(new, _dt_candidate(v0, v1, v2, fa0, fa1, fa2, mass[c, a], ftm2v, mvv2e, xmax, emax))
+        return 0, new
+
+    @jit
+    def _finite(c, x, v):
+        for a in range(x.shape[1]):
+            for d in range(3):
+                if not (math.isfinite(x[c, a, d]) and math.isfinite(v[c, a, d])):
+                    return False
+        return True
+
+    @jit
+    def _run_chunk(nsteps, time_mode, target, tol, x, v, f, mass, radius, dt, atime, atimestep,
+                   step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
+                   stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e):
+        """Advance every case by nsteps steps (or, with time_mode, to the time `target` as
+        Engine.advance_to_time does). Returns 0, or the
+        (nonzero) status of the first trouble met (the caller restores the state and falls back)."""
+        ncase, natom = x.shape[0], x.shape[1]
+        nrf = rf_meta.shape[0]
+        coupled = dtr_every > 0 or time_mode
+        nvals = sf_val.shape[1] if sf_val.shape[1] > rf_val.shape[1] else rf_val.shape[1]
+        vary = 1 if nvals > 1 else 0
+        for c in range(ncase):
+            if not coupled:
+                # ---- atoms independent: all steps on one block of atoms at a time
+                dtc = dt[c]
+                hdt = (0.5 * ftm2v) * dtc
+                dtfm = np.empty(natom)
+                for a in range(natom):
+                    dtfm[a] = hdt / mass[c, a]
+                vw = np.zeros((nsteps, nrf))
+                rstat = np.zeros((nsteps, nrf, 2))
+                for s in range(nsteps):
+                    for k in range(nrf):
+                        prev = rf_prev[c, k] if s == 0 else rf_val[c, (s - 1) * vary, k]
+                        vw[s, k] = (rf_val[c, s * vary, k] - prev) / dtc if dtc > 0 else 0.0
+                for b0 in range(0, natom, BLOCK):
+                    b1 = min(b0 + BLOCK, natom)
+                    for s in range(nsteps):
+                        st, _ = _step_atoms(c, b0, b1, s * vary, dtc, dtfm, x, v, f, mass, radius, lo, hi,
+                                            periodic, sf_meta, sf_val, groups, rf_meta, rf_val, vw[s], rstat[s],
+                                            stats, ftm2v, mvv2e, False, -1, 0.0, 0.0)
+                        if st != 0:
+                            return st
+                step[c] += nsteps
+                for s in range(nsteps):
+                    for k in range(nrf):
+                        rf_stat[c, k, 0] += rstat[s, k, 0]
+                        rf_stat[c, k, 1] += rstat[s, k, 1]
+                for k in range(nrf):
+                    rf_prev[c, k] = rf_val[c, (nsteps - 1) * vary, k]
+            else:
+                # ---- step by step over the whole case (dt/reset couples the atoms; time-based runs)
+                vw = np.zeros(nrf)
+                rstat = np.zeros((nrf, 2))
+                no_buf = np.empty(0)
+                s = 0
+                while True:
+                    if time_mode:
+                        now = atime[c] + (step[c] - atimestep[c]) * dt[c]
+                        if not now < target - tol:
+                            if s == 0:
+                                return 4  # nothing to do for this case: the NumPy loop decides
+                            break
+                        base = dt[c]
+                        rem = target - now
+                        sdt = _nmin(base, rem)
+                        landing = base >= rem - tol
+                        if sdt != dt[c]:
+                            atime[c] = now
+                            atimestep[c] = step[c]
+                            dt[c] = sdt
+                    elif s == nsteps:
+                        break
+                    si = s * vary
+                    step[c] += 1
+                    dtc = dt[c]
+                    for k in range(nrf):
+                        vw[k] = (rf_val[c, si, k] - rf_prev[c, k]) / dtc if dtc > 0 else 0.0
+                        rstat[k, 0] = 0.0
+                        rstat[k, 1] = 0.0
+                    due = dtr_every > 0 and step[c] % dtr_every == 0
+                    st, new = _step_atoms(c, 0, natom, si, dtc, no_buf, x, v, f, mass, radius, lo, hi,
+                                          periodic, sf_meta, sf_val, groups, rf_meta, rf_val, vw, rstat, stats,
+                                          ftm2v, mvv2e, due, dtr_group, dtr_par[c, 0], dtr_par[c, 1])
+                    if st != 0:
+                        return st
+                    for k in range(nrf):
+                        rf_prev[c, k] = rf_val[c, si, k]
+                        rf_stat[c, k, 0] += rstat[k, 0]
+                        rf_stat[c, k, 1] += rstat[k, 1]
+                    if due:
+                        new = _nmin(new, BIG) if natom > 0 else BIG
+                        if dtr_par[c, 2] == dtr_par[c, 2]:
+                            new = _nmax(new, dtr_par[c, 2])
+                        if dtr_par[c, 3] == dtr_par[c, 3]:
+                            new = _nmin(new, dtr_par[c, 3])
+                        if new != dt[c]:
+                            atime[c] = atime[c] + (step[c] - atimestep[c]) * dt[c]
+                            atimestep[c] = step[c]
+                            dt[c] = new
+                    s += 1
+                    if time_mode:
+                        new_base = dt[c] if dt[c] != sdt else base
+                        now = atime[c] + (step[c] - atimestep[c]) * dt[c]
+                        atime[c] = target if landing else now
+                        atimestep[c] = step[c]
+                        dt[c] = new_base
+                        if landing:
+                            break
+            if not (_finite(c, x, v) and math.isfinite(dt[c])):
+                return 3
+        return 0
+
+
+# ----------------------------------------------------------------------------- the Python side
+
+
+def _eligible(engine: "Engine") -> bool:
+    """Whitelist: flat soft walls of known styles, wall/reflect, dt/reset, variables; nothing else."""
+    from .walls import ReflectKernel, SoftWallKernel
+
+    for name in ("pair", "quat"):
+        obj = engine if name == "pair" else engine.state
+        if getattr(obj, name, None) is not None:
+            return False
+    for name in ("flow", "ees", "region_walls"):
+        if getattr(engine, name, None):
+            return False
+    if engine.state.angmom is not None or engine.state.torque is not None:
+        return False
+    if any(type(w) is not SoftWallKernel or w.style.name not in STYLE_IDS for w in engine.soft):
+        return False
+    if any(type(w) is not ReflectKernel or w.frame not in ("lab", "wall") for w in engine.reflect):
+        return False
+    return True
+
+
+class _StepContext:
+    """What BatchState.context reads, with a leading step axis: (S, C) step and time arrays."""
+
+    def __init__(self, state: Any, steps: np.ndarray):
+        self.ctx = None
+        self.step = steps
+        self.atime, self.atimestep, self.dt = state.atime, state.atimestep, state.dt
+        self.run_time, self.end_step, self.ncases = state.run_time, state.end_step, state.ncases
+        self.elapsed_is_time = state.elapsed_is_time
+        self.box_lo, self.box_hi, self.x, self.var_values = state.box_lo, state.box_hi, state.x, state.var_values
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.atime + (self.step - self.atimestep) * self.dt
+
+
+class FastPath:
+    """The compiled path attached to one Engine (see module docstring)."""
+
+    def __init__(self, engine: "Engine"):
+        self.engine = engine
+        self.compiled_chunks = 0  # chunks run compiled (tests and benchmarks read these)
+        self.fallbacks = 0  # chunks handed back to NumPy
+
+    # -- packing ---------------------------------------------------------------------------
+
+    def _values(self, nsteps: int, varying: bool) -> tuple[np.ndarray, np.ndarray] | None:
+        """Per-step wall values: soft (C, S', F, 5) = coord, p0, p1, p2, cutoff and reflect
+        coords (C, S', R); S' = nsteps when a value varies with time, else 1. None: fall back."""
+        from .expr import VariableError
+
+        eng, s = self.engine, self.engine.state
+        C = s.ncases
+        nval = nsteps if varying else 1
+        cache: dict[str, np.ndarray] = {}
+        ctx = None
+
+        def var(name: str) -> np.ndarray:
+            nonlocal ctx
+            if name not in cache:
+                if ctx is None:
+                    steps = s.step[None, :] + np.arange(1, nval + 1, dtype=np.int64)[:, None]
+                    from .engine import BatchState
+                    ctx = BatchState.context(_StepContext(s, steps))
+                cache[name] = np.broadcast_to(np.asarray(s.variables.evaluate(name, ctx), float), (nval, C))
+            return cache[name]
+
+        def value(v: Any) -> np.ndarray:
+            return np.broadcast_to(v, (nval, C)) if isinstance(v, np.ndarray) else var(v)
+
+        soft_faces = [(w, face) for w in eng.soft for face in w.faces]
+        sf = np.zeros((C, nval, len(soft_faces), 5))
+        rf = np.zeros((C, nval, sum(len(w.faces) for w in eng.reflect)))
+        with np.errstate(all="ignore"):
+            try:
+                for k, (w, face) in enumerate(soft_faces):
+                    coord = face.coord if isinstance(face.coord, np.ndarray) else var(face.coord) * face.scale
+                    sf[:, :, k, 0] = np.broadcast_to(coord, (nval, C)).T
+                    names = ("D0", "alpha", "r0") if w.style.name == "morse" else ("epsilon", "sigma")
+                    for j, key in enumerate(names):
+                        if key in face.params:
+                            val = value(face.params[key])
+                            if isinstance(face.params[key], str) and key != "alpha" and np.any(val < 0):
+                                return None  # the NumPy path fails these cases with its message
+                            sf[:, :, k, 1 + j] = val.T
+                    sf[:, :, k, 4] = value(face.params["cutoff"]).T
+                k = 0
+                for w in eng.reflect:
+                    for face in w.faces:
+                        coord = face.coord if isinstance(face.coord, np.ndarray) else var(face.coord) * face.scale
+                        rf[:, :, k] = np.broadcast_to(coord, (nval, C)).T
+                        k += 1
+            except VariableError:
+                return None
+        return sf, rf
+
+    def _uses_time(self) -> bool:
+        eng = self.engine
+        names = [v for w in list(eng.soft) + list(eng.reflect) for face in w.faces
+                 for v in [face.coord, *face.params.values()] if isinstance(v, str)]
+        return any(eng.state.variables.depends_on_time(n) for n in names)
+
+    # -- the chunk -------------------------------------------------------------------------
+
+    def advance(self, nsteps: int, sample: bool) -> bool:
+        """Run nsteps steps (and the sample of the last one); False: let the NumPy loop do it."""
+        return self._chunk(nsteps, sample, None)
+
+    def advance_to_time(self, target: float) -> bool:
+        """Engine.advance_to_time compiled; False: let the NumPy loop do it."""
+        return self._chunk(0, True, target)
+
+    def _chunk(self, nsteps: int, sample: bool, target: float | None) -> bool:
+        eng, s = self.engine, self.engine.state
+        if s.ncases == 0 or s.failed or not enabled() or not _eligible(eng):
+            return False
+        time_mode = target is not None
+        if not time_mode and nsteps <= 0:
+            return False
+        varying = self._uses_time()
+        if varying and (eng.dt_reset is not None or time_mode):
+            return False  # per-step values depend on a dt that changes inside the chunk
+        if varying and not time_mode:
+            per_step = 5 * max(1, sum(len(w.faces) for w in eng.soft + eng.reflect)) * s.ncases
+            most = max(1, VALUE_BUDGET // per_step)
+            if nsteps > most:  # split a long chunk: the values of fewer steps at a time
+                done = 0
+                while done < nsteps:
+                    n = min(most, nsteps - done)
+                    if not self._chunk(n, sample and done + n == nsteps, None):
+                        return done > 0 and self._numpy_rest(nsteps - done, sample)
+                    done += n
+                return True
+        values = self._values(nsteps if varying else 1, varying)
+        if values is None:
+            self.fallbacks += 1
+            return False
+        sf_val, rf_val = values
+        for name in ("x", "v", "f", "mass", "radius"):
+            if not getattr(s, name).flags.c_contiguous:
+                setattr(s, name, np.ascontiguousarray(getattr(s, name)))
+
+        soft_faces = [(w, face) for w in eng.soft for face in w.faces]
+        groups: list[np.ndarray] = []
+
+        def group(kernel_group: np.ndarray, all_atoms: bool) -> int:
+            if all_atoms:
+                return -1
+            groups.append(kernel_group.astype(np.uint8))
+            return len(groups) - 1
+
+        N = s.x.shape[1]
+        sf_meta = np.array([[STYLE_IDS[w.style.name], face.dim, face.side, group(w.group, w.all_atoms)]
+                            for w, face in soft_faces], np.int64).reshape(-1, 4)
+        rf_meta = np.array([[face.dim, face.side, 1 if w.frame == "wall" else 0, group(w.group, w.all_atoms)]
+                            for w in eng.reflect for face in w.faces], np.int64).reshape(-1, 4)
+        stats = bool(eng.reflect) and eng.reflect[0].stats
+        C = s.ncases
+        dtr = eng.dt_reset
+        if dtr is not None:
+            dtr_group = group(dtr.group, bool(dtr.group.all()))
+            dtr_par = np.ascontiguousarray(np.stack([eng.dtr_xmax, eng.dtr_emax, eng.dtr_tmin, eng.dtr_tmax], axis=1),
+                                           dtype=float)
+        else:
+            dtr_group, dtr_par = -1, np.zeros((C, 4))
+        groups_arr = np.stack(groups) if groups else np.zeros((0, N), np.uint8)
+        rf_prev = np.ascontiguousarray(np.stack([p for w in eng.reflect for p in w.previous], axis=1),
+                                       dtype=float) if eng.reflect else np.zeros((C, 0))
+        rf_prev = np.broadcast_to(rf_prev, (C, rf_prev.shape[1])).copy()
+        if stats:
+            rf_stat = np.stack([np.stack([w.count[:, k], w.impulse[:, k]], axis=1)
+                                for w in eng.reflect for k in range(len(w.faces))], axis=1)
+        else:
+            rf_stat = np.zeros((C, rf_meta.shape[0], 2))
+        periodic = np.zeros(3, np.int64)
+        periodic[s.periodic] = 1
+
+        backup = {k: getattr(s, k).copy() for k in ("x", "v", "f", "dt", "atime", "atimestep", "step")}
+        status = _run_chunk(
+            int(nsteps), time_mode, float(target if time_mode else 0.0),
+            float(1e-12 * max(1.0, abs(target))) if time_mode else 0.0,
+            s.x, s.v, s.f, s.mass, s.radius, s.dt, s.atime, s.atimestep, s.step,
+            np.asarray(s.box_lo, float), np.asarray(s.box_hi, float), periodic,
+            sf_meta, np.ascontiguousarray(sf_val), groups_arr, rf_meta, np.ascontiguousarray(rf_val), rf_prev,
+            np.ascontiguousarray(rf_stat), stats, int(dtr.every if dtr is not None else 0), dtr_group, dtr_par,
+            float(s.units.ftm2v), float(s.units.mvv2e))
+        s.ctx = None
+        s.var_step = {}
+        if status != 0:
+            for k, arr in backup.items():
+                getattr(s, k)[...] = arr
+            self.fallbacks += 1
+            return False
+        self.compiled_chunks += 1
+        k = 0
+        for w in eng.reflect:
+            for j, face in enumerate(w.faces):
+                # as ReflectKernel.apply: a constant wall keeps its coord array, a variable one a copy
+                w.previous[j] = face.coord if isinstance(face.coord, np.ndarray) else rf_prev[:, k].copy()
+                if stats:
+                    w.count[:, j] = rf_stat[:, k, 0]
+                    w.impulse[:, j] = rf_stat[:, k, 1]
+                k += 1
+        out: dict = {}
+        if sample:
+            # the outputs of the last step, by the NumPy code itself: it computed them at these very
+            # positions (the final half-kick moves only v); the compiled forces are kept
+            forces = s.f.copy()
+            out = eng.compute_forces(True)
+            s.f[...] = forces
+            s.ctx = None
+            s.var_step = {}
+        eng.finish_step(out, sample)
+        return True
+
+    def _numpy_rest(self, nsteps: int, sample: bool) -> bool:
+        """The NumPy loop (Engine.advance without this path) for the rest of a split chunk."""
+        eng = self.engine
+        eng.fast = None
+        try:
+            eng.advance(nsteps, sample)
+        finally:
+            eng.fast = self
+        return True
+
+
+def attach_fast_path(engine: "Engine") -> FastPath | None:
+    """The compiled path for this engine's scene, or None (NumPy path)."""
+    if not enabled() or not _eligible(engine):
+        return None
+    return FastPath(engine)

@@ -1,0 +1,260 @@
+"""Batched Lennard-Jones pair forces, `pair_style lj/cut` with one atom type (physics.md §12).
+
+For a pair i, j at distance r < rc (minimum image in periodic dimensions):
+
+    E(r)  = 4 eps [ (sigma/r)^12 - (sigma/r)^6 ]  (- E(rc) with `pair_modify shift yes`) [energy]
+    F_i   = (24 eps / r^2) [ 2 (sigma/r)^12 - (sigma/r)^6 ] (x_i - x_j),   F_j = -F_i     [force]
+
+Each pair is counted once. The shift changes only the energy. The virial is the trace of
+LAMMPS's virial tensor, W = sum over pairs of r_ij . F_ij [energy], so the caller gets
+press = (dof kB T + W) / (3 V) * nktv2p.
+
+Units are LAMMPS's: positions, sigma, cutoff and skin [length], eps [energy], forces
+[energy/length] (lj: reduced; real: kcal/mol/Angstrom; metal: eV/Angstrom). No conversion
+factor enters the pair force.
+
+Neighbor list (Verlet list with a skin, like LAMMPS's `neigh_modify every 1 delay 0 check yes`):
+each case keeps the pairs closer than rc + skin at its last build, found with
+`scipy.spatial.cKDTree`. A case is rebuilt, alone, when one of its atoms has moved more than
+skin/2 (minimum image in periodic dimensions) since that case's last build. Rebuilding per case,
+never the whole batch, keeps each case's pair order, and so its forces bit for bit, independent of
+which other cases share its batch. The pairs of all cases are stored flattened (atom index
+c*N + i), so one vectorised pass over all pairs of all cases computes the forces; the scatter to
+atoms sums the runs of equal i (pairs are sorted by i) with `np.add.reduceat` and the j side
+with `np.bincount` (for 156k pairs: 1 ms, against 2 ms with six `np.bincount` and 12 ms with
+`np.add.at`); work arrays are reused between steps.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+# LAMMPS's default neighbor skin per unit style [length] (0.3 sigma in lj; 2 Angstrom in real/metal)
+DEFAULT_SKIN = {"lj": 0.3, "real": 2.0, "metal": 2.0}
+
+
+def default_skin(units: str) -> float:
+    """LAMMPS's default neighbor skin [length] for a unit style."""
+    return DEFAULT_SKIN[units]
+
+
+def lj_pair(r2: np.ndarray, epsilon, sigma) -> tuple[np.ndarray, np.ndarray]:
+    """Unshifted pair energy E(r) [energy] and fpair = F/r = -(dE/dr)/r [force/length] from r^2.
+
+    E = 4 eps (s6^2 - s6), fpair = 24 eps (2 s6^2 - s6) / r^2 with s6 = (sigma^2 / r^2)^3.
+    No cut-off here; everything broadcasts.
+    """
+    s2 = sigma * sigma / r2
+    s6 = s2 * s2 * s2
+    return 4.0 * epsilon * s6 * (s6 - 1.0), 24.0 * epsilon * s6 * (2.0 * s6 - 1.0) / r2
+
+
+class PairLJCut:
+    """`pair_style lj/cut` for a batch of C cases of N atoms (one atom type, one box).
+
+    epsilon [energy], sigma [length], cutoff [length]: per-case (C,) arrays (scalars broadcast).
+    shift: `pair_modify shift yes` (energy only). box_lo, box_hi (3,) [length]; periodic (3,) bool.
+    skin [length]: neighbor skin (LAMMPS default: :func:`default_skin`). Minimum image needs
+    cutoff < L/2 in every periodic dimension.
+
+    `builds` counts neighbor-list builds over all cases, `case_builds` (C,) per case.
+    """
+
+    def __init__(self, epsilon, sigma, cutoff, *, box_lo, box_hi, periodic, shift: bool = False,
+                 skin: float = DEFAULT_SKIN["lj"]):
+        eps, sig, rc = np.broadcast_arrays(*(np.atleast_1d(np.asarray(a, dtype=float))
+                                             for a in (epsilon, sigma, cutoff)))
+        if eps.ndim != 1:
+            raise ValueError("epsilon, sigma and cutoff must be scalars or (C,) arrays")
+        self.box_lo = np.asarray(box_lo, dtype=float).reshape(3)
+        self.box_hi = np.asarray(box_hi, dtype=float).reshape(3)
+        self.periodic = np.asarray(periodic, dtype=bool).reshape(3)
+        self.length = self.box_hi - self.box_lo
+        self.shift = bool(shift)
+        self.skin = float(skin)
+        if not np.all(np.isfinite(eps)) or np.any(eps < 0):
+            raise ValueError(f"pair lj/cut: epsilon must be finite and >= 0, got {eps}")
+        if not np.all(np.isfinite(sig)) or np.any(sig <= 0):
+            raise ValueError(f"pair lj/cut: sigma must be finite and > 0, got {sig}")
+        if not np.all(np.isfinite(rc)) or np.any(rc <= 0):
+            raise ValueError(f"pair lj/cut: cutoff must be finite and > 0, got {rc}")
+        if not np.isfinite(self.skin) or self.skin < 0:
+            raise ValueError(f"pair lj/cut: neighbor skin must be >= 0, got {skin}")
+        if np.any(self.length <= 0):
+            raise ValueError("pair lj/cut: box_hi must exceed box_lo in every dimension")
+        for d in np.flatnonzero(self.periodic):
+            if np.any(2.0 * rc >= self.length[d]):
+                raise ValueError(f"pair lj/cut: cutoff {rc.max()} must be less than half the periodic box "
+                                 f"length {self.length[d]} in {'xyz'[d]} (minimum image)")
+        self.epsilon, self.sigma, self.cutoff = eps.copy(), sig.copy(), rc.copy()
+        self.builds = 0
+        self.case_builds = np.zeros(len(eps), dtype=np.int64)
+        self._pairs: list[np.ndarray] = [np.empty((0, 2), dtype=np.int64)] * len(eps)  # local (i, j), i < j
+        self._bad = np.zeros(len(eps), dtype=bool)  # non-finite positions at the last build
+        self._xref: np.ndarray | None = None  # (C, N, 3) positions at each case's last build
+        self._flat: dict[str, np.ndarray] | None = None
+        self._work = np.empty((7, 0))
+
+    @property
+    def ncases(self) -> int:
+        return len(self.epsilon)
+
+    @property
+    def npairs(self) -> int:
+        """Pairs in the neighbor lists of all cases (closer than cutoff + skin at their builds)."""
+        return sum(len(p) for p in self._pairs)
+
+    # -- neighbor list -----------------------------------------------------------------------
+
+    def _min_image(self, d: np.ndarray) -> np.ndarray:
+        """Minimum image in periodic dims of displacements d (..., 3), in place."""
+        for k in np.flatnonzero(self.periodic):
+            dk = d[..., k]
+            dk -= self.length[k] * np.rint(dk / self.length[k])
+        return d
+
+    def _build(self, c: int, pos: np.ndarray) -> None:
+        """Pairs (i < j) of case c closer than cutoff + skin, with a cKDTree."""
+        self.builds += 1
+        self.case_builds[c] += 1
+        self._bad[c] = not np.isfinite(pos).all()
+        if self._bad[c] or len(pos) < 2:
+            self._pairs[c] = np.empty((0, 2), dtype=np.int64)
+            return
+        reach = self.cutoff[c] + self.skin
+        p = pos - self.box_lo
+        boxsize = np.empty(3)
+        for k in range(3):
+            if self.periodic[k]:
+                pk = np.mod(p[:, k], self.length[k])
+                pk[pk >= self.length[k]] = 0.0  # np.mod(-tiny, L) rounds to L
+                p[:, k] = pk
+                boxsize[k] = self.length[k]
+            else:  # cKDTree wraps every dim: a period longer than extent + reach never joins two atoms
+                p[:, k] -= p[:, k].min()
+                boxsize[k] = p[:, k].max() + 2.0 * reach + 1.0
+        pairs = cKDTree(p, boxsize=boxsize).query_pairs(reach, output_type="ndarray")
+        key = np.sort(pairs[:, 0].astype(np.int64) * len(pos) + pairs[:, 1])  # by i, then j
+        self._pairs[c] = np.stack(np.divmod(key, len(pos)), axis=1)
+
+    def _flatten(self, natoms: int) -> None:
+        """All cases' pairs as one flat list (atom c*N + i), with per-pair coefficients, the runs of
+        equal i (pairs are sorted by i within a case) and the pair ranges of the cases."""
+        counts = np.array([len(p) for p in self._pairs], dtype=np.int64)
+        case = np.repeat(np.arange(self.ncases), counts)
+        both = np.concatenate(self._pairs) if self._pairs else np.empty((0, 2), dtype=np.int64)
+        i, j = both[:, 0] + case * natoms, both[:, 1] + case * natoms
+        eps, sig, rc = self.epsilon, self.sigma, self.cutoff
+        e_rc, _ = lj_pair(rc * rc, eps, sig)
+        coef = {"eps": eps, "sig2": sig * sig, "rc2": rc * rc,
+                "offset": e_rc if self.shift else np.zeros_like(eps)}
+        uniform = len(eps) > 0 and all(np.all(v == v[0]) for v in coef.values())
+        run = np.flatnonzero(np.r_[True, i[1:] != i[:-1]]) if len(i) else np.empty(0, dtype=np.int64)
+        starts = np.r_[0, np.cumsum(counts)[:-1]].astype(np.int64)
+        flat = {"i": i, "j": j, "run": run, "run_atom": i[run],
+                "case_start": starts[counts > 0], "case_nonempty": counts > 0}
+        for k, v in coef.items():  # one number when all cases agree, else one value per pair
+            flat[k] = float(v[0]) if uniform else v[case]
+        self._flat = flat
+        if self._work.shape[1] < len(i):  # reused work arrays (grow only): no fresh pages each step
+            self._work = np.empty((7, int(1.2 * len(i))))
+
+    def _update(self, x: np.ndarray) -> None:
+        """Rebuild the cases with an atom moved more than skin/2 since their last build."""
+        C, N = x.shape[:2]
+        if C != self.ncases:
+            raise ValueError(f"pair lj/cut holds {self.ncases} cases, x has {C}")
+        if self._xref is None or self._xref.shape != x.shape:
+            need = np.ones(C, dtype=bool)
+            self._xref = np.array(x, dtype=float)
+        else:
+            d = self._min_image(x - self._xref)
+            moved2 = np.einsum("cni,cni->cn", d, d).max(axis=1, initial=0.0)
+            need = ~(moved2 <= (0.5 * self.skin) ** 2)  # NaN positions rebuild (and are flagged bad)
+        if need.any() or self._flat is None:
+            for c in np.flatnonzero(need):
+                self._build(c, x[c])
+                self._xref[c] = x[c]
+            self._flatten(N)
+
+    # -- forces ------------------------------------------------------------------------------
+
+    def compute(self, x: np.ndarray, f: np.ndarray, outputs: bool) -> tuple[np.ndarray, np.ndarray] | None:
+        """Add pair forces [force] into f (C, N, 3) in place for positions x (C, N, 3) [length].
+
+        With `outputs`, return (energy (C,) [energy], virial W (C,) [energy]), W = sum r_ij . F_ij;
+        the energy is computed only then. A case whose positions are not finite gets NaN forces
+        (and NaN energy and virial).
+        """
+        C, N = x.shape[:2]
+        self._update(x)
+        p = self._flat
+        i, j = p["i"], p["j"]
+        dx, dy, dz, r2, s6, fpair, t = self._work[:, :len(i)]
+        xt = np.ascontiguousarray(x.reshape(C * N, 3).T)  # (3, C*N): fast 1-D gathers
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            for k, dk in enumerate((dx, dy, dz)):  # d = x_i - x_j, minimum image
+                xt[k].take(i, out=dk, mode="clip")  # indices are valid; "clip" avoids a buffer copy
+                dk -= xt[k].take(j, out=t, mode="clip")
+                if self.periodic[k]:
+                    np.multiply(dk, 1.0 / self.length[k], out=t)
+                    np.rint(t, out=t)
+                    t *= self.length[k]
+                    dk -= t
+            np.multiply(dx, dx, out=r2)
+            r2 += np.multiply(dy, dy, out=t)
+            r2 += np.multiply(dz, dz, out=t)
+            inside = r2 < p["rc2"]
+            np.divide(p["sig2"], r2, out=t)  # (sigma/r)^2
+            np.multiply(t, t, out=s6)
+            s6 *= t  # (sigma/r)^6
+            np.multiply(s6, 2.0, out=fpair)  # fpair = 24 eps s6 (2 s6 - 1) / r^2 = F/r
+            fpair -= 1.0
+            fpair *= s6
+            fpair *= 24.0 * p["eps"]
+            fpair /= r2
+            fpair *= inside  # outside rc: finite values, zeroed
+            for k, dk in enumerate((dx, dy, dz)):  # F_i += fpair d, F_j -= fpair d
+                np.multiply(fpair, dk, out=t)
+                fk = -np.bincount(j, t, C * N)
+                if len(i):
+                    fk[p["run_atom"]] += np.add.reduceat(t, p["run"])  # i is grouped: runs of equal i
+                f[:, :, k] += fk.reshape(C, N)
+            if self._bad.any():
+                f[self._bad] = np.nan
+            if not outputs:
+                return None
+            energy, virial = np.zeros(C), np.zeros(C)
+            if len(i):
+                np.subtract(s6, 1.0, out=t)  # E = 4 eps s6 (s6 - 1) - E(rc)
+                t *= s6
+                t *= 4.0 * p["eps"]
+                t -= p["offset"]
+                t *= inside
+                energy[p["case_nonempty"]] = np.add.reduceat(t, p["case_start"])
+                np.multiply(fpair, r2, out=t)  # r . F = fpair r^2
+                virial[p["case_nonempty"]] = np.add.reduceat(t, p["case_start"])
+        energy[self._bad] = np.nan
+        virial[self._bad] = np.nan
+        return energy, virial
+
+    def energy_forces(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Energy (C,) [energy] and pair forces (C, N, 3) [force] in fresh arrays (for a minimizer)."""
+        f = np.zeros_like(x, dtype=float)
+        energy, _ = self.compute(x, f, True)
+        return energy, f
+
+    def take(self, keep: np.ndarray) -> None:
+        """Keep only some cases (a boolean (C,) mask or indices), in the given order."""
+        keep = np.asarray(keep)
+        idx = np.flatnonzero(keep) if keep.dtype == bool else keep.astype(np.int64).ravel()
+        self.epsilon, self.sigma, self.cutoff = self.epsilon[idx], self.sigma[idx], self.cutoff[idx]
+        self.case_builds = self.case_builds[idx]
+        self._bad = self._bad[idx]
+        self._pairs = [self._pairs[c] for c in idx.tolist()]
+        if self._xref is not None:
+            self._xref = self._xref[idx]
+            self._flatten(self._xref.shape[1])
+        else:
+            self._flat = None

@@ -1,0 +1,404 @@
+"""Regions (block, sphere, cylinder) and the fix wall/region kernel (physics.md §5, §5.1).
+
+A :class:`RegionGeom` is a static region in box units with a side (``in``: the allowed space is
+the inside, surface included; ``out``: strictly outside). Its :meth:`RegionGeom.contacts` gives
+the LAMMPS contact list of §5.1: for every atom on the allowed side, the surface points within
+the cut-off, each as ``delta = x_atom - x_surface`` [length] with ``r = |delta|``.
+
+:class:`RegionWallKernel` is fix wall/region over a batch of cases sharing one region and one
+potential style: per contact, force ``F(r) delta / r`` on the atom (``F > 0`` pushes the atom away
+from the surface, into the allowed side), energy ``E(r) - E(rc)`` (harmonic: ``eps (rc - r)^2``),
+vector = ``-sum`` of the atom forces (the force on the wall). Colloid uses the fix wall/colloid
+physics of §4.6 (wallbatch's decision); :func:`lammps_region_colloid` is LAMMPS's inconsistent
+formula (quirk #1), kept only to pin the difference in tests.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .potentials import Params, WallStyle, shifted_energy_force
+from .walls import Stacked, stack_values
+
+if TYPE_CHECKING:
+    from .config import Region
+    from .engine import BatchState
+    from .scene import RegionWallSpec
+
+LAMMPS_MESSAGE = "Particle outside surface of region used in fix wall/region"
+LAMMPS_EES_MESSAGE = "Particle on or inside surface of region used in fix wall/region/ees"
+
+
+def _norm(d: np.ndarray) -> np.ndarray:
+    """|d| over the last axis as sqrt(sum of squares), the way LAMMPS computes region distances."""
+    return np.sqrt(np.sum(d * d, axis=-1))
+
+
+@dataclass(frozen=True)
+class RegionGeom:
+    """A static region in box units (physics.md §5.1).
+
+    block: ``lo``, ``hi`` corners (3-tuples). sphere: ``center`` (3-tuple), ``radius``.
+    cylinder: ``axis`` (0, 1, 2), ``center`` (c1, c2) in the two other dims in xyz order,
+    ``radius``, ``lo``, ``hi`` (floats along the axis).
+    """
+
+    style: str
+    side: str = "in"
+    lo: Any = None
+    hi: Any = None
+    center: tuple[float, ...] | None = None
+    radius: float | None = None
+    axis: int | None = None
+
+    @classmethod
+    def from_config(cls, region: "Region", spacing: float | None) -> "RegionGeom":
+        """Resolve a config region: lattice units multiply every coordinate and the radius by the
+        (cubic) lattice spacing, box units by 1. Lattice units without a lattice is an error."""
+        if region.units == "box":
+            s = 1.0
+        elif spacing is None:
+            raise ValueError("a region in lattice units (the default) needs a `lattice:`; "
+                             "add `units: box` to the region or define a lattice")
+        else:
+            s = float(spacing)
+
+        def scaled(v):
+            if v is None:
+                return None
+            return tuple(float(a) * s for a in v) if isinstance(v, (tuple, list)) else float(v) * s
+
+        axis = None if region.axis is None else "xyz".index(region.axis)
+        return cls(region.style, region.side, scaled(region.lo), scaled(region.hi), scaled(region.center),
+                   scaled(region.radius), axis)
+
+    # -- side test -------------------------------------------------------------------------
+
+    def inside(self, x: np.ndarray) -> np.ndarray:
+        """Inside or on the surface (LAMMPS's `<=` / `>=` tests), whatever the side. (...,3) -> (...)"""
+        x = np.asarray(x, float)
+        if self.style == "block":
+            return np.all((x >= self.lo) & (x <= self.hi), axis=-1)
+        if self.style == "sphere":
+            return _norm(x - self.center) <= self.radius
+        rho, a = self._cyl(x)
+        return (rho <= self.radius) & (a >= self.lo) & (a <= self.hi)
+
+    def contains(self, x: np.ndarray) -> np.ndarray:
+        """The §5 side test: True where an atom is on the allowed side (side in: inside or on the
+        surface; side out: strictly outside). (...,3) -> (...) bool"""
+        ins = self.inside(x)
+        return ins if self.side == "in" else ~ins
+
+    def distance(self, x: np.ndarray) -> np.ndarray:
+        """Unsigned distance [length] from x to the region surface, from either side (for messages).
+        (...,3) -> (...)"""
+        x = np.asarray(x, float)
+        if self.style == "sphere":
+            return np.abs(_norm(x - self.center) - self.radius)
+        if self.style == "block":
+            lo, hi = np.asarray(self.lo), np.asarray(self.hi)
+            out = _norm(x - np.clip(x, lo, hi))
+            depth = np.minimum(x - lo, hi - x).min(axis=-1)
+            return np.where(self.inside(x), depth, out)
+        rho, a = self._cyl(x)
+        radial = np.maximum(rho - self.radius, 0.0)
+        axial = a - np.clip(a, self.lo, self.hi)
+        depth = np.minimum(self.radius - rho, np.minimum(a - self.lo, self.hi - a))
+        return np.where(self.inside(x), depth, np.sqrt(radial * radial + axial * axial))
+
+    def _cyl(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Radial distance from the axis and axial coordinate of x."""
+        o1, o2 = (d for d in range(3) if d != self.axis)
+        d1, d2 = x[..., o1] - self.center[0], x[..., o2] - self.center[1]
+        return np.sqrt(d1 * d1 + d2 * d2), x[..., self.axis]
+
+    # -- contacts --------------------------------------------------------------------------
+
+    def contacts(self, x: np.ndarray, cutoff: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """All §5.1 contacts within the cut-off of the atoms x (M,3); cutoff scalar or (M,).
+
+        Returns idx (K,) into x, delta (K,3) = x - surface point and r (K,) = |delta| [length].
+        Atoms not on the allowed side give none. A block inside gives up to 6 contacts per atom
+        (one per face with d < rc), a cylinder inside up to 3 (curved wall, lo cap, hi cap);
+        every outside region gives at most one (the nearest surface point, kept if r < rc).
+        """
+        x = np.asarray(x, float).reshape(-1, 3)
+        rc = np.broadcast_to(np.asarray(cutoff, float), x.shape[:1])
+        parts = getattr(self, f"_{self.style}_{self.side}")(x, rc)
+        if not parts:
+            return np.zeros(0, np.intp), np.zeros((0, 3)), np.zeros(0)
+        idx, delta, r = (np.concatenate(p) for p in zip(*parts))
+        return idx, delta, r
+
+    @staticmethod
+    def _axis_contact(x: np.ndarray, mask: np.ndarray, dim: int, dist: np.ndarray, sign: float):
+        """Contacts along one axis: delta = sign * dist along dim, r = dist."""
+        idx = np.nonzero(mask)[0]
+        r = dist[idx]
+        delta = np.zeros((idx.size, 3))
+        delta[:, dim] = sign * r
+        return idx, delta, r
+
+    @staticmethod
+    def _point_contact(x: np.ndarray, mask: np.ndarray, delta: np.ndarray, r: np.ndarray):
+        idx = np.nonzero(mask)[0]
+        return idx, delta[idx], r[idx]
+
+    def _block_in(self, x, rc):
+        ins = self.inside(x)
+        parts = []
+        for dim in range(3):
+            d_lo = x[:, dim] - self.lo[dim]  # xlo face: delta = (+d, 0, 0)
+            d_hi = self.hi[dim] - x[:, dim]  # xhi face: delta = (-d, 0, 0)
+            parts.append(self._axis_contact(x, ins & (d_lo < rc), dim, d_lo, 1.0))
+            parts.append(self._axis_contact(x, ins & (d_hi < rc), dim, d_hi, -1.0))
+        return parts
+
+    def _block_out(self, x, rc):
+        lo, hi = np.asarray(self.lo), np.asarray(self.hi)
+        strictly = np.all((x > lo) & (x < hi), axis=1)
+        delta = x - np.clip(x, lo, hi)  # from the nearest surface point (face, edge or corner)
+        r = _norm(delta)
+        return [self._point_contact(x, ~strictly & (r < rc), delta, r)]
+
+    def _sphere_in(self, x, rc):
+        d = x - self.center
+        rho = _norm(d)
+        m = (rho <= self.radius) & (rho > 0.0)  # the exact centre feels nothing
+        r = self.radius - rho
+        m &= r < rc
+        idx = np.nonzero(m)[0]
+        return [(idx, d[idx] * (1.0 - self.radius / rho[idx])[:, None], r[idx])]
+
+    def _sphere_out(self, x, rc):
+        d = x - self.center
+        rho = _norm(d)
+        r = rho - self.radius
+        idx = np.nonzero((rho >= self.radius) & (r < rc))[0]
+        return [(idx, d[idx] * (1.0 - self.radius / rho[idx])[:, None], r[idx])]
+
+    def _cylinder_in(self, x, rc):
+        ax = self.axis
+        o = [dim for dim in range(3) if dim != ax]
+        rho, a = self._cyl(x)
+        ins = (rho <= self.radius) & (a >= self.lo) & (a <= self.hi)
+        r_wall = self.radius - rho
+        idx = np.nonzero(ins & (rho > 0.0) & (r_wall < rc))[0]
+        delta = np.zeros((idx.size, 3))
+        delta[:, o] = (x[idx][:, o] - self.center) * (1.0 - self.radius / rho[idx])[:, None]
+        d_lo, d_hi = a - self.lo, self.hi - a
+        return [(idx, delta, r_wall[idx]),
+                self._axis_contact(x, ins & (d_lo < rc), ax, d_lo, 1.0),
+                self._axis_contact(x, ins & (d_hi < rc), ax, d_hi, -1.0)]
+
+    def _cylinder_out(self, x, rc):
+        ax = self.axis
+        o = [dim for dim in range(3) if dim != ax]
+        rho, a = self._cyl(x)
+        strictly = (rho < self.radius) & (a > self.lo) & (a < self.hi)
+        delta = np.zeros_like(x)
+        with np.errstate(divide="ignore", invalid="ignore"):  # rho = 0 only where rho <= R (unused)
+            rim = np.where(rho > self.radius, 1.0 - self.radius / rho, 0.0)
+        delta[:, o] = (x[:, o] - self.center) * rim[:, None]  # radially: the rim, or the atom itself
+        delta[:, ax] = a - np.clip(a, self.lo, self.hi)  # axially: clamped to [lo, hi]
+        r = _norm(delta)
+        return [self._point_contact(x, ~strictly & (r < rc), delta, r)]
+
+
+# ----------------------------------------------------------------------------- the kernel
+
+
+class RegionWallKernel:
+    """fix wall/region over a batch of C cases with the same region and style (physics.md §5).
+
+    Parameters are (C,) arrays (or one equal-style variable name for the whole batch, resolved
+    per step like the flat walls). The work is vectorised over (case, atom) pairs of the group and
+    their flattened contacts.
+    """
+
+    def __init__(self, specs: list["RegionWallSpec"]):
+        s0 = specs[0]
+        if any(s.region != s0.region or s.potential is not s0.potential for s in specs):
+            raise ValueError(f"walls.{s0.fix_id}: cases with different regions or styles cannot share a batch")
+        self.fix_id = s0.fix_id
+        self.region_name = s0.region_name
+        self.geom: RegionGeom = s0.region
+        self.style: WallStyle = s0.potential
+        self.energy_to_pe: bool = s0.energy
+        self.virial: bool = getattr(s0, "virial", False)  # fix_modify virial: sum of F r, set on output steps
+        self.last_virial: np.ndarray | None = None
+        self.atoms = np.nonzero(s0.group)[0]
+        self.params: dict[str, Stacked] = {
+            k: stack_values([v if isinstance(v := s.params[k], str) else float(v) for s in specs],
+                            f"{s0.fix_id} {k}") for k in s0.params}
+        self._radius_checked = False
+
+    def set_params(self, **values: np.ndarray | float | str) -> None:
+        """Replace parameters: (C,) arrays, a number for every case, or a variable name."""
+        for k, v in values.items():
+            self.params[k] = v if isinstance(v, str) else np.asarray(v, float)
+
+    def take(self, keep: np.ndarray) -> None:
+        for k, v in self.params.items():
+            if isinstance(v, np.ndarray) and v.ndim:
+                self.params[k] = v[keep]
+
+    def _resolve(self, state: "BatchState") -> dict[str, np.ndarray]:
+        C = state.ncases
+        p = {}
+        for k, v in self.params.items():
+            val = state.variable(v) if isinstance(v, str) else v
+            p[k] = np.broadcast_to(np.asarray(val, float), (C,))
+            if isinstance(v, str) and k in ("epsilon", "sigma", "D0", "r0") and np.any(bad := p[k] < 0):
+                state.fail(np.nonzero(bad)[0], lambda c, k=k, val=p[k]: (
+                    f"walls.{self.fix_id}: variable {k} evaluated to {val[c]:g} < 0: "
+                    f"Variable evaluation in fix wall gave bad value"))
+        return p
+
+    def apply(self, state: "BatchState", outputs: bool) -> tuple[np.ndarray, np.ndarray] | None:
+        """Add the region-wall forces to state.f. With `outputs`, return the fix's scalar (C,)
+        (shifted energy) and vector (C,3) (the force the atoms exert on the wall)."""
+        C = state.ncases
+        G = self.atoms.size
+        p = self._resolve(state)
+        if self.style.needs_radius and not self._radius_checked:
+            self._check_radius(state)
+        N = state.x.shape[1]
+        # (C*G, 3): pair k is case k // G, atom atoms[k % G] (a view when the group is every atom)
+        xs = (state.x if G == N else state.x[:, self.atoms]).reshape(-1, 3)
+        wrong = np.nonzero(~self.geom.contains(xs))[0]
+        idx, delta, r = self.geom.contacts(xs, np.repeat(p["cutoff"], G))
+        ci, ai = idx // G, self.atoms[idx % G]
+        pa = {k: v[ci] for k, v in p.items()}
+        if self.style.needs_radius:
+            pa["radius"] = state.radius[ci, ai]
+        close = r <= self.style.too_close(pa)
+        if wrong.size or close.any():
+            self._fail(state, wrong, ci[close], ai[close], r[close])
+            ok = ~close
+            ci, ai, delta, r = ci[ok], ai[ok], delta[ok], r[ok]
+            pa = {k: v[ok] for k, v in pa.items()}
+        if outputs:
+            e, f = shifted_energy_force(self.style, r, pa)
+        else:
+            f = self.style.energy_force(r, pa)[1]
+        fvec = (f / r)[:, None] * delta
+        if state.f.flags.c_contiguous:  # an atom may have several contacts: unbuffered add
+            np.add.at(state.f.reshape(-1, 3), ci * N + ai, fvec)
+        else:
+            np.add.at(state.f, (ci, ai), fvec)
+        if not outputs:
+            return None
+        energy = np.bincount(ci, weights=e, minlength=C)
+        if self.virial:  # trace of sum F_i del_j over contacts = F r (the flat walls' convention)
+            self.last_virial = np.bincount(ci, weights=f * r, minlength=C)
+        vector = -np.stack([np.bincount(ci, weights=fvec[:, d], minlength=C) for d in range(3)], axis=1)
+        return energy, vector
+
+    def _check_radius(self, state: "BatchState") -> None:
+        bad = np.any(state.radius[:, self.atoms] <= 0.0, axis=1)
+        if bad.any():
+            state.fail(np.nonzero(bad)[0], lambda c: (
+                f"walls.{self.fix_id} (wall/region {self.region_name} colloid): a group atom has radius 0 "
+                f"(LAMMPS: Fix wall/region colloid requires only extended particles)"))
+        self._radius_checked = True
+
+    def _fail(self, state: "BatchState", wrong: np.ndarray, ci: np.ndarray, ai: np.ndarray,
+              r: np.ndarray) -> None:
+        """Fail every case with an atom on the wrong side or a contact with r <= tooclose; the
+        message names the lowest such atom of the case."""
+        G = self.atoms.size
+        w_ci, w_ai = wrong // G, self.atoms[wrong % G]
+        all_ci = np.concatenate([w_ci, ci])
+        all_ai = np.concatenate([w_ai, ai])
+        kind = np.concatenate([np.zeros(w_ci.size, int), np.ones(ci.size, int)])
+        dist = np.concatenate([self.geom.distance(state.x[w_ci, w_ai]), r])
+        order = np.lexsort((kind, all_ai, all_ci))
+        rows, first = np.unique(all_ci[order], return_index=True)
+        pick = order[first]
+        info = {int(c): (int(all_ai[k]), int(kind[k]), float(dist[k])) for c, k in zip(rows, pick)}
+        side = "outside" if self.geom.side == "in" else "inside (or on the surface of)"
+        ees = self.style is None
+        what = f"wall/region/ees {self.region_name}" if ees else f"wall/region {self.region_name} {self.style.name}"
+        lammps = LAMMPS_EES_MESSAGE if ees else LAMMPS_MESSAGE
+
+        def message(c: int) -> str:
+            a, k, d = info[c]
+            head = f"walls.{self.fix_id} ({what}): atom {a} at step {int(state.step[c])}"
+            if k == 0:
+                body = (f"is {side} region {self.region_name} (side {self.geom.side}), {d:.6g} from its "
+                        f"surface: it is on the wrong side")
+            elif ees:
+                body = (f"is at distance {d:.6g} from the surface of region {self.region_name}, not more than its "
+                        f"sigma_n along the contact normal: the ellipsoid touches or crosses the surface")
+            elif self.style.needs_radius:
+                body = (f"is at distance {d:.6g} from the surface of region {self.region_name}, not more than "
+                        f"its radius {float(state.radius[c, a]):.6g}: the particle touches or crosses the surface")
+            else:
+                body = f"is at distance {d:.6g} from the surface of region {self.region_name}: it is on the surface"
+            return f"{head} {body} (LAMMPS: {lammps})"
+
+        state.fail(rows, message)
+
+
+class RegionEESKernel(RegionWallKernel):
+    """fix wall/region/ees (physics.md §6): the ees energy, force and torque of §4.7 with the
+    contact normal n = delta/r and sigma_n along n. Energy unshifted (LAMMPS). "Too close" is
+    r <= sigma_n along the true normal (the decisions table; LAMMPS uses a per-axis sigma_n)."""
+
+    def __init__(self, specs: list["RegionWallSpec"]):
+        super().__init__(specs)
+        self.style = None
+        self.virial = False  # wall/region/ees has no virial
+
+    def apply(self, state: "BatchState", outputs: bool) -> tuple[np.ndarray, np.ndarray] | None:
+        from .ellipsoid import ees_energy_force_torque, ees_torque, sigma_n
+
+        C, G, N = state.ncases, self.atoms.size, state.x.shape[1]
+        p = self._resolve(state)
+        xs = (state.x if G == N else state.x[:, self.atoms]).reshape(-1, 3)
+        wrong = np.nonzero(~self.geom.contains(xs))[0]
+        idx, delta, r = self.geom.contacts(xs, np.repeat(p["cutoff"], G))
+        ci, ai = idx // G, self.atoms[idx % G]
+        normal = delta / r[:, None]
+        q, shape = state.quat[ci, ai], state.shape[ci, ai]
+        sn = sigma_n(q, shape, normal)
+        close = r <= sn
+        if wrong.size or close.any():
+            self._fail(state, wrong, ci[close], ai[close], r[close])
+            ok = ~close
+            ci, ai, normal, r, sn, q, shape = ci[ok], ai[ok], normal[ok], r[ok], sn[ok], q[ok], shape[ok]
+        e, f, tw = ees_energy_force_torque(r, sn, p["epsilon"][ci], p["sigma"][ci])
+        fvec = f[:, None] * normal
+        np.add.at(state.f.reshape(-1, 3), ci * N + ai, fvec)
+        np.add.at(state.torque.reshape(-1, 3), ci * N + ai, ees_torque(q, shape, normal, tw))
+        if not outputs:
+            return None
+        energy = np.bincount(ci, weights=e, minlength=C)
+        vector = -np.stack([np.bincount(ci, weights=fvec[:, d], minlength=C) for d in range(3)], axis=1)
+        return energy, vector
+
+
+def lammps_region_colloid(r, p: Params) -> tuple[np.ndarray, np.ndarray]:
+    """LAMMPS 22Jul2025's fix wall/region colloid (quirk #1, physics.md §5), NOT used by wallbatch.
+
+    With D = r - R, A = eps sigma^6/7560 [ (6R - D)/D^7 + (D + 8R)/(D + 2R)^7 ] and
+    B = [ 2R(D+R) + D(D+2R) (ln D - ln(D+2R)) ] / [D(D+2R)] (fix wall/colloid: E = A - eps B / 6):
+
+    E = A + eps B / 6 - [ eps sigma^6/7560 rc^-9 - (eps/6) rc^-3 ]     (already "shifted")
+    F = -F_wall/colloid(r, R)                                            (not -dE/dr)
+    """
+    from .potentials import colloid
+
+    eps, sigma, big_r, rc = p["epsilon"], p["sigma"], p["radius"], p["cutoff"]
+    s6 = sigma ** 6
+    d = r - big_r
+    a = eps * s6 / 7560.0 * ((6.0 * big_r - d) / d ** 7 + (d + 8.0 * big_r) / (d + 2.0 * big_r) ** 7)
+    b = (2.0 * big_r * (d + big_r) + d * (d + 2.0 * big_r) * (np.log(d) - np.log(d + 2.0 * big_r))) / (
+        d * (d + 2.0 * big_r))
+    energy = a + eps * b / 6.0 - (eps * s6 / 7560.0 / rc ** 9 - eps / 6.0 / rc ** 3)
+    return energy, -colloid(r, p)[1]

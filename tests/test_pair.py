@@ -1,0 +1,324 @@
+"""Tests for wallbatch.pair (pair_style lj/cut, physics.md §12): §12 check values, the neighbor
+list against a brute-force all-pairs sum, rebuild bookkeeping, force = -dE/dx, per-case bit
+identity, take(), and LAMMPS `run 0` parity (energy, per-atom forces, virial)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lammps_oracle import _load_lammps, requires_lammps
+from wallbatch.pair import DEFAULT_SKIN, PairLJCut, default_skin, lj_pair
+
+# physics.md §12, LAMMPS 22Jul2025
+EPS12, SIGMA12, R12, RC12 = 1.2, 1.1, 1.3, 2.5
+E12, E12_SHIFTED, F12 = -1.1151250943428515, -1.0805475274697793, 2.1624404761628178
+
+
+# -- helpers -----------------------------------------------------------------------------------
+
+def jittered(rng: np.random.Generator, n: int, lo, hi, periodic, jitter: float = 0.15) -> np.ndarray:
+    """n random sites of a grid filling the box, each moved by up to jitter*spacing (no overlaps:
+    nearest distance >= (1 - 2 jitter) spacing); periodic dims wrapped into [lo, hi)."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    length = hi - lo
+    a = length.min()
+    while np.prod(np.floor(length / a)) < 1.2 * n:
+        a *= 0.98
+    m = np.floor(length / a).astype(int)
+    grid = np.stack(np.meshgrid(*(np.arange(k) for k in m), indexing="ij"), -1).reshape(-1, 3)
+    site = grid[rng.permutation(len(grid))[:n]]
+    spacing = length / m
+    x = lo + (site + 0.5 + rng.uniform(-jitter, jitter, (n, 3))) * spacing
+    per = np.asarray(periodic, bool)
+    x[:, per] = lo[per] + np.mod(x[:, per] - lo[per], length[per])
+    return x
+
+
+def brute(x, eps, sig, rc, shift, length, periodic):
+    """All-pairs LJ: energy (C,), forces (C, N, 3), virial (C,), and scales sum|e|, sum|r.F| (C,)."""
+    C, N = x.shape[:2]
+    iu, ju = np.triu_indices(N, 1)
+    energy, virial, escale, wscale = (np.zeros(C) for _ in range(4))
+    forces = np.zeros_like(x)
+    for c in range(C):
+        d = x[c, iu] - x[c, ju]
+        for k in np.flatnonzero(periodic):
+            d[:, k] -= length[k] * np.round(d[:, k] / length[k])
+        r = np.sqrt((d * d).sum(axis=1))
+        m = r < rc[c]
+        r, d = r[m], d[m]
+        sr6 = (sig[c] / r) ** 6
+        e = 4 * eps[c] * (sr6 * sr6 - sr6)
+        if shift:
+            src6 = (sig[c] / rc[c]) ** 6
+            e -= 4 * eps[c] * (src6 * src6 - src6)
+        dedr = 4 * eps[c] * (-12 * sr6 * sr6 + 6 * sr6) / r  # dE/dr
+        fij = (-dedr / r)[:, None] * d  # force on i from j
+        np.add.at(forces[c], iu[m], fij)
+        np.add.at(forces[c], ju[m], -fij)
+        energy[c], escale[c] = e.sum(), np.abs(e).sum()
+        rf = (fij * d).sum(axis=1)
+        virial[c], wscale[c] = rf.sum(), np.abs(rf).sum()
+    return energy, forces, virial, escale, wscale
+
+
+def assert_matches(pair, x, eps, sig, rc, shift, length, periodic, rtol=1e-12):
+    """compute() equals the brute force: E and W relative to sum|terms|, F to max|F| of the case."""
+    f = np.zeros_like(x)
+    energy, virial = pair.compute(x, f, True)
+    e_ref, f_ref, w_ref, escale, wscale = brute(x, eps, sig, rc, shift, length, periodic)
+    assert np.all(escale > 0)  # the check is not vacuous: every case has pairs inside rc
+    assert np.all(np.abs(energy - e_ref) <= rtol * escale)
+    assert np.all(np.abs(virial - w_ref) <= rtol * wscale)
+    fscale = np.abs(f_ref).max(axis=(1, 2))
+    assert np.all(np.abs(f - f_ref).max(axis=(1, 2)) <= rtol * fscale)
+
+
+BOXES = {  # boundary letters -> (lo, hi)
+    "ppp": ((0.0, 0.0, 0.0), (7.0, 6.5, 6.0)),
+    "fff": ((-1.0, 0.5, 0.0), (5.5, 7.0, 6.5)),
+    "ppf": ((0.0, -2.0, 1.0), (6.5, 4.8, 7.5)),
+    "fpf": ((-3.0, 0.0, 0.0), (3.5, 6.0, 6.2)),
+}
+EPS = np.array([1.0, 0.5, 1.3])
+SIG = np.array([1.0, 0.9, 1.1])
+RC = np.array([2.5, 2.0, 1.8])
+
+
+def batch(boundary: str, n: int, seed: int, shift: bool = False, skin: float = 0.3):
+    lo, hi = BOXES[boundary]
+    periodic = np.array([b == "p" for b in boundary])
+    rng = np.random.default_rng(seed)
+    x = np.stack([jittered(rng, n, lo, hi, periodic) for _ in range(len(EPS))])
+    pair = PairLJCut(EPS, SIG, RC, box_lo=lo, box_hi=hi, periodic=periodic, shift=shift, skin=skin)
+    return pair, x, np.subtract(hi, lo), periodic
+
+
+# -- §12 check values --------------------------------------------------------------------------
+
+@pytest.mark.parametrize("shift, e_ref", [(False, E12), (True, E12_SHIFTED)])
+def test_section12_check_values(shift, e_ref):
+    x = np.array([[[0.0, 2.0, 3.0], [R12, 2.0, 3.0]]])
+    r = R12
+    pair = PairLJCut(EPS12, SIGMA12, RC12, box_lo=(-5, -5, -5), box_hi=(5, 5, 5),
+                     periodic=(False, False, False), shift=shift)
+    f = np.zeros_like(x)
+    energy, virial = pair.compute(x, f, True)
+    assert energy[0] == pytest.approx(e_ref, rel=1e-14)
+    assert np.linalg.norm(f[0, 0]) == pytest.approx(F12, rel=1e-13)
+    assert np.dot(f[0, 0], x[0, 1] - x[0, 0]) > 0  # attractive: atom 0 pulled towards atom 1
+    np.testing.assert_array_equal(f[0, 1], -f[0, 0])
+    assert virial[0] == pytest.approx(-F12 * r, rel=1e-13)  # W = r_01 . F_01 < 0 when attractive
+    e, fpair = lj_pair(np.array(R12 * R12), EPS12, SIGMA12)
+    assert e == pytest.approx(E12, rel=1e-14) and fpair * R12 == pytest.approx(-F12, rel=1e-14)
+
+
+def test_outside_cutoff_and_defaults():
+    x = np.array([[[0.0, 0.0, 0.0], [2.5, 0.0, 0.0], [0.0, 2.4999999, 0.0]]])
+    pair = PairLJCut(1.0, 1.0, 2.5, box_lo=(-5, -5, -5), box_hi=(5, 5, 5), periodic=(True, True, False))
+    f = np.zeros_like(x)
+    energy, _ = pair.compute(x, f, True)
+    assert f[0, 1].tolist() == [0.0, 0.0, 0.0]  # r == rc is outside (LAMMPS: rsq < cutsq)
+    assert f[0, 2, 1] != 0.0
+    assert energy[0] == lj_pair(np.array(2.4999999**2), 1.0, 1.0)[0]  # only the pair 0-2 counts
+    assert pair.compute(x, f, False) is None
+    assert pair.skin == 0.3 and default_skin("lj") == 0.3
+    assert default_skin("real") == default_skin("metal") == 2.0 == DEFAULT_SKIN["real"]
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"cutoff": 3.0}, "half the periodic box"),
+    ({"epsilon": -1.0}, "epsilon"),
+    ({"sigma": 0.0}, "sigma"),
+    ({"skin": -0.1}, "skin"),
+])
+def test_bad_parameters(kwargs, match):
+    args = {"epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5, "skin": 0.3} | kwargs
+    with pytest.raises(ValueError, match=match):
+        PairLJCut(args["epsilon"], args["sigma"], args["cutoff"], box_lo=(0, 0, 0), box_hi=(6, 10, 10),
+                  periodic=(True, False, False), skin=args["skin"])
+
+
+# -- neighbor list = brute force ---------------------------------------------------------------
+
+@pytest.mark.parametrize("shift", [False, True])
+@pytest.mark.parametrize("boundary", list(BOXES))
+def test_matches_brute_force(boundary, shift):
+    pair, x, length, periodic = batch(boundary, 160, seed=len(boundary) + 7 * shift, shift=shift)
+    fixed = np.flatnonzero(~periodic)
+    if len(fixed):  # an atom a little outside a fixed face (the engine checks lost atoms after forces)
+        x[:, 0, fixed[0]] = BOXES[boundary][1][fixed[0]] + 0.05
+    assert_matches(pair, x, EPS, SIG, RC, shift, length, periodic)
+    assert pair.builds == 3 and pair.case_builds.tolist() == [1, 1, 1]
+    iu, ju = np.triu_indices(x.shape[1], 1)  # the list holds exactly the pairs within rc + skin
+    d = x[:, iu] - x[:, ju]
+    for k in np.flatnonzero(periodic):
+        d[..., k] -= length[k] * np.round(d[..., k] / length[k])
+    assert pair.npairs == np.sum(np.sqrt((d * d).sum(axis=2)) <= (RC + pair.skin)[:, None])
+
+
+def test_random_walk_rebuilds_only_when_needed():
+    """Small random moves with wrapping: the list stays exact, and a case is rebuilt exactly when
+    one of its atoms has moved more than skin/2 (minimum image) since its last build."""
+    skin = 0.3
+    pair, x, length, periodic = batch("ppf", 120, seed=3, skin=skin)
+    lo = np.asarray(BOXES["ppf"][0])
+    rng = np.random.default_rng(11)
+    step = np.array([0.02, 0.006, 0.0])  # per case: fast, slow, frozen
+    ref = x.copy()
+    expected = np.ones(3, dtype=int)
+    assert_matches(pair, x, EPS, SIG, RC, False, length, periodic)
+    for _ in range(60):
+        x = x + step[:, None, None] * rng.standard_normal(x.shape)
+        for k in np.flatnonzero(periodic):
+            x[..., k] = lo[k] + np.mod(x[..., k] - lo[k], length[k])
+        d = x - ref
+        for k in np.flatnonzero(periodic):
+            d[..., k] -= length[k] * np.round(d[..., k] / length[k])
+        moved = np.sqrt((d * d).sum(axis=2)).max(axis=1) > skin / 2
+        expected += moved
+        ref[moved] = x[moved]
+        assert_matches(pair, x, EPS, SIG, RC, False, length, periodic)
+        np.testing.assert_array_equal(pair.case_builds, expected)
+    assert expected[0] >= 5 and 1 < expected[1] < expected[0] and expected[2] == 1
+    assert pair.builds == expected.sum()
+
+
+def test_rebuild_threshold_is_half_skin():
+    """Two atoms just beyond rc + skin, each moved just under skin/2 towards the other: no rebuild
+    and no force (still beyond rc); a little further: one rebuild, and the force appears."""
+    rc, skin = 2.5, 0.3
+    pair = PairLJCut(1.0, 1.0, rc, box_lo=(0, 0, 0), box_hi=(10, 10, 10), periodic=(True, True, False),
+                     skin=skin)
+    gap = rc + skin + 1e-9
+    x = np.array([[[5.0 - gap / 2, 5.0, 5.0], [5.0 + gap / 2, 5.0, 5.0]]])
+    f = np.zeros_like(x)
+    pair.compute(x, f, False)
+    assert pair.builds == 1 and not f.any()
+    step = skin / 2 - 1e-9
+    x[0, 0, 0] += step
+    x[0, 1, 0] -= step
+    pair.compute(x, f, False)
+    assert pair.builds == 1 and not f.any()  # distance rc + 3e-9, nobody moved more than skin/2
+    x[0, 0, 0] += 0.01
+    x[0, 1, 0] -= 0.01
+    pair.compute(x, f, False)
+    assert pair.builds == 2 and f[0, 1, 0] < 0 < f[0, 0, 0]  # attractive at r = rc - 0.02
+
+
+# -- force = -dE/dx ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("shift", [False, True])
+def test_force_is_minus_gradient(shift):
+    pair, x, _, _ = batch("ppf", 60, seed=5, shift=shift)
+    _, forces = pair.energy_forces(x)
+    rng = np.random.default_rng(2)
+    h = 1e-5
+    for c in range(3):
+        fscale = np.abs(forces[c]).max()
+        for a, k in zip(rng.integers(0, 60, 6), rng.integers(0, 3, 6)):
+            xp, xm = x.copy(), x.copy()
+            xp[c, a, k] += h
+            xm[c, a, k] -= h
+            fd = -(pair.energy_forces(xp)[0][c] - pair.energy_forces(xm)[0][c]) / (2 * h)
+            assert abs(fd - forces[c, a, k]) <= 1e-6 * fscale
+    assert pair.builds == 3  # h << skin/2: no rebuild
+
+
+# -- batches: per-case bit identity, take(), NaN cases --------------------------------------------
+
+def test_case_independent_of_batch_and_take():
+    """A case's forces, energy and virial are bit-identical whether it runs alone or in a batch
+    whose other cases rebuild at other times, also after take() drops a case mid-run."""
+    pair, x, length, periodic = batch("ppp", 100, seed=9)
+    lo, hi = BOXES["ppp"]
+    singles = [PairLJCut(EPS[c], SIG[c], RC[c], box_lo=lo, box_hi=hi, periodic=periodic) for c in range(3)]
+    rng = np.random.default_rng(4)
+    step, live = np.array([0.03, 0.01, 0.02]), [0, 1, 2]
+    for n in range(30):
+        x = x + step[:, None, None] * rng.standard_normal(x.shape)
+        x = lo + np.mod(x - np.asarray(lo), length)
+        if n == 15:
+            builds = pair.case_builds.copy()
+            pair.take(np.array([True, False, True]))
+            x, step, live = x[[0, 2]], step[[0, 2]], [0, 2]
+            assert pair.ncases == 2 and pair.epsilon.tolist() == EPS[[0, 2]].tolist()
+            np.testing.assert_array_equal(pair.case_builds, builds[[0, 2]])
+        f = np.zeros_like(x)
+        e, w = pair.compute(x, f, True)
+        for row, c in enumerate(live):
+            f1 = np.zeros_like(x[:1])
+            e1, w1 = singles[c].compute(x[row:row + 1], f1, True)
+            assert np.array_equal(f[row], f1[0]) and e[row] == e1[0] and w[row] == w1[0]
+    assert len(set(pair.case_builds.tolist())) == 2  # the two cases were rebuilt at different times
+    assert_matches(pair, x, EPS[[0, 2]], SIG[[0, 2]], RC[[0, 2]], False, length, periodic)
+    pair.take(np.array([1, 0]))  # indices, reordering
+    assert_matches(pair, x[::-1].copy(), EPS[[2, 0]], SIG[[2, 0]], RC[[2, 0]], False, length, periodic)
+
+
+def test_nan_case_does_not_touch_others():
+    pair, x, _, _ = batch("ppf", 80, seed=13)
+    f_ok = np.zeros_like(x)
+    e_ok, w_ok = pair.compute(x, f_ok, True)
+    x[1, 5, 0] = np.nan
+    f = np.zeros_like(x)
+    e, w = pair.compute(x, f, True)
+    assert np.isnan(f[1]).all() and np.isnan(e[1]) and np.isnan(w[1])
+    assert np.array_equal(f[[0, 2]], f_ok[[0, 2]]) and np.array_equal(e[[0, 2]], e_ok[[0, 2]])
+    assert np.array_equal(w[[0, 2]], w_ok[[0, 2]])
+
+
+# -- LAMMPS run 0 parity ---------------------------------------------------------------------------
+
+def lammps_run0(x, lo, hi, boundary, eps, sigma, rc, shift):
+    """LAMMPS lj/cut at step 0: pe (norm no), per-atom forces, W = 3 V P_virial / nktv2p."""
+    lo, hi, eps, sigma, rc = [float(v) for v in lo], [float(v) for v in hi], float(eps), float(sigma), float(rc)
+    lammps = _load_lammps()
+    lmp = lammps.lammps(cmdargs=["-log", "none", "-screen", "none", "-nocite"])
+    try:
+        for line in [
+            "units lj", "atom_style atomic", "atom_modify map array",
+            "boundary " + " ".join(boundary),
+            "region box block " + " ".join(f"{lo[d]!r} {hi[d]!r}" for d in range(3)) + " units box",
+            "create_box 1 box", "mass 1 1.0",
+        ]:
+            lmp.command(line)
+        n = len(x)
+        assert lmp.create_atoms(n, list(range(1, n + 1)), [1] * n, x.ravel().tolist()) == n
+        got = np.ctypeslib.as_array(lmp.gather_atoms("x", 1, 3)).reshape(-1, 3)
+        assert np.array_equal(got, x)
+        for line in [
+            f"pair_style lj/cut {rc!r}", f"pair_coeff 1 1 {eps!r} {sigma!r}",
+            f"pair_modify shift {'yes' if shift else 'no'}",
+            "neighbor 0.3 bin", "neigh_modify every 1 delay 0 check yes",
+            "compute wvir all pressure NULL virial",
+            "thermo_style custom step pe c_wvir", "thermo_modify norm no", "run 0",
+        ]:
+            lmp.command(line)
+        pe = lmp.get_thermo("pe")
+        press = lmp.extract_compute("wvir", 0, 0)  # LMP_STYLE_GLOBAL, LMP_TYPE_SCALAR
+        forces = np.ctypeslib.as_array(lmp.gather_atoms("f", 1, 3)).reshape(-1, 3).copy()
+    finally:
+        lmp.close()
+    volume = np.prod(np.subtract(hi, lo))
+    return pe, forces, 3.0 * volume * press  # nktv2p = 1 in lj units
+
+
+@requires_lammps
+@pytest.mark.parametrize("shift", [False, True])
+def test_lammps_run0_parity(shift):
+    lo, hi, boundary = (0.0, -1.0, 0.5), (7.2, 6.0, 7.4), ("p", "p", "f")
+    periodic = np.array([True, True, False])
+    rng = np.random.default_rng(2025 + shift)
+    x = np.stack([jittered(rng, 200, lo, hi, periodic) for _ in range(2)])
+    eps, sig, rc = np.array([1.0, 1.3]), np.array([1.0, 0.95]), np.array([2.5, 3.0])
+    pair = PairLJCut(eps, sig, rc, box_lo=lo, box_hi=hi, periodic=periodic, shift=shift)
+    f = np.zeros_like(x)
+    energy, virial = pair.compute(x, f, True)
+    for c in range(2):
+        pe, f_lmp, w_lmp = lammps_run0(x[c], lo, hi, boundary, eps[c], sig[c], rc[c], shift)
+        assert energy[c] == pytest.approx(pe, rel=1e-10)
+        assert virial[c] == pytest.approx(w_lmp, rel=1e-10)
+        assert np.abs(f[c] - f_lmp).max() <= 1e-10 * np.abs(f_lmp).max()
+        assert abs(w_lmp) > 1.0 and np.abs(f_lmp).max() > 1.0  # a real configuration, not an empty one
