@@ -62,13 +62,16 @@ class SourceMap:
     def locate(self, loc: tuple) -> tuple[tuple, tuple[int, int] | None]:
         """Resolve a Pydantic error location against the data: drop union tags and other loc
         parts that index nothing, and return (path to show, nearest known mark)."""
-        path: list = []  # indexes the data (and the marks)
+        path: list = []  # indexes the marks: mapping keys as written (text), list indices
         shown: list = []  # what the user reads: field names, also for positional faces
         node = self.data
         for part in loc:
+            if isinstance(node, dict) and isinstance(part, str) and part not in node and part.lstrip("-").isdigit() \
+                    and int(part) in node:
+                part = int(part)  # a fix-ID like `1:` that YAML read as a number
             if isinstance(node, dict) and part in node:
                 node = node[part]
-                path.append(part)
+                path.append(str(part))
                 shown.append(part)
             elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
                 node = node[part]
@@ -620,7 +623,7 @@ def _expand_fix_lines(data: Any, srcmap: SourceMap) -> Any:
                 w = {**parse_fix_line(str(w["fix"]), str(fid)), **{k: v for k, v in w.items() if k != "fix"}}
         except FixLineError as exc:
             problems.append(srcmap.format(("walls", fid), str(exc)))
-        walls[fid] = w
+        walls[str(fid)] = w  # a LAMMPS fix-ID may be a number (`1:`): IDs are strings
     if problems:
         raise ConfigError(problems)
     return {**data, "walls": walls}

@@ -435,6 +435,8 @@ class Engine:
         s = self.state
         for w in self.reflect:
             w.setup(s)
+        for w in self.flow:
+            w.setup(s.x)
         out = self.compute_forces(True)
         if self.dt_reset is not None:
             s.set_dt(self.reset_dt())

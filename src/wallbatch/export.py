@@ -10,8 +10,12 @@ docs/physics.md) the case touches.
 
 Adding a feature is one small function and one registry line:
   * a wall style: a writer in `WALL_WRITERS` (config style name -> writer(fid, wall, spec, s));
-  * a pair style: a writer in `PAIR_WRITERS`;
-  * an atom kind: a writer in `ATOM_WRITERS` (chosen by `_atom_style`).
+    today lj93 lj126 lj1043 colloid harmonic morse ees (fix wall/STYLE), reflect, region
+    (fix wall/region), region/ees (fix wall/region/ees) and flow (fix wall/flow);
+  * a pair style: a writer in `PAIR_WRITERS` (lj/cut);
+  * an atom kind: a writer in `ATOM_WRITERS` (chosen by `_atom_style`: atomic, sphere, ellipsoid);
+  * `minimize:` is written by `_minimize` (min_style, min_modify dmax, minimize, then
+    reset_timestep 0 so the run's samples start at step 0, as wallbatch's).
 Anything without a writer is refused by `check_exportable` with "cannot export yet".
 Everything here returns text; `write_export` puts it in files.
 """
@@ -31,7 +35,7 @@ from . import __version__
 from .config import Config, config_from_dict
 from .expr import Binary, Call, Keyword, Node, Num, Unary, to_lammps
 from .fixline import to_fix_line
-from .scene import Case, ReflectSpec, SoftWallSpec, build_case
+from .scene import Case, ReflectSpec, RegionWallSpec, SoftWallSpec, build_case
 from .sweep import SweepCase, SweepPlan, config_to_dict, set_path
 from .units import UNIT_SYSTEMS
 
@@ -62,14 +66,16 @@ class ExportError(ValueError):
 
 @dataclass(frozen=True)
 class Column:
-    """One thermo column: `label` names the wallbatch output (`ke`, `wall_energy[zw]`,
-    `wall_force[zw/zlo]`), `keyword` the LAMMPS thermo keyword, `key`/`index` where the value
-    sits in the engine's per-case samples (`CaseResult.data[key][:, index]`)."""
+    """One compared output: `label` names the wallbatch output (`ke`, `wall_energy[zw]`,
+    `wall_force[zw/zlo]`, `region_force[rod/x]`, `min_energy`), `keyword` the LAMMPS thermo
+    keyword (or, for source "min", the `MIN_RESULTS` entry), `key`/`index` where the value sits in
+    the engine's per-case results (`CaseResult.data[key][:, index]`; min_* are scalars)."""
 
     label: str
     keyword: str
     key: str
-    index: int | None = None
+    index: int | tuple[int, ...] | None = None  # region_force: (fix, x/y/z)
+    source: str = "thermo"  # thermo: a thermo_style column; min: a minimization result (`MIN_RESULTS`)
 
 
 @dataclass(frozen=True)
@@ -80,12 +86,18 @@ class LammpsExport:
     data: str
     script_name: str
     data_name: str
-    columns: tuple[Column, ...]  # thermo columns after `step`, in order
+    columns: tuple[Column, ...]  # thermo columns after `step`, in order, then min_* results
     steps: int
     thermo: int
     decisions: tuple[str, ...]  # decisions-table rows this case touches ("topic: what it means here")
     notes: tuple[str, ...]  # other export notes
     expected: dict[str, str] = field(default_factory=dict)  # output label -> why it differs by design
+    region_colloid: tuple[str, ...] = ()  # wall/region colloid fix IDs (validate: the force-matched variant)
+    force_matched: bool = False  # written with epsilon -> -epsilon on those fixes (see `export_case`)
+
+    @property
+    def thermo_columns(self) -> tuple[Column, ...]:
+        return tuple(c for c in self.columns if c.source == "thermo")
 
 
 # ----------------------------------------------------------------------------- decisions table
@@ -111,18 +123,43 @@ DECISIONS: dict[str, str] = {
               "this script draws no random numbers",
     "edge": "EDGE: the box bound; this box never changes, so LAMMPS's EDGE (the bound at fix creation) is the "
             "same plane",
+    "region_colloid": "wall/region with colloid: wallbatch uses the fix wall/colloid physics on the region surface "
+                      "(energy and force consistent); LAMMPS's wall/region colloid flips the force and the sign of "
+                      "the energy's log term and subtracts an LJ93-style constant (physics.md quirk #1). This script "
+                      "runs LAMMPS's own physics, so trajectories differ once a particle feels the wall; written with "
+                      "epsilon -> -epsilon, LAMMPS's flipped force is exactly fix wall/colloid's (energies still "
+                      "differ): `wallbatch validate` compares that variant",
+    "region_ees_sigma": "wall/region/ees closeness test: wallbatch stops when r <= sigma_n along the true contact "
+                        "normal; LAMMPS tests a per-axis sigma_n (quirk #14). Both agree while every ellipsoid keeps "
+                        "clear of the surface; on curved or diagonal contacts LAMMPS can go on with NaN energies "
+                        "where wallbatch stops with an error",
+    "flow_wrap": "wall/flow at the periodic boundary: wallbatch wraps positions every step (one redraw per "
+                 "crossing); so does this script (neigh_modify every 1 delay 0 check no): LAMMPS's default "
+                 "delayed wrapping would redraw twice per boundary crossing",
+    "flow_rule": "wall/flow rule: exact (wallbatch's default): an atom redrawn back over the wall it just crossed is "
+                 "not redrawn again on its return; LAMMPS redraws again (rule: lammps), so its ideal gas streams "
+                 "faster than vflow. This script runs LAMMPS's rule",
+    "flow_random": "wall/flow random numbers: wallbatch draws from NumPy generators (one stream per case and flow "
+                   "wall), LAMMPS from RANMAR seeded with SEED: the runs agree statistically, not sample by sample "
+                   "(`wallbatch validate` refuses flow cases)",
     "reflect_frame": "wall/reflect on a moving wall: frame: wall (v -> 2 v_wall - v) cannot be expressed in LAMMPS, "
                      "which does v -> -v; this script reflects in the lab frame, so velocities differ from "
                      "wallbatch's after the first reflection on a moving wall (`wallbatch validate` compares the "
                      "case with frame: lab and reports the frame: wall difference as expected)",
+    "min_norm": "minimize: wallbatch minimizes the extensive energy (pair + walls with energy: true); "
+                "thermo_modify norm no comes before minimize here, so LAMMPS does too (its lj default, norm yes, "
+                "divides the energy by N, which moves the absolute thresholds of its energy tolerance)",
+    "min_forces_zero": "minimize (cg) with every force exactly zero: wallbatch stops with `forces are zero`, LAMMPS "
+                       "with `search direction is not downhill` (same state; `wallbatch validate` reports the "
+                       "stopping criterion as expected then)",
 }
 
-# Not yet exportable: config style name -> what it is (features being built by other issues).
-NOT_YET: dict[str, str] = {
-    "flow": "wall/flow",
-    "ees": "wall/ees (ellipsoids)",
-    "region": "wall/region",
-    "region/ees": "wall/region/ees",
+# source "min" columns: wallbatch result -> where the LAMMPS value comes from (validate.run_lammps):
+# "Minimization stats" of the log (energy_before: 15 digits, as LAMMPS prints it) or the
+# `print "wb_min ..."` line written after minimize (17 digits)
+MIN_RESULTS: dict[str, str] = {
+    "min_energy_before": "energy_before", "min_energy": "energy", "min_fnorm": "fnorm",
+    "min_iterations": "iterations", "min_evaluations": "evaluations", "min_stop_reason": "stop_reason",
 }
 
 
@@ -190,14 +227,17 @@ def check_exportable(cfg: Config) -> None:
     problems = []
     if cfg.pair is not None and cfg.pair.style not in PAIR_WRITERS:
         problems.append(f"pair: {cfg.pair.style} (pair forces)")
+    shaped = [i for i, g in enumerate(cfg.atoms) if g.shape is not None]
     for i, g in enumerate(cfg.atoms):
         if (g.shape is not None or g.orientation is not None or g.angmom is not None) and "ellipsoid" not in ATOM_WRITERS:
             problems.append(f"atoms.{i}: ellipsoid atoms (shape, orientation, angmom)")
+    sized = [i for i, g in enumerate(cfg.atoms) if g.radius]
+    if shaped and sized:
+        problems.append(f"atoms.{sized[0]} (radius) with atoms.{shaped[0]} (shape): spheres and ellipsoids together "
+                        f"(atom_style hybrid sphere ellipsoid)")
     for fid, wall in cfg.walls.items():
         if wall.style not in WALL_WRITERS:
-            problems.append(f"walls.{fid}: {NOT_YET.get(wall.style, 'wall/' + wall.style)}")
-    if getattr(cfg, "minimize", None) is not None:
-        problems.append("minimize: an energy minimization before the run")
+            problems.append(f"walls.{fid}: wall/{wall.style}")
     if problems:
         raise ExportError("cannot export yet: " + "; ".join(problems)
                           + " (no LAMMPS writer in this version of wallbatch export-lammps)")
@@ -291,7 +331,13 @@ class _Script:
     decisions: dict[str, str] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     expected: dict[str, str] = field(default_factory=dict)
-    soft_written: list[SoftWallSpec] = field(default_factory=list)  # wall_energy / wall_force indices
+    soft_written: list[SoftWallSpec] = field(default_factory=list)  # wall_force indices
+    regions: dict[str, str] = field(default_factory=dict)  # wallbatch region name -> `region ...` command
+    region_ids: set[str] = field(default_factory=set)
+    pair: list[str] = field(default_factory=list)  # pair_style, pair_coeff, ... (after read_data)
+    force_matched: bool = False  # wall/region colloid written with -epsilon (validate's variant)
+    region_colloid: list[str] = field(default_factory=list)
+    minimized_dump: str | Path | None = None  # validate: write_dump of the minimized positions
 
     def decide(self, key: str, text: str | None = None) -> None:
         self.decisions.setdefault(key, text or DECISIONS[key])
@@ -304,6 +350,22 @@ class _Script:
         if out != fid:
             self.notes.append(f"fix ID {fid!r} written as {out!r} (LAMMPS IDs: letters, digits, underscores)")
         return out
+
+    def number(self, value: Any, what: str) -> str:
+        """A parameter LAMMPS takes as a number only: a number, or a variable that is constant
+        (written as its value, with a note); a time-dependent variable cannot be exported."""
+        if not isinstance(value, str):
+            return _num(value)
+        const = self.case.variables.constant_value(value)
+        if const is None:
+            raise ExportError(f"{what}: LAMMPS takes a number here and v_{value} changes during the run: cannot "
+                              f"export")
+        self.notes.append(f"{what}: v_{value} is constant, written as {_num(const)} (LAMMPS takes a number here)")
+        return _num(const)
+
+    def energy_column(self, fid: str, lid: str) -> None:
+        """f_ID, the fix's global scalar: wall_energy in config order of the fixes that have one."""
+        self.columns.append(Column(f"wall_energy[{fid}]", f"f_{lid}", "wall_energy", self.case.fix_order.index(fid)))
 
     def scaled_variable(self, name: str, scale: float, label: str) -> str:
         """A helper variable `name * scale` (a variable wall coordinate in lattice units)."""
@@ -329,8 +391,9 @@ def _coord_word(face: Any, written: Any, s: _Script) -> str:
 
 
 def _soft_wall(fid: str, wall: Any, spec: SoftWallSpec, s: _Script) -> None:
-    """fix wall/lj93 | lj126 | lj1043 | colloid | harmonic | morse, in box units; fix_modify
-    energy yes for `energy: true`; columns f_ID and f_ID[i]."""
+    """fix wall/lj93 | lj126 | lj1043 | colloid | harmonic | morse | ees, in box units; fix_modify
+    energy yes for `energy: true` (virial yes for `virial: true`; wall/ees has no virial); columns
+    f_ID and f_ID[i]."""
     lid = s.fix_id(fid)
     written = dict(wall.faces())
     mapping: dict[str, Any] = {"style": wall.style, "group": s.group(wall.group), "units": "box"}
@@ -353,9 +416,11 @@ def _soft_wall(fid: str, wall: Any, spec: SoftWallSpec, s: _Script) -> None:
     s.fixes.append(to_fix_line(lid, mapping))
     if spec.energy:
         s.fixes.append(f"fix_modify {lid} energy yes")
-    if getattr(spec, "virial", False):
+    if spec.virial:
         s.fixes.append(f"fix_modify {lid} virial yes")
-    s.columns.append(Column(f"wall_energy[{fid}]", f"f_{lid}", "wall_energy", len(s.soft_written)))
+    elif getattr(wall, "virial", False):
+        s.notes.append(f"walls.{fid}: virial: true has no effect on wall/{wall.style} (it has no virial)")
+    s.energy_column(fid, lid)
     first = sum(len(w.faces) for w in s.soft_written)
     s.soft_written.append(spec)
     for i, face in enumerate(spec.faces):
@@ -379,13 +444,102 @@ def _reflect_wall(fid: str, wall: Any, spec: ReflectSpec, s: _Script) -> None:
         s.notes.append(f"reflect_count / reflect_impulse of {fid} are wallbatch outputs with no LAMMPS counterpart")
 
 
+def _region_command(name: str, geom: Any, s: _Script) -> str:
+    """The LAMMPS region of a wall (defined once per region), in box units: `region ID block xlo
+    xhi ylo yhi zlo zhi`, `sphere xc yc zc R` or `cylinder dim c1 c2 R lo hi`, with its side."""
+    if name not in s.regions:
+        rid = _lammps_id(name, s.region_ids)
+        if rid != name:
+            s.notes.append(f"region {name!r} written as {rid!r} (LAMMPS IDs: letters, digits, underscores)")
+        if geom.style == "block":
+            args = " ".join(f"{_num(lo)} {_num(hi)}" for lo, hi in zip(geom.lo, geom.hi))
+        elif geom.style == "sphere":
+            args = " ".join(_num(c) for c in (*geom.center, geom.radius))
+        else:
+            args = "xyz"[geom.axis] + " " + " ".join(_num(c) for c in (*geom.center, geom.radius, geom.lo, geom.hi))
+        s.regions[name] = f"region {rid} {geom.style} {args} side {geom.side} units box"
+    return s.regions[name].split()[1]
+
+
+def _region_wall(fid: str, wall: Any, spec: RegionWallSpec, s: _Script) -> None:
+    """fix wall/region RID STYLE eps sigma rc (morse: D0 alpha r0 rc) or fix wall/region/ees RID
+    eps sigma rc, after its `region` (box units); fix_modify energy / virial; columns f_ID (energy)
+    and f_ID[1..3] (region_force: the force of the atoms on the wall). Colloid: the decisions
+    table; with `s.force_matched` epsilon is written negated (LAMMPS's flipped force is then
+    exactly fix wall/colloid's, so trajectories agree and only the energies differ)."""
+    lid = s.fix_id(fid)
+    rid = _region_command(spec.region_name, spec.region, s)
+    what = f"walls.{fid}"
+    if spec.kind == "region/ees":
+        head, keys = f"wall/region/ees {rid}", ("epsilon", "sigma", "cutoff")
+        s.decide("region_ees_sigma")
+    else:
+        name = spec.potential.name
+        head = f"wall/region {rid} {name}"
+        keys = ("D0", "alpha", "r0", "cutoff") if name == "morse" else ("epsilon", "sigma", "cutoff")
+    params = dict(spec.params)
+    if "sigma" in keys and "sigma" not in params:
+        params["sigma"] = 1.0  # harmonic ignores it; LAMMPS still reads three numbers
+    words = {k: s.number(params[k], f"{what}.{k}") for k in keys}
+    if spec.kind == "region" and spec.potential.name == "colloid":
+        s.decide("region_colloid")
+        s.region_colloid.append(fid)
+        if s.force_matched:
+            words["epsilon"] = _num(-float(words["epsilon"]))
+            why = ("wall/region colloid written with -epsilon: LAMMPS's flipped force equals fix wall/colloid's, "
+                   "its energy is a different formula (decisions table, physics.md quirk #1)")
+            s.expected[f"wall_energy[{fid}]"] = why
+            if spec.energy:
+                s.expected.update({"pe": why, "etot": why})
+    s.fixes.append(f"fix {lid} {s.group(wall.group)} {head} " + " ".join(words[k] for k in keys))
+    if spec.energy:
+        s.fixes.append(f"fix_modify {lid} energy yes")
+    if spec.virial:
+        s.fixes.append(f"fix_modify {lid} virial yes")
+    s.energy_column(fid, lid)
+    k = [w.fix_id for w in s.case.region_walls].index(fid)
+    s.columns += [Column(f"region_force[{fid}/{a}]", f"f_{lid}[{d + 1}]", "region_force", (k, d))
+                  for d, a in enumerate("xyz")]
+
+
+def _flow_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
+    """fix wall/flow AXIS VFLOW T SEED N w1 .. wN units box (coordinates in box units). LAMMPS's
+    rule is `rule: lammps`; `rule: exact` and the random numbers are decisions-table rows; the
+    crossings count (flow_crossings) has no LAMMPS counterpart."""
+    lid = s.fix_id(fid)
+    coords = " ".join(_num(c) for c in spec.walls)
+    s.fixes.append(f"fix {lid} {s.group(wall.group)} wall/flow {'xyz'[spec.axis]} {_num(spec.vflow)} "
+                   f"{_num(spec.temperature)} {int(wall.seed)} {len(spec.walls)} {coords} units box")
+    s.decide("flow_wrap")
+    if spec.rule == "exact":
+        s.decide("flow_rule")
+    s.decide("flow_random")
+    if wall.units == "lattice":
+        s.notes.append(f"walls.{fid}: coords {list(wall.coords)} lattice spacings written in box units")
+
+
 WALL_WRITERS: dict[str, WallWriter] = {
-    **{style: _soft_wall for style in ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse")},
+    **{style: _soft_wall for style in ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse", "ees")},
     "reflect": _reflect_wall,
+    "region": _region_wall,
+    "region/ees": _region_wall,
+    "flow": _flow_wall,
 }
 
-# pair style name -> writer(pair model, s); none yet ("pair: lj/cut" lands with its own issue).
-PAIR_WRITERS: dict[str, Callable[[Any, _Script], None]] = {}
+
+def _pair_lj_cut(pair: Any, s: _Script) -> None:
+    """pair_style lj/cut rc, pair_coeff * * eps sigma (one set for every type), pair_modify shift
+    yes for `shift: true`, and the neighbor skin of wallbatch's list (results do not depend on it:
+    the list is rebuilt every step here)."""
+    p = s.case.pair
+    s.pair += [f"pair_style      lj/cut {_num(p.cutoff)}", f"pair_coeff      * * {_num(p.epsilon)} {_num(p.sigma)}"]
+    if p.shift:
+        s.pair.append("pair_modify     shift yes")
+    s.pair.append(f"neighbor        {_num(p.skin)} bin")
+
+
+# pair style name -> writer(pair model, s)
+PAIR_WRITERS: dict[str, Callable[[Any, _Script], None]] = {"lj/cut": _pair_lj_cut}
 
 
 # ----------------------------------------------------------------------------- atoms and the data file
@@ -410,12 +564,18 @@ def _rows(*cols: np.ndarray) -> list[str]:
 
 @dataclass(frozen=True)
 class AtomSections:
-    """What an atom kind adds: the atom_style, data-file sections, commands after read_data."""
+    """What an atom kind adds: the atom_style, data-file sections (and header counts), commands
+    after read_data, the integrators, computes/variables after the fixes, and thermo keywords
+    that replace the default ones for some outputs (ellipsoids: ke and etot with erotate)."""
 
     style: str
     sections: list[tuple[str, list[str]]]  # (header, rows)
     after_read: list[str]
     ntypes: int
+    counts: list[str] = field(default_factory=list)  # extra header lines (`30 ellipsoids`)
+    integrate: list[tuple[str, str, str]] = field(default_factory=lambda: [("wb_nve", "all", "nve")])  # ID group style
+    extra: list[str] = field(default_factory=list)
+    keywords: dict[str, str] = field(default_factory=dict)
 
 
 def _types(case: Case) -> tuple[np.ndarray, np.ndarray]:
@@ -424,7 +584,7 @@ def _types(case: Case) -> tuple[np.ndarray, np.ndarray]:
     return masses, inverse.astype(np.int64) + 1
 
 
-def _atoms_atomic(case: Case) -> AtomSections:
+def _atoms_atomic(case: Case, taken: set[str]) -> AtomSections:
     """atom_style atomic: per-type masses (exact), `id type x y z`, `id vx vy vz`."""
     masses, types = _types(case)
     ids = np.arange(1, case.natoms + 1)
@@ -436,7 +596,7 @@ def _atoms_atomic(case: Case) -> AtomSections:
     ], [], len(masses))
 
 
-def _atoms_sphere(case: Case) -> AtomSections:
+def _atoms_sphere(case: Case, taken: set[str]) -> AtomSections:
     """atom_style sphere (finite-size atoms): `id type diameter density x y z`. LAMMPS derives
     the mass from diameter and density with its own rounding, so `set type T mass M` then makes
     every per-atom mass exact."""
@@ -452,16 +612,59 @@ def _atoms_sphere(case: Case) -> AtomSections:
     ], [f"set type {t} mass {_num(m)}" for t, m in enumerate(masses.tolist(), start=1)], len(masses))
 
 
+def _atoms_ellipsoid(case: Case, taken: set[str]) -> AtomSections:
+    """atom_style ellipsoid: `id type ellipsoidflag density x y z`; an Ellipsoids section `id 2a
+    2b 2c qw qx qy qz` (LAMMPS takes diameters; it normalises q again, a change of at most an
+    ulp); Velocities `id vx vy vz Lx Ly Lz` (space-frame angular momentum). `set type T mass M`
+    makes every mass exact (LAMMPS computes it from density and volume). Ellipsoids integrate
+    with fix nve/asphere, point atoms (shape 0) with fix nve; compute erotate/asphere joins
+    LAMMPS's ke and etotal in the variables v_wb_ke and v_wb_etot (wallbatch's ke includes the
+    rotational energy), and is erot itself."""
+    if np.any(case.radius > 0):
+        raise ExportError("cannot export yet: atoms with a radius and ellipsoids together (atom_style hybrid "
+                          "sphere ellipsoid)")
+    masses, types = _types(case)
+    n = case.natoms
+    ids = np.arange(1, n + 1)
+    shape, q, L = case.shape, case.quat, case.angmom
+    ell = np.all(shape > 0, axis=1)
+    volume = 4.0 / 3.0 * np.pi * np.prod(np.where(ell[:, None], shape, 1.0), axis=1)
+    density = np.where(ell, case.mass / volume, case.mass)
+    x, v = case.x, case.v
+    sections = [
+        ("Atoms # ellipsoid", _rows(ids, types, ell.astype(np.int64), density, x[:, 0], x[:, 1], x[:, 2])),
+        ("Ellipsoids", _rows(ids[ell], *(2.0 * shape[ell].T), *q[ell].T)),
+        ("Velocities", _rows(ids, v[:, 0], v[:, 1], v[:, 2], L[:, 0], L[:, 1], L[:, 2])),
+    ]
+    after = [f"set type {t} mass {_num(m)}" for t, m in enumerate(masses.tolist(), start=1)]
+    if ell.all():
+        group, integrate = "all", [("wb_nve", "all", "nve/asphere")]
+    else:
+        group, points = _lammps_id("wb_ellipsoids", taken), _lammps_id("wb_points", taken)
+        after += [f"group           {group} id {_id_ranges(ell)}", f"group           {points} id {_id_ranges(~ell)}"]
+        integrate = [("wb_nve", points, "nve"), ("wb_nve_asphere", group, "nve/asphere")]
+    erot, ke, etot = (_lammps_id(name, taken) for name in ("wb_erot", "wb_ke", "wb_etot"))
+    extra = [f"compute         {erot} {group} erotate/asphere",
+             f'variable        {ke} equal "ke+c_{erot}"',
+             f'variable        {etot} equal "etotal+c_{erot}"']
+    return AtomSections("ellipsoid", sections, after, len(masses), [f"{int(ell.sum())} ellipsoids"], integrate,
+                        extra, {"ke": f"v_{ke}", "etot": f"v_{etot}", "erot": f"c_{erot}"})
+
+
 def _atom_style(case: Case) -> str:
+    if case.shape is not None:
+        return "ellipsoid"
     return "sphere" if np.any(case.radius > 0) else "atomic"
 
 
-ATOM_WRITERS: dict[str, Callable[[Case], AtomSections]] = {"atomic": _atoms_atomic, "sphere": _atoms_sphere}
+# atom kind -> writer(case, taken IDs) (the writer takes the group/compute/variable IDs it adds)
+ATOM_WRITERS: dict[str, Callable[[Case, set[str]], AtomSections]] = {
+    "atomic": _atoms_atomic, "sphere": _atoms_sphere, "ellipsoid": _atoms_ellipsoid}
 
 
 def _data_file(case: Case, atoms: AtomSections, title: str) -> str:
     lo, hi = case.box_lo.tolist(), case.box_hi.tolist()
-    out = [f"LAMMPS data file: {title}", "", f"{case.natoms} atoms", f"{atoms.ntypes} atom types", ""]
+    out = [f"LAMMPS data file: {title}", "", f"{case.natoms} atoms", *atoms.counts, f"{atoms.ntypes} atom types", ""]
     out += [f"{_num(lo[d])} {_num(hi[d])} {a}lo {a}hi" for d, a in enumerate("xyz")]
     for header, rows in atoms.sections:
         out += ["", header, ""] + rows
@@ -507,35 +710,72 @@ def _variables(s: _Script) -> None:
 
 
 THERMO_KEYWORDS = {"step": "step", "time": "time", "dt": "dt", "temp": "temp", "ke": "ke", "pe": "pe",
-                   "etot": "etotal", "atoms": "atoms"}
+                   "etot": "etotal", "atoms": "atoms", "press": "press"}
+
+
+def _minimize(s: _Script) -> list[str]:
+    """min_style, min_modify dmax, minimize etol ftol maxiter maxeval (thermo_modify norm no is
+    already set: the decisions table), a `print "wb_min PE FNORM"` line (17 digits: the minimized
+    energy and force norm, what validate reads), and reset_timestep 0 (time 0.0) so the run's
+    samples start at step 0 and time 0 like wallbatch's (LAMMPS's minimize advances the step by
+    its iterations). Columns: the min_* results (`MIN_RESULTS`)."""
+    m = s.case.minimize
+    s.decide("min_norm")
+    if m.style == "cg":
+        s.decide("min_forces_zero")
+    moving = [v for v in s.case.variables.names() if s.case.variables.constant_value(v) is None]
+    if moving:
+        s.notes.append(f"minimize: LAMMPS evaluates variables ({', '.join(moving)}) at the minimizer's step (its "
+                       f"iteration count), wallbatch at step 0: walls that move with them differ during minimize")
+    s.columns += [Column(label, where, label, source="min") for label, where in MIN_RESULTS.items()]
+    return [f"min_style       {m.style}", f"min_modify      dmax {_num(m.dmax)}",
+            f"minimize        {_num(m.etol)} {_num(m.ftol)} {int(m.maxiter)} {int(m.maxeval)}",
+            'print           "wb_min $(pe:%.17g) $(fnorm:%.17g)"',
+            *([f"write_dump      all custom {_quoted(s.minimized_dump)} id x y z modify sort id format float %.17g"]
+              if s.minimized_dump else []),
+            "reset_timestep  0 time 0.0"]
+
+
+def _quoted(path: str | Path) -> str:
+    """A file path as a LAMMPS word (quoted when it has blanks)."""
+    text = str(path)
+    return f'"{text}"' if re.search(r"\s", text) else text
 
 
 def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, source: str = "",
-                notes: list[str] | tuple[str, ...] = ()) -> LammpsExport:
+                notes: list[str] | tuple[str, ...] = (), force_matched: bool = False,
+                minimized_dump: str | Path | None = None) -> LammpsExport:
     """The LAMMPS script and data file of a step-based case (see `lammps_ready`) built from `cfg`.
 
     The script's read_data names the data file in `data_dir` (default: no folder, so the data
     file is read from the folder LAMMPS runs in); `source` labels the comment block; `notes` are
-    added to its notes."""
+    added to its notes. `force_matched` (validate) writes wall/region colloid fixes with -epsilon,
+    whose flipped LAMMPS force is exactly wallbatch's; their energies (and pe, etot with energy:
+    true) are then marked expected (decisions table). `minimized_dump` (validate) adds a
+    `write_dump` of the minimized positions (id x y z, 17 digits) after minimize."""
     check_exportable(cfg)
     if case.steps is None:
         raise ExportError("a run to a simulated time must be converted to steps first (lammps_ready)")
     name = re.sub(r"[^A-Za-z0-9_.\-]", "_", cfg.name) or "wallbatch"
     script_name, data_name = f"in.{name}", f"data.{name}"
-    s = _Script(cfg, case, notes=list(notes))
+    s = _Script(cfg, case, notes=list(notes), force_matched=force_matched, minimized_dump=minimized_dump)
     taken: set[str] = {"all"}
     for g in case.group_names:
         s.groups[g] = _lammps_id(g, taken)
         if s.groups[g] != g:
             s.notes.append(f"group {g!r} written as {s.groups[g]!r} (LAMMPS IDs: letters, digits, underscores)")
-    nve = _lammps_id("wb_nve", s.fix_ids | set(cfg.walls))
-    s.fix_ids.add(nve)
+    atoms = ATOM_WRITERS[_atom_style(case)](case, taken | set(case.variables.names()))
+    integrate = []
+    for fid, group, style in atoms.integrate:
+        lid = _lammps_id(fid, s.fix_ids | set(cfg.walls))
+        s.fix_ids.add(lid)
+        integrate.append(f"fix             {lid} {group} {style}")
 
     # decisions that depend on the whole case
     if cfg.units == "lj":
         s.decide("norm")
-    if any(g.create.random is not None or (g.velocity is not None and g.velocity.temperature is not None)
-           for g in cfg.atoms):
+    if any(g.create.random is not None or g.orientation == "random"
+           or (g.velocity is not None and g.velocity.temperature is not None) for g in cfg.atoms):
         s.decide("random")
     _variables(s)
     for fid, wall in cfg.walls.items():
@@ -556,18 +796,24 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
         s.notes.append("periodic positions are wrapped every step, as wallbatch does "
                        "(neigh_modify every 1 delay 0 check no)")
 
+    keywords = {**THERMO_KEYWORDS, **atoms.keywords}
     outputs = ["time", "dt"] + [o for o in case.outputs if o not in ("step", "time", "dt")]
-    thermo_cols = [Column(o, THERMO_KEYWORDS[o], o) for o in outputs if o in THERMO_KEYWORDS]
-    skipped = [o for o in outputs if o not in THERMO_KEYWORDS and not o.startswith("reflect_")]
+    thermo_cols = [Column(o, keywords[o], o) for o in outputs if o in keywords]
+    skipped = [o for o in outputs if o not in keywords and not o.startswith("reflect_")]
     if skipped:
-        s.notes.append(f"output(s) {', '.join(skipped)} not written (no LAMMPS keyword in this export)")
-    columns = tuple(thermo_cols + s.columns)
+        s.notes.append(f"output(s) {', '.join(skipped)} not written (no LAMMPS counterpart)")
+    wall_cols = s.columns
+    s.columns = []
+    minimize = _minimize(s) if case.minimize is not None else []
+    columns = tuple(thermo_cols + wall_cols + s.columns)
+    if force_matched and s.region_colloid and minimize:
+        why = ("minimize with a wall/region colloid: LAMMPS minimizes its own (different) energy, so the run starts "
+               "from a different state (decisions table)")
+        s.expected.update({c.label: why for c in columns})
 
-    atoms = ATOM_WRITERS[_atom_style(case)](case)
     title = f"wallbatch {__version__} export of {cfg.name}" + (f", case {source}" if source else "")
     data = _data_file(case, atoms, title)
-    read = data_name if data_dir is None else str(Path(data_dir) / data_name)
-    read = f'"{read}"' if re.search(r"\s", read) else read
+    read = _quoted(data_name if data_dir is None else Path(data_dir) / data_name)
 
     lines = [f"# LAMMPS input written by {title}",
              f"# Run it next to {data_name}:  lmp -in {script_name}",
@@ -579,6 +825,9 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
     lines += ["#", "# Export notes:"]
     exact = ("positions, velocities, masses and radii are in the data file as shortest round-trip decimals: "
              "LAMMPS reads the same doubles")
+    if force_matched and s.region_colloid:
+        s.notes.insert(0, f"validate's variant: wall/region colloid fix(es) {', '.join(s.region_colloid)} written "
+                          f"with -epsilon (LAMMPS's flipped force is then exactly wallbatch's)")
     lines += _bullets([exact, *s.notes])
     lines += ["", f"units           {cfg.units}", "dimension       3",
               "boundary        " + " ".join("p" if p else "f" for p in case.periodic),
@@ -589,17 +838,20 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
     lines += atoms.after_read
     for g, lid in s.groups.items():
         lines.append(f"group           {lid} id {_id_ranges(case.atom_group == case.group_names.index(g))}")
+    lines += s.pair
+    lines += [f"region          {r.partition(' ')[2]}" for r in s.regions.values()]
     for vname, text in s.variables.items():
         lines.append(f'variable        {vname} equal "{text}"')
-    lines += ["", f"timestep        {_num(case.dt)}", "neigh_modify    every 1 delay 0 check no",
-              f"fix             {nve} all nve"]
+    lines += ["", f"timestep        {_num(case.dt)}", "neigh_modify    every 1 delay 0 check no", *integrate]
     lines += [_pad(f) for f in s.fixes]
-    lines += ["", "thermo_style    custom step " + " ".join(c.keyword for c in columns),
+    lines += atoms.extra
+    lines += ["", "thermo_style    custom step " + " ".join(c.keyword for c in columns if c.source == "thermo"),
               'thermo_modify   norm no format float "%.17g"',
-              f"thermo          {int(case.thermo)}",
+              f"thermo          {int(case.thermo)}", *minimize,
               f"run             {int(case.steps)}", ""]
     return LammpsExport("\n".join(lines), data, script_name, data_name, columns, int(case.steps),
-                        int(case.thermo), tuple(s.decisions.values()), tuple(s.notes), dict(s.expected))
+                        int(case.thermo), tuple(s.decisions.values()), tuple(s.notes), dict(s.expected),
+                        tuple(s.region_colloid), force_matched)
 
 
 def _pad(command: str) -> str:

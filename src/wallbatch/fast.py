@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import math
 import os
-import types
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -61,8 +60,9 @@ def enabled() -> bool:
 # operations in the same order (tests/test_fast.py checks them against potentials.py).
 
 if njit is not None:
-    jit = njit(cache=True, nogil=True)
-    inline = njit(cache=True, nogil=True, inline="always")  # helpers: no call, no array refcounts
+    # error_model="numpy": x/0 gives inf/nan as in NumPy (no zero-division checks, so loops vectorise)
+    jit = njit(cache=True, nogil=True, error_model="numpy")
+    inline = njit(cache=True, nogil=True, error_model="numpy", inline="always")  # inlined in numba IR
 
     @inline
     def _nmin(a: float, b: float) -> float:
@@ -144,180 +144,97 @@ if njit is not None:
         return dt
 
     @inline
-    def _pick(d, a0, a1, a2):
-        return a0 if d == 0 else (a1 if d == 1 else a2)
-
-    @jit
-    def _step_atoms(c, a0, a1, si, dtc, dtfm_buf, x, v, f, mass, radius, lo, hi, periodic,
-                    sf_meta, sf_val, groups, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e,
-                    due, dtr_group, xmax, emax):
-        """One velocity-Verlet step (engine.Engine.step) of atoms a0..a1-1 of case c, per atom:
-        v += dtfm f; x += dt v; reflect faces (vw: this step's wall velocities, rstat: this step's
-        reflections and impulse per face); wrap; f = 0; soft faces; lost-atom test; v += dtfm f;
-        with `due`, the smallest dt/reset candidate over the atoms. dtfm = dt/2 ftm2v / m comes
-        from dtfm_buf when it has one value per atom. Returns (status, smallest dt): status 0, or
-        1 (an atom on/behind a soft wall) / 2 (an atom left through a fixed boundary)."""
-        hdt = (0.5 * ftm2v) * dtc
-        use_buf = dtfm_buf.shape[0] > 0
-        nsf = sf_meta.shape[0]
-        nrf = rf_meta.shape[0]
-        per0, per1, per2 = periodic[0] != 0, periodic[1] != 0, periodic[2] != 0
-        lo0, lo1, lo2 = lo[0], lo[1], lo[2]
-        hi0, hi1, hi2 = hi[0], hi[1], hi[2]
-        len0, len1, len2 = hi0 - lo0, hi1 - lo1, hi2 - lo2
-        new = np.inf
-        for a in range(a0, a1):
-            dtfm = dtfm_buf[a] if use_buf else hdt / mass[c, a]
-            v0 = v[c, a, 0] + dtfm * f[c, a, 0]  # initial_integrate
-            v1 = v[c, a, 1] + dtfm * f[c, a, 1]
-            v2 = v[c, a, 2] + dtfm * f[c, a, 2]
-            x0 = x[c, a, 0] + dtc * v0
-            x1 = x[c, a, 1] + dtc * v1
-            x2 = x[c, a, 2] + dtc * v2
-            for k in range(nrf):  # wall/reflect
-                g = rf_meta[k, 3]
-                if g >= 0 and groups[g, a] == 0:
-                    continue
-                d = rf_meta[k, 0]
-                coord = rf_val[c, si, k]
-                pos = _pick(d, x0, x1, x2)
-                if (pos < coord) if rf_meta[k, 1] < 0 else (pos > coord):
-                    vb = _pick(d, v0, v1, v2)
-                    va = 2.0 * vw[k] - vb if rf_meta[k, 2] == 1 else -vb
-                    xn = 2.0 * coord - pos
-                    if d == 0:
-                        x0, v0 = xn, va
-                    elif d == 1:
-                        x1, v1 = xn, va
-                    else:
-                        x2, v2 = xn, va
-                    if stats:
-                        rstat[k, 0] += 1.0
-                        rstat[k, 1] += mass[c, a] * (vb - va) / ftm2v
-            if per0:  # periodic wrap
-                if x0 >= hi0:
-                    x0 -= len0
-                if x0 < lo0:
-                    x0 += len0
-            if per1:
-                if x1 >= hi1:
-                    x1 -= len1
-                if x1 < lo1:
-                    x1 += len1
-            if per2:
-                if x2 >= hi2:
-                    x2 -= len2
-                if x2 < lo2:
-                    x2 += len2
-            fa0 = 0.0  # force clear, soft walls (post_force)
-            fa1 = 0.0
-            fa2 = 0.0
-            for k in range(nsf):
-                g = sf_meta[k, 3]
-                if g >= 0 and groups[g, a] == 0:
-                    continue
-                d = sf_meta[k, 1]
-                coord = sf_val[c, si, k, 0]
-                pos = _pick(d, x0, x1, x2)
-                r = pos - coord if sf_meta[k, 2] < 0 else coord - pos
-                cut = sf_val[c, si, k, 4]
-                if not r < cut:
-                    continue
-                style = sf_meta[k, 0]
-                rad = radius[c, a] if style == 3 else 0.0
-                if r <= rad:
-                    return 1, new
-                sf = float(sf_meta[k, 2]) * _force(style, r, sf_val[c, si, k, 1], sf_val[c, si, k, 2],
-                                                   sf_val[c, si, k, 3], cut, rad)
-                if d == 0:
-                    fa0 -= sf
-                elif d == 1:
-                    fa1 -= sf
-                else:
-                    fa2 -= sf
-            if not per0 and (x0 < lo0 or x0 > hi0):  # lost atoms
-                return 2, new
-            if not per1 and (x1 < lo1 or x1 > hi1):
-                return 2, new
-            if not per2 and (x2 < lo2 or x2 > hi2):
-                return 2, new
-            v0 += dtfm * fa0  # final_integrate
-            v1 += dtfm * fa1
-            v2 += dtfm * fa2
-            x[c, a, 0] = x0
-            x[c, a, 1] = x1
-            x[c, a, 2] = x2
-            v[c, a, 0] = v0
-            v[c, a, 1] = v1
-            v[c, a, 2] = v2
-            f[c, a, 0] = fa0
-            f[c, a, 1] = fa1
-            f[c, a, 2] = fa2
-            if due and (dtr_group < 0 or groups[dtr_group, a] != 0):
-                new = _nmin(new, _dt_candidate(v0, v1, v2, fa0, fa1, fa2, mass[c, a], ftm2v, mvv2e, xmax, emax))
-        return 0, new
-
-    @jit
-    def _finite(c, x, v):
-        for a in range(x.shape[1]):
-            for d in range(3):
-                if not (math.isfinite(x[c, a, d]) and math.isfinite(v[c, a, d])):
-                    return False
-        return True
+    def _face(style, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1):
+        """One soft face over atoms u0..u1-1 (walls.SoftWallKernel.apply): r = distance into the
+        allowed region; where r < rc (and the atom is in the group), F[d] -= side F(r). Returns the
+        number of atoms on or behind the wall (r <= 0, colloid: r <= radius). `style` is a literal
+        at every call, so each style gets its own loop."""
+        sidef = float(side)
+        nbad = 0
+        if side < 0:
+            for i in range(u0, u1):
+                r = X[d, i] - coord
+                rad = RAD[i] if style == 3 else 0.0
+                near = (r < cut) & (groups[g, i] != 0)
+                nbad += near & (r <= rad)
+                fi = F[d, i]
+                if near:
+                    fi = fi - sidef * _force(style, r, p0, p1, p2, cut, rad)
+                F[d, i] = fi
+        else:
+            for i in range(u0, u1):
+                r = coord - X[d, i]
+                rad = RAD[i] if style == 3 else 0.0
+                near = (r < cut) & (groups[g, i] != 0)
+                nbad += near & (r <= rad)
+                fi = F[d, i]
+                if near:
+                    fi = fi - sidef * _force(style, r, p0, p1, p2, cut, rad)
+                F[d, i] = fi
+        return nbad
 
     @jit
     def _run_chunk(nsteps, time_mode, target, tol, x, v, f, mass, radius, dt, atime, atimestep,
                    step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
                    stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e):
         """Advance every case by nsteps steps (or, with time_mode, to the time `target` as
-        Engine.advance_to_time does). Returns 0, or the
-        (nonzero) status of the first trouble met (the caller restores the state and falls back)."""
+        Engine.advance_to_time does). Returns 0, or the nonzero status of the first trouble met
+        (1: an atom on/behind a soft wall, 2: a lost atom, 3: a non-finite value, 4: a case with
+        nothing to do); the caller then restores the state and falls back to NumPy.
+
+        Per case, the atoms are copied into structure-of-arrays buffers (X, V, F: (3, N)) and each
+        step is a few simple passes over a block of BLOCK atoms (kick-drift, reflect, wrap, force
+        clear, one pass per soft face, lost test, kick), branch-free where it matters, so the
+        compiler vectorises them. Without dt/reset, a block runs all its steps before the next
+        block (it stays in L1 cache); with dt/reset (min over all atoms each step) or in a
+        time-based run, every step runs over all blocks."""
         ncase, natom = x.shape[0], x.shape[1]
         nrf = rf_meta.shape[0]
+        nsf = sf_meta.shape[0]
         coupled = dtr_every > 0 or time_mode
-        nvals = sf_val.shape[1] if sf_val.shape[1] > rf_val.shape[1] else rf_val.shape[1]
-        vary = 1 if nvals > 1 else 0
+        vary = 1 if (sf_val.shape[1] > 1 or rf_val.shape[1] > 1) else 0
+        hf = 0.5 * ftm2v
+        nblock = (natom + BLOCK - 1) // BLOCK
+        X = np.empty((3, natom))
+        V = np.empty((3, natom))
+        F = np.empty((3, natom))
+        M = np.empty(natom)
+        RAD = np.empty(natom)
+        DTFM = np.empty(natom)
+        CAND = np.empty(natom)
+        nrow = 1 if coupled else nsteps
+        vw = np.zeros((nrow, nrf))  # wall velocities (frame wall) per step
+        rstat = np.zeros((nrow, nrf, 2))  # reflections and impulse per step and face
         for c in range(ncase):
+            for a in range(natom):
+                for d in range(3):
+                    X[d, a] = x[c, a, d]
+                    V[d, a] = v[c, a, d]
+                    F[d, a] = f[c, a, d]
+                M[a] = mass[c, a]
+                RAD[a] = radius[c, a]
+            rstat[:] = 0.0
+            dtc = dt[c]
             if not coupled:
-                # ---- atoms independent: all steps on one block of atoms at a time
-                dtc = dt[c]
-                hdt = (0.5 * ftm2v) * dtc
-                dtfm = np.empty(natom)
+                hdt = hf * dtc
                 for a in range(natom):
-                    dtfm[a] = hdt / mass[c, a]
-                vw = np.zeros((nsteps, nrf))
-                rstat = np.zeros((nsteps, nrf, 2))
+                    DTFM[a] = hdt / M[a]
                 for s in range(nsteps):
                     for k in range(nrf):
                         prev = rf_prev[c, k] if s == 0 else rf_val[c, (s - 1) * vary, k]
                         vw[s, k] = (rf_val[c, s * vary, k] - prev) / dtc if dtc > 0 else 0.0
-                for b0 in range(0, natom, BLOCK):
-                    b1 = min(b0 + BLOCK, natom)
-                    for s in range(nsteps):
-                        st, _ = _step_atoms(c, b0, b1, s * vary, dtc, dtfm, x, v, f, mass, radius, lo, hi,
-                                            periodic, sf_meta, sf_val, groups, rf_meta, rf_val, vw[s], rstat[s],
-                                            stats, ftm2v, mvv2e, False, -1, 0.0, 0.0)
-                        if st != 0:
-                            return st
-                step[c] += nsteps
-                for s in range(nsteps):
-                    for k in range(nrf):
-                        rf_stat[c, k, 0] += rstat[s, k, 0]
-                        rf_stat[c, k, 1] += rstat[s, k, 1]
-                for k in range(nrf):
-                    rf_prev[c, k] = rf_val[c, (nsteps - 1) * vary, k]
-            else:
-                # ---- step by step over the whole case (dt/reset couples the atoms; time-based runs)
-                vw = np.zeros(nrf)
-                rstat = np.zeros((nrf, 2))
-                no_buf = np.empty(0)
+            for ob in range(1 if coupled else nblock):
                 s = 0
                 while True:
+                    # ---- start of step s
+                    base = 0.0
+                    sdt = 0.0
+                    landing = False
                     if time_mode:
                         now = atime[c] + (step[c] - atimestep[c]) * dt[c]
                         if not now < target - tol:
                             if s == 0:
-                                return 4  # nothing to do for this case: the NumPy loop decides
+                                return 4
                             break
                         base = dt[c]
                         rem = target - now
@@ -330,22 +247,102 @@ if njit is not None:
                     elif s == nsteps:
                         break
                     si = s * vary
-                    step[c] += 1
-                    dtc = dt[c]
-                    for k in range(nrf):
-                        vw[k] = (rf_val[c, si, k] - rf_prev[c, k]) / dtc if dtc > 0 else 0.0
-                        rstat[k, 0] = 0.0
-                        rstat[k, 1] = 0.0
-                    due = dtr_every > 0 and step[c] % dtr_every == 0
-                    st, new = _step_atoms(c, 0, natom, si, dtc, no_buf, x, v, f, mass, radius, lo, hi,
-                                          periodic, sf_meta, sf_val, groups, rf_meta, rf_val, vw, rstat, stats,
-                                          ftm2v, mvv2e, due, dtr_group, dtr_par[c, 0], dtr_par[c, 1])
-                    if st != 0:
-                        return st
+                    row = 0 if coupled else s
+                    due = False
+                    if coupled:
+                        step[c] += 1
+                        dtc = dt[c]
+                        hdt = hf * dtc
+                        for a in range(natom):
+                            DTFM[a] = hdt / M[a]
+                        for k in range(nrf):
+                            vw[0, k] = (rf_val[c, si, k] - rf_prev[c, k]) / dtc if dtc > 0 else 0.0
+                            rstat[0, k, 0] = 0.0
+                            rstat[0, k, 1] = 0.0
+                        due = dtr_every > 0 and step[c] % dtr_every == 0
+                    new = np.inf
+                    for b in range(0 if coupled else ob, nblock if coupled else ob + 1):
+                        u0 = np.uint64(b * BLOCK)  # unsigned indices: no negative-index wraparound, loops vectorise
+                        u1 = np.uint64(min(b * BLOCK + BLOCK, natom))
+                        for d in range(3):  # initial_integrate: v += dtfm f; x += dt v
+                            for i in range(u0, u1):
+                                vi = V[d, i] + DTFM[i] * F[d, i]
+                                V[d, i] = vi
+                                X[d, i] = X[d, i] + dtc * vi
+                        for k in range(nrf):  # wall/reflect (post_integrate)
+                            d = rf_meta[k, 0]
+                            side = rf_meta[k, 1]
+                            g = rf_meta[k, 3]
+                            coord = rf_val[c, si, k]
+                            for i in range(u0, u1):
+                                pos = X[d, i]
+                                if ((pos < coord) if side < 0 else (pos > coord)) and groups[g, i] != 0:
+                                    X[d, i] = 2.0 * coord - pos
+                                    vb = V[d, i]
+                                    va = 2.0 * vw[row, k] - vb if rf_meta[k, 2] == 1 else -vb
+                                    V[d, i] = va
+                                    if stats:
+                                        rstat[row, k, 0] += 1.0
+                                        rstat[row, k, 1] += M[i] * (vb - va) / ftm2v
+                        for d in range(3):  # periodic wrap
+                            if periodic[d] != 0:
+                                lod = lo[d]
+                                hid = hi[d]
+                                length = hid - lod
+                                for i in range(u0, u1):
+                                    xi = X[d, i]
+                                    xi = xi - length if xi >= hid else xi
+                                    X[d, i] = xi + length if xi < lod else xi
+                        for d in range(3):  # force clear
+                            for i in range(u0, u1):
+                                F[d, i] = 0.0
+                        nbad = 0
+                        for k in range(nsf):  # soft walls (post_force): f[dim] -= side F(r) where r < rc
+                            style = sf_meta[k, 0]
+                            g, d, side = sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2]
+                            coord, cut = sf_val[c, si, k, 0], sf_val[c, si, k, 4]
+                            p0, p1, p2 = sf_val[c, si, k, 1], sf_val[c, si, k, 2], sf_val[c, si, k, 3]
+                            if style == 0:
+                                nbad += _face(0, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+                            elif style == 1:
+                                nbad += _face(1, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+                            elif style == 2:
+                                nbad += _face(2, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+                            elif style == 3:
+                                nbad += _face(3, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+                            elif style == 4:
+                                nbad += _face(4, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+                            else:
+                                nbad += _face(5, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+                        if nbad:
+                            return 1
+                        nlost = 0
+                        for d in range(3):  # lost atoms
+                            if periodic[d] == 0:
+                                lod = lo[d]
+                                hid = hi[d]
+                                for i in range(u0, u1):
+                                    nlost += 1 if (X[d, i] < lod) | (X[d, i] > hid) else 0
+                        if nlost:
+                            return 2
+                        for d in range(3):  # final_integrate: v += dtfm f
+                            for i in range(u0, u1):
+                                V[d, i] = V[d, i] + DTFM[i] * F[d, i]
+                        if due:  # fix dt/reset candidates, smallest over the group
+                            for i in range(u0, u1):
+                                CAND[i] = _dt_candidate(V[0, i], V[1, i], V[2, i], F[0, i], F[1, i], F[2, i], M[i],
+                                                        ftm2v, mvv2e, dtr_par[c, 0], dtr_par[c, 1])
+                            for i in range(u0, u1):
+                                if groups[dtr_group, i] != 0:
+                                    new = _nmin(new, CAND[i])
+                    # ---- end of step s
+                    s += 1
+                    if not coupled:
+                        continue
                     for k in range(nrf):
                         rf_prev[c, k] = rf_val[c, si, k]
-                        rf_stat[c, k, 0] += rstat[k, 0]
-                        rf_stat[c, k, 1] += rstat[k, 1]
+                        rf_stat[c, k, 0] += rstat[0, k, 0]
+                        rf_stat[c, k, 1] += rstat[0, k, 1]
                     if due:
                         new = _nmin(new, BIG) if natom > 0 else BIG
                         if dtr_par[c, 2] == dtr_par[c, 2]:
@@ -356,7 +353,6 @@ if njit is not None:
                             atime[c] = atime[c] + (step[c] - atimestep[c]) * dt[c]
                             atimestep[c] = step[c]
                             dt[c] = new
-                    s += 1
                     if time_mode:
                         new_base = dt[c] if dt[c] != sdt else base
                         now = atime[c] + (step[c] - atimestep[c]) * dt[c]
@@ -365,8 +361,23 @@ if njit is not None:
                         dt[c] = new_base
                         if landing:
                             break
-            if not (_finite(c, x, v) and math.isfinite(dt[c])):
+            if not coupled:
+                step[c] += nsteps
+                for s in range(nsteps):
+                    for k in range(nrf):
+                        rf_stat[c, k, 0] += rstat[s, k, 0]
+                        rf_stat[c, k, 1] += rstat[s, k, 1]
+                for k in range(nrf):
+                    rf_prev[c, k] = rf_val[c, 0, k]
+            if not math.isfinite(dt[c]):
                 return 3
+            for a in range(natom):
+                for d in range(3):
+                    if not (math.isfinite(X[d, a]) and math.isfinite(V[d, a])):
+                        return 3
+                    x[c, a, d] = X[d, a]
+                    v[c, a, d] = V[d, a]
+                    f[c, a, d] = F[d, a]
         return 0
 
 
@@ -516,11 +527,12 @@ class FastPath:
                 setattr(s, name, np.ascontiguousarray(getattr(s, name)))
 
         soft_faces = [(w, face) for w in eng.soft for face in w.faces]
-        groups: list[np.ndarray] = []
+        groups: list[np.ndarray] = [np.ones(s.x.shape[1], np.uint8)]
 
         def group(kernel_group: np.ndarray, all_atoms: bool) -> int:
+            """Row of `groups` (uint8 (G, N) masks) for a fix's group; row 0 is "all"."""
             if all_atoms:
-                return -1
+                return 0
             groups.append(kernel_group.astype(np.uint8))
             return len(groups) - 1
 
@@ -537,8 +549,8 @@ class FastPath:
             dtr_par = np.ascontiguousarray(np.stack([eng.dtr_xmax, eng.dtr_emax, eng.dtr_tmin, eng.dtr_tmax], axis=1),
                                            dtype=float)
         else:
-            dtr_group, dtr_par = -1, np.zeros((C, 4))
-        groups_arr = np.stack(groups) if groups else np.zeros((0, N), np.uint8)
+            dtr_group, dtr_par = 0, np.zeros((C, 4))
+        groups_arr = np.stack(groups)
         rf_prev = np.ascontiguousarray(np.stack([p for w in eng.reflect for p in w.previous], axis=1),
                                        dtype=float) if eng.reflect else np.zeros((C, 0))
         rf_prev = np.broadcast_to(rf_prev, (C, rf_prev.shape[1])).copy()

