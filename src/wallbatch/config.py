@@ -86,6 +86,9 @@ class SourceMap:
                     part not in WALL_TAGS and not any(c in part for c in "[]()"))):
                 shown.append(part)  # a missing key: name it, point at its parent
                 node = None
+            elif isinstance(node, str) and isinstance(part, str) and part not in WALL_TAGS \
+                    and not any(c in part for c in "[]()"):
+                shown.append(part)  # a field of a wall written as a fix line: name it, point at the line
         mark = None
         for n in range(len(path), -1, -1):
             mark = self.marks.get(tuple(path[:n]))

