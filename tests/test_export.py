@@ -4,6 +4,10 @@ The script/data text is checked against hand-derived lines (golden checks); the 
 carry every position, velocity and mass bit-exactly (as text, and once LAMMPS has read it); and
 `validate` must pass on the shipped configs, fail on a deliberately broken script, and exit 2 with
 the install hint when LAMMPS cannot be imported. LAMMPS-needing tests are skipped without it.
+
+Every wallbatch run here takes the NumPy path (WALLBATCH_NUMBA=0, an autouse fixture): compiling
+the numba kernels from a cold cache takes about a minute of CPU, far beyond this file's budget,
+and tests/test_fast.py and the pair tests check that the compiled paths give the NumPy results.
 """
 
 from __future__ import annotations
@@ -35,6 +39,12 @@ from wallbatch.export import (
 from wallbatch.sweep import load_plan
 
 runner = CliRunner()
+
+
+@pytest.fixture(autouse=True)
+def _numpy_path(monkeypatch):
+    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
+
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 SPACING = (4.0 / 0.8442) ** (1.0 / 3.0)  # fcc 0.8442 in lj units: 1.6795961913825073
 
@@ -392,7 +402,7 @@ def test_ellipsoid_data_file(tmp_path):
     lines = exp.data.splitlines()
     assert "3 atoms" in lines and "2 ellipsoids" in lines and "2 atom types" in lines
     rho = 2.0 / (4.0 / 3.0 * math.pi * 1.0 * 0.5 * 0.25)
-    section = lambda h: lines[lines.index(h) + 2: lines.index(h) + 2 + (2 if h == "Ellipsoids" else 3)]  # noqa: E731
+    section = lambda h: lines[lines.index(h) + 2: lines.index(h) + 2 + (2 if h == "Ellipsoids" else 3)]
     assert section("Atoms # ellipsoid") == [f"1 2 1 {rho!r} 5.0 5.0 5.0", f"2 2 1 {rho!r} 3.0 4.0 6.0",
                                             "3 1 0 1.0 7.0 6.0 5.5"]
     assert section("Ellipsoids") == ["1 2.0 1.0 0.5 0.0 0.0 0.0 1.0", "2 2.0 1.0 0.5 0.0 0.0 0.0 1.0"]
@@ -501,7 +511,7 @@ def test_region_wall_with_a_time_dependent_parameter_is_refused(tmp_path):
         export_text(tmp_path, text)
 
 
-def test_region_colloid_is_written_as_configured_and_force_matched_for_validate():
+def test_region_colloid_is_written_as_configured_and_force_matched_for_validate(tmp_path):
     """Decisions table: LAMMPS's wall/region colloid differs; the export keeps epsilon, validate's
     variant negates it (LAMMPS's flipped force is then fix wall/colloid's) and expects the energies
     to differ."""
@@ -520,6 +530,11 @@ def test_region_colloid_is_written_as_configured_and_force_matched_for_validate(
     assert "fix cavity all wall/region cavity colloid -1.0 1.0 2.5" in script_lines(matched.script)
     assert set(matched.expected) == {"wall_energy[cavity]", "pe", "etot"} and matched.force_matched
     assert "validate's variant" in comment(matched.script)
+    # minimizing LAMMPS's other energy starts the run elsewhere: then every output is expected to differ
+    sc = load_plan(write(tmp_path, (CONFIGS / "colloid-cavity.yaml").read_text() + "minimize: {etol: 1.0e-6}\n")).cases[0]
+    cfg, _ = lammps_ready(sc.config, 10)
+    both = export_case(cfg, build_case(cfg, sc.seed_key), force_matched=True)
+    assert set(both.expected) == {c.label for c in both.columns} and "min_energy" in both.expected
 
 
 # ----------------------------------------------------------------------------- wall/flow, pair, minimize
@@ -608,6 +623,7 @@ def test_minimize_script(style):
     topics = [d.split(":")[0] for d in exp.decisions]
     assert "minimize" in topics  # norm no before minimize
     assert ("minimize (cg) with every force exactly zero" in topics) == (style == "cg")
+    assert ("fire's own (damped) velocities" in comment(exp.script)) == (style == "fire")
 
 
 # ----------------------------------------------------------------------------- validate's parsers and comparison
@@ -1050,23 +1066,23 @@ def test_validate_minimize_with_pair_forces_that_part_ways(tmp_path):
     """60 random LJ atoms minimized to a tight force tolerance: the two cg paths part (forces summed
     in another order) and end in different local minima. validate fails the min_* rows and says
     why; the run, compared from LAMMPS's minimized positions, still agrees."""
-    text = f"""\
+    text = """\
 name: parting
 units: lj
 seed: 9
-box: {{lo: [0, 0, 0], hi: [8, 8, 8], boundary: [p, p, f]}}
+box: {lo: [0, 0, 0], hi: [8, 8, 8], boundary: [p, p, f]}
 regions:
-  mid: {{style: block, lo: [0, 0, 1.5], hi: [8, 8, 6.5], units: box}}
+  mid: {style: block, lo: [0, 0, 1.5], hi: [8, 8, 6.5], units: box}
 atoms:
   - group: fluid
-    create: {{random: {{count: 60, region: mid, overlap: 1.0}}}}
+    create: {random: {count: 60, region: mid, overlap: 1.0}}
     mass: 1.0
-    velocity: {{temperature: 1.0}}
-pair: {{style: lj/cut, epsilon: 1.0, sigma: 1.0, cutoff: 2.5, shift: true}}
+    velocity: {temperature: 1.0}
+pair: {style: lj/cut, epsilon: 1.0, sigma: 1.0, cutoff: 2.5, shift: true}
 walls:
-  zw: {{style: lj93, units: box, energy: true, zlo: [EDGE, 1.0, 1.0, 2.5], zhi: [EDGE, 1.0, 1.0, 2.5]}}
-minimize: {{style: cg, etol: 0.0, ftol: 1.0e-8, maxiter: 5000, maxeval: 50000}}
-run: {{steps: 100, thermo: 50}}
+  zw: {style: lj93, units: box, energy: true, zlo: [EDGE, 1.0, 1.0, 2.5], zhi: [EDGE, 1.0, 1.0, 2.5]}
+minimize: {style: cg, etol: 0.0, ftol: 1.0e-8, maxiter: 5000, maxeval: 50000}
+run: {steps: 100, thermo: 50}
 """
     result = validate(write(tmp_path, text))
     assert result.exit_code == 1, result.output
@@ -1078,12 +1094,24 @@ run: {{steps: 100, thermo: 50}}
 
 
 @requires_lammps
-@pytest.mark.xfail(strict=True, reason="engine.Engine.minimize keeps the initial velocities after min_style fire; "
-                   "LAMMPS's fire leaves its own (damped, ~0) velocities in the atoms, so the run after it differs "
-                   "(not in the decisions table; src/wallbatch/engine.py, not this helper's file)")
-def test_validate_minimize_fire_keeps_lammps_velocities(tmp_path):
-    result = validate(write(tmp_path, WALLMIN.replace("style: cg", "style: fire")))
-    assert result.exit_code == 0, result.output
+def test_minimize_fire_keeps_the_created_velocities_lammps_does_not(tmp_path):
+    """Decision (docs/quirks.md): after `minimize: {style: fire}` wallbatch's dynamics starts with the
+    velocities the config created, as if LAMMPS's `velocity` came after `minimize` (a config has no
+    other way to set them). LAMMPS's fire leaves its own damped velocities in the atoms, so the runs
+    after the minimization part ways: validate reports it (exit 1) while the min_* rows agree."""
+    text = WALLMIN.replace("style: cg", "style: fire")
+    from wallbatch.config import load_config_text
+    from wallbatch.engine import run_cases
+    from wallbatch.scene import build_case
+
+    res = run_cases([build_case(load_config_text(text))])[0]
+    v0 = np.array([[0.3, 0.0, -0.2], [0.0, 0.4, 0.1], [-0.2, 0.1, 0.3], [0.1, -0.3, 0.0]])
+    assert res.data["ke"][0] == pytest.approx(0.5 * np.sum(v0 * v0), rel=1e-14)
+    result = validate(write(tmp_path, text))
+    assert result.exit_code == 1, result.output
+    rows = report_rows(result.output)
+    assert rows["min_energy"][3] == "ok" and rows["min_stop_reason"][3] == "ok"
+    assert rows["ke"][3] != "ok"
 
 
 @requires_lammps

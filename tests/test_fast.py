@@ -316,3 +316,10 @@ def test_real_units_and_masses(monkeypatch):
     d["atoms"][0]["mass"] = 39.9
     _, got, _ = check(monkeypatch, [d])
     assert got[0].status == "ok" and math.isfinite(got[0].data["ke"][-1])
+
+
+def test_one_compiled_signature(monkeypatch):
+    """Every scene above runs the same compiled specialisation of the kernel (a new one would cost a
+    full compilation): array layouts and argument types do not depend on the scene."""
+    check(monkeypatch, [gas(STYLE_SCENES["lj93"](), steps=20, thermo=10)])
+    assert len(fast._run_chunk.signatures) == 1

@@ -1,6 +1,9 @@
 """Tests for wallbatch.pair (pair_style lj/cut, physics.md §12): §12 check values, the neighbor
 list against a brute-force all-pairs sum, rebuild bookkeeping, force = -dE/dx, per-case bit
-identity, take(), and LAMMPS `run 0` parity (energy, per-atom forces, virial)."""
+identity, take(), and LAMMPS `run 0` parity (energy, per-atom forces, virial). Each of these runs
+on both paths (fixture `compiled`: NumPy reference and numba kernels); further tests check that
+the two paths agree to 1e-13 and exercise the cell list's edge cases (tiny and huge boxes, atoms
+far outside a fixed face, list growth)."""
 
 from __future__ import annotations
 
@@ -8,7 +11,16 @@ import numpy as np
 import pytest
 
 from lammps_oracle import _load_lammps, requires_lammps
+from wallbatch import pair_numba
 from wallbatch.pair import DEFAULT_SKIN, PairLJCut, default_skin, lj_pair
+
+needs_numba = pytest.mark.skipif(pair_numba.njit is None, reason="numba not importable")
+
+
+@pytest.fixture(params=[False, pytest.param(True, marks=needs_numba)], ids=["numpy", "numba"])
+def compiled(request) -> bool:
+    """Run a test on the NumPy path and on the compiled (numba) path."""
+    return request.param
 
 # physics.md §12, LAMMPS 22Jul2025
 EPS12, SIGMA12, R12, RC12 = 1.2, 1.1, 1.3, 2.5
@@ -86,23 +98,24 @@ SIG = np.array([1.0, 0.9, 1.1])
 RC = np.array([2.5, 2.0, 1.8])
 
 
-def batch(boundary: str, n: int, seed: int, shift: bool = False, skin: float = 0.3):
+def batch(boundary: str, n: int, seed: int, shift: bool = False, skin: float = 0.3, compiled: bool = False):
     lo, hi = BOXES[boundary]
     periodic = np.array([b == "p" for b in boundary])
     rng = np.random.default_rng(seed)
     x = np.stack([jittered(rng, n, lo, hi, periodic) for _ in range(len(EPS))])
-    pair = PairLJCut(EPS, SIG, RC, box_lo=lo, box_hi=hi, periodic=periodic, shift=shift, skin=skin)
+    pair = PairLJCut(EPS, SIG, RC, box_lo=lo, box_hi=hi, periodic=periodic, shift=shift, skin=skin,
+                     compiled=compiled)
     return pair, x, np.subtract(hi, lo), periodic
 
 
 # -- §12 check values --------------------------------------------------------------------------
 
 @pytest.mark.parametrize("shift, e_ref", [(False, E12), (True, E12_SHIFTED)])
-def test_section12_check_values(shift, e_ref):
+def test_section12_check_values(shift, e_ref, compiled):
     x = np.array([[[0.0, 2.0, 3.0], [R12, 2.0, 3.0]]])
     r = R12
     pair = PairLJCut(EPS12, SIGMA12, RC12, box_lo=(-5, -5, -5), box_hi=(5, 5, 5),
-                     periodic=(False, False, False), shift=shift)
+                     periodic=(False, False, False), shift=shift, compiled=compiled)
     f = np.zeros_like(x)
     energy, virial = pair.compute(x, f, True)
     assert energy[0] == pytest.approx(e_ref, rel=1e-14)
@@ -114,9 +127,10 @@ def test_section12_check_values(shift, e_ref):
     assert e == pytest.approx(E12, rel=1e-14) and fpair * R12 == pytest.approx(-F12, rel=1e-14)
 
 
-def test_outside_cutoff_and_defaults():
+def test_outside_cutoff_and_defaults(compiled):
     x = np.array([[[0.0, 0.0, 0.0], [2.5, 0.0, 0.0], [0.0, 2.4999999, 0.0]]])
-    pair = PairLJCut(1.0, 1.0, 2.5, box_lo=(-5, -5, -5), box_hi=(5, 5, 5), periodic=(True, True, False))
+    pair = PairLJCut(1.0, 1.0, 2.5, box_lo=(-5, -5, -5), box_hi=(5, 5, 5), periodic=(True, True, False),
+                     compiled=compiled)
     f = np.zeros_like(x)
     energy, _ = pair.compute(x, f, True)
     assert f[0, 1].tolist() == [0.0, 0.0, 0.0]  # r == rc is outside (LAMMPS: rsq < cutsq)
@@ -144,8 +158,8 @@ def test_bad_parameters(kwargs, match):
 
 @pytest.mark.parametrize("shift", [False, True])
 @pytest.mark.parametrize("boundary", list(BOXES))
-def test_matches_brute_force(boundary, shift):
-    pair, x, length, periodic = batch(boundary, 160, seed=len(boundary) + 7 * shift, shift=shift)
+def test_matches_brute_force(boundary, shift, compiled):
+    pair, x, length, periodic = batch(boundary, 160, seed=len(boundary) + 7 * shift, shift=shift, compiled=compiled)
     fixed = np.flatnonzero(~periodic)
     if len(fixed):  # an atom a little outside a fixed face (the engine checks lost atoms after forces)
         x[:, 0, fixed[0]] = BOXES[boundary][1][fixed[0]] + 0.05
@@ -158,11 +172,11 @@ def test_matches_brute_force(boundary, shift):
     assert pair.npairs == np.sum(np.sqrt((d * d).sum(axis=2)) <= (RC + pair.skin)[:, None])
 
 
-def test_random_walk_rebuilds_only_when_needed():
+def test_random_walk_rebuilds_only_when_needed(compiled):
     """Small random moves with wrapping: the list stays exact, and a case is rebuilt exactly when
     one of its atoms has moved more than skin/2 (minimum image) since its last build."""
     skin = 0.3
-    pair, x, length, periodic = batch("ppf", 120, seed=3, skin=skin)
+    pair, x, length, periodic = batch("ppf", 120, seed=3, skin=skin, compiled=compiled)
     lo = np.asarray(BOXES["ppf"][0])
     rng = np.random.default_rng(11)
     step = np.array([0.02, 0.006, 0.0])  # per case: fast, slow, frozen
@@ -185,12 +199,12 @@ def test_random_walk_rebuilds_only_when_needed():
     assert pair.builds == expected.sum()
 
 
-def test_rebuild_threshold_is_half_skin():
+def test_rebuild_threshold_is_half_skin(compiled):
     """Two atoms just beyond rc + skin, each moved just under skin/2 towards the other: no rebuild
     and no force (still beyond rc); a little further: one rebuild, and the force appears."""
     rc, skin = 2.5, 0.3
     pair = PairLJCut(1.0, 1.0, rc, box_lo=(0, 0, 0), box_hi=(10, 10, 10), periodic=(True, True, False),
-                     skin=skin)
+                     skin=skin, compiled=compiled)
     gap = rc + skin + 1e-9
     x = np.array([[[5.0 - gap / 2, 5.0, 5.0], [5.0 + gap / 2, 5.0, 5.0]]])
     f = np.zeros_like(x)
@@ -210,8 +224,8 @@ def test_rebuild_threshold_is_half_skin():
 # -- force = -dE/dx ------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("shift", [False, True])
-def test_force_is_minus_gradient(shift):
-    pair, x, _, _ = batch("ppf", 60, seed=5, shift=shift)
+def test_force_is_minus_gradient(shift, compiled):
+    pair, x, _, _ = batch("ppf", 60, seed=5, shift=shift, compiled=compiled)
     _, forces = pair.energy_forces(x)
     rng = np.random.default_rng(2)
     h = 1e-5
@@ -228,12 +242,13 @@ def test_force_is_minus_gradient(shift):
 
 # -- batches: per-case bit identity, take(), NaN cases --------------------------------------------
 
-def test_case_independent_of_batch_and_take():
+def test_case_independent_of_batch_and_take(compiled):
     """A case's forces, energy and virial are bit-identical whether it runs alone or in a batch
     whose other cases rebuild at other times, also after take() drops a case mid-run."""
-    pair, x, length, periodic = batch("ppp", 100, seed=9)
+    pair, x, length, periodic = batch("ppp", 100, seed=9, compiled=compiled)
     lo, hi = BOXES["ppp"]
-    singles = [PairLJCut(EPS[c], SIG[c], RC[c], box_lo=lo, box_hi=hi, periodic=periodic) for c in range(3)]
+    singles = [PairLJCut(EPS[c], SIG[c], RC[c], box_lo=lo, box_hi=hi, periodic=periodic, compiled=compiled)
+               for c in range(3)]
     rng = np.random.default_rng(4)
     step, live = np.array([0.03, 0.01, 0.02]), [0, 1, 2]
     for n in range(30):
@@ -257,8 +272,8 @@ def test_case_independent_of_batch_and_take():
     assert_matches(pair, x[::-1].copy(), EPS[[2, 0]], SIG[[2, 0]], RC[[2, 0]], False, length, periodic)
 
 
-def test_nan_case_does_not_touch_others():
-    pair, x, _, _ = batch("ppf", 80, seed=13)
+def test_nan_case_does_not_touch_others(compiled):
+    pair, x, _, _ = batch("ppf", 80, seed=13, compiled=compiled)
     f_ok = np.zeros_like(x)
     e_ok, w_ok = pair.compute(x, f_ok, True)
     x[1, 5, 0] = np.nan
@@ -307,13 +322,13 @@ def lammps_run0(x, lo, hi, boundary, eps, sigma, rc, shift):
 
 @requires_lammps
 @pytest.mark.parametrize("shift", [False, True])
-def test_lammps_run0_parity(shift):
+def test_lammps_run0_parity(shift, compiled):
     lo, hi, boundary = (0.0, -1.0, 0.5), (7.2, 6.0, 7.4), ("p", "p", "f")
     periodic = np.array([True, True, False])
     rng = np.random.default_rng(2025 + shift)
     x = np.stack([jittered(rng, 200, lo, hi, periodic) for _ in range(2)])
     eps, sig, rc = np.array([1.0, 1.3]), np.array([1.0, 0.95]), np.array([2.5, 3.0])
-    pair = PairLJCut(eps, sig, rc, box_lo=lo, box_hi=hi, periodic=periodic, shift=shift)
+    pair = PairLJCut(eps, sig, rc, box_lo=lo, box_hi=hi, periodic=periodic, shift=shift, compiled=compiled)
     f = np.zeros_like(x)
     energy, virial = pair.compute(x, f, True)
     for c in range(2):

@@ -13,7 +13,13 @@ import math
 
 import numpy as np
 import pytest
-from lammps_oracle import LammpsRunError, Scene, _load_lammps, requires_lammps, run_lammps
+from lammps_oracle import (
+    LammpsRunError,
+    Scene,
+    _load_lammps,
+    requires_lammps,
+    run_lammps,
+)
 
 from wallbatch.config import ConfigError, config_from_dict
 from wallbatch.engine import run_cases
@@ -342,5 +348,5 @@ def test_quirks_page_names_real_tests_and_every_section_13_quirk():
                if not (root / f).exists() or f"def {name}(" not in (root / f).read_text()]
     assert not missing, missing
     section = text.split("## physics.md §13")[1].split("## ")[0]
-    numbers = [int(m) for m in re.findall(r"^\| (\d+) \|", section, flags=re.M)]
+    numbers = [int(m) for m in re.findall(r"^\| (\d+) \|", section, flags=re.MULTILINE)]
     assert numbers == list(range(1, 27))

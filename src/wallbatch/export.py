@@ -725,6 +725,10 @@ def _minimize(s: _Script) -> list[str]:
     s.decide("min_norm")
     if m.style == "cg":
         s.decide("min_forces_zero")
+    if m.style == "fire" and np.any(s.case.v != 0.0):
+        s.notes.append("minimize with min_style fire: LAMMPS leaves fire's own (damped) velocities in the atoms, "
+                       "wallbatch keeps the initial velocities for the run: the runs differ (a known difference, "
+                       "not a decision)")
     moving = [v for v in s.case.variables.names() if s.case.variables.constant_value(v) is None]
     if moving:
         s.notes.append(f"minimize: LAMMPS evaluates variables ({', '.join(moving)}) at the minimizer's step (its "

@@ -83,7 +83,7 @@ if njit is not None:
             return b
         return a if a >= b else b
 
-    @inline
+    @jit
     def _force(style, r, p0, p1, p2, cut, rad):
         """F = -dE/dr of one style at distance r (potentials.py): p = (epsilon, sigma, -) or
         (D0, alpha, r0); rad is the particle radius (colloid)."""
@@ -151,27 +151,17 @@ if njit is not None:
         number of atoms on or behind the wall (r <= 0, colloid: r <= radius). `style` is a literal
         at every call, so each style gets its own loop."""
         sidef = float(side)
+        sign = -sidef  # r = (x - coord) * sign: x - coord (lo face) or coord - x (hi face), exactly
         nbad = 0
-        if side < 0:
-            for i in range(u0, u1):
-                r = X[d, i] - coord
-                rad = RAD[i] if style == 3 else 0.0
-                near = (r < cut) & (groups[g, i] != 0)
-                nbad += near & (r <= rad)
-                fi = F[d, i]
-                if near:
-                    fi = fi - sidef * _force(style, r, p0, p1, p2, cut, rad)
-                F[d, i] = fi
-        else:
-            for i in range(u0, u1):
-                r = coord - X[d, i]
-                rad = RAD[i] if style == 3 else 0.0
-                near = (r < cut) & (groups[g, i] != 0)
-                nbad += near & (r <= rad)
-                fi = F[d, i]
-                if near:
-                    fi = fi - sidef * _force(style, r, p0, p1, p2, cut, rad)
-                F[d, i] = fi
+        for i in range(u0, u1):
+            r = (X[d, i] - coord) * sign
+            rad = RAD[i] if style == 3 else 0.0
+            near = (r < cut) & (groups[g, i] != 0)
+            nbad += near & (r <= rad)
+            fi = F[d, i]
+            if near:
+                fi = fi - sidef * _force(style, r, p0, p1, p2, cut, rad)
+            F[d, i] = fi
         return nbad
 
     @inline
@@ -363,60 +353,12 @@ if njit is not None:
                         break
                 elif done == nsteps:
                     break
-                if not time_mode and (dtr_every == 0 or stepwise == 0):
-                    # ---- a window of nwin steps at the current dt, block by block
+                # a window of nwin steps at one dt, block by block; or one step (time-based runs, and
+                # dt/reset while dt changes), which is a window of one step followed by its dt update
+                window = not time_mode and (dtr_every == 0 or stepwise == 0)
+                nwin = 1
+                if window:
                     nwin = nsteps - done if dtr_every == 0 else min(WINDOW, nsteps - done)
-                    dtc = dt[c]
-                    hdt = hf * dtc
-                    for a in range(natom):
-                        DTFM[a] = hdt / M[a]
-                    if speculate:
-                        XS[:] = X
-                        VS[:] = V
-                        FS[:] = F
-                    for s in range(nwin):
-                        low[s] = np.inf
-                        for k in range(nrf):
-                            prev = rf_prev[c, k] if s == 0 else rf_val[c, (done + s - 1) * vary, k]
-                            vw[s, k] = (rf_val[c, (done + s) * vary, k] - prev) / dtc if dtc > 0 else 0.0
-                            rstat[s, k, 0] = 0.0
-                            rstat[s, k, 1] = 0.0
-                    for b in range(nblock):
-                        u0 = np.uint64(b * BLOCK)  # unsigned: no negative-index wraparound, loops vectorise
-                        u1 = np.uint64(min(b * BLOCK + BLOCK, natom))
-                        for s in range(nwin):
-                            due = dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
-                            st, m = _block_step(c, u0, u1, (done + s) * vary, s, dtc, due, X, V, F, M, RAD, DTFM,
-                                                CAND, groups, box, sf_meta, sf_val, rf_meta, rf_val,
-                                                vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par)
-                            if st != 0:
-                                return st
-                            if due:
-                                low[s] = _nmin(low[s], m)
-                    if speculate:
-                        first = -1
-                        for s in range(nwin):
-                            if (step[c] + s + 1) % dtr_every == 0 and _clamp(low[s], natom, dtr_par[c]) != dtc:
-                                first = s
-                                break
-                        if first >= 0:  # dt changes after step `first`: undo, go step by step
-                            X[:] = XS
-                            V[:] = VS
-                            F[:] = FS
-                            stepwise = first + 1 + backoff
-                            backoff = min(2 * backoff + 8, 4096)
-                            continue
-                        backoff = 0
-                    step[c] += nwin
-                    for s in range(nwin):
-                        for k in range(nrf):
-                            rf_stat[c, k, 0] += rstat[s, k, 0]
-                            rf_stat[c, k, 1] += rstat[s, k, 1]
-                    for k in range(nrf):
-                        rf_prev[c, k] = rf_val[c, (done + nwin - 1) * vary, k]
-                    done += nwin
-                    continue
-                # ---- one step over all blocks (time-based runs; dt/reset while dt changes)
                 if time_mode:
                     base = dt[c]
                     rem = target - now
@@ -426,39 +368,63 @@ if njit is not None:
                         atime[c] = now
                         atimestep[c] = step[c]
                         dt[c] = sdt
-                si = done * vary
-                step[c] += 1
                 dtc = dt[c]
                 hdt = hf * dtc
                 for a in range(natom):
                     DTFM[a] = hdt / M[a]
-                for k in range(nrf):
-                    vw[0, k] = (rf_val[c, si, k] - rf_prev[c, k]) / dtc if dtc > 0 else 0.0
-                    rstat[0, k, 0] = 0.0
-                    rstat[0, k, 1] = 0.0
-                due = dtr_every > 0 and step[c] % dtr_every == 0
-                new = np.inf
+                if window and speculate:
+                    XS[:] = X
+                    VS[:] = V
+                    FS[:] = F
+                for s in range(nwin):
+                    low[s] = np.inf
+                    for k in range(nrf):
+                        prev = rf_prev[c, k] if s == 0 else rf_val[c, (done + s - 1) * vary, k]
+                        vw[s, k] = (rf_val[c, (done + s) * vary, k] - prev) / dtc if dtc > 0 else 0.0
+                        rstat[s, k, 0] = 0.0
+                        rstat[s, k, 1] = 0.0
                 for b in range(nblock):
-                    u0 = np.uint64(b * BLOCK)
+                    u0 = np.uint64(b * BLOCK)  # unsigned: no negative-index wraparound, loops vectorise
                     u1 = np.uint64(min(b * BLOCK + BLOCK, natom))
-                    st, m = _block_step(c, u0, u1, si, 0, dtc, due, X, V, F, M, RAD, DTFM, CAND, groups, box,
-                                        sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e,
-                                        dtr_group, dtr_par)
-                    if st != 0:
-                        return st
-                    if due:
-                        new = _nmin(new, m)
+                    for s in range(nwin):
+                        due = dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
+                        st, m = _block_step(c, u0, u1, (done + s) * vary, s, dtc, due, X, V, F, M, RAD, DTFM,
+                                            CAND, groups, box, sf_meta, sf_val, rf_meta, rf_val,
+                                            vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par)
+                        if st != 0:
+                            return st
+                        if due:
+                            low[s] = _nmin(low[s], m)
+                if window and speculate:
+                    first = -1
+                    for s in range(nwin):
+                        if (step[c] + s + 1) % dtr_every == 0 and _clamp(low[s], natom, dtr_par[c]) != dtc:
+                            first = s
+                            break
+                    if first >= 0:  # dt changes after step `first`: undo, go step by step up to there
+                        X[:] = XS
+                        V[:] = VS
+                        F[:] = FS
+                        stepwise = first + 1 + backoff
+                        backoff = min(2 * backoff + 8, 4096)
+                        continue
+                    backoff = 0
+                step[c] += nwin
+                for s in range(nwin):
+                    for k in range(nrf):
+                        rf_stat[c, k, 0] += rstat[s, k, 0]
+                        rf_stat[c, k, 1] += rstat[s, k, 1]
                 for k in range(nrf):
-                    rf_prev[c, k] = rf_val[c, si, k]
-                    rf_stat[c, k, 0] += rstat[0, k, 0]
-                    rf_stat[c, k, 1] += rstat[0, k, 1]
-                if due:
-                    new = _clamp(new, natom, dtr_par[c])
+                    rf_prev[c, k] = rf_val[c, (done + nwin - 1) * vary, k]
+                done += nwin
+                if window:
+                    continue
+                if dtr_every > 0 and step[c] % dtr_every == 0:  # fix dt/reset (end_of_step)
+                    new = _clamp(low[0], natom, dtr_par[c])
                     if new != dt[c]:
                         atime[c] = atime[c] + (step[c] - atimestep[c]) * dt[c]
                         atimestep[c] = step[c]
                         dt[c] = new
-                done += 1
                 if stepwise > 0:
                     stepwise -= 1
                 if time_mode:

@@ -24,12 +24,14 @@ atoms sums the runs of equal i (pairs are sorted by i) with `np.add.reduceat` an
 with `np.bincount` (for 156k pairs: 1 ms, against 2 ms with six `np.bincount` and 12 ms with
 `np.add.at`); work arrays are reused between steps.
 
-Compiled path (pair_numba.py, selected when numba imports and WALLBATCH_NUMBA is not "0"): the same
-per-case rebuild decisions, a cell-list build per case (half list i < j in CSR form, one row per
-case) and one fused pass over all cases that accumulates forces, energy and virial. Each pair's
-values are computed with the NumPy path's operations in the same order; only the order of the
-sums differs (the two paths agree to ~1e-15 relative). Each case is still computed alone, so its
-numbers never depend on its batch.
+Compiled path (pair_numba.py; the default when numba imports and WALLBATCH_NUMBA is not "0",
+`compiled=False` forces NumPy): the same per-case rebuild decisions, a cell-list build per case
+(the same pairs, each once, in cell order; CSR rows in (C, ...) arrays) and one fused pass over
+all cases that accumulates forces, energy and virial without temporaries. Each pair's values
+come from the NumPy path's operations in the same order; only the order of the sums differs, so
+the paths agree to rounding (tests: <= 1e-13 relative to the case's force, energy and virial
+scales). Each case is still computed alone, so its numbers never depend on its batch. For N = 4000
+at density 0.8 (135k pairs): force pass ~0.8 ms, build ~1.3 ms (NumPy: ~2 ms and ~20-30 ms).
 """
 
 from __future__ import annotations
@@ -198,23 +200,34 @@ class PairLJCut:
             self._flatten(N)
 
     def _build_compiled(self, c: int, pos: np.ndarray) -> None:
-        """Pairs (i < j) of case c closer than cutoff + skin, with the cell-list kernel."""
+        """Pairs of case c closer than cutoff + skin (each once), with the cell-list kernel."""
         self.builds += 1
         self.case_builds[c] += 1
         self._bad[c] = not np.isfinite(pos).all()
         if self._bad[c] or len(pos) < 2:
             self._first[c] = 0
             return
-        hint = max(int(1.1 * self._first[c, -1]), 8 * len(pos))
-        owner, first, neigh = pair_numba.build_case(pos, self.box_lo, self.length, self.periodic,
-                                                    float(self.cutoff[c] + self.skin), hint)
-        if len(neigh) > self._neigh.shape[1]:  # grow every row (keeps one (C, capacity) array)
-            grown = np.empty((self.ncases, int(1.2 * len(neigh)) + 16), dtype=np.int32)
-            grown[:, :self._neigh.shape[1]] = self._neigh
-            self._neigh = grown
-        self._neigh[c, :len(neigh)] = neigh
-        self._first[c] = first
-        self._owner[c] = owner
+        reach = float(self.cutoff[c] + self.skin)
+        while True:  # the case's rows of the (C, ...) arrays are the kernel's output buffers
+            m = pair_numba.build_case(pos, self.box_lo, self.length, self.periodic, reach,
+                                      self._owner[c], self._first[c], self._neigh[c])
+            if m >= 0:
+                return
+            self._grow(self._estimate_pairs(pos, reach))
+
+    def _estimate_pairs(self, pos: np.ndarray, reach: float) -> int:
+        """Upper guess of the pairs within reach: uniform density in the atoms' bounding volume."""
+        n = len(pos)
+        span = np.where(self.periodic, self.length, np.ptp(pos, axis=0) + reach)
+        ball = 4.0 / 3.0 * np.pi * reach**3
+        guess = 0.5 * n * n * min(1.0, ball / float(np.prod(span)))
+        return int(1.3 * guess) + 2 * len(pos) + 2 * self._neigh.shape[1]
+
+    def _grow(self, capacity: int) -> None:
+        """Grow every case's row of the pair array to at least `capacity` (keeps the content)."""
+        grown = np.empty((self.ncases, capacity), dtype=np.int32)
+        grown[:, :self._neigh.shape[1]] = self._neigh
+        self._neigh = grown
 
     def _update_compiled(self, x: np.ndarray) -> None:
         """As _update, with the compiled displacement check and cell-list build."""

@@ -71,10 +71,11 @@ if njit is not None:
         return (r if 0 <= r < n else -1), 0.0
 
     @jit
-    def build_case(pos, lo, length, periodic, reach, cap):  # noqa: ANN001, ANN201
+    def build_case(pos, lo, length, periodic, reach, owner, first, neigh):  # noqa: ANN001, ANN201
         """Half neighbor list of one case, each pair within reach once (minimum image in periodic
-        dims): (owner (N,) int32, first (N+1,) int64, neigh (M,) int32); the partners of atom
-        owner[s] are neigh[first[s]:first[s+1]]. cap: initial capacity of neigh (grows)."""
+        dims), written into owner (N,) int32, first (N+1,) int64 and neigh (capacity,) int32: the
+        partners of atom owner[s] are neigh[first[s]:first[s+1]]. Returns the number of pairs, or
+        -1 if neigh is too short (then call again with a longer one)."""
         N = pos.shape[0]
         reach2 = reach * reach
         p = np.empty((N, 3))  # from lo, wrapped into [0, L) (periodic dims), or from the lowest atom
@@ -100,7 +101,7 @@ if njit is not None:
                 ext[k] = mx - mn
             nb[k] = max(1, int(ext[k] / (0.5 * reach)))
         while nb[0] * nb[1] * nb[2] > max(64, 2 * N):  # few atoms in a big box: fewer, wider cells
-            k = np.argmax(nb)
+            k = 0 if nb[0] >= nb[1] and nb[0] >= nb[2] else (1 if nb[1] >= nb[2] else 2)
             nb[k] = max(1, nb[k] // 2)
         for k in range(3):  # offsets -2..2 must be 5 distinct cells in a periodic dim: else one cell
             if periodic[k] and nb[k] < 5:
@@ -122,7 +123,7 @@ if njit is not None:
         for q in range(ncell):
             cstart[q + 1] += cstart[q]
         fill = cstart[:-1].copy()
-        order = np.empty(N, np.int32)  # atoms sorted by cell, ascending index within a cell
+        order = owner  # atoms sorted by cell, ascending index within a cell
         xs = np.empty((N, 3))  # their positions p, contiguous per cell
         for i in range(N):
             s = fill[cell[i]]
@@ -135,16 +136,16 @@ if njit is not None:
         # (a, b) row is one range of sorted atoms, or two when it wraps a periodic z.
         n0, n1, n2 = nb[0], nb[1], nb[2]
         L0, L1, L2 = length[0], length[1], length[2]
-        inv0, inv1, inv2 = 1.0 / L0, 1.0 / L1, 1.0 / L2
-        mi0 = periodic[0] and n0 == 1  # one cell in a periodic dim: minimum image per pair
-        mi1 = periodic[1] and n1 == 1
-        mi2 = periodic[2] and n2 == 1
+        # a periodic dim of one cell: minimum image per pair, d -= rint(d / L) L; other dims
+        # get 1/L = 0 there, so d is unchanged (no branch in the loop)
+        inv0 = 1.0 / L0 if periodic[0] and n0 == 1 else 0.0
+        inv1 = 1.0 / L1 if periodic[1] and n1 == 1 else 0.0
+        inv2 = 1.0 / L2 if periodic[2] and n2 == 1 else 0.0
         per2 = periodic[2] and n2 > 1
         seg_lo = np.empty(32, np.int64)  # per cell: the sorted-atom ranges of its half stencil
         seg_hi = np.empty(32, np.int64)
         seg_sh = np.empty((32, 3))  # image shift of each range [length]
-        first = np.empty(N + 1, np.int64)
-        neigh = np.empty(max(cap, 16), np.int32)
+        cap = len(neigh)
         m = 0
         for q in range(ncell):
             if cstart[q] == cstart[q + 1]:
@@ -181,25 +182,20 @@ if njit is not None:
                 for g in range(nseg):
                     lo_t = s + 1 if g == 0 else seg_lo[g]  # own cell: the atoms after s
                     hi_t = seg_hi[g]
-                    if m + hi_t - lo_t > len(neigh):
-                        grown = np.empty(2 * len(neigh) + hi_t - lo_t, np.int32)
-                        grown[:m] = neigh[:m]
-                        neigh = grown
+                    if m + hi_t - lo_t > cap:
+                        return -1
                     y0, y1, y2 = xs[s, 0] - seg_sh[g, 0], xs[s, 1] - seg_sh[g, 1], xs[s, 2] - seg_sh[g, 2]
                     for t in range(lo_t, hi_t):
                         d0 = y0 - xs[t, 0]
-                        if mi0:
-                            d0 -= np.rint(d0 * inv0) * L0
+                        d0 -= np.rint(d0 * inv0) * L0
                         d1 = y1 - xs[t, 1]
-                        if mi1:
-                            d1 -= np.rint(d1 * inv1) * L1
+                        d1 -= np.rint(d1 * inv1) * L1
                         d2 = y2 - xs[t, 2]
-                        if mi2:
-                            d2 -= np.rint(d2 * inv2) * L2
+                        d2 -= np.rint(d2 * inv2) * L2
                         neigh[m] = order[t]  # kept only if within reach (branch-free append)
                         m += d0 * d0 + d1 * d1 + d2 * d2 <= reach2
         first[N] = m
-        return order, first, neigh[:m]
+        return m
 
     @jit
     def forces(x, f, owner, first, neigh, eps, sig2, rc2, offset, length, periodic, bad, outputs,  # noqa: ANN001, ANN201
@@ -208,13 +204,16 @@ if njit is not None:
         energy[c] (shifted by offset[c] per pair inside rc) and virial[c] = sum fpair r^2.
 
         Per pair, the NumPy path's operations: d = x_i - x_j, d -= rint(d (1/L)) L in periodic
-        dims, r2, s6 = ((sig2/r2)^2)(sig2/r2), fpair = (((2 s6) - 1) s6)(24 eps)/r2, times
-        (r2 < rc2) (computed for every listed pair, then zeroed outside rc: no branch).
+        dims (bad cases are skipped, so d is finite), r2, s6 = ((sig2/r2)^2)(sig2/r2),
+        fpair = (((2 s6) - 1) s6)(24 eps)/r2, times (r2 < rc2): computed for every listed pair,
+        then zeroed outside rc (no branch).
         """
         C = x.shape[0]
-        inv0, inv1, inv2 = 1.0 / length[0], 1.0 / length[1], 1.0 / length[2]
+        # fixed dims: 1/L replaced by 0, so d - rint(d * 0) L = d exactly (finite d): no branch
+        inv0 = 1.0 / length[0] if periodic[0] else 0.0
+        inv1 = 1.0 / length[1] if periodic[1] else 0.0
+        inv2 = 1.0 / length[2] if periodic[2] else 0.0
         L0, L1, L2 = length[0], length[1], length[2]
-        per0, per1, per2 = periodic[0], periodic[1], periodic[2]
         for c in range(C):
             if bad[c]:
                 continue
@@ -228,14 +227,11 @@ if njit is not None:
                 for q in range(fr[s], fr[s + 1]):
                     j = nc[q]
                     d0 = xi0 - xc[j, 0]
-                    if per0:
-                        d0 -= np.rint(d0 * inv0) * L0
+                    d0 -= np.rint(d0 * inv0) * L0
                     d1 = xi1 - xc[j, 1]
-                    if per1:
-                        d1 -= np.rint(d1 * inv1) * L1
+                    d1 -= np.rint(d1 * inv1) * L1
                     d2 = xi2 - xc[j, 2]
-                    if per2:
-                        d2 -= np.rint(d2 * inv2) * L2
+                    d2 -= np.rint(d2 * inv2) * L2
                     r2 = d0 * d0 + d1 * d1 + d2 * d2
                     inside = 1.0 if r2 < rcut2 else 0.0
                     t = s2c / r2

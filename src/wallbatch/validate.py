@@ -16,7 +16,9 @@ Reflect walls with `frame: wall` cannot be expressed in LAMMPS: the case is comp
 wall/region colloid (LAMMPS's physics differs: quirk #1) is compared with a LAMMPS script whose
 epsilon is negated, so that LAMMPS's flipped force is exactly wallbatch's (energies expected to
 differ), and the script as exported is reported apart, as expected. A minimization before the
-run is compared through its results (min_*: the log's "Minimization stats" and a printed line).
+run is compared through its results (min_*: the log's "Minimization stats" and a printed line;
+the path-dependent energy and force norm within max(rtol, MIN_RTOL)), and the run itself from
+LAMMPS's minimized positions (wallbatch reruns the case from them without minimizing).
 wall/flow cases are refused: their random numbers differ by design (decisions table), so they are
 checked statistically, not sample by sample.
 """
@@ -35,6 +37,7 @@ from types import ModuleType
 
 import numpy as np
 
+from .config import Config
 from .engine import CaseResult, run_cases, sample_steps
 from .export import (
     ExportError,
@@ -51,13 +54,14 @@ from .sweep import SweepCase
 __all__ = [
     "FLOOR",
     "INSTALL_HINT",
+    "MIN_RTOL",
     "RTOL",
     "LammpsMissing",
     "LammpsRunError",
-    "MIN_RTOL",
     "NotComparable",
     "Report",
     "Row",
+    "check_comparable",
     "compare",
     "load_lammps",
     "run_lammps",
@@ -90,7 +94,7 @@ class NotComparable(ExportError):
 FLOW_TESTS = "tests/test_flow.py"  # wall/flow's statistical checks (shifted Maxwellian, crossing rates)
 
 
-def check_comparable(cfg) -> None:  # noqa: ANN001 - a Config
+def check_comparable(cfg: Config) -> None:
     """Refuse wall/flow: wallbatch's NumPy streams and LAMMPS's RANMAR draw different velocities at
     the first crossing (decisions table), so the runs agree only statistically."""
     flows = [fid for fid, w in cfg.walls.items() if w.style == "flow"]
@@ -148,7 +152,7 @@ def _parse_minimize(log_text: str) -> dict[str, np.ndarray]:
     lines = log_text.splitlines()
     out: dict[str, np.ndarray] = {}
     for k, line in enumerate(lines):
-        key, eq, value = line.partition("=")
+        key, _, value = line.partition("=")
         key = key.strip()
         if key == "Stopping criterion":
             out["stop_reason"] = np.array([value.strip()])
