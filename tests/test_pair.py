@@ -284,6 +284,207 @@ def test_nan_case_does_not_touch_others(compiled):
     assert np.array_equal(w[[0, 2]], w_ok[[0, 2]])
 
 
+# -- compiled path against the NumPy path ----------------------------------------------------------
+
+def listed_pairs(pair: PairLJCut, c: int) -> np.ndarray:
+    """Case c's neighbor list as rows (i, j), i < j, sorted (either path)."""
+    if pair.compiled:
+        first = pair._first[c]
+        i = np.repeat(pair._owner[c], np.diff(first))
+        pairs = np.sort(np.stack([i, pair._neigh[c, :first[-1]]], axis=1), axis=1)
+    else:
+        pairs = pair._pairs[c]
+    return pairs[np.lexsort(pairs.T[::-1])]
+
+
+def walk(x, rng, step, lo, length, periodic):
+    """One random-walk step of every atom (step (C,) [length]), wrapped in periodic dims."""
+    x = x + np.asarray(step)[:, None, None] * rng.standard_normal(x.shape)
+    for k in np.flatnonzero(periodic):
+        x[..., k] = lo[k] + np.mod(x[..., k] - lo[k], length[k])
+    return x
+
+
+@needs_numba
+@pytest.mark.parametrize("shift", [False, True])
+@pytest.mark.parametrize("boundary", list(BOXES))
+def test_compiled_matches_numpy(boundary, shift):
+    """Three cases with different eps, sigma, rc on a random walk with rebuilds: both paths make
+    the same rebuild decisions, hold the same pairs, and give forces, energy and virial equal to
+    1e-13 relative (forces to max|F| of the case; energy and virial to the sum of |pair terms|,
+    the scale of their rounding; relative to |E| and |W| themselves they agree to < 1e-13 too)."""
+    ref, x, length, periodic = batch(boundary, 160, seed=21, shift=shift, compiled=False)
+    fast, _, _, _ = batch(boundary, 160, seed=21, shift=shift, compiled=True)
+    lo = np.asarray(BOXES[boundary][0])
+    rng = np.random.default_rng(8)
+    for _ in range(12):
+        fa, fb = np.zeros_like(x), np.zeros_like(x)
+        ea, wa = ref.compute(x, fa, True)
+        eb, wb = fast.compute(x, fb, True)
+        _, f_ref, _, escale, wscale = brute(x, EPS, SIG, RC, shift, length, periodic)
+        assert np.all(np.abs(fa - fb).max(axis=(1, 2)) <= 1e-13 * np.abs(f_ref).max(axis=(1, 2)))
+        assert np.all(np.abs(ea - eb) <= 1e-13 * escale) and np.all(np.abs(wa - wb) <= 1e-13 * wscale)
+        assert not np.array_equal(fa, np.zeros_like(fa))
+        np.testing.assert_array_equal(ref.case_builds, fast.case_builds)
+        for c in range(3):
+            np.testing.assert_array_equal(listed_pairs(ref, c), listed_pairs(fast, c))
+        x = walk(x, rng, [0.04, 0.02, 0.03], lo, length, periodic)
+    assert ref.case_builds.min() >= 3  # the lists were rebuilt along the way
+    f = np.zeros_like(x)  # outputs=False: the same forces, nothing returned
+    assert fast.compute(x, f, False) is None
+    fb = np.zeros_like(x)
+    fast.compute(x, fb, True)
+    np.testing.assert_array_equal(f, fb)
+
+
+def geometry(name: str, rng: np.random.Generator):
+    """Scenes for the cell list's corner cases: lo, hi, boundary, positions (3, n, 3)."""
+    if name == "tiny periodic box":  # rc + skin > L/2: one cell per dim, minimum image per pair
+        lo, hi, bnd = (0.0, 0.0, 0.0), (5.2, 5.3, 5.4), "ppp"
+        return lo, hi, bnd, np.stack([jittered(rng, 100, lo, hi, [True] * 3) for _ in range(3)])
+    if name == "sparse clumps":  # 60^3 box, 2 clumps, one across the periodic corner: capped cells
+        lo, hi, bnd = (0.0, 0.0, 0.0), (60.0, 60.0, 60.0), "ppp"
+        xs = []
+        for _ in range(3):
+            a = jittered(rng, 27, (-1.6,) * 3, (1.6,) * 3, [False] * 3)
+            b = jittered(rng, 27, (30.0,) * 3, (33.2,) * 3, [False] * 3)
+            xs.append(np.mod(np.concatenate([a, b]), 60.0))
+        return lo, hi, bnd, np.stack(xs)
+    if name == "atoms far outside fixed faces":  # extent 1e60 along z: bins capped
+        lo, hi, bnd = BOXES["ppf"][0], BOXES["ppf"][1], "ppf"
+        x = np.stack([jittered(rng, 120, lo, hi, [True, True, False]) for _ in range(3)])
+        x[:, 0, 2], x[:, 1, 2] = 1.0e60, -55.0  # (the NumPy path's cKDTree once failed on 1e60)
+        x[:, 2, 2], x[:, 3, 2] = hi[2] + 1.0, hi[2] + 1.5  # a pair beyond the face, still interacting
+        return lo, hi, bnd, x
+    if name == "flat layer":  # zero extent along a fixed dim; periodic y
+        lo, hi, bnd = (0.0, 0.0, 0.0), (9.0, 8.0, 4.0), "fpf"
+        x = np.stack([jittered(rng, 70, lo, (9.0, 8.0, 1.0), [False, True, False]) for _ in range(3)])
+        x[..., 2] = 2.0
+        return lo, hi, bnd, x
+    raise KeyError(name)
+
+
+GEOMETRIES = ["tiny periodic box", "sparse clumps", "atoms far outside fixed faces", "flat layer"]
+
+
+@pytest.mark.parametrize("name", GEOMETRIES)
+def test_cell_list_edge_geometries(name, compiled):
+    """Brute force agrees, and the list holds exactly the pairs within rc + skin, in boxes that
+    hit the cell list's special cases (one cell per periodic dim, capped cell counts, huge
+    extents of fixed dims, zero extent)."""
+    lo, hi, bnd, x = geometry(name, np.random.default_rng(len(name)))
+    periodic = np.array([b == "p" for b in bnd])
+    length = np.subtract(hi, lo)
+    pair = PairLJCut(EPS, SIG, RC, box_lo=lo, box_hi=hi, periodic=periodic, shift=True, compiled=compiled)
+    assert_matches(pair, x, EPS, SIG, RC, True, length, periodic)
+    iu, ju = np.triu_indices(x.shape[1], 1)
+    d = x[:, iu] - x[:, ju]
+    for k in np.flatnonzero(periodic):
+        d[..., k] -= length[k] * np.round(d[..., k] / length[k])
+    within = np.sqrt((d * d).sum(axis=2)) <= (RC + pair.skin)[:, None]
+    assert pair.npairs == within.sum()
+    for c in range(3):
+        expect = np.stack([iu[within[c]], ju[within[c]]], axis=1)
+        np.testing.assert_array_equal(listed_pairs(pair, c), expect[np.lexsort(expect.T[::-1])])
+
+
+def test_few_atoms(compiled):
+    """N = 0 and 1: no pairs, zero force and energy; N = 2 across a periodic face: one pair."""
+    for n in (0, 1):
+        pair = PairLJCut(1.0, 1.0, 2.5, box_lo=(0, 0, 0), box_hi=(8, 8, 8), periodic=(True,) * 3, compiled=compiled)
+        x = np.full((1, n, 3), 4.0)
+        f = np.zeros_like(x)
+        assert pair.compute(x, f, True) == (np.zeros(1), np.zeros(1)) and pair.npairs == 0
+    pair = PairLJCut(1.0, 1.0, 2.5, box_lo=(0, 0, 0), box_hi=(8, 8, 8), periodic=(True,) * 3, compiled=compiled)
+    x = np.array([[[0.2, 4.0, 4.0], [7.5, 4.0, 4.0]]])  # 0.7 apart through the x face
+    f = np.zeros_like(x)
+    energy, virial = pair.compute(x, f, True)
+    e, fpair = lj_pair(np.array(0.7**2), 1.0, 1.0)
+    assert energy[0] == pytest.approx(e, rel=1e-14) and virial[0] == pytest.approx(fpair * 0.49, rel=1e-14)
+    assert f[0, 0, 0] == pytest.approx(fpair * 0.7, rel=1e-14)  # d = x0 - image of x1 = +0.7
+    assert f[0, 0, 0] > 0 and f[0, 1, 0] == -f[0, 0, 0]  # repelled away from atom 1's image at x = -0.5
+
+
+def test_list_growth_keeps_other_cases(compiled):
+    """Case 1 is compressed 0.45x between two calls, so its rebuilt list is ~10x longer (the
+    compiled path grows its pair storage): case 0, not rebuilt, keeps bit-identical results, and
+    both still match the brute force."""
+    lo, hi = (0.0, 0.0, 0.0), (12.0, 12.0, 12.0)
+    periodic = np.zeros(3, dtype=bool)
+    rng = np.random.default_rng(17)
+    x = np.stack([jittered(rng, 100, lo, hi, periodic) for _ in range(2)])
+    eps, sig, rc = EPS[:2], SIG[:2], np.array([2.5, 2.5])
+    pair = PairLJCut(eps, sig, rc, box_lo=lo, box_hi=hi, periodic=periodic, compiled=compiled)
+    f0 = np.zeros_like(x)
+    e0, w0 = pair.compute(x, f0, True)
+    before = pair.npairs
+    x[1] = 6.0 + 0.45 * (x[1] - 6.0)
+    f1 = np.zeros_like(x)
+    e1, w1 = pair.compute(x, f1, True)
+    assert pair.case_builds.tolist() == [1, 2] and pair.npairs > 5 * before
+    assert np.array_equal(f1[0], f0[0]) and e1[0] == e0[0] and w1[0] == w0[0]
+    assert_matches(pair, x, eps, sig, rc, False, np.subtract(hi, lo), periodic)
+
+
+def test_any_memory_layout(compiled):
+    """Non-contiguous positions and a Fortran-ordered force array give the same bits."""
+    pair, x, _, _ = batch("ppf", 50, seed=31, compiled=compiled)
+    f = np.zeros_like(x)
+    e, w = pair.compute(x, f, True)
+    big = np.zeros((3, 100, 3))
+    big[:, ::2] = x
+    pair2, _, _, _ = batch("ppf", 50, seed=31, compiled=compiled)
+    f2 = np.asfortranarray(np.zeros_like(x))
+    e2, w2 = pair2.compute(big[:, ::2], f2, True)
+    assert np.array_equal(f2, f) and np.array_equal(e2, e) and np.array_equal(w2, w)
+    assert np.abs(f).max() > 1.0
+
+
+def test_path_selection(monkeypatch):
+    """WALLBATCH_NUMBA=0 selects the NumPy path; otherwise the compiled one when numba imports;
+    compiled=False always forces NumPy."""
+    args = (1.0, 1.0, 2.5)
+    box = {"box_lo": (0, 0, 0), "box_hi": (8, 8, 8), "periodic": (True, True, False)}
+    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
+    assert not PairLJCut(*args, **box).compiled
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    assert PairLJCut(*args, **box).compiled == (pair_numba.njit is not None)
+    assert not PairLJCut(*args, **box, compiled=False).compiled
+
+
+@needs_numba
+def test_engine_paths_agree(monkeypatch):
+    """The engine on both pair paths (an fcc LJ liquid melting between lj93 walls, 40 steps):
+    thermo outputs equal to 1e-10 relative (rounding differences only, barely grown in 40 steps)."""
+    from wallbatch.config import config_from_dict
+    from wallbatch.engine import run_cases
+    from wallbatch.scene import build_case
+
+    cfg = {
+        "name": "lj-slit", "units": "lj", "seed": 3, "lattice": {"style": "fcc", "scale": 0.8},
+        "box": {"lo": [0, 0, 0], "hi": [6.84, 6.84, 8.0], "boundary": ["p", "p", "f"]},  # 4 fcc cells in x, y
+        "regions": {"pore": {"style": "block", "lo": [0, 0, 1.0], "hi": [6.8, 6.8, 7.0], "units": "box"}},
+        "atoms": [{"group": "liquid", "create": {"lattice": {"region": "pore"}}, "mass": 1.0,
+                   "velocity": {"temperature": 2.0}}],
+        "pair": {"style": "lj/cut", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5, "shift": True},
+        "walls": {"pore": {"style": "lj93", "units": "box", "energy": True, "virial": True,
+                           "zlo": ["EDGE", 1.0, 1.0, 2.5], "zhi": ["EDGE", 1.0, 1.0, 2.5]}},
+        "timestep": 0.005, "run": {"steps": 40, "thermo": 10},
+        "output": {"thermo": ["step", "pe", "etot", "press"]},
+    }
+    case = build_case(config_from_dict(cfg))
+    assert case.natoms > 150
+    results = {}
+    for flag in ("0", "1"):
+        monkeypatch.setenv("WALLBATCH_NUMBA", flag)
+        (res,) = run_cases([case])
+        assert res.status == "ok", res.error
+        results[flag] = res.data
+    for key in ("pe", "etot", "press"):
+        np.testing.assert_allclose(results["1"][key], results["0"][key], rtol=1e-10, atol=0)
+    assert np.ptp(results["0"]["pe"]) > 1.0  # the state changes along the run
+
+
 # -- LAMMPS run 0 parity ---------------------------------------------------------------------------
 
 def lammps_run0(x, lo, hi, boundary, eps, sigma, rc, shift):

@@ -1,27 +1,34 @@
-"""Compiled chunks of steps (numba): the engine's step, fused per atom, for scenes of flat walls.
+"""Compiled chunks of steps (numba) for scenes of flat walls, behind Engine.advance.
 
 The NumPy engine (engine.py, walls.py) is the reference; this module runs the same arithmetic,
-operation for operation, in one compiled call per chunk of steps (the steps between two samples):
+operation for operation and in the same order per atom, in one compiled call per chunk of steps
+(the steps between two samples), so results agree with NumPy bit for bit (morse, whose exp and
+expm1 come from another libm, to ~1e-15). One step of one atom is engine.Engine.step:
 
-  per atom:  v += dtfm f ; x += dt v ; wall/reflect faces ; periodic wrap ; f = 0 ;
-             soft faces f[dim] -= side F(r) ; lost-atom test ; v += dtfm f
-  per step:  reflect statistics, wall velocities, fix dt/reset (min over the atoms)
+  v += dtfm f ; x += dt v ; wall/reflect ; periodic wrap ; f = 0 ; soft faces f[dim] -= side F(r) ;
+  lost-atom test ; v += dtfm f ; (fix dt/reset: the atom's largest dt)
 
-With no dt/reset the atoms of a case are independent between two samples, so the kernel runs
-every step of a block of atoms before moving to the next block (the block stays in L1 cache; the
-wall values of each step are precomputed per case). With dt/reset (the smallest dt over the atoms
-couples them every step) and in time-based runs it runs step by step over the whole case.
-The kernel computes forces only: on the last step of a sampled chunk, the outputs (energies,
-wall forces, virial) come from the NumPy `Engine.compute_forces` at the final positions, where
-the NumPy loop computes them too.
+Layout: per case, the atoms are copied into structure-of-arrays buffers and a step is a few
+simple passes over a block of BLOCK atoms (kick-drift, reflect, wrap, clear, one branch-free pass
+per soft face with the style fixed at compile time, lost test, kick), which the compiler
+vectorises (AVX2/AVX-512). Steps run in windows: every step of a window on one block (it stays in
+L1 cache), then the next block. Without dt/reset a window is the whole chunk. With dt/reset the
+smallest dt over the atoms couples them every step; a window of WINDOW steps runs at the current
+dt and keeps each step's smallest candidate, and if one of them would change dt the window is
+undone and run step by step up to that step (exact either way). Time-based runs go step by step.
+The kernel computes forces only: on the last step of a sampled chunk the outputs (energies, wall
+forces, virial) come from the NumPy `Engine.compute_forces` at the final positions, where the
+NumPy loop computes them too.
 
 Eligibility is a whitelist: soft flat walls (lj93, lj126, lj1043, colloid, harmonic, morse),
 wall/reflect, dt/reset and equal-style variables (their per-step values are computed in NumPy
-before the chunk, vectorised over steps). Anything else (pair forces, flow, ees, region walls,
-ellipsoids) runs in NumPy. A chunk that meets trouble (an atom on/behind a wall, a lost atom, a
-non-finite value, a variable error or a negative variable parameter) is undone from a copy taken
-at its start and handed back to the NumPy loop, which re-runs it and reports exactly as always.
-`WALLBATCH_NUMBA=0` (or numba missing) selects the NumPy path everywhere.
+before the chunk, vectorised over steps; not when the step's dt can change inside the chunk).
+Anything else (pair forces, flow, ees, region walls, ellipsoids) runs in NumPy. A chunk that
+meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a variable error or a
+negative variable parameter) leaves the state as it was at its start and is handed back to the
+NumPy loop, which re-runs it and reports exactly as always. `WALLBATCH_NUMBA=0` (or numba not
+importable) selects the NumPy path everywhere. Kernels are cached on disk (numba cache=True): a
+cold compile takes ~15 s once, a cached load ~0.5 s per process.
 """
 
 from __future__ import annotations
@@ -57,8 +64,9 @@ def enabled() -> bool:
 
 
 # ----------------------------------------------------------------------------- compiled kernels
-# The style formulas below are the ones of potentials.py written out for scalars, with the same
-# operations in the same order (tests/test_fast.py checks them against potentials.py).
+# The force formulas below are the ones of potentials.py written out for scalars, with the same
+# operations in the same order (tests/test_fast.py checks them against potentials.py: keep them in
+# step when a style's F(r) changes there).
 
 if njit is not None:
     # error_model="numpy": x/0 gives inf/nan as in NumPy (no zero-division checks, so loops vectorise)

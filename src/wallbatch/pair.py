@@ -154,7 +154,10 @@ class PairLJCut:
                 boxsize[k] = self.length[k]
             else:  # cKDTree wraps every dim: a period longer than extent + reach never joins two atoms
                 p[:, k] -= p[:, k].min()
-                boxsize[k] = p[:, k].max() + 2.0 * reach + 1.0
+                top = p[:, k].max()
+                boxsize[k] = top + 2.0 * reach + 1.0
+                if boxsize[k] <= top:  # reach lost to rounding (an atom at 1e60): 1 ulp is > reach
+                    boxsize[k] = np.nextafter(top, np.inf)
         pairs = cKDTree(p, boxsize=boxsize).query_pairs(reach, output_type="ndarray")
         key = np.sort(pairs[:, 0].astype(np.int64) * len(pos) + pairs[:, 1])  # by i, then j
         self._pairs[c] = np.stack(np.divmod(key, len(pos)), axis=1)

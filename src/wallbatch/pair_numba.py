@@ -99,7 +99,8 @@ if njit is not None:
                 for i in range(N):
                     p[i, k] = pos[i, k] - mn
                 ext[k] = mx - mn
-            nb[k] = max(1, int(ext[k] / (0.5 * reach)))
+            # float first: a far-away atom (extent 1e60) must not overflow the int conversion
+            nb[k] = max(1, int(min(ext[k] / (0.5 * reach), float(max(64, 2 * N)), 1048576.0)))
         while nb[0] * nb[1] * nb[2] > max(64, 2 * N):  # few atoms in a big box: fewer, wider cells
             k = 0 if nb[0] >= nb[1] and nb[0] >= nb[2] else (1 if nb[1] >= nb[2] else 2)
             nb[k] = max(1, nb[k] // 2)
