@@ -822,7 +822,7 @@ def _check_flow_wall(cfg: "Config", fid: str, wall: Any, add: Any) -> None:
     if wall.units == "lattice" and cfg.lattice is None:
         add(("walls", fid), _LATTICE_MSG)
         return
-    scale = 1.0 if wall.units == "box" else _spacing(cfg)
+    scale = 1.0 if wall.units == "box" else lattice_spacing(cfg)
     w = [cfg.box.lo[dim]] + [c * scale for c in wall.coords] + [cfg.box.hi[dim]]
     if any(b <= a for a, b in zip(w, w[1:])):
         add(("walls", fid, "coords"), f"flow wall coordinates must be strictly increasing and strictly inside the "
@@ -831,9 +831,12 @@ def _check_flow_wall(cfg: "Config", fid: str, wall: Any, add: Any) -> None:
             f"outside simulation domain)")
 
 
-def _spacing(cfg: "Config") -> float:
+def lattice_spacing(cfg: "Config") -> float | None:
+    """The lattice spacing of `lattice:` in box units (physics.md §2.1), or None without one."""
     from .units import lattice_constant
 
+    if cfg.lattice is None:
+        return None
     return lattice_constant(cfg.lattice.style, cfg.lattice.scale, cfg.units)
 
 

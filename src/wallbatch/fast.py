@@ -611,7 +611,6 @@ class FastPath:
             groups.append(kernel_group.astype(np.uint8))
             return len(groups) - 1
 
-        N = s.x.shape[1]
         sf_meta = np.array([[STYLE_IDS[w.style.name], face.dim, face.side, group(w.group, w.all_atoms)]
                             for w, face in soft_faces], np.int64).reshape(-1, 4)
         rf_meta = np.array([[face.dim, face.side, 1 if w.frame == "wall" else 0, group(w.group, w.all_atoms)]

@@ -12,10 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from .config import Config, TimeInterval
+from .config import Config, TimeInterval, lattice_spacing
 from .expr import Variables
 from .potentials import STYLES, WallStyle
-from .units import LATTICE_POSITIONS, UNIT_SYSTEMS, UnitSystem, lattice_constant
+from .units import LATTICE_POSITIONS, UNIT_SYSTEMS, UnitSystem
 
 Value = float | str  # a number, or the name of an equal-style variable (without v_)
 
@@ -156,12 +156,6 @@ def _no_closed_form(r, p):  # noqa: ANN001, ANN202
 EES_STYLE = WallStyle("ees", ("epsilon", "sigma", "cutoff"), _no_closed_form, shifted=False)
 
 
-def lattice_spacing(cfg: Config) -> float | None:
-    if cfg.lattice is None:
-        return None
-    return lattice_constant(cfg.lattice.style, cfg.lattice.scale, cfg.units)
-
-
 def _fail(path: str, msg: str) -> CaseError:
     return CaseError(f"{path}: {msg}")
 
@@ -171,18 +165,10 @@ def _fail(path: str, msg: str) -> CaseError:
 
 def _region_contains(cfg: Config, name: str, pts: np.ndarray) -> np.ndarray:
     """Points inside-or-on a region (side in), or strictly outside (side out)."""
-    r = cfg.regions[name]
-    s = 1.0 if r.units == "box" else lattice_spacing(cfg)
-    if r.style == "block":
-        inside = np.all((pts >= np.asarray(r.lo) * s) & (pts <= np.asarray(r.hi) * s), axis=1)
-    elif r.style == "sphere":
-        inside = np.linalg.norm(pts - np.asarray(r.center) * s, axis=1) <= r.radius * s
-    else:
-        ax = "xyz".index(r.axis)
-        others = [d for d in range(3) if d != ax]
-        rho = np.linalg.norm(pts[:, others] - np.asarray(r.center) * s, axis=1)
-        inside = (rho <= r.radius * s) & (pts[:, ax] >= r.lo * s) & (pts[:, ax] <= r.hi * s)
-    return inside if r.side == "in" else ~inside
+    from .regions import RegionGeom
+
+    region = cfg.regions[name]
+    return RegionGeom.from_config(region, None if region.units == "box" else lattice_spacing(cfg)).contains(pts)
 
 
 def _random_positions(cfg: Config, spec: Any, rng: np.random.Generator, path: str,

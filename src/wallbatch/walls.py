@@ -85,22 +85,9 @@ class SoftWallKernel:
         if outputs and self.virial:
             self.last_virial = np.zeros(C)
         for k, face in enumerate(self.faces):
-            coord = face.position(state)
-            p = {key: face.param(key, state) for key in face.params}
-            for key in ("epsilon", "sigma", "D0", "r0"):  # variables only: constants are checked up front
-                if isinstance(face.params.get(key), str) and np.any(bad := p[key] < 0):
-                    state.fail(np.nonzero(bad)[0],
-                               lambda c: f"walls.{self.fix_id} {face.name}: variable {key} evaluated to "
-                               f"{p[key][c]:g} < 0: Variable evaluation in fix wall gave bad value")
-            pos = state.x[:, :, face.dim]
-            delta = pos - coord[:, None] if face.side < 0 else coord[:, None] - pos
-            near = delta < p["cutoff"][:, None]
-            if not self.all_atoms:
-                near &= self.group
-            ci, ai = np.nonzero(near)
+            p, ci, ai, r = self.face_atoms(state, face)
             if ci.size == 0:
                 continue
-            r = delta[ci, ai]
             pa = {key: val[ci] for key, val in p.items()}
             if self.style.needs_radius:
                 pa["radius"] = state.radius[ci, ai]
@@ -119,6 +106,26 @@ class SoftWallKernel:
                 if self.virial:  # +F r on the (dim, dim) component, lo and hi alike (physics.md §3.4)
                     self.last_virial += np.bincount(ci, weights=f * r, minlength=C)
         return (energy, vector) if outputs else None
+
+    def face_atoms(self, state: "BatchState", face: FaceValues) -> tuple[dict[str, np.ndarray], np.ndarray,
+                                                                         np.ndarray, np.ndarray]:
+        """This step's parameters of a face (C,) and its group atoms within the cut-off: case and
+        atom indices and their distance delta from the wall (§3.2). A variable epsilon, sigma, D0
+        or r0 below 0 fails its case (LAMMPS: Variable evaluation in fix wall gave bad value)."""
+        coord = face.position(state)
+        p = {key: face.param(key, state) for key in face.params}
+        for key in ("epsilon", "sigma", "D0", "r0"):  # variables only: constants are checked up front
+            if isinstance(face.params.get(key), str) and np.any(bad := p[key] < 0):
+                state.fail(np.nonzero(bad)[0],
+                           lambda c: f"walls.{self.fix_id} {face.name}: variable {key} evaluated to "
+                           f"{p[key][c]:g} < 0: Variable evaluation in fix wall gave bad value")
+        pos = state.x[:, :, face.dim]
+        delta = pos - coord[:, None] if face.side < 0 else coord[:, None] - pos
+        near = delta < p["cutoff"][:, None]
+        if not self.all_atoms:
+            near &= self.group
+        ci, ai = np.nonzero(near)
+        return p, ci, ai, delta[ci, ai]
 
     def _fail_inside(self, state: "BatchState", ci: np.ndarray, ai: np.ndarray, r: np.ndarray,
                      face: str) -> None:
@@ -146,17 +153,9 @@ class EESWallKernel(SoftWallKernel):
         energy = np.zeros(C) if outputs else None
         vector = np.zeros((C, len(self.faces))) if outputs else None
         for k, face in enumerate(self.faces):
-            coord = face.position(state)
-            p = {key: face.param(key, state) for key in face.params}
-            pos = state.x[:, :, face.dim]
-            delta = pos - coord[:, None] if face.side < 0 else coord[:, None] - pos
-            near = delta < p["cutoff"][:, None]
-            if not self.all_atoms:
-                near &= self.group
-            ci, ai = np.nonzero(near)
+            p, ci, ai, r = self.face_atoms(state, face)
             if ci.size == 0:
                 continue
-            r = delta[ci, ai]
             normal = np.zeros(3)
             normal[face.dim] = -face.side
             q, shape = state.quat[ci, ai], state.shape[ci, ai]
