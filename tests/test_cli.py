@@ -259,11 +259,15 @@ run:
         assert ds["wall_force"].values[0, 0] == pytest.approx(-2 * 1.5 * (3.0 - 2.0), rel=1e-12)
 
 
-def test_run_default_output_path_is_config_with_nc(tmp_path):
+def test_run_default_output_path_is_config_name_in_current_directory(tmp_path, monkeypatch):
     cfg = write(tmp_path, SCENE, "scene.yaml")
+    here = tmp_path / "work"
+    here.mkdir()
+    monkeypatch.chdir(here)
     result = run_cli("run", cfg)
     assert result.exit_code == 0, result.output
-    assert (tmp_path / "scene.nc").exists()
+    assert (here / "scene.nc").exists() and not (tmp_path / "scene.nc").exists()
+    assert "-> scene.nc" in result.output
 
 
 # ============================================================================================

@@ -19,7 +19,8 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from wallbatch.cli import app
-from wallbatch.batch.runner import build_cases, case_key, load_part, make_tasks, parts_dir, run_plan, save_part
+from wallbatch.batch.runner import (RunError, build_cases, case_key, load_part, make_tasks, parts_dir, run_plan,
+                                    save_part)
 from wallbatch.config.sweep import load_plan
 
 cli = CliRunner()
@@ -293,11 +294,16 @@ def test_damaged_part_is_recomputed(tmp_path, first_run):
     assert_same_results(open_nc(out), ds_a)
 
 
-def test_without_resume_leftover_parts_are_ignored(tmp_path, first_run):
+def test_without_resume_leftover_parts_refuse_and_fresh_discards_them(tmp_path, first_run):
     out, saved, ds_a = first_run
     restore(saved, out)
+    with pytest.raises(RunError, match=r"out\.nc\.parts holds 6 finished case\(s\) of an earlier run: add --resume "
+                                       r"to reuse them, or --fresh to discard them"):
+        run_plan(load_plan(make_sweep(tmp_path)), out, jobs=1, progress=False)
+    assert len(finished_parts(parts_dir(out))) == 6  # nothing deleted
     computed: list[int] = []
-    run_plan(load_plan(make_sweep(tmp_path)), out, jobs=1, progress=False, on_result=lambda i, r: computed.append(i))
+    run_plan(load_plan(make_sweep(tmp_path)), out, jobs=1, progress=False, fresh=True,
+             on_result=lambda i, r: computed.append(i))
     assert sorted(computed) == list(range(6))
     assert not parts_dir(out).exists()
     assert_same_results(open_nc(out), ds_a)
@@ -327,6 +333,7 @@ def test_cli_resume_reuses_parts(tmp_path, first_run):
     res = cli.invoke(app, ["run", str(path), "-o", str(out), "-j", "1", "--resume"])
     assert res.exit_code == 0, res.output
     assert "6 of 6 case(s) ok" in res.output
+    assert f"resuming: 4 of 6 case(s) reused from {parts_dir(out)}" in res.output
     assert not parts_dir(out).exists()
     ds = open_nc(out)
     # epsilon 0.5 and 1.0 come from the parts (their seconds are the first run's), 3.0 is new

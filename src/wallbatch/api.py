@@ -9,7 +9,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,7 +18,7 @@ import xarray as xr
 
 from wallbatch.config.models import Config
 from wallbatch.config.source import SourceMap
-from wallbatch.config.sweep import SweepPlan, config_to_dict, expand, load_plan
+from wallbatch.config.sweep import SweepPlan, config_to_dict, expand, load_plan, parse_set
 from wallbatch.engine.engine import sample_instants
 from wallbatch.batch.runner import build_cases, check_layout, make_tasks, run_plan
 from wallbatch.scene.case import Case
@@ -44,23 +44,28 @@ def load(config: ConfigLike, sets: Sequence[str] | Mapping[str, Any] = ()) -> Sw
         items = [f"{k}={v}" for k, v in sets.items()] if isinstance(sets, Mapping) else list(sets)
         return load_plan(Path(config), items)
     data = config_to_dict(config) if isinstance(config, Config) else dict(config)
-    overrides = dict(sets) if isinstance(sets, Mapping) else dict(s.split("=", 1) for s in sets)
+    overrides = dict(sets) if isinstance(sets, Mapping) else dict(parse_set(s) for s in sets)
     base_dir = getattr(config, "_base_dir", Path("."))
     return expand(data, SourceMap("<config>", {}, data), "", base_dir, overrides or None)
 
 
 def run(config: ConfigLike, output: str | os.PathLike | None = None, *, sets: Sequence[str] | Mapping[str, Any] = (),
         jobs: int = 1, executor: str = "local", scheduler: str | None = None, resume: bool = False,
-        progress: bool | None = None) -> xr.Dataset:
+        fresh: bool = False, overwrite: bool = True, progress: bool | None = None,
+        log: Callable[[str], None] | None = None) -> xr.Dataset:
     """Run every case of ``config`` (see `load`) and return the results as an `xarray.Dataset`.
 
     With ``output``, the dataset is also written there as NetCDF and each finished case is kept
     in ``OUTPUT.parts/`` until the end (``resume=True`` reuses them after an interruption).
-    ``jobs`` local processes, or ``executor="dask"`` with a ``scheduler`` address.
+    Parts left by an earlier run are reused with ``resume=True``, discarded with ``fresh=True``;
+    with neither, `wallbatch.batch.runner.RunError` is raised. ``overwrite=False`` refuses an
+    existing output. Ctrl-C raises `wallbatch.batch.runner.Interrupted` (finished cases kept).
+    ``jobs`` local processes (at most the cores), or ``executor="dask"`` with a ``scheduler``
+    address. ``log`` receives one-line notes (cases reused, kernels compiling).
     """
     plan = load(config, sets)
-    return run_plan(plan, output, jobs=jobs, executor=executor, scheduler=scheduler, resume=resume,
-                    progress=progress)
+    return run_plan(plan, output, jobs=jobs, executor=executor, scheduler=scheduler, resume=resume, fresh=fresh,
+                    overwrite=overwrite, progress=progress, log=log)
 
 
 @dataclass

@@ -1,17 +1,69 @@
-"""The `wallbatch` command line: run, check, show, plot, schema, export-lammps, validate."""
+"""The `wallbatch` command line: run, check, show, plot, schema, export-lammps, validate.
+
+Every foreseeable problem ends in one `error: ...` message with its place (file:line:col, the
+sweep file's line or the `--set` argument) and exit code 2; a failed case gives exit code 1; an
+interrupted run exit code 130. Anything unexpected is one line asking for a report; `--debug`
+shows its traceback."""
 
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
+from typing import Any
 
 import typer
 
 from wallbatch.config.source import ConfigError
 from wallbatch.scene.case import CaseError
+from wallbatch.version import __version__
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_show_locals=False,
-                  help="Batches of wall-bounded particle simulations (LAMMPS wall fixes) to labelled NetCDF.")
+ISSUES = "https://github.com/wallbatch/wallbatch/issues"
+
+
+class _GuardedTyper(typer.Typer):
+    """The app as the console script calls it: an unexpected exception is one line plus a request
+    to report it, unless `--debug` asks for the traceback; Ctrl-C outside a run exits 130."""
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        debug = "--debug" in sys.argv[1:]
+        try:
+            return super().__call__(*args, **kwargs)
+        except KeyboardInterrupt:
+            sys.stderr.write("interrupted\n")
+            sys.exit(130)
+        except Exception as exc:  # noqa: BLE001 - the top-level guard
+            if debug:
+                raise
+            text = " ".join(str(exc).split())
+            text = text if len(text) <= 200 else text[:197] + "..."
+            sys.stderr.write(f"error: unexpected {type(exc).__name__}: {text}\n  this is a wallbatch bug: please "
+                             f"report it ({ISSUES}) with the config and command; rerun with --debug for the "
+                             f"traceback\n")
+            sys.exit(3)
+
+
+app = _GuardedTyper(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                    help="Batches of wall-bounded particle simulations (LAMMPS wall fixes) to labelled NetCDF.")
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"wallbatch {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="print the version and exit"),
+          debug: bool = typer.Option(False, "--debug", help="show the Python traceback of an unexpected error "
+                                                            "(for a bug report)")) -> None:
+    """Batches of wall-bounded particle simulations (LAMMPS wall fixes) to labelled NetCDF."""
+
+
+def _fail(message: str, code: int = 2) -> typer.Exit:
+    typer.echo(f"error: {message}", err=True)
+    return typer.Exit(code)
 
 
 def _plan(config: Path, sets: list[str] | None):
@@ -24,37 +76,77 @@ def _plan(config: Path, sets: list[str] | None):
         raise typer.Exit(2) from None
 
 
+def _failures(ds) -> list[str]:
+    """Failed cases grouped by message, each group with its sweep coordinates."""
+    import numpy as np
+
+    status = ds["status"].values
+    errors = ds["error"].values
+    dims = list(ds["status"].dims)
+    groups: dict[str, list[str]] = {}
+    for idx in np.ndindex(*status.shape):
+        if str(status[idx]) != "failed":
+            continue
+        coords = ", ".join(f"{d}={ds[d].values[i] if d in ds.coords else i}" for d, i in zip(dims, idx))
+        groups.setdefault(str(errors[idx]) or "(no message)", []).append(coords)
+    lines = []
+    for msg, where in sorted(groups.items(), key=lambda kv: -len(kv[1])):
+        if where == [""]:
+            lines.append(f"failed: {msg}")
+            continue
+        shown = "; ".join(where[:4]) + (f"; and {len(where) - 4} more" if len(where) > 4 else "")
+        lines.append(f"failed ({len(where)} case{'s' if len(where) > 1 else ''}: {shown}): {msg}")
+    return lines
+
+
 @app.command()
 def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
-        output: Path = typer.Option(None, "-o", "--output", help="results file (default: CONFIG with .nc)"),
+        output: Path = typer.Option(None, "-o", "--output",
+                                    help="results file (default: CONFIG's name with .nc, in the current directory)"),
         set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)"),
-        jobs: int = typer.Option(os.cpu_count() or 1, "--jobs", "-j", help="local worker processes"),
+        jobs: int = typer.Option(os.cpu_count() or 1, "--jobs", "-j",
+                                 help="local worker processes (at most the cores and the tasks)"),
         executor: str = typer.Option("local", help="local | dask"),
         scheduler: str = typer.Option(None, help="dask scheduler address (with --executor dask)"),
-        resume: bool = typer.Option(False, help="reuse the cases finished by an interrupted run (OUT.parts/)"),
+        resume: bool = typer.Option(False, help="reuse the cases finished by an interrupted run (kept in OUT.nc.parts)"),
+        fresh: bool = typer.Option(False, help="discard the cases left by an interrupted run and start over"),
+        force: bool = typer.Option(False, "--force", help="overwrite an existing results file"),
         ) -> None:
-    """Run the scene (and its sweep) of CONFIG and write the results as NetCDF."""
+    """Run the scene (and its sweep) of CONFIG and write the results as NetCDF.
+
+    Ctrl-C (or SIGTERM) stops the run within seconds and keeps every finished case: rerun with
+    --resume to compute only the rest."""
     from wallbatch import api
+    from wallbatch.batch.runner import Interrupted, RunError
 
     if executor not in ("local", "dask"):
-        typer.echo(f"error: --executor must be local or dask, not {executor!r}", err=True)
-        raise typer.Exit(2)
+        raise _fail(f"--executor must be local or dask, not {executor!r}")
     if executor == "dask" and not scheduler:
-        typer.echo("error: --executor dask needs --scheduler ADDRESS (e.g. tcp://127.0.0.1:8786)", err=True)
-        raise typer.Exit(2)
+        raise _fail("--executor dask needs --scheduler ADDRESS (e.g. tcp://127.0.0.1:8786)")
+    if jobs < 1:
+        raise _fail(f"--jobs {jobs}: give at least 1")
+    if resume and fresh:
+        raise _fail("--resume and --fresh contradict each other: give one")
     plan = _plan(config, set_)
-    out = output or config.with_suffix(".nc")
+    out = output or Path(config.stem + ".nc")
     try:
-        ds = api.run(plan, out, jobs=jobs, executor=executor, scheduler=scheduler, resume=resume)
+        ds = api.run(plan, out, jobs=jobs, executor=executor, scheduler=scheduler, resume=resume, fresh=fresh,
+                     overwrite=force, log=lambda msg: typer.echo(msg, err=True))
+    except Interrupted as exc:
+        typer.echo(str(exc), err=True)
+        raise typer.Exit(130) from None
+    except RunError as exc:
+        raise _fail(str(exc)) from None
     except CaseError as exc:
-        typer.echo(f"error: {config}: {exc}", err=True)
-        raise typer.Exit(2) from None
+        raise _fail(f"{config}: {exc}") from None
     failed = int((ds["status"] == "failed").sum())
     total = int(ds["status"].size)
     typer.echo(f"{total - failed} of {total} case(s) ok -> {out}")
-    errors = sorted(set(ds["error"].values.ravel().tolist()) - {""})
-    for err in errors[:10]:
-        typer.echo(f"failed: {err}", err=True)
+    lines = _failures(ds)
+    for line in lines[:10]:
+        typer.echo(line, err=True)
+    if len(lines) > 10:
+        typer.echo(f"... and {len(lines) - 10} other message(s): wallbatch show {out}", err=True)
     if failed:
         raise typer.Exit(1)
 
@@ -86,13 +178,19 @@ def check(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
 
 
 def _open(results: Path):
+    """A wallbatch results file, or a clear error (missing, not NetCDF, another program's NetCDF)."""
     import xarray as xr
 
+    if not results.is_file():
+        raise _fail(f"{results}: no such file" if not results.exists() else f"{results}: not a file")
     try:
-        return xr.open_dataset(results)
-    except (OSError, ValueError) as exc:
-        typer.echo(f"error: cannot open {results}: {exc}", err=True)
-        raise typer.Exit(2) from None
+        ds = xr.open_dataset(results)
+    except Exception as exc:  # noqa: BLE001 - any reader failure: not a readable NetCDF file
+        raise _fail(f"cannot open {results}: not a NetCDF file ({type(exc).__name__})") from None
+    if "wallbatch_version" not in ds.attrs or "status" not in ds:
+        raise _fail(f"{results} is a NetCDF file but not a wallbatch results file (no wallbatch_version "
+                    f"attribute or status variable)")
+    return ds
 
 
 @app.command()
@@ -112,6 +210,10 @@ def plot(results: Path = typer.Argument(..., help="results NetCDF written by wal
          sel: list[str] = typer.Option(None, "--sel", help="dim=value selection (repeatable)"),
          kind: str = typer.Option("auto", help="line | heatmap | auto")) -> None:
     """A quick matplotlib look at one variable: time series per case, or a summary over sweep dims."""
+    try:
+        import matplotlib  # noqa: F401 - only to give a one-line message when it is missing
+    except ImportError:
+        raise _fail("plot needs matplotlib: pip install 'wallbatch[plot]'") from None
     from wallbatch.io.report import plot as make_plot
 
     selection = {}

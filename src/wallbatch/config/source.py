@@ -90,45 +90,124 @@ _Loader.add_implicit_resolver(
 )
 
 
-def load_yaml(text: str, filename: str = "<config>") -> tuple[Any, SourceMap]:
-    """Parse YAML (safe) and keep the line/column of every value."""
+# limits on what a config file may hold: checked while reading, before anything is built from it
+MAX_CONFIG_BYTES = 20_000_000  # size of one YAML file
+MAX_DEPTH = 64  # nesting of mappings and lists
+MAX_NODES = 2_000_000  # values after alias expansion (a 1 kB alias bomb expands to billions)
+SAFE_TAGS = frozenset(f"tag:yaml.org,2002:{t}" for t in ("str", "int", "float", "bool", "null", "map", "seq", "merge",
+                                                          "timestamp"))
+
+
+def shorten(text: str, limit: int = 200) -> str:
+    """User text quoted in a message: at most `limit` characters, one line."""
+    text = str(text).replace("\n", "\\n")
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def read_config_text(path) -> str:
+    """The text of a config file: a regular file of UTF-8 text within MAX_CONFIG_BYTES."""
+    import os
+    import stat
+
     try:
-        loader = _Loader(text)
+        st = os.stat(path)
+    except OSError as exc:
+        raise ConfigError([f"{path}: cannot read the config: {exc.strerror}"]) from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a directory" if stat.S_ISDIR(st.st_mode) else "not a regular file (a pipe or a device)"
+        raise ConfigError([f"{path}: cannot read the config: it is {kind}"])
+    if st.st_size > MAX_CONFIG_BYTES:
+        raise ConfigError([f"{path}: the config is {st.st_size:,} bytes, more than the limit of "
+                           f"{MAX_CONFIG_BYTES:,}: put large data in an atoms file"])
+    try:
+        raw = open(path, "rb").read(MAX_CONFIG_BYTES + 1)
+    except OSError as exc:
+        raise ConfigError([f"{path}: cannot read the config: {exc.strerror}"]) from None
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        hint = " (it looks like UTF-16: save it as UTF-8)" if raw[:2] in (b"\xff\xfe", b"\xfe\xff") else ""
+        raise ConfigError([f"{path}:{line}:{col}: the config is not UTF-8 text (byte 0x{raw[exc.start]:02x})"
+                           f"{hint}"]) from None
+
+
+def load_yaml(text: str, filename: str = "<config>") -> tuple[Any, SourceMap]:
+    """Parse YAML (safe: plain data only) and keep the line/column of every value.
+
+    Refused with a location: syntax errors, tags other than plain data (`!!python/...`, `!foo`),
+    keys that are not plain text, duplicate keys, nesting deeper than MAX_DEPTH, aliases that refer
+    to themselves or expand to more than MAX_NODES values."""
+    if len(text) > MAX_CONFIG_BYTES:
+        raise ConfigError([f"{filename}: the config is {len(text):,} characters, more than the limit of "
+                           f"{MAX_CONFIG_BYTES:,}"])
+    loader = _Loader(text)
+    try:
         try:
             node = loader.get_single_node()
-        finally:
-            loader.dispose()
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"{filename}:{mark.line + 1}:{mark.column + 1}" if mark else filename
-        raise ConfigError([f"{where}: YAML syntax error: {getattr(exc, 'problem', exc)}"]) from None
-    if node is None:
-        raise ConfigError([f"{filename}: the file is empty"])
-    marks: dict[tuple, tuple[int, int]] = {}
-    problems: list[str] = []
+        except yaml.YAMLError as exc:
+            mark = getattr(exc, "problem_mark", None)
+            where = f"{filename}:{mark.line + 1}:{mark.column + 1}" if mark else filename
+            raise ConfigError([f"{where}: YAML syntax error: {shorten(getattr(exc, 'problem', None) or exc)}"]) \
+                from None
+        except RecursionError:
+            raise ConfigError([f"{filename}: the YAML is nested too deeply (limit {MAX_DEPTH} levels)"]) from None
+        if node is None:
+            raise ConfigError([f"{filename}: the file is empty"])
+        marks: dict[tuple, tuple[int, int]] = {}
+        problems: list[str] = []
+        count = [0]
 
-    def walk(n: yaml.Node, path: tuple) -> None:
-        marks[path] = (n.start_mark.line + 1, n.start_mark.column + 1)
-        if isinstance(n, yaml.MappingNode):
-            seen: dict[str, int] = {}
-            for k, v in n.value:
-                key = k.value
-                if key in seen:
-                    dotted = ".".join(str(p) for p in path + (key,))
-                    problems.append(
-                        f"{filename}:{k.start_mark.line + 1}:{k.start_mark.column + 1}: {dotted}: "
-                        f"defined twice (first at line {seen[key]}); keep one"
-                    )
-                seen[key] = k.start_mark.line + 1
-                walk(v, path + (key,))
-        elif isinstance(n, yaml.SequenceNode):
-            for i, v in enumerate(n.value):
-                walk(v, path + (i,))
+        def at(n: yaml.Node) -> str:
+            return f"{filename}:{n.start_mark.line + 1}:{n.start_mark.column + 1}"
 
-    walk(node, ())
-    if problems:
-        raise ConfigError(problems)
-    data = _Loader(text).get_single_data()
+        def walk(n: yaml.Node, path: tuple, active: set[int]) -> None:
+            count[0] += 1
+            if count[0] > MAX_NODES:
+                raise ConfigError([f"{at(n)}: the YAML expands to more than {MAX_NODES:,} values (aliases "
+                                   f"repeated inside aliases?): write the data out or shorten it"])
+            marks.setdefault(path, (n.start_mark.line + 1, n.start_mark.column + 1))
+            dotted = ".".join(str(p) for p in path) or "(top level)"
+            if n.tag not in SAFE_TAGS:
+                raise ConfigError([f"{at(n)}: {shorten(dotted)}: YAML tag {shorten(n.tag.replace('tag:yaml.org,2002:', '!!'), 60)} is not allowed "
+                                   f"(configs hold plain data: text, numbers, lists, mappings)"])
+            if not isinstance(n, (yaml.MappingNode, yaml.SequenceNode)):
+                return
+            if id(n) in active:
+                raise ConfigError([f"{at(n)}: {shorten(dotted)}: an alias refers to the value that contains it"])
+            if len(path) >= MAX_DEPTH:
+                raise ConfigError([f"{at(n)}: {shorten(dotted)}: nested more than {MAX_DEPTH} levels deep"])
+            active.add(id(n))
+            if isinstance(n, yaml.MappingNode):
+                seen: dict[str, int] = {}
+                for k, v in n.value:
+                    if not isinstance(k, yaml.ScalarNode) or k.tag not in SAFE_TAGS:
+                        raise ConfigError([f"{at(k)}: {shorten(dotted)}: a key must be plain text or a number"])
+                    key = k.value
+                    if "\n" in key or "\r" in key:
+                        raise ConfigError([f"{at(k)}: {shorten(dotted)}: a key may not contain a line break"])
+                    if key in seen:
+                        problems.append(f"{at(k)}: {shorten('.'.join(str(p) for p in path + (key,)))}: "
+                                        f"defined twice (first at line {seen[key]}); keep one")
+                    seen[key] = k.start_mark.line + 1
+                    walk(v, path + (key,), active)
+            else:
+                for i, v in enumerate(n.value):
+                    walk(v, path + (i,), active)
+            active.discard(id(n))
+
+        walk(node, (), set())
+        if problems:
+            raise ConfigError(problems)
+        try:
+            data = loader.construct_document(node)
+        except yaml.YAMLError as exc:
+            mark = getattr(exc, "problem_mark", None)
+            where = f"{filename}:{mark.line + 1}:{mark.column + 1}" if mark else filename
+            raise ConfigError([f"{where}: {shorten(getattr(exc, 'problem', None) or exc)}"]) from None
+        except (TypeError, ValueError, OverflowError) as exc:  # e.g. a timestamp out of range
+            raise ConfigError([f"{filename}: cannot read a value: {shorten(exc)}"]) from None
+    finally:
+        loader.dispose()
     return data, SourceMap(filename, marks, data)
-
-

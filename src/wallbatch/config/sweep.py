@@ -1,4 +1,4 @@
-"""Sweeps (shared/spec/config.md "Sweeps"): expand one scene into a labelled grid of cases.
+"""Sweeps: expand one scene into a labelled grid of cases.
 
 `product` entries are full-grid dimensions, a `zip` moves several parameters together on one
 dimension, `replicas` adds independent random streams. Paths address the validated model, so a
@@ -21,7 +21,7 @@ import yaml
 from pydantic import Field, PositiveInt, ValidationError, field_validator
 
 from wallbatch.config.models import Config, Model, validate_data
-from wallbatch.config.source import ConfigError, SourceMap, _Loader, load_yaml
+from wallbatch.config.source import ConfigError, SourceMap, _Loader, load_yaml, read_config_text
 
 # ----------------------------------------------------------------------------- the sweep models
 
@@ -123,6 +123,7 @@ class SweepPlan:
     cases: list[SweepCase]  # in C order over dims
     base_text: str
     sweep_text: str
+    inputs: tuple[str, ...] = ()  # resolved paths of the files the plan was read from
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -170,7 +171,16 @@ def _seed_key(coords: dict[str, Any]) -> tuple[int, ...]:
     return tuple(int.from_bytes(digest[i:i + 4], "little") for i in range(0, 16, 4))
 
 
-def _dims(sweep: Sweep, order: list[str]) -> list[SweepDim]:
+def _dim_where(smap: SourceMap, name: str, zip_param: str | None = None) -> tuple:
+    """The sweep-file location of a dimension (or zip parameter) entry, as a SourceMap loc."""
+    if zip_param is not None:
+        return ("sweep", "zip", "params", zip_param)
+    if name == "replica":
+        return ("sweep", "replicas")
+    return ("sweep", "product", name)
+
+
+def _dims(sweep: Sweep, order: list[str], smap: SourceMap) -> list[SweepDim]:
     dims: list[SweepDim] = []
     for key in order:
         if key == "product":
@@ -182,15 +192,16 @@ def _dims(sweep: Sweep, order: list[str]) -> list[SweepDim]:
                 else:
                     dim = name.split(".")[-1]
                     if dim in short:
-                        raise ConfigError([f"sweep.product: shorthand paths {short[dim]} and {name} both make a "
-                                           f"dimension '{dim}': write {{path: ..., values: ...}} with distinct names"])
+                        raise ConfigError([smap.format(
+                            ("sweep", "product", name), f"shorthand paths {short[dim]} and {name} both make a "
+                            f"dimension '{dim}': write {{path: ..., values: ...}} with distinct names")])
                     short[dim] = name
                     dims.append(SweepDim(dim, expand_values(entry), (name,)))
         elif key == "zip" and sweep.zip is not None:
             lens = {k: len(expand_values(p.values)) for k, p in sweep.zip.params.items()}
             if len(set(lens.values())) > 1:
-                raise ConfigError([f"sweep.zip: parameters must have equal lengths, got "
-                                   f"{', '.join(f'{k}: {n}' for k, n in lens.items())}"])
+                raise ConfigError([smap.format(("sweep", "zip", "params"), "parameters must have equal lengths, "
+                                               f"got {', '.join(f'{k}: {n}' for k, n in lens.items())}")])
             extra = {k: (expand_values(p.values), (p.path,) if isinstance(p.path, str) else tuple(p.path))
                      for k, p in sweep.zip.params.items()}
             n = next(iter(lens.values()))
@@ -201,40 +212,127 @@ def _dims(sweep: Sweep, order: list[str]) -> list[SweepDim]:
     names = [d.name for d in dims] + [k for d in dims for k in d.extra]
     dup = {n for n in names if names.count(n) > 1}
     if dup:
-        raise ConfigError([f"sweep: name(s) {', '.join(sorted(dup))} used twice (dimensions and zip "
-                           f"parameters share one namespace): rename"])
+        raise ConfigError([smap.format(("sweep",), f"name(s) {', '.join(sorted(dup))} used twice (dimensions and "
+                                                   f"zip parameters share one namespace): rename")])
     clash = sorted(set(names) & RESERVED)
     if clash:
-        raise ConfigError([f"sweep: {', '.join(clash)} would clash with names of the results file "
-                           f"({', '.join(sorted(RESERVED))}): choose another name"])
+        where = next(_dim_where(smap, d.name) for d in dims if d.name in clash) if any(
+            d.name in clash for d in dims) else ("sweep", "zip")
+        raise ConfigError([smap.format(where, f"{', '.join(clash)} would clash with names of the results file "
+                                              f"({', '.join(sorted(RESERVED))}): choose another name")])
     return dims
 
 
+class OverlayMap(SourceMap):
+    """A SourceMap whose errors under some dotted paths point at another place: the sweep file's
+    line of a swept value or a `set:` entry, or the `--set` command-line argument."""
+
+    def __init__(self, base: SourceMap, where: dict[str, str]):
+        super().__init__(base.filename, base.marks, base.data)
+        self.where = where  # dotted path -> location text ("file:line:col" or "--set a.b=1")
+
+    def origin(self, dotted: str) -> str | None:
+        for path, where in self.where.items():
+            if dotted == path or dotted.startswith(path + "."):
+                return where
+        return None
+
+    def format(self, loc: tuple, message: str) -> str:
+        path, _ = self.locate(loc)
+        dotted = ".".join(str(p) for p in path) or "(top level)"
+        where = self.origin(dotted)
+        if where is not None:
+            return f"{where}: {dotted}: {message}"
+        return super().format(loc, message)
+
+
+def _where_text(smap: SourceMap, loc: tuple) -> str:
+    """`file:line:col` of a loc in a SourceMap (the nearest known mark)."""
+    return smap.format(loc, "").rsplit(": ", 2)[0]
+
+
+def _overlaps(a: str, b: str) -> bool:
+    return a == b or a.startswith(b + ".") or b.startswith(a + ".")
+
+
+def _group(problems: list[tuple[str, str]], total: int) -> list[str]:
+    """Identical problems of several cases once, with the list of cases."""
+    by_msg: dict[str, list[str]] = {}
+    for label, msg in problems:
+        by_msg.setdefault(msg, []).append(label)
+    out = []
+    for msg, labels in by_msg.items():
+        if len(labels) == total and total > 1:
+            out.append(f"{msg} (every case)")
+        else:
+            shown = "; ".join(labels[:4]) + (f"; and {len(labels) - 4} more" if len(labels) > 4 else "")
+            out.append(f"{msg} (case{'s' if len(labels) > 1 else ''} {shown})")
+    return out
+
+
 def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = Path("."),
-           overrides: dict[str, Any] | None = None) -> SweepPlan:
+           overrides: dict[str, Any] | None = None, *, sweep_map: SourceMap | None = None,
+           origins: dict[str, str] | None = None, inputs: tuple[str, ...] = ()) -> SweepPlan:
     """Validate the scene, apply `overrides` (path -> value, on the validated form), expand its
-    `sweep:` (if any) and validate every case."""
+    `sweep:` (if any) and validate every case.
+
+    `sweep_map` locates the `sweep:` entries (a sweep file's map; default `srcmap`); `origins`
+    names where each override was written (a sweep file's `set:` line or a `--set` argument), so
+    that an error in an overridden or swept value points there."""
+    if not isinstance(data, dict):
+        raise ConfigError([srcmap.format((), f"the config must be a mapping of keys, not a {type(data).__name__}")])
     data = copy.deepcopy(data)
-    raw_sweep = data.pop("sweep", None) if isinstance(data, dict) else None
+    smap = sweep_map or srcmap
+    origins = dict(origins or {})
+    raw_sweep = data.pop("sweep", None)
     base = validate_data(data, srcmap)
     if overrides:
+        for key in overrides:
+            origins.setdefault(key, f"--set {key}")
         base_data = config_to_dict(base)
         for key, value in overrides.items():
-            set_path(base_data, key, value)
-        base = validate_data(base_data, srcmap)
+            try:
+                set_path(base_data, key, value)
+            except ConfigError as exc:
+                raise ConfigError([f"{origins[key]}: {p.removeprefix(f'sweep path {key}: ')}"
+                                   for p in exc.problems]) from None
+        base = validate_data(base_data, OverlayMap(srcmap, origins))
         base_text = (f"# {srcmap.filename} with {', '.join(f'{k}={v}' for k, v in overrides.items())}\n"
                      + yaml.safe_dump(config_to_dict(base), sort_keys=False))
     base._base_dir = base_dir
     if raw_sweep is None:
-        return SweepPlan([], [SweepCase((), {}, base, ())], base_text, "")
+        return SweepPlan([], [SweepCase((), {}, base, ())], base_text, "", inputs)
     try:
         sweep = Sweep.model_validate(raw_sweep)
     except ValidationError as exc:
-        raise ConfigError([srcmap.format(("sweep",) + tuple(e["loc"]), e["msg"].removeprefix("Value error, "))
+        raise ConfigError([smap.format(("sweep",) + tuple(e["loc"]), e["msg"].removeprefix("Value error, "))
                            for e in exc.errors(include_url=False)]) from None
     order = [k for k in raw_sweep if k in ("product", "zip")]
-    dims = _dims(sweep, order)
+    dims = _dims(sweep, order, smap)
     base_data = config_to_dict(base)
+    # where each swept path was written, and paths checked once (not once per case)
+    swept: dict[str, str] = {}
+    for d in dims:
+        if d.name == "replica" and d.paths == ("seed",):
+            continue
+        entries = d.extra.items() if d.extra else [(None, (d.values, d.paths))]
+        for param, (vals, paths) in entries:
+            loc = _dim_where(smap, d.name, param)
+            where = _where_text(smap, loc + ("values",)) if smap.marks.get(loc + ("values",)) else \
+                _where_text(smap, loc)
+            for p in paths:
+                for key in overrides or {}:
+                    if _overlaps(key, p):
+                        raise ConfigError([f"{origins[key]}: {key} is also swept by {'.'.join(map(str, loc))} "
+                                           f"({where}): drop one of the two"])
+                try:
+                    set_path(copy.deepcopy(base_data), p, vals[0])
+                except ConfigError as exc:
+                    path_where = _where_text(smap, loc + ("path",)) if smap.marks.get(loc + ("path",)) else where
+                    raise ConfigError([f"{path_where}: {'.'.join(map(str, loc))}: {q}" for q in exc.problems]) \
+                        from None
+                swept[p] = where
+    case_map = OverlayMap(srcmap, {**origins, **swept})
     cases, problems = [], []
     for index in itertools.product(*(range(len(d.values)) for d in dims)):
         case_data = copy.deepcopy(base_data)
@@ -252,48 +350,74 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
                     set_path(case_data, p, d.values[i])
         label = ", ".join(f"{k}={v}" for k, v in coords.items())
         try:
-            cfg = validate_data(case_data, srcmap)
+            cfg = validate_data(case_data, case_map)
         except ConfigError as exc:
-            problems.extend(f"case {label}: {p}" for p in exc.problems)
+            problems.extend((label, p) for p in exc.problems)
             continue
         cfg._base_dir = base_dir
         cases.append(SweepCase(index, coords, cfg, _seed_key(coords)))
     if problems:
-        raise ConfigError(problems[:20] + ([f"... and {len(problems) - 20} more"] if len(problems) > 20 else []))
-    return SweepPlan(dims, cases, base_text, yaml.safe_dump(raw_sweep, sort_keys=False))
+        grouped = _group(problems, int(np.prod([len(d.values) for d in dims], dtype=int)))
+        raise ConfigError(grouped[:20] + ([f"... and {len(grouped) - 20} more"] if len(grouped) > 20 else []))
+    return SweepPlan(dims, cases, base_text, yaml.safe_dump(raw_sweep, sort_keys=False), inputs)
+
+
+def parse_set(item: str) -> tuple[str, Any]:
+    """One `--set path=value` argument: the path and the value read as YAML."""
+    key, sep, value = item.partition("=")
+    shown = item if len(item) <= 200 else item[:197] + "..."
+    if not sep or not key.strip():
+        raise ConfigError([f"--set {shown}: write path=value"])
+    try:
+        return key.strip(), yaml.load(value, Loader=_Loader)
+    except yaml.YAMLError as exc:
+        raise ConfigError([f"--set {shown}: the value is not valid YAML ({getattr(exc, 'problem', None) or exc})"]) \
+            from None
+    except RecursionError:
+        raise ConfigError([f"--set {shown}: the value is nested too deeply"]) from None
 
 
 def load_plan(path: str | Path, overrides: list[str] = ()) -> SweepPlan:
     """Read a config (optionally with `sweep:`) or a sweep file (`base:`, `set:`, `sweep:`),
     apply `--set path=value` overrides, expand and validate every case."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError([f"{path}: cannot read the config: {exc.strerror}"]) from None
+    text = read_config_text(path)
     data, srcmap = load_yaml(text, str(path))
     base_dir = path.parent
     base_text = text
+    inputs = [str(path.resolve())]
+    origins: dict[str, str] = {}
+    sweep_map = None
     if isinstance(data, dict) and "base" in data:
-        extra = set(data) - {"base", "set", "sweep"}
+        extra = set(map(str, data)) - {"base", "set", "sweep"}
         if extra:
             raise ConfigError([srcmap.format((sorted(extra)[0],), "a sweep file takes only base, set and sweep")])
-        base_path = (path.parent / str(data["base"])).resolve()
+        if not isinstance(data["base"], str):
+            raise ConfigError([srcmap.format(("base",), "base: give the path of the scene file (text)")])
+        if not isinstance(data.get("set") or {}, dict):
+            raise ConfigError([srcmap.format(("set",), "set: give a mapping of path: value")])
+        base_path = (path.parent / data["base"]).resolve()
         try:
-            base_text = base_path.read_text()
-        except OSError as exc:
-            raise ConfigError([srcmap.format(("base",), f"cannot read {base_path}: {exc.strerror}")]) from None
+            base_text = read_config_text(base_path)
+        except ConfigError as exc:
+            raise ConfigError([srcmap.format(("base",), p.split(": ", 1)[-1]) for p in exc.problems]) from None
+        inputs.append(str(base_path))
         sets = {str(k): v for k, v in (data.get("set") or {}).items()}
+        origins = {str(k): _where_text(srcmap, ("set", k)) for k in (data.get("set") or {})}
+        sweep_map = srcmap if "sweep" in data else None
         scene, srcmap = load_yaml(base_text, str(base_path))
+        if not isinstance(scene, dict):
+            raise ConfigError([srcmap.format((), f"the base scene must be a mapping of keys, "
+                                                 f"not a {type(scene).__name__}")])
         base_dir = base_path.parent
-        if "sweep" in data:
+        if "sweep" in data:  # the sweep file's sweep replaces one of the scene
             scene["sweep"] = data["sweep"]
         data = scene
     else:
         sets = {}
     for item in overrides:
-        key, sep, value = item.partition("=")
-        if not sep:
-            raise ConfigError([f"--set {item}: write path=value"])
-        sets[key.strip()] = yaml.load(value, Loader=_Loader)
-    return expand(data, srcmap, base_text, base_dir, sets)
+        key, value = parse_set(item)
+        sets[key] = value
+        origins[key] = f"--set {item if len(item) <= 200 else item[:197] + '...'}"
+    return expand(data, srcmap, base_text, base_dir, sets, sweep_map=sweep_map, origins=origins,
+                  inputs=tuple(inputs))

@@ -368,15 +368,27 @@ class Engine:
             }
         self.drop_failed()
 
+    def _charge(self, since: float) -> float:
+        """Share the wall-clock seconds since `since` among the live cases (each case's `seconds`
+        is the time it was running, divided among the cases running with it)."""
+        now = _time.perf_counter()
+        rows = self.state.rows
+        if len(rows):
+            self.case_seconds[rows] += (now - since) / len(rows)
+        return now
+
     def run(self) -> list[CaseResult]:
-        t0 = _time.perf_counter()
+        t = _time.perf_counter()
+        self.case_seconds = np.zeros(len(self.cases))
         c0 = self.cases[0]
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             if c0.minimize is not None:
                 self.minimize()
+                t = self._charge(t)
             if self.state.ncases == 0:
-                return self._collect((_time.perf_counter() - t0) / len(self.cases))
+                return self._collect(self.case_seconds)
             self.setup()
+            t = self._charge(t)
             if c0.run_time is None:
                 samples = set(sample_instants(c0))
                 dumps = set(range(0, c0.steps + 1, c0.dump_every)) if c0.dump_every else set()
@@ -388,14 +400,15 @@ class Engine:
                     done = target
                     if target in dumps and self.state.ncases:
                         self.dump_frame()
+                    t = self._charge(t)
             else:
                 for target in sample_instants(c0)[1:]:
                     self.advance_to_time(target)
-        seconds = (_time.perf_counter() - t0) / len(self.cases)
-        return self._collect(seconds)
+                    t = self._charge(t)
+        return self._collect(self.case_seconds)
 
-    def _collect(self, seconds: float) -> list[CaseResult]:
-        """Per-case samples on the full schedule (NaN where a case had failed)."""
+    def _collect(self, seconds: np.ndarray) -> list[CaseResult]:
+        """Per-case samples on the full schedule (NaN where a case had failed); `seconds` per case."""
         C = len(self.cases)
         c0 = self.cases[0]
         nsamp = len(sample_instants(c0))
@@ -422,9 +435,10 @@ class Engine:
         for c in range(C):
             if c in self.errors:
                 data = {k: np.full_like(v[c], np.nan) for k, v in stacked.items()}
-                results.append(CaseResult("failed", self.errors[c], seconds, data, frames[c]))
+                results.append(CaseResult("failed", self.errors[c], float(seconds[c]), data, frames[c]))
             else:
-                results.append(CaseResult("ok", "", seconds, {k: v[c] for k, v in stacked.items()}, frames[c]))
+                results.append(CaseResult("ok", "", float(seconds[c]), {k: v[c] for k, v in stacked.items()},
+                                          frames[c]))
             results[-1].data.update(self.min_info.get(c, {}))
         return results
 
