@@ -148,25 +148,35 @@ def test_accessor(sweep_ds):
 # ----------------------------------------------------------------------------- plots
 
 
-def test_time_series_one_line_per_case(sweep_ds, tmp_path):
+def test_time_series_colour_style_and_replica_mean(sweep_ds, tmp_path):
+    """3 epsilons (colour) x 2 sigmas (line style), the 2 replicas averaged with a +-1 s.e. band."""
     fig = _plot(sweep_ds, "temp", tmp_path, hue="epsilon")
     ax = fig.axes[0]
-    assert len(ax.get_lines()) == 12
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["epsilon=0.5", "epsilon=1", "epsilon=2"]
-    assert ax.get_xlabel() == "timestep number [1]"
-    assert ax.get_ylabel().startswith("translational temperature") and ax.get_ylabel().endswith("[1]")
+    assert len(ax.get_lines()) == 6
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == [
+        "epsilon=0.5", "epsilon=1", "epsilon=2", "sigma=0.8", "sigma=1.2", "s.e. over replicas"]
+    assert ax.get_xlabel() == "step" and ax.get_ylabel() == "temp"
+    assert "translational temperature" in fig._suptitle.get_text()
+    assert "mean of 2 replicas, band: +-1 s.e." in fig._suptitle.get_text()
     colors = {tuple(ln.get_color()) if not isinstance(ln.get_color(), str) else ln.get_color() for ln in ax.get_lines()}
     assert len(colors) == 3
+    assert [ln.get_linestyle() for ln in ax.get_lines()] == ["-", "--"] * 3
     np.testing.assert_array_equal(ax.get_lines()[0].get_xdata(), [0, 50, 100])
+    temp = sweep_ds["temp"].isel(epsilon=0, sigma=1)
+    np.testing.assert_allclose(ax.get_lines()[1].get_ydata(), temp.mean("replica").values)
+    band = ax.collections[1].get_paths()[0].vertices[:, 1]  # fill_between polygon: y - se, then y + se
+    se = (temp.std("replica", ddof=1) / np.sqrt(2)).values
+    assert np.isclose(band.min(), (temp.mean("replica").values - se).min())
 
 
 def test_time_series_faces_and_selection(sweep_ds, tmp_path):
-    sel = {"epsilon": "0.9", "sigma": "1.2", "replica": "1"}  # 0.9 -> nearest 1.0
-    ax = _plot(sweep_ds, "wall_force", tmp_path, sel=sel).axes[0]
-    assert len(ax.get_lines()) == 2  # one per face
+    sel = {"epsilon": "1.0", "sigma": "1.2", "replica": "1"}
+    fig = _plot(sweep_ds, "wall_force", tmp_path, sel=sel)
+    assert len(fig.axes) == 2 and [a.get_title() for a in fig.axes] == ["face zwalls/zlo", "face zwalls/zhi"]
     want = sweep_ds["wall_force"].sel(epsilon=1.0, sigma=1.2, replica=1).transpose("face", "sample").values
-    np.testing.assert_allclose(ax.get_lines()[0].get_ydata(), want[0])
-    assert "epsilon=1" in ax.get_title()
+    np.testing.assert_allclose(fig.axes[0].get_lines()[0].get_ydata(), want[0])
+    np.testing.assert_allclose(fig.axes[1].get_lines()[0].get_ydata(), want[1])
+    assert "epsilon=1" in fig._suptitle.get_text()
     ax = _plot(sweep_ds, "wall_force", tmp_path, sel={**sel, "face": "zwalls/zhi"}).axes[0]
     np.testing.assert_allclose(ax.get_lines()[0].get_ydata(), want[1])
     assert len(ax.get_lines()) == 1
@@ -175,11 +185,11 @@ def test_time_series_faces_and_selection(sweep_ds, tmp_path):
 def test_time_series_time_axis(tmp_path):
     ds = synthetic(time_based=True)
     ax = _plot(ds, "pe", tmp_path).axes[0]
-    assert len(ax.get_lines()) == 6 and ax.get_xlabel() == "elapsed simulated time [ps]"
+    assert len(ax.get_lines()) == 6 and ax.get_xlabel() == "time [ps]"
     np.testing.assert_allclose(ax.get_lines()[0].get_xdata(), [0, 5, 10, 15])
-    assert ax.get_ylabel() == "potential energy [eV]"
+    assert ax.get_ylabel() == "pe [eV]"
     ax = _plot(ds, "pe", tmp_path, x="step", sel={"a": "1.0"}).axes[0]
-    assert len(ax.get_lines()) == 2 and ax.get_xlabel() == "step [1]"
+    assert len(ax.get_lines()) == 2 and ax.get_xlabel() == "step"
 
 
 def test_summary_plot_against_sweep_dim(sweep_ds, tmp_path):
@@ -189,9 +199,11 @@ def test_summary_plot_against_sweep_dim(sweep_ds, tmp_path):
     mean = sweep_ds["pe"].sel(replica=0).mean("sample")
     np.testing.assert_allclose(lines[0].get_xdata(), [0.5, 1.0, 2.0])
     np.testing.assert_allclose(lines[1].get_ydata(), mean.isel(sigma=1).values)
-    assert ax.get_xlabel() == "swept walls.zwalls.zlo.epsilon [1]" and "time mean of pe" in ax.get_title()
+    fig = ax.figure
+    assert ax.get_xlabel() == "epsilon" and "time mean of potential energy" in fig._suptitle.get_text()
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["sigma=0.8", "sigma=1.2"]
     ax = _plot(sweep_ds, "seconds", tmp_path, x="sigma").axes[0]  # no sample dim: plotted as is
-    assert len(ax.get_lines()) == 6
+    assert len(ax.get_lines()) == 3 and ax.get_ylabel() == "seconds [s]"  # colour epsilon, replicas averaged
 
 
 def test_failed_cases_are_gaps(tmp_path):
@@ -208,8 +220,8 @@ def test_heatmap(sweep_ds, tmp_path):
     mesh = ax.collections[0]
     want = sweep_ds["pe"].mean(["sample", "replica"]).transpose("sigma", "epsilon").values
     np.testing.assert_allclose(np.asarray(mesh.get_array()).reshape(want.shape), want)
-    assert "mean over replicas" in ax.get_title()
-    assert fig.axes[1].get_ylabel().endswith("[1]")
+    assert "mean over replicas" in ax.get_title().replace("\n", " ")
+    assert fig.axes[1].get_ylabel() == "pe"  # dimensionless (lj): no unit shown
 
 
 def test_auto_heatmap_for_many_hue_values(tmp_path):
@@ -228,7 +240,8 @@ def test_auto_heatmap_for_many_hue_values(tmp_path):
     (dict(var="pe", x="epsilon", hue="epsilon"), r"hue and x are both epsilon"),
     (dict(var="pe", sel={"temperature": "1"}), r"no dimension or coordinate temperature; valid: .*epsilon"),
     (dict(var="pe", sel={"epsilon": "big"}), r"epsilon=big: not a number; epsilon takes 0.5, 1, 2"),
-    (dict(var="pe", sel={"epsilon": "7"}), r"epsilon=7: outside the values of epsilon \(0.5, 1, 2\)"),
+    (dict(var="pe", sel={"epsilon": "7"}), r"epsilon=7: no such value; epsilon takes 0.5, 1, 2"),
+    (dict(var="pe", sel={"epsilon": "0.9"}), r"epsilon=0.9: no such value; epsilon takes 0.5, 1, 2"),
     (dict(var="wall_force", sel={"face": "zwalls/xlo"}), r"face takes zwalls/zlo, zwalls/zhi"),
     (dict(var="pe", sel={"sample": "9"}), r"position outside 0..2"),
     (dict(var="pe", sel={"step": "50"}), r"leaves pe a single sample"),
@@ -247,7 +260,7 @@ def test_plot_errors(sweep_ds, tmp_path, kwargs, match):
 
 
 def test_select_by_coordinate(sweep_ds):
-    sub = report.select(sweep_ds, {"step": "60", "face_name": "zlo", "sigma": "0.8"})
+    sub = report.select(sweep_ds, {"step": "50", "face_name": "zlo", "sigma": "0.8"})
     assert "sample" not in sub.dims and int(sub["step"]) == 50
     assert "face" not in sub.dims and str(sub["face"].values) == "zwalls/zlo"
     assert float(sub["sigma"]) == 0.8

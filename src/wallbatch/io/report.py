@@ -1,6 +1,6 @@
 """Reading results back: a text summary, quick plots and the config's JSON schema.
 
-Works on the results layout of shared/spec/outputs.md, whether the Dataset comes from
+Works on the results layout of wallbatch (see the docs' outputs page), whether the Dataset comes from
 `runner.run_plan` or from `xarray.open_dataset(results.nc)`. Importing this module registers the
 `ds.wallbatch` accessor (`.summary()`, `.sweep_dims`, `.ok`), so results stay a plain Dataset.
 matplotlib is imported only by `plot`.
@@ -8,7 +8,6 @@ matplotlib is imported only by `plot`.
 
 from __future__ import annotations
 
-from itertools import product
 from pathlib import Path
 from typing import Any
 
@@ -60,14 +59,6 @@ def _values(values: Any, limit: int = 12) -> str:
     if len(vals) > limit:
         vals = vals[: limit - 2] + ["...", vals[-1]]
     return ", ".join(vals)
-
-
-def _label(da: xr.DataArray | None, name: str) -> str:
-    """Axis label `long_name [units]` (units omitted when absent)."""
-    attrs = da.attrs if da is not None else {}
-    text = attrs.get("long_name") or name
-    units = attrs.get("units")
-    return f"{text} [{units}]" if units else str(text)
 
 
 def _case_label(coords: dict[str, Any]) -> str:
@@ -207,21 +198,21 @@ def _parse_value(key: str, text: Any, coord: xr.DataArray) -> Any:
     return text if not isinstance(text, bytes) else text.decode()
 
 
-def _nearest_ok(key: str, value: float, values: np.ndarray, text: Any) -> None:
-    """Refuse a numeric selection far outside the coordinate's values."""
-    vals = np.unique(np.asarray(values, float))
-    vals = vals[np.isfinite(vals)]
-    if not vals.size:
-        return
-    slack = np.max(np.diff(vals)) / 2 if vals.size > 1 else 1e-9 * max(1.0, abs(vals[0]))
-    if value < vals[0] - slack or value > vals[-1] + slack:
-        raise ValueError(f"selection {key}={text}: outside the values of {key} ({_values(values)})")
+def _exact(key: str, value: float, values: np.ndarray, text: Any) -> np.ndarray:
+    """Positions where a numeric coordinate equals `value` (to 1e-9 relative, so that 0.1 matches
+    the stored 0.1 of a linspace); an error listing the values when there is none."""
+    vals = np.asarray(values, float)
+    hits = np.flatnonzero(np.isclose(vals, value, rtol=1e-9, atol=1e-12))
+    if not hits.size:
+        raise ValueError(f"selection {key}={text}: no such value; {key} takes {_values(values, 50)}")
+    return hits
 
 
 def select(ds: xr.Dataset, sel: dict[str, Any] | None) -> xr.Dataset:
-    """Apply command-line selections `{name: "value"}`: a dimension with a coordinate (sweep dims,
-    `fix`, `face`; numeric values to the nearest), a dimension without one by position (`sample=3`)
-    or a 1-d coordinate (`step=100`, `time=2.5`, `face_name=zlo`, a zip's parameter)."""
+    """Apply command-line selections `{name: "value"}`, matched exactly (an error lists the valid
+    values): a dimension with a coordinate (sweep dims, `fix`, `face`), a dimension without one by
+    position (`sample=3`) or a 1-d coordinate (`step=100`, `time=2.5`, `face_name=zlo`, a zip's
+    parameter)."""
     for key, text in (sel or {}).items():
         if key in ds.dims and key in ds.coords:
             coord = ds[key]
@@ -244,31 +235,23 @@ def select(ds: xr.Dataset, sel: dict[str, Any] | None) -> xr.Dataset:
         dim = coord.dims[0]
         value = _parse_value(key, text, coord)
         if coord.dtype.kind in "iuf":
-            _nearest_ok(key, float(value), coord.values, text)
-            index = ds.indexes.get(key) if key == dim else None
-            if index is not None and (index.is_monotonic_increasing or index.is_monotonic_decreasing) \
-                    and index.is_unique:
-                ds = ds.sel({key: value}, method="nearest")
-            else:
-                ds = ds.isel({dim: int(np.nanargmin(np.abs(np.asarray(coord.values, float) - float(value))))})
+            hits = _exact(key, float(value), coord.values, text)
         else:
             strings = np.asarray(coord.values).astype(str)
             hits = np.flatnonzero(strings == str(value))
             if not hits.size:
                 raise ValueError(f"selection {key}={text}: no such value; {key} takes {_values(strings, 50)}")
-            ds = ds.isel({dim: int(hits[0]) if hits.size == 1 else hits})
+        ds = ds.isel({dim: int(hits[0]) if hits.size == 1 else hits})
     return ds
 
 
 # ----------------------------------------------------------------------------- plotting
 
 
-def _combos(da: xr.DataArray, dims: list[str]) -> list[dict[str, int]]:
-    return [dict(zip(dims, idx)) for idx in product(*(range(da.sizes[d]) for d in dims))]
-
-
-def _coord_value(ds: xr.Dataset, dim: str, i: int) -> Any:
-    return ds[dim].values[i] if dim in ds.coords else i
+FACET_DIMS = ("face", "fix", "spatial", "rfix")  # per-case entries drawn as panels, in this priority
+MAX_FACETS = 6
+MAX_LEGEND = 12  # more hue values than this: a colour bar instead of a legend
+STYLES = ("-", "--", ":", "-.")
 
 
 def _colors(n: int) -> list:
@@ -292,18 +275,41 @@ def _sample_axis(ds: xr.Dataset, x: str | None) -> str:
     return "step" if "step" in ds.variables else "time"
 
 
+def _axis_label(ds: xr.Dataset, name: str) -> str:
+    """A short axis label: the variable or dimension name, with its units unless dimensionless."""
+    units = ds[name].attrs.get("units") if name in ds.variables else None
+    return f"{name} [{units}]" if units and units != "1" else name
+
+
+def _coord_value(ds: xr.Dataset, dim: str, i: int) -> Any:
+    return ds[dim].values[i] if dim in ds.coords else i
+
+
+def _wrap(text: str, width: int = 80) -> str:
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, width)) or text
+
+
 def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: str | None = None,
          sel: dict[str, str] | None = None, kind: str = "auto", return_figure: bool = False,
          title: str | None = None):
     """Plot `var` of a results Dataset to `out` (format from its suffix, PNG by default).
 
-    `sel` (strings, as from `--sel epsilon=1.0`) picks cases/entries first (see `select`). Then:
-    - `x` None, 'sample', 'step' or 'time': a time series, one line per remaining case and
-      fix/face entry, coloured by `hue` if given;
-    - `x` a sweep dimension: the time mean over the samples against `x`, one line per remaining
-      combination (coloured by `hue`), or with `kind='heatmap'` (or 'auto' and a `hue` sweep dim
-      with many values) a pcolormesh of the time mean over (`x`, `hue`) with a colour bar;
-      remaining replicas are averaged in a heat map.
+    `sel` (strings, as from `--sel epsilon=1.0`) picks cases/entries first, by exact value (see
+    `select`). Then `x` None, 'sample', 'step' or 'time' draws a time series; `x` a sweep dimension
+    draws the time mean over the samples against it (or, with `kind='heatmap'` or 'auto' and a
+    `hue` sweep dim of many values, a heat map over (`x`, `hue`)). Lines:
+
+    - one panel per wall face (or fix / region-force component) when there are several;
+    - colour: `hue` (default: the first sweep dimension left), with a legend (a colour bar when
+      it has more than MAX_LEGEND values); line style: the next sweep dimension (up to 4 values);
+    - replicas are averaged, the band is +- one standard error over them; any further dimension
+      is averaged too, its band the min-max range, and the title says so;
+    - `<var>_sem` in the file (a block-average standard error) gives the band where nothing is
+      averaged;
+    - failed cases are marked (a red x at their x in sweep plots; named in a note otherwise).
+
     Returns the written path, or `(path, figure)` when `return_figure` is true.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -327,14 +333,14 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
     if hue is not None and hue not in sub[var].dims:
         raise ValueError(f"hue={hue}: {var} has no dimension {hue} after selection; "
                          f"remaining: {', '.join(map(str, sub[var].dims)) or 'none'}")
-    da = sub[var].where(ok_mask(sub)) if "status" in sub else sub[var]
+    ok = ok_mask(sub)
+    da = sub[var].where(ok) if "status" in sub else sub[var]
     da.attrs = sub[var].attrs
+    sem_name = f"{var}_sem"
+    sem = sub[sem_name].where(ok) if sem_name in sub.data_vars and "status" in sub else sub.get(sem_name)
     chosen = {k: _fmt(sub[k].values) for k in (sel or {}) if k in sub.coords and sub[k].ndim == 0}
     suffix = _case_label(chosen) if chosen else ""
-
-    fig = Figure(figsize=(7.5, 4.8), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot()
+    long_name = da.attrs.get("long_name", var)
 
     if x is None or x in SAMPLE_AXES:
         if kind == "heatmap":
@@ -346,75 +352,178 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
             raise ValueError(f"{var} has no sample dimension (dims: {', '.join(map(str, da.dims)) or 'none'}): "
                              f"plot it against a sweep dimension with x=<{'|'.join(sdims) or 'sweep dim'}>")
         xname = _sample_axis(sub, x)
-        xdata = sub[xname]
-        rest = [str(d) for d in da.dims if d != "sample"]
-        _lines(ax, sub, da, xdata, rest, hue, style="-")
-        ax.set_xlabel(_label(xdata, xname))
-        ax.set_ylabel(_label(da, var))
-        ax.set_title(title or (f"{var}" + (f"  ({suffix})" if suffix else "")))
+        along, xdata, xlabel, what = "sample", sub[xname], _axis_label(sub, xname), long_name
+        marker = ""
     else:
-        mean = da.mean("sample", skipna=True, keep_attrs=True) if "sample" in da.dims else da
-        rest = [str(d) for d in mean.dims if d != x]
+        along, what = x, (f"time mean of {long_name}" if "sample" in da.dims else long_name)
+        if "sample" in da.dims:
+            n = da.count("sample")
+            if sem is not None and "sample" in sem.dims:  # s.e. of a mean of independent block means
+                sem = np.sqrt((sem ** 2).sum("sample", skipna=True)) / n.where(n > 0)
+            da = da.mean("sample", skipna=True, keep_attrs=True)
+        xdata = sub[x] if x in sub.coords else xr.DataArray(np.arange(sub.sizes[x]), dims=[x])
+        xlabel, marker = _axis_label(sub, x), "o"
         if kind == "auto":
-            kind = "heatmap" if (hue in sdims and mean.sizes.get(hue, 0) >= AUTO_HEATMAP_MIN) else "line"
-        what = f"time mean of {var}" if "sample" in da.dims else var
-        if kind == "heatmap":
-            if hue is None or hue not in sdims:
-                raise ValueError(f"kind='heatmap' needs hue to be a second sweep dimension; "
-                                 f"sweep dims: {', '.join(sdims)}")
-            if "replica" in mean.dims and "replica" not in (x, hue):
-                mean = mean.mean("replica", skipna=True, keep_attrs=True)
-                what += " (mean over replicas)"
-            extra = [d for d in mean.dims if d not in (x, hue) and mean.sizes[d] > 1]
-            if extra:
-                raise ValueError(f"a heat map of {var} over ({x}, {hue}) has more dimensions left: "
-                                 f"{', '.join(map(str, extra))}; pick one value of each with sel")
-            mean = mean.squeeze([d for d in mean.dims if d not in (x, hue)], drop=True)
-            _heatmap(ax, fig, sub, mean.transpose(hue, x), x, hue, _label(da, what))
-        else:
-            xdata = sub[x] if x in sub.coords else xr.DataArray(np.arange(sub.sizes[x]), dims=[x])
-            _lines(ax, sub, mean, xdata, rest, hue, style="o-")
-            ax.set_xlabel(_label(sub[x] if x in sub.coords else None, x))
-            ax.set_ylabel(_label(da, what))
-        ax.set_title(title or (what + (f"  ({suffix})" if suffix else "")))
+            kind = "heatmap" if (hue in sdims and da.sizes.get(hue, 0) >= AUTO_HEATMAP_MIN) else "line"
 
+    fig = Figure(figsize=(7.5, 4.8), layout="constrained")
+    FigureCanvasAgg(fig)
+    if kind == "heatmap":
+        if hue is None or hue not in sdims:
+            raise ValueError(f"kind='heatmap' needs hue to be a second sweep dimension; "
+                             f"sweep dims: {', '.join(sdims)}")
+        mean = da
+        if "replica" in mean.dims and "replica" not in (x, hue):
+            mean = mean.mean("replica", skipna=True, keep_attrs=True)
+            what += " (mean over replicas)"
+        extra = [d for d in mean.dims if d not in (x, hue) and mean.sizes[d] > 1]
+        if extra:
+            raise ValueError(f"a heat map of {var} over ({x}, {hue}) has more dimensions left: "
+                             f"{', '.join(map(str, extra))}; pick one value of each with sel")
+        mean = mean.squeeze([d for d in mean.dims if d not in (x, hue)], drop=True)
+        ax = fig.add_subplot()
+        _heatmap(ax, fig, sub, mean.transpose(hue, x), x, hue, _axis_label(sub, var))
+        ax.set_title(title or _wrap(what + (f"  ({suffix})" if suffix else "")), fontsize="medium")
+        return _save(fig, out, return_figure)
+
+    # panels, colour, style, averaged dims
+    rest = [str(d) for d in da.dims if d != along and da.sizes[d] > 1]
+    facet = next((d for d in FACET_DIMS if d in rest and d != hue), None)
+    if facet is not None and da.sizes[facet] > MAX_FACETS:
+        raise ValueError(f"{var} has {da.sizes[facet]} {facet} entries: pick some with sel {facet}=...")
+    lines = [d for d in rest if d != facet and d != "replica"]
+    if hue is None:
+        hue = lines[0] if lines else None
+    if hue is not None and hue not in rest:
+        hue = None  # a single value left: nothing to colour
+    if hue is not None:
+        lines = [hue] + [d for d in lines if d != hue]
+    style = lines[1] if len(lines) > 1 and da.sizes[lines[1]] <= len(STYLES) else None
+    averaged = [d for d in rest if d not in (facet, hue, style)]
+    notes = []
+    band_kind = ""
+    if "replica" in averaged:
+        band_kind = "s.e. over replicas"
+        notes.append(f"mean of {da.sizes['replica']} replicas, band: +-1 s.e.")
+    others = [d for d in averaged if d != "replica"]
+    if others:
+        notes.append("mean over " + ", ".join(f"{d} ({da.sizes[d]} values)" for d in others) + ", band: range")
+        band_kind = band_kind or "range"
+    failed = ~ok if "status" in sub else None
+
+    facets = list(range(da.sizes[facet])) if facet else [None]
+    ncols = 2 if len(facets) == 4 else min(len(facets), 3)
+    grid = fig.subplots(-(-len(facets) // ncols), ncols, sharex=True, squeeze=False)
+    axes = list(grid.ravel())
+    for extra_ax in axes[len(facets):]:
+        extra_ax.set_visible(False)
+    axes = axes[:len(facets)]
+    hue_n = da.sizes[hue] if hue else 1
+    colors = _colors(hue_n)
+    numeric_x = np.asarray(xdata.values).dtype.kind in "iuf"
+    for panel, ax in zip(facets, axes):
+        part = da.isel({facet: panel}) if facet else da
+        part_sem = sem.isel({facet: panel}) if (facet and sem is not None and facet in sem.dims) else sem
+        for h in range(hue_n):
+            for st in range(da.sizes[style] if style else 1):
+                pick = {k: v for k, v in ((hue, h), (style, st)) if k is not None}
+                y = part.isel(pick)
+                lo = hi = None
+                if "replica" in averaged:
+                    n = y.count("replica")
+                    err = y.std("replica", ddof=1, skipna=True) / np.sqrt(n.where(n > 1))
+                    y = y.mean("replica", skipna=True)
+                    lo, hi = y - err, y + err
+                if others:
+                    lo = (lo if lo is not None else y).min(others, skipna=True)
+                    hi = (hi if hi is not None else y).max(others, skipna=True)
+                    y = y.mean(others, skipna=True)
+                elif not averaged and part_sem is not None:
+                    e = part_sem.isel({k: v for k, v in pick.items() if k in part_sem.dims})
+                    e = e.squeeze([d for d in e.dims if d != along and e.sizes[d] == 1], drop=True)
+                    if e.dims == (along,):
+                        lo, hi, band_kind = y - e, y + e, f"+-1 s.e. ({sem_name})"
+                y = y.squeeze([d for d in y.dims if d != along], drop=True) if y.ndim > 1 else y
+                yv = np.asarray(y.transpose(along).values if y.ndim else y.values, float)
+                xv = np.asarray(xdata.values) if numeric_x else np.arange(yv.size)
+                xv = xv if np.ndim(xv) == 1 and xv.size == yv.size else np.arange(yv.size)
+                kw: dict[str, Any] = {"color": colors[h], "linestyle": STYLES[st] if style else "-"}
+                if marker:
+                    kw.update(marker=marker, markersize=4)
+                ax.plot(xv, yv, **kw)
+                if lo is not None:
+                    lov = np.asarray(lo.squeeze(drop=True).values, float).reshape(-1)
+                    hiv = np.asarray(hi.squeeze(drop=True).values, float).reshape(-1)
+                    if lov.size == yv.size:
+                        ax.fill_between(xv, lov, hiv, color=colors[h], alpha=0.2, linewidth=0)
+        if failed is not None and bool(failed.any()):
+            _mark_failed(ax, sub, failed, along, xdata, numeric_x)
+        if not numeric_x:
+            ax.set_xticks(range(xdata.size), [_fmt(v) for v in np.asarray(xdata.values)], rotation=30)
+        if axes.index(ax) + ncols >= len(facets):  # no panel below this one
+            ax.set_xlabel(xlabel)
+        if facet:
+            ax.set_title(f"{facet} {_fmt(_coord_value(sub, facet, panel))}", fontsize="medium")
+    for row in grid:
+        row[0].set_ylabel(_axis_label(sub, var))
+    _legend(fig, axes[-1], sub, hue, style, colors, band_kind)
+    if failed is not None and bool(failed.any()):
+        bad = [_case_label({d: _coord_value(sub, d, i) for d, i in zip(failed.dims, idx)})
+               for idx in zip(*np.nonzero(np.asarray(failed.values)))] if failed.ndim else ["(single case)"]
+        notes.append(f"{len(bad)} of {failed.size} case(s) failed" + (
+            f" (marked x): {'; '.join(bad[:3])}{' ...' if len(bad) > 3 else ''}" if along != "sample"
+            else f", not drawn: {'; '.join(bad[:3])}{' ...' if len(bad) > 3 else ''}"))
+    head = title or (what + (f"  ({suffix})" if suffix else ""))
+    fig.suptitle("\n".join(_wrap(t, 60) for t in [head] + notes), fontsize="medium")
+    return _save(fig, out, return_figure)
+
+
+def _mark_failed(ax, ds: xr.Dataset, failed: xr.DataArray, along: str, xdata: xr.DataArray, numeric_x: bool) -> None:
+    """Red crosses at the bottom of the axes where a failed case sits on the x axis."""
+    if along not in failed.dims:
+        return
+    any_failed = np.asarray(failed.any([d for d in failed.dims if d != along]).values, bool) if failed.ndim > 1 \
+        else np.asarray(failed.values, bool)
+    xv = np.asarray(xdata.values, float) if numeric_x else np.arange(any_failed.size, dtype=float)
+    if any_failed.any():
+        ax.plot(xv[any_failed], np.full(int(any_failed.sum()), 0.03), linestyle="none", marker="x", color="red",
+                markersize=8, transform=ax.get_xaxis_transform(), label="failed case", clip_on=False)
+
+
+def _legend(fig, ax, ds: xr.Dataset, hue: str | None, style: str | None, colors: list, band: str) -> None:
+    """Legend entries: one per hue value (or a colour bar for many), one per line style, the band
+    and failed-case marks."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles: list = []
+    if hue is not None and len(colors) > MAX_LEGEND:
+        import matplotlib as mpl
+
+        vals = np.asarray(ds[hue].values, float) if hue in ds.coords and ds[hue].dtype.kind in "iuf" \
+            else np.arange(len(colors), dtype=float)
+        norm = mpl.colors.Normalize(vmin=float(np.nanmin(vals)), vmax=float(np.nanmax(vals)))
+        bar = fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap="viridis"), ax=fig.axes)
+        bar.set_label(_axis_label(ds, hue))
+    elif hue is not None:
+        handles += [Line2D([], [], color=c, label=f"{hue}={_fmt(_coord_value(ds, hue, i))}")
+                    for i, c in enumerate(colors)]
+    if style is not None:
+        handles += [Line2D([], [], color="black", linestyle=STYLES[i], label=f"{style}={_fmt(_coord_value(ds, style, i))}")
+                    for i in range(ds.sizes[style])]
+    if band:
+        handles.append(Patch(color="grey", alpha=0.3, label=band))
+    if any(line.get_label() == "failed case" for a in fig.axes for line in a.get_lines()):
+        handles.append(Line2D([], [], color="red", marker="x", linestyle="none", label="failed case"))
+    if handles:
+        fig.legend(handles=handles, fontsize="small", loc="outside right upper")
+
+
+def _save(fig, out: str | Path, return_figure: bool):
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=120)
     return (out, fig) if return_figure else out
-
-
-def _lines(ax, ds: xr.Dataset, da: xr.DataArray, xdata: xr.DataArray, rest: list[str],
-           hue: str | None, style: str) -> None:
-    """One line per combination of the `rest` dims of `da` along the remaining axis (the sample or
-    sweep dim that `xdata` runs along); colour by `hue`."""
-    along = [d for d in da.dims if d not in rest]
-    numeric_x = np.asarray(xdata.values).dtype.kind in "iuf"
-    colors = _colors(da.sizes[hue]) if hue else []
-    combos = _combos(da, rest)
-    others = [d for d in rest if d != hue]
-    seen_hue: set[int] = set()
-    for combo in combos:
-        y = np.asarray(da.isel(combo).transpose(*along).values, float)
-        xv = xdata.isel({k: v for k, v in combo.items() if k in xdata.dims})
-        xv = np.asarray(xv.values) if numeric_x else np.arange(y.size)
-        kw: dict[str, Any] = {}
-        if hue:
-            h = combo[hue]
-            kw["color"] = colors[h]
-            if h not in seen_hue:
-                kw["label"] = f"{hue}={_fmt(_coord_value(ds, hue, h))}"
-                seen_hue.add(h)
-            if others:
-                kw["alpha"] = 0.8
-        elif len(combos) > 1:
-            kw["label"] = _case_label({d: _coord_value(ds, d, combo[d]) for d in rest})
-        ax.plot(xv, y, style, markersize=4, **kw)
-    if not numeric_x:
-        ax.set_xticks(range(xdata.size), [_fmt(v) for v in np.asarray(xdata.values)], rotation=30)
-    n_labels = len(seen_hue) if hue else (len(combos) if len(combos) > 1 else 0)
-    if 0 < n_labels <= 15:
-        ax.legend(fontsize="small")
 
 
 def _heatmap(ax, fig, ds: xr.Dataset, grid: xr.DataArray, x: str, y: str, label: str) -> None:
@@ -435,8 +544,8 @@ def _heatmap(ax, fig, ds: xr.Dataset, grid: xr.DataArray, x: str, y: str, label:
         ax.set_xticks(xv, xt, rotation=30)
     if yt:
         ax.set_yticks(yv, yt)
-    ax.set_xlabel(_label(ds[x] if x in ds.coords else None, x))
-    ax.set_ylabel(_label(ds[y] if y in ds.coords else None, y))
+    ax.set_xlabel(_axis_label(ds, x))
+    ax.set_ylabel(_axis_label(ds, y))
 
 
 # ----------------------------------------------------------------------------- JSON schema
