@@ -215,18 +215,15 @@ def stop_on_signals() -> Iterator[None]:
 
 
 def kernel_cache_cold() -> bool:
-    """True if the compiled kernels have never been cached on this machine (the first run then
-    compiles them, ~15 s)."""
+    """True if the compiled kernels have no on-disk cache yet (numba's NUMBA_CACHE_DIR if set,
+    else the __pycache__ beside the kernels): the first run then compiles them, ~15 s."""
     if not compiled.enabled():
         return False
-    places = [Path(compiled.__file__).parent / "__pycache__"]
-    for env in ("NUMBA_CACHE_DIR",):
-        if os.environ.get(env):
-            places.append(Path(os.environ[env]))
-    for place in places:
-        with contextlib.suppress(OSError):
-            if place.is_dir() and next(place.rglob("compiled.*.nbi"), None) is not None:
-                return False
+    env = os.environ.get("NUMBA_CACHE_DIR")
+    place = Path(env) if env else Path(compiled.__file__).parent / "__pycache__"
+    with contextlib.suppress(OSError):
+        if place.is_dir() and next(place.rglob("compiled.*.nbi"), None) is not None:
+            return False
     return True
 
 
