@@ -18,8 +18,6 @@ from wallbatch.config.source import ConfigError
 from wallbatch.scene.case import CaseError
 from wallbatch.version import __version__
 
-ISSUES = "https://github.com/wallbatch/wallbatch/issues"
-
 
 class _GuardedTyper(typer.Typer):
     """The app as the console script calls it: an unexpected exception is one line plus a request
@@ -38,8 +36,8 @@ class _GuardedTyper(typer.Typer):
             text = " ".join(str(exc).split())
             text = text if len(text) <= 200 else text[:197] + "..."
             sys.stderr.write(f"error: unexpected {type(exc).__name__}: {text}\n  this is a wallbatch bug: please "
-                             f"report it ({ISSUES}) with the config and command; rerun with --debug for the "
-                             f"traceback\n")
+                             f"report it to the wallbatch developers with the config and the command; rerun with "
+                             f"--debug for the traceback\n")
             sys.exit(3)
 
 

@@ -64,13 +64,18 @@ def build_cases(plan: SweepPlan, seconds: list[float] | None = None) -> tuple[li
     for i, sc in enumerate(plan.cases):
         t0 = time.perf_counter()
         try:
-            built.append(build_case(sc.config, sc.seed_key))
+            case = build_case(sc.config, sc.seed_key)
+            structure_key(case)  # evaluates constant variables: a division by zero fails this case here
+            built.append(case)
         except CaseError as exc:
             built.append(None)
             errors[i] = str(exc)
-        except (ArithmeticError, ValueError, TypeError, LookupError, MemoryError, RecursionError) as exc:
+        except ValueError as exc:  # a variable that cannot be evaluated, a bad value met while building
             built.append(None)
-            errors[i] = f"cannot build the case: {type(exc).__name__}: {str(exc)[:300]}"
+            errors[i] = f"cannot set up the case: {str(exc)[:300]}"
+        except (ArithmeticError, TypeError, LookupError, MemoryError, RecursionError) as exc:
+            built.append(None)
+            errors[i] = f"cannot set up the case: {type(exc).__name__}: {str(exc)[:300]}"
         if seconds is not None:
             seconds.append(time.perf_counter() - t0)
     return built, errors

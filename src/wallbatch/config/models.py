@@ -7,6 +7,7 @@ Every problem is reported as `file:line:col: dotted.path: message` through `Conf
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
@@ -40,19 +41,27 @@ NAME_RE = r"^[A-Za-z_][A-Za-z0-9_\-]*$"
 # ----------------------------------------------------------------------------- value types
 
 
+def _finite(x: float, v: Any) -> float:
+    if not math.isfinite(x):
+        raise ValueError(f"expected a finite number, got {str(v)[:40]!r}")
+    return x
+
+
 def _number_or_name(v: Any, allow: tuple[str, ...]) -> Any:
     if isinstance(v, bool):
         raise ValueError("expected a number")
     if isinstance(v, (int, float)):
-        return float(v)
+        return _finite(float(v), v)
     if isinstance(v, str):
         s = v.strip()
         if s in allow or VAR_RE.match(s):
             return s
         try:
-            return float(s)
+            x = float(s)
         except ValueError:
             pass
+        else:
+            return _finite(x, v)
         raise ValueError(
             f"expected a number{', EDGE' if 'EDGE' in allow else ''} or a variable reference v_name, got {v!r}"
         )
@@ -71,9 +80,15 @@ def _bound(v: Any) -> float | None:
     """dt_reset tmin/tmax: a number, or INF / NULL / null for no bound."""
     if v is None or (isinstance(v, str) and v.strip().upper() in ("INF", "NULL", "NONE")):
         return None
-    if isinstance(v, bool):
+    if isinstance(v, bool) or not isinstance(v, (int, float, str)):
         raise ValueError("expected a number, INF or NULL")
-    return float(v)
+    try:
+        x = float(v)
+    except ValueError:
+        raise ValueError(f"expected a number, INF or NULL, got {str(v)[:40]!r}") from None
+    if not math.isfinite(x):
+        raise ValueError("expected a finite number: write INF or NULL for no bound")
+    return x
 
 
 from pydantic import BeforeValidator  # noqa: E402
@@ -89,7 +104,8 @@ Vec3 = tuple[float, float, float]
 
 
 class Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # every float finite: .inf / .nan / 'NaN' are refused ("no bound" is written INF or NULL where allowed)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 # ----------------------------------------------------------------------------- scene parts
@@ -109,6 +125,8 @@ class Box(Model):
         for d in range(3):
             if lo is not None and not hi[d] > lo[d]:
                 raise ValueError(f"box.hi[{d}] = {hi[d]} must be greater than box.lo[{d}] = {lo[d]}")
+            if lo is not None and not abs(hi[d] - lo[d]) < 1e300:
+                raise ValueError(f"box length {hi[d]} - ({lo[d]}) along {'xyz'[d]} is not a finite number")
         return hi
 
 

@@ -321,8 +321,8 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
             where = _where_text(smap, loc + ("values",)) if smap.marks.get(loc + ("values",)) else \
                 _where_text(smap, loc)
             for p in paths:
-                for key in overrides or {}:
-                    if _overlaps(key, p):
+                for key in overrides or {}:  # a --set the sweep would silently override
+                    if _overlaps(key, p) and origins[key].startswith("--set"):
                         raise ConfigError([f"{origins[key]}: {key} is also swept by {'.'.join(map(str, loc))} "
                                            f"({where}): drop one of the two"])
                 try:
