@@ -38,6 +38,8 @@ from wallbatch.scene.build import build_case
 from wallbatch.scene.case import Case, CaseError, structure_key
 
 MAX_BATCH = 256  # cases per task: big enough to amortise Python overhead, small enough to resume
+MAX_STEPS = 10**12  # steps of one case (10^12 steps of one atom take days)
+MAX_SAMPLES = 1_000_000  # samples of one case (each a row of every output)
 PART_FORMAT = 2  # layout of a part file (a part of another layout is recomputed)
 
 
@@ -66,6 +68,7 @@ def build_cases(plan: SweepPlan, seconds: list[float] | None = None) -> tuple[li
         try:
             case = build_case(sc.config, sc.seed_key)
             structure_key(case)  # evaluates constant variables: a division by zero fails this case here
+            check_size(case)
             built.append(case)
         except CaseError as exc:
             built.append(None)
@@ -79,6 +82,26 @@ def build_cases(plan: SweepPlan, seconds: list[float] | None = None) -> tuple[li
         if seconds is not None:
             seconds.append(time.perf_counter() - t0)
     return built, errors
+
+
+def check_size(case: Case) -> None:
+    """Refuse a case whose run length or number of samples is beyond reason before anything is
+    allocated for it."""
+    if case.natoms < 1:
+        raise CaseError("the scene has no atoms: check atoms: (an empty atoms file, a region outside the box?)")
+    if case.run_time is None:
+        if case.steps > MAX_STEPS:
+            raise CaseError(f"run.steps = {case.steps:,} is more than the limit of {MAX_STEPS:,}")
+        samples = case.steps // int(case.thermo) + 2 if int(case.thermo) > 0 else 2
+    else:
+        every = float(case.thermo) if case.thermo_is_time else 0.0
+        samples = case.run_time / every + 2 if every > 0 else 2
+        if case.run_time / case.dt > MAX_STEPS:
+            raise CaseError(f"run.time = {case.run_time} is {case.run_time / case.dt:.3g} steps of dt = {case.dt}: "
+                            f"more than the limit of {MAX_STEPS:,}")
+    if samples > MAX_SAMPLES:
+        raise CaseError(f"run.thermo makes {samples:,.0f} samples: more than the limit of {MAX_SAMPLES:,}; sample "
+                        f"less often")
 
 
 def _layout(case: Case) -> tuple:

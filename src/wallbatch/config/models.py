@@ -62,10 +62,9 @@ def _number_or_name(v: Any, allow: tuple[str, ...]) -> Any:
             pass
         else:
             return _finite(x, v)
-        raise ValueError(
-            f"expected a number{', EDGE' if 'EDGE' in allow else ''} or a variable reference v_name, got {v!r}"
-        )
-    raise ValueError(f"expected a number or v_name, got {v!r}")
+        raise ValueError(f"expected a number{', EDGE' if 'EDGE' in allow else ''} or a variable reference "
+                         f"v_name, got {str(v)[:60]!r}")
+    raise ValueError(f"expected a number or v_name, got {str(v)[:60]!r}")
 
 
 def _coord(v: Any) -> Any:

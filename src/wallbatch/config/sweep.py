@@ -64,8 +64,26 @@ class Sweep(Model):
     replicas: PositiveInt | None = None
 
 
+MAX_VALUES = 100_000  # values of one sweep dimension
+MAX_CASES = 100_000  # cases of one sweep (each is validated before anything runs)
+
+
+def count_values(values: Any) -> int:
+    """How many values a sweep entry makes, without making them."""
+    if isinstance(values, (Linspace, Logspace)):
+        return int((values.linspace if isinstance(values, Linspace) else values.logspace)[2])
+    if isinstance(values, Range):
+        a, b, step = values.range
+        n = (b - a) / step - 1e-9
+        return int(np.ceil(n)) if np.isfinite(n) and n < 1e18 else 10**18
+    return len(values)
+
+
 def expand_values(values: Any) -> list:
     """A value list from a list, linspace, logspace (base-10 exponents) or range [a, b, step)."""
+    n = count_values(values)
+    if n > MAX_VALUES:
+        raise ValueError(f"{n:,} values: more than the limit of {MAX_VALUES:,} per dimension")
     if isinstance(values, Linspace):
         a, b, n = values.linspace
         return np.linspace(a, b, n).tolist()
@@ -181,6 +199,27 @@ def _dim_where(smap: SourceMap, name: str, zip_param: str | None = None) -> tupl
 
 
 def _dims(sweep: Sweep, order: list[str], smap: SourceMap) -> list[SweepDim]:
+    sizes = [count_values(e.values if isinstance(e, Param) else e) for e in sweep.product.values()] if \
+        "product" in order else []
+    if sweep.zip is not None and "zip" in order:
+        sizes.append(max(count_values(p.values) for p in sweep.zip.params.values()))
+    sizes.append(sweep.replicas or 1)
+    for name, entry in sweep.product.items():
+        n = count_values(entry.values if isinstance(entry, Param) else entry)
+        if n > MAX_VALUES:
+            raise ConfigError([smap.format(("sweep", "product", name), f"{n:,} values: more than the limit of "
+                                                                       f"{MAX_VALUES:,} per dimension")])
+    for name, p in (sweep.zip.params.items() if sweep.zip is not None else []):
+        if count_values(p.values) > MAX_VALUES:
+            raise ConfigError([smap.format(("sweep", "zip", "params", name),
+                                           f"{count_values(p.values):,} values: more than the limit of "
+                                           f"{MAX_VALUES:,} per dimension")])
+    total = 1
+    for n in sizes:
+        total *= max(n, 1)
+    if total > MAX_CASES:
+        raise ConfigError([smap.format(("sweep",), f"{total:,} cases: more than the limit of {MAX_CASES:,} "
+                                                   f"cases in one run; split the sweep")])
     dims: list[SweepDim] = []
     for key in order:
         if key == "product":

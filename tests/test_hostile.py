@@ -1,0 +1,533 @@
+"""A corpus of hostile or mistaken inputs (issue 14): each is refused as the project's own error,
+with its place (file:line:col, the sweep file's line, the `--set` argument) and a wording that says
+what to do; nothing escapes as a traceback, nothing is destroyed, nothing runs as "ok" that is not.
+Also the run's own safety: -o naming an input, parts that are damaged or foreign, the lock file,
+a full disk, limits checked before allocating."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+from typer.testing import CliRunner
+
+from wallbatch.batch import runner as runner_mod
+from wallbatch.batch.runner import RunError, case_key, parts_dir, read_part, run_plan, save_part
+from wallbatch.cli import app
+from wallbatch.config.source import ConfigError, load_yaml
+from wallbatch.config.sweep import load_plan
+
+cli = CliRunner()
+
+SCENE = """\
+name: hostile
+units: lj
+seed: 3
+box: {lo: [0, 0, 0], hi: [6, 6, 10], boundary: [p, p, f]}
+regions:
+  slab: {style: block, lo: [0, 0, 1], hi: [6, 6, 8], units: box}
+atoms:
+  - group: gas
+    create: {random: {count: 20, overlap: 0.8, region: slab}}
+    mass: 1.0
+    velocity: {temperature: 1.0}
+walls:
+  zwalls:
+    style: lj93
+    units: box
+    energy: true
+    zlo: {coord: EDGE, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}
+    zhi: {coord: 9.9, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}
+run: {steps: 40, thermo: 20}
+"""
+
+
+@pytest.fixture
+def scene(tmp_path: Path) -> Path:
+    path = tmp_path / "scene.yaml"
+    path.write_text(SCENE)
+    return path
+
+
+def sweep_file(tmp_path: Path, body: str, name: str = "sweep.yaml") -> Path:
+    (tmp_path / "scene.yaml").write_text(SCENE)
+    path = tmp_path / name
+    path.write_text("base: scene.yaml\n" + textwrap.dedent(body))
+    return path
+
+
+def run(*args) -> "CliRunner.Result":
+    return cli.invoke(app, [str(a) for a in args])
+
+
+def config_error(path: Path, sets=()) -> list[str]:
+    with pytest.raises(ConfigError) as info:
+        load_plan(path, list(sets))
+    return info.value.problems
+
+
+# ============================================================================================
+# YAML that is not plain data, or not text
+
+
+@pytest.mark.parametrize("text, where, words", [
+    ("a: !!python/object/apply:os.system ['echo pwned']\n", "f.yaml:1:4: a:",
+     "YAML tag !!python/object/apply:os.system is not allowed"),
+    ("a: !custom 1\n", "f.yaml:1:4: a:", "YAML tag !custom is not allowed"),
+    ("a: &x [1, *x]\n", "f.yaml:1:4: a.1:", "an alias refers to the value that contains it"),
+    ("a: " + "[" * 3000 + "]" * 3000 + "\n", "f.yaml:", "nested too deeply"),
+    ("a: " + "[" * 70 + "]" * 70 + "\n", "f.yaml:1:", "nested more than 64 levels deep"),
+    ("? [a, b]\n: 1\n", "f.yaml:1:3: (top level):", "a key must be plain text or a number"),
+    ('"a\\nb": 1\n', "f.yaml:1:1: (top level):", "a key may not contain a line break"),
+    ("a: 1\na: 2\n", "f.yaml:2:1: a:", "defined twice (first at line 1); keep one"),
+    ("a: [1, 2\n", "f.yaml:2:1:", "YAML syntax error"),
+    ("", "f.yaml:", "the file is empty"),
+])
+def test_yaml_refused_with_location(text, where, words):
+    with pytest.raises(ConfigError) as info:
+        load_yaml(text, "f.yaml")
+    msg = str(info.value)
+    assert msg.startswith(where) and words in msg, msg
+
+
+def test_alias_bomb_refused_before_expanding():
+    levels = ["a0: &a0 [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]"]
+    levels += [f"a{i}: &a{i} [" + ", ".join([f"*a{i - 1}"] * 10) + "]" for i in range(1, 9)]
+    text = "\n".join(levels) + "\n"
+    assert len(text) < 1100  # a 1 kB file that expands to 10^9 values
+    with pytest.raises(ConfigError, match=r"expands to more than 2,000,000 values"):
+        load_yaml(text, "bomb.yaml")
+
+
+def test_non_utf8_and_utf16_files(tmp_path):
+    latin = tmp_path / "latin.yaml"
+    latin.write_bytes(b"name: caf\xe9\n")
+    assert config_error(latin) == [f"{latin}:1:10: the config is not UTF-8 text (byte 0xe9)"]
+    utf16 = tmp_path / "u16.yaml"
+    utf16.write_bytes("name: x\n".encode("utf-16"))
+    (msg,) = config_error(utf16)
+    assert msg.startswith(f"{utf16}:1:1: the config is not UTF-8 text") and "UTF-16: save it as UTF-8" in msg
+
+
+def test_fifo_and_directory_as_config(tmp_path):
+    fifo = tmp_path / "pipe.yaml"
+    os.mkfifo(fifo)
+    assert config_error(fifo) == [f"{fifo}: cannot read the config: it is not a regular file (a pipe or a device)"]
+    assert config_error(tmp_path) == [f"{tmp_path}: cannot read the config: it is a directory"]
+
+
+def test_sweep_file_structure_errors(tmp_path):
+    (tmp_path / "list.yaml").write_text("- 1\n- 2\n")
+    bad_base = tmp_path / "b.yaml"
+    bad_base.write_text("base: list.yaml\n")
+    (msg,) = config_error(bad_base)
+    assert msg.startswith(f"{tmp_path / 'list.yaml'}:1:1: (top level): the base scene must be a mapping")
+    p = sweep_file(tmp_path, "set: [1, 2]\n")
+    assert config_error(p) == [f"{p}:2:6: set: set: give a mapping of path: value"]
+    p = sweep_file(tmp_path, "sweep: {}\n", "x.yaml")
+    p.write_text("base: [scene.yaml]\n")
+    assert config_error(p) == [f"{p}:1:7: base: base: give the path of the scene file (text)"]
+
+
+# ============================================================================================
+# errors at the place the user wrote them
+
+
+def test_sweep_errors_at_the_sweep_file_line_once_with_cases(tmp_path):
+    p = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            cut: {path: walls.zwalls.zlo.cutoff, values: [-1.0, 2.5, -3.0]}
+            eps: {path: walls.zwalls.zlo.epsilon, values: [1.0, 2.0]}
+        """)
+    problems = config_error(p)
+    assert problems == [f"{p}:4:50: walls.zwalls.zlo.cutoff: Input should be greater than 0 "
+                        f"(cases cut=-1.0, eps=1.0; cut=-1.0, eps=2.0; cut=-3.0, eps=1.0; cut=-3.0, eps=2.0)"]
+
+
+def test_identical_error_of_every_case_once(tmp_path):
+    p = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            eps: {path: walls.zwalls.zlo.epsilonn, values: [1.0, 2.0, 3.0]}
+        """)
+    (msg,) = config_error(p)
+    assert msg.startswith(f"{p}:4:") and msg.endswith("(every case)") and "walls.zwalls.zlo.epsilonn" in msg
+
+
+def test_bad_sweep_path_at_its_line(tmp_path):
+    p = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            eps: {path: walls.nowall.zlo.epsilon, values: [1.0, 2.0]}
+        """)
+    (msg,) = config_error(p)
+    assert msg.startswith(f"{p}:4:") and "sweep.product.eps" in msg and "walls.nowall does not exist" in msg
+
+
+@pytest.mark.parametrize("body, where, words", [
+    ("sweep:\n  zip:\n    dim: g\n    params:\n      a: {path: run.steps, values: [1, 2]}\n"
+     "      b: {path: run.thermo, values: [1]}\n", ":6:7: sweep.zip.params:", "must have equal lengths"),
+    ("sweep:\n  product:\n    temp: {path: run.steps, values: [10, 20]}\n", ":4:11: sweep.product.temp:",
+     "would clash with names of the results file"),
+    ("sweep:\n  product:\n    n: {path: run.steps, values: {range: [1, 2, 1e-12]}}\n", ":4:8: sweep.product.n:",
+     "values: more than the limit of 100,000 per dimension"),
+    ("sweep:\n  product:\n    a: {path: run.steps, values: {linspace: [1, 2, 1000]}}\n"
+     "    b: {path: run.thermo, values: {linspace: [1, 2, 1000]}}\n", ":3:3: sweep:",
+     "1,000,000 cases: more than the limit of 100,000"),
+    ("sweep:\n  replicas: 1000000000\n", ":3:3: sweep:", "1,000,000,000 cases: more than the limit of 100,000"),
+])
+def test_sweep_structure_errors_have_sweep_file_locations(tmp_path, body, where, words):
+    p = sweep_file(tmp_path, body)
+    (msg,) = config_error(p)
+    assert msg.startswith(f"{p}{where}") and words in msg, msg
+
+
+def test_set_errors_name_the_argument(scene):
+    assert config_error(scene, ["epsilon=2"]) == [
+        "--set epsilon=2: epsilon: unknown key (misspelled? see shared/spec/config.md for the valid keys)"] or \
+        config_error(scene, ["epsilon=2"])[0].startswith("--set epsilon=2: epsilon: unknown key")
+    (msg,) = config_error(scene, ["walls.zwalls.zlo.epsilon=abc"])
+    assert msg == ("--set walls.zwalls.zlo.epsilon=abc: walls.zwalls.zlo.epsilon: expected a number or a variable "
+                   "reference v_name, got 'abc'")
+    assert config_error(scene, ["run.steps=[1"]) == [
+        "--set run.steps=[1: the value is not valid YAML (expected ',' or ']', but got '<stream end>')"]
+    assert config_error(scene, ["run.steps"]) == ["--set run.steps: write path=value"]
+    (msg,) = config_error(scene, ["walls.nowall.zlo.epsilon=1"])
+    assert msg.startswith("--set walls.nowall.zlo.epsilon=1: ") and "walls.nowall does not exist" in msg
+    (msg,) = config_error(scene, ["run.steps=!!python/name:os.system"])
+    assert msg.startswith("--set run.steps=!!python/name:os.system: the value is not valid YAML")
+
+
+def test_set_on_a_swept_path_is_refused(tmp_path):
+    p = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            eps: {path: walls.zwalls.zlo.epsilon, values: [1.0, 2.0]}
+        """)
+    (msg,) = config_error(p, ["walls.zwalls.zlo.epsilon=3"])
+    assert msg == (f"--set walls.zwalls.zlo.epsilon=3: walls.zwalls.zlo.epsilon is also swept by sweep.product.eps "
+                   f"({p}:4:51): drop one of the two")
+    (msg,) = config_error(p, ["walls.zwalls.zlo={coord: EDGE, epsilon: 1, sigma: 1, cutoff: 2.5}"])
+    assert "is also swept by sweep.product.eps" in msg  # a parent of the swept path
+
+
+def test_long_user_text_is_cut(scene):
+    (msg,) = config_error(scene, ["walls.zwalls.zlo.epsilon=" + "x" * 2_000_000])
+    assert len(msg) < 600 and msg.endswith("...: walls.zwalls.zlo.epsilon: expected a number or a variable "
+                                           "reference v_name, got '" + "x" * 60 + "'")
+
+
+# ============================================================================================
+# non-finite numbers
+
+
+@pytest.mark.parametrize("setting, words", [
+    ("walls.zwalls.zlo.cutoff=.inf", "Input should be a finite number"),
+    ("walls.zwalls.zlo.epsilon=.nan", "expected a finite number, got 'nan'"),
+    ("walls.zwalls.zlo.epsilon='NaN'", "expected a finite number, got 'NaN'"),
+    ("walls.zwalls.zlo.coord=-.inf", "expected a finite number, got '-inf'"),
+    ("atoms.0.mass=.inf", "Input should be a finite number"),
+    ("atoms.0.velocity.temperature=.inf", "Input should be a finite number"),
+    ("run={time: .inf, thermo: 0}", "Input should be a finite number"),
+    ("box.hi=[1e308, 6, 10]", "is not a finite number"),
+    ("box.lo=[-1e308, 0, 0]", "is not a finite number"),
+])
+def test_non_finite_numbers_refused(scene, setting, words):
+    (msg,) = config_error(scene, [setting])
+    assert words in msg, msg
+    assert msg.startswith("--set ") or msg.startswith(f"{scene}:")
+
+
+def test_dt_reset_bounds_nan_refused_inf_word_allowed(scene):
+    scene.write_text(SCENE + "dt_reset: {every: 1, tmin: .nan, tmax: INF, xmax: 0.05, units: box}\n")
+    (msg,) = config_error(scene)
+    assert msg == f"{scene}:20:28: dt_reset.tmin: expected a finite number: write INF or NULL for no bound"
+    scene.write_text(SCENE + "dt_reset: {every: 1, tmin: [1], tmax: INF, xmax: 0.05, units: box}\n")
+    (msg,) = config_error(scene)
+    assert msg.endswith("dt_reset.tmin: expected a number, INF or NULL")
+    scene.write_text(SCENE + "dt_reset: {every: 1, tmin: NULL, tmax: INF, xmax: 0.05, units: box}\n")
+    assert load_plan(scene).cases[0].config.dt_reset.tmax is None
+
+
+# ============================================================================================
+# a case failing during setup fails alone
+
+
+def test_variable_dividing_by_zero_fails_that_case_only(tmp_path):
+    p = sweep_file(tmp_path, """\
+        set:
+          variables.d: 1
+          variables.a: "1 + 1/(v_d - 2)"
+          walls.zwalls.zlo.epsilon: v_a
+        sweep:
+          product:
+            d: {path: variables.d, values: [1, 2, 3]}
+        """)
+    out = tmp_path / "out.nc"
+    res = run("run", p, "-o", out, "-j", "1")
+    assert res.exit_code == 1, res.output
+    assert "2 of 3 case(s) ok" in res.output
+    assert "failed (1 case: d=2): cannot set up the case: variable 'a': Divide by 0 in variable formula" in res.output
+    with xr.open_dataset(out) as ds:
+        assert ds["status"].values.tolist() == ["ok", "failed", "ok"]
+        assert np.isfinite(ds["pe"].sel(d=3).values).all() and np.isnan(ds["pe"].sel(d=2).values).all()
+
+
+def test_limits_on_steps_and_samples(tmp_path):
+    p = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            n: {path: run.steps, values: [40, 2000000000000000]}
+        """)
+    res = run("run", p, "-o", tmp_path / "o.nc", "-j", "1")
+    assert res.exit_code == 1
+    assert "run.steps = 2,000,000,000,000,000 is more than the limit of 1,000,000,000,000" in res.output
+    p = sweep_file(tmp_path, "set: {run.steps: 100000000, run.thermo: 1}\n", "s.yaml")
+    res = run("run", p, "-o", tmp_path / "s.nc", "-j", "1")
+    assert res.exit_code == 2 and "run.thermo makes 100,000,002 samples: more than the limit" in res.output
+
+
+# ============================================================================================
+# the output: never an input, never silently overwritten, locked while running
+
+
+def test_output_naming_the_config_is_refused(scene):
+    before = scene.read_text()
+    res = run("run", scene, "-o", scene)
+    assert res.exit_code == 2
+    assert f"error: -o {scene} is an input of this run: choose another name for the results" in res.output
+    assert scene.read_text() == before
+
+
+def test_output_naming_the_base_of_a_sweep_is_refused(tmp_path):
+    p = sweep_file(tmp_path, "sweep: {product: {eps: {path: walls.zwalls.zlo.epsilon, values: [1.0]}}}\n")
+    res = run("run", p, "-o", tmp_path / "scene.yaml", "--force")
+    assert res.exit_code == 2 and "is an input of this run" in res.output
+    assert (tmp_path / "scene.yaml").read_text() == SCENE
+
+
+def test_output_that_is_not_a_results_file_is_never_overwritten(scene, tmp_path):
+    other = tmp_path / "notes.txt"
+    other.write_text("precious")
+    res = run("run", scene, "-o", other, "--force")
+    assert res.exit_code == 2 and f"-o {other} exists and is not a results file: refusing to overwrite it" in res.output
+    assert other.read_text() == "precious"
+
+
+def test_existing_results_need_force(scene, tmp_path):
+    out = tmp_path / "r.nc"
+    assert run("run", scene, "-o", out).exit_code == 0
+    stamp = out.stat().st_mtime_ns
+    res = run("run", scene, "-o", out)
+    assert res.exit_code == 2 and f"{out} exists: add --force to overwrite it, or choose another -o" in res.output
+    assert out.stat().st_mtime_ns == stamp
+    assert run("run", scene, "-o", out, "--force").exit_code == 0
+
+
+def test_output_directory_and_parts_file(scene, tmp_path):
+    res = run("run", scene, "-o", tmp_path)
+    assert res.exit_code == 2 and f"-o {tmp_path} is a directory" in res.output
+    out = tmp_path / "r.nc"
+    parts_dir(out).write_text("oops")
+    res = run("run", scene, "-o", out)
+    assert res.exit_code == 2 and f"{parts_dir(out)} exists and is not a folder of parts" in res.output
+
+
+def test_lock_held_by_a_live_process_refuses(scene, tmp_path):
+    out = tmp_path / "r.nc"
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        (tmp_path / "r.nc.lock").write_text(f"{holder.pid}\n")
+        res = run("run", scene, "-o", out)
+        assert res.exit_code == 2
+        assert f"{out} is being written by another wallbatch run (PID {holder.pid}" in res.output
+        assert not out.exists()
+    finally:
+        holder.kill()
+        holder.wait()
+    res = run("run", scene, "-o", out)  # the holder is gone: its stale lock is taken over
+    assert res.exit_code == 0, res.output
+    assert not (tmp_path / "r.nc.lock").exists()
+
+
+@pytest.mark.slow
+def test_concurrent_runs_on_one_output(tmp_path):
+    (tmp_path / "scene.yaml").write_text(SCENE.replace("steps: 40, thermo: 20", "steps: 3000000, thermo: 300000"))
+    out = tmp_path / "r.nc"
+    cmd = [sys.executable, "-m", "wallbatch.cli", "run", "scene.yaml", "-o", str(out), "-j", "1"]
+    first = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        lock = tmp_path / "r.nc.lock"
+        for _ in range(600):
+            if lock.exists() and lock.read_text().strip():
+                break
+            import time
+
+            time.sleep(0.05)
+        second = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=120)
+        assert second.returncode == 2
+        assert f"is being written by another wallbatch run (PID {first.pid}" in second.stderr
+    finally:
+        first.send_signal(signal.SIGINT)
+        first.wait(timeout=60)
+
+
+# ============================================================================================
+# parts: damaged or foreign parts are reported and recomputed
+
+
+@pytest.fixture
+def sweep_parts(tmp_path):
+    """A 4-case sweep, its reference results and a folder with every case's part."""
+    p = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            eps: {path: walls.zwalls.zlo.epsilon, values: [0.5, 1.0, 1.5, 2.0]}
+        """)
+    plan = load_plan(p)
+    out = tmp_path / "out.nc"
+    saved = []
+    ref = run_plan(plan, None, progress=False, on_result=lambda i, r: saved.append((i, r)))
+    for i, res in saved:
+        save_part(parts_dir(out), case_key(plan.cases[i]), res)
+    return plan, out, ref
+
+
+def test_damaged_and_foreign_parts_are_reported_and_recomputed(sweep_parts):
+    plan, out, ref = sweep_parts
+    parts = parts_dir(out)
+    keys = [case_key(c) for c in plan.cases]
+    data = (parts / f"{keys[0]}.npz").read_bytes()
+    (parts / f"{keys[0]}.npz").write_bytes(data[: len(data) // 2])  # truncated
+    flipped = bytearray((parts / f"{keys[1]}.npz").read_bytes())
+    flipped[len(flipped) // 2] ^= 0x10  # one bit
+    (parts / f"{keys[1]}.npz").write_bytes(bytes(flipped))
+    (parts / f"{keys[2]}.npz").write_bytes(b"")  # empty
+    (parts / f"{keys[3]}.npz").write_bytes((parts / f"{keys[0]}.npz").read_bytes())  # placeholder, replaced below
+    # a part copied from another case: valid file, wrong case
+    other = read_part(parts, keys[0])[0]
+    assert other is None
+    good = {}
+    run_plan(plan, None, progress=False, on_result=lambda i, r: good.setdefault(i, r))
+    save_part(parts, keys[0], good[0])
+    os.replace(parts / f"{keys[0]}.npz", parts / f"{keys[3]}.npz")  # case 0's part under case 3's name
+    assert read_part(parts, keys[3]) == (None, "belongs to another case")
+    assert read_part(parts, keys[2])[1].startswith("damaged")
+    assert read_part(parts, keys[1])[1].startswith("damaged")
+    notes: list[str] = []
+    computed: list[int] = []
+    ds = run_plan(plan, out, resume=True, progress=False, log=notes.append, on_result=lambda i, r: computed.append(i))
+    assert sorted(computed) == [0, 1, 2, 3]
+    note = next(n for n in notes if n.startswith("resuming:"))
+    assert note.startswith(f"resuming: 0 of 4 case(s) reused from {parts}")
+    assert "1 part(s) belongs to another case: recomputed" in note
+    assert "part(s) damaged" in note
+    for name in ("pe", "temp", "wall_force"):
+        np.testing.assert_array_equal(ds[name].values, ref[name].values)
+
+
+def test_bit_flip_in_data_is_caught_by_the_content_hash(sweep_parts):
+    plan, out, _ = sweep_parts
+    parts = parts_dir(out)
+    key = case_key(plan.cases[1])
+    res = read_part(parts, key)[0]
+    res.data["pe"] = res.data["pe"].copy()
+    res.data["pe"][1] += 1e-12  # a silently wrong number, re-zipped with a valid CRC
+    np.savez(parts / f"{key}.npz", status=np.str_(res.status), error=np.str_(res.error),
+             seconds=np.float64(res.seconds), case_key=np.str_(key),
+             digest=np.str_(runner_mod._digest(key, "ok", "", res.seconds, {"pe": np.zeros(1)})),
+             **{f"data__{k}": v for k, v in res.data.items()})
+    assert read_part(parts, key) == (None, "damaged (content hash differs)")
+
+
+# ============================================================================================
+# a full disk
+
+
+def test_disk_full_while_saving_a_part_keeps_the_others(sweep_parts, monkeypatch):
+    plan, out, _ = sweep_parts
+    import shutil
+
+    shutil.rmtree(parts_dir(out))
+    calls = {"n": 0}
+    real = np.savez
+
+    def savez(path, **kw):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise OSError(28, "No space left on device")
+        return real(path, **kw)
+
+    monkeypatch.setattr(np, "savez", savez)
+    with pytest.raises(RunError, match=r"cannot save a finished case in .*out\.nc\.parts: No space left on device; "
+                                       r"free some space, then rerun with --resume"):
+        run_plan(plan, out, jobs=1, progress=False)
+    assert len(list(parts_dir(out).glob("*.npz"))) == 2  # the two saved before the disk filled
+    assert not list(parts_dir(out).glob(".*"))  # no half-written temporary
+    assert not out.with_name("out.nc.lock").exists()
+
+
+def test_disk_full_while_writing_the_results_keeps_every_part(sweep_parts, monkeypatch):
+    plan, out, _ = sweep_parts
+
+    def full(ds, path):
+        Path(str(path) + ".tmp").write_bytes(b"partial")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(runner_mod, "write_netcdf", full)
+    with pytest.raises(RunError) as info:
+        run_plan(plan, out, resume=True, progress=False)
+    assert str(info.value) == (f"cannot write {out}: No space left on device (disk full?); the 4 finished case(s) "
+                               f"are kept in {parts_dir(out)}: free space or choose another -o, then rerun with "
+                               f"--resume")
+    assert len(list(parts_dir(out).glob("*.npz"))) == 4
+    assert not Path(str(out) + ".tmp").exists() and not out.exists()
+
+
+# ============================================================================================
+# the top-level guard
+
+
+def test_unexpected_error_is_one_line_and_debug_shows_the_traceback(scene):
+    code = ("import sys; import wallbatch.api as api\n"
+            "def boom(*a, **k): raise RuntimeError('kaboom ' + 'x' * 500)\n"
+            "api.check = boom\n"
+            "from wallbatch.cli import app; sys.argv = ['wallbatch'] + sys.argv[1:]; app()")
+    res = subprocess.run([sys.executable, "-c", code, "check", str(scene)], capture_output=True, text=True,
+                         timeout=120)
+    assert res.returncode == 3
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 2 and "Traceback" not in res.stderr
+    assert lines[0].startswith("error: unexpected RuntimeError: kaboom xxx") and lines[0].endswith("...")
+    assert len(lines[0]) < 260
+    assert "please report it" in lines[1] and "--debug" in lines[1]
+    res = subprocess.run([sys.executable, "-c", code, "--debug", "check", str(scene)], capture_output=True,
+                         text=True, timeout=120)
+    assert res.returncode == 1 and "Traceback" in res.stderr and "RuntimeError: kaboom" in res.stderr
+
+
+def test_version():
+    from wallbatch.version import __version__
+
+    res = run("--version")
+    assert res.exit_code == 0 and res.output.strip() == f"wallbatch {__version__}"
+
+
+def test_show_on_a_foreign_netcdf(tmp_path):
+    path = tmp_path / "foreign.nc"
+    xr.Dataset({"t": ("x", np.arange(3.0))}).to_netcdf(path)
+    res = run("show", path)
+    assert res.exit_code == 2
+    assert f"{path} is a NetCDF file but not a wallbatch results file" in res.output
+    junk = tmp_path / "junk.nc"
+    junk.write_text("hello")
+    res = run("show", junk)
+    assert res.exit_code == 2 and f"cannot open {junk}: not a NetCDF file" in res.output
