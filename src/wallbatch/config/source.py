@@ -133,6 +133,15 @@ def read_config_text(path) -> str:
                            f"{hint}"]) from None
 
 
+def _reader_error(exc: Any, text: str, filename: str) -> str:
+    pos = int(getattr(exc, "position", 0) or 0)
+    line = text.count("\n", 0, pos) + 1
+    col = pos - (text.rfind("\n", 0, pos) + 1) + 1
+    char = getattr(exc, "character", "")
+    code = f"U+{ord(char):04X}" if isinstance(char, str) and len(char) == 1 else repr(char)
+    return f"{filename}:{line}:{col}: the character {code} is not allowed in YAML (a control character?)"
+
+
 def load_yaml(text: str, filename: str = "<config>") -> tuple[Any, SourceMap]:
     """Parse YAML (safe: plain data only) and keep the line/column of every value.
 
@@ -142,10 +151,15 @@ def load_yaml(text: str, filename: str = "<config>") -> tuple[Any, SourceMap]:
     if len(text) > MAX_CONFIG_BYTES:
         raise ConfigError([f"{filename}: the config is {len(text):,} characters, more than the limit of "
                            f"{MAX_CONFIG_BYTES:,}"])
-    loader = _Loader(text)
+    try:
+        loader = _Loader(text)
+    except yaml.reader.ReaderError as exc:  # a control character: YAML reads printable text only
+        raise ConfigError([_reader_error(exc, text, filename)]) from None
     try:
         try:
             node = loader.get_single_node()
+        except yaml.reader.ReaderError as exc:
+            raise ConfigError([_reader_error(exc, text, filename)]) from None
         except yaml.YAMLError as exc:
             mark = getattr(exc, "problem_mark", None)
             where = f"{filename}:{mark.line + 1}:{mark.column + 1}" if mark else filename
