@@ -1,0 +1,148 @@
+"""Run UX (issue 13): cheap start-up imports, the one-line compile message, --jobs capped by the
+cores and tasks, `seconds` measured per case, runtime failures printed with their coordinates."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from wallbatch.batch import runner
+from wallbatch.batch.runner import kernel_cache_cold, run_plan
+from wallbatch.cli import app
+from wallbatch.config.sweep import load_plan
+
+cli = CliRunner()
+HEAVY = ("dask", "distributed", "scipy.spatial", "matplotlib")
+
+SCENE = """\
+name: ux
+units: lj
+seed: 3
+box: {lo: [0, 0, 0], hi: [6, 6, 10], boundary: [p, p, f]}
+regions:
+  slab: {style: block, lo: [0, 0, 1], hi: [6, 6, 8], units: box}
+atoms:
+  - group: gas
+    create: {random: {count: 30, overlap: 0.8, region: slab}}
+    mass: 1.0
+    velocity: {temperature: 1.0}
+walls:
+  zwalls:
+    style: lj93
+    units: box
+    energy: true
+    zlo: {coord: EDGE, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}
+    zhi: {coord: 9.9, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}
+run: {steps: 4000, thermo: 400}
+"""
+
+
+def sweep(tmp_path: Path, body: str) -> Path:
+    (tmp_path / "scene.yaml").write_text(SCENE)
+    path = tmp_path / "sweep.yaml"
+    path.write_text("base: scene.yaml\n" + textwrap.dedent(body))
+    return path
+
+
+@pytest.mark.parametrize("code", ["import wallbatch",
+                                  "import sys; sys.argv = ['wallbatch', '--help']\n"
+                                  "from wallbatch.cli import app\ntry:\n    app()\nexcept SystemExit:\n    pass"])
+def test_startup_imports_no_heavy_module(code):
+    probe = code + f"\nimport sys; print('heavy:' + ','.join(m for m in {HEAVY!r} if m in sys.modules))"
+    res = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip().splitlines()[-1] == "heavy:"
+
+
+def test_run_of_a_flat_wall_scene_imports_neither_dask_nor_matplotlib(tmp_path):
+    (tmp_path / "scene.yaml").write_text(SCENE.replace("steps: 4000", "steps: 40"))
+    probe = ("import sys; sys.argv = ['wallbatch', 'run', 'scene.yaml', '-o', 'o.nc']\n"
+             "from wallbatch.cli import app\ntry:\n    app()\nexcept SystemExit:\n    pass\n"
+             "print('heavy:' + ','.join(m for m in ('dask', 'distributed', 'matplotlib') if m in sys.modules))")
+    res = subprocess.run([sys.executable, "-c", probe], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip().splitlines() == ["1 of 1 case(s) ok -> o.nc", "heavy:"]
+
+
+def test_xarray_still_handles_dask_after_a_run(tmp_path):
+    """The dask deferral is exact: once dask is imported, chunked data behaves as usual."""
+    (tmp_path / "scene.yaml").write_text(SCENE.replace("steps: 4000", "steps: 40"))
+    ds = run_plan(load_plan(tmp_path / "scene.yaml"), tmp_path / "o.nc", progress=False)
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "o.nc", chunks={}) as lazy:
+        assert type(lazy["pe"].data).__module__.startswith("dask")
+        np.testing.assert_array_equal(lazy["pe"].values, ds["pe"].values)
+
+
+def test_kernel_cache_cold(tmp_path, monkeypatch):
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(runner.compiled, "enabled", lambda: True)
+    assert kernel_cache_cold()
+    (tmp_path / "x").mkdir()
+    (tmp_path / "x" / "compiled._chunk-300.py311.nbi").write_bytes(b"")
+    assert not kernel_cache_cold()
+    monkeypatch.setattr(runner.compiled, "enabled", lambda: False)
+    (tmp_path / "x" / "compiled._chunk-300.py311.nbi").unlink()
+    assert not kernel_cache_cold()  # the NumPy path compiles nothing
+
+
+def test_compile_message_is_printed_once_when_cold(tmp_path, monkeypatch):
+    (tmp_path / "scene.yaml").write_text(SCENE.replace("steps: 4000", "steps: 40"))
+    monkeypatch.setattr(runner, "kernel_cache_cold", lambda: True)
+    res = cli.invoke(app, ["run", str(tmp_path / "scene.yaml"), "-o", str(tmp_path / "a.nc")])
+    assert res.exit_code == 0 and res.output.count("compiling kernels (once, ~15 s)") == 1
+    monkeypatch.setattr(runner, "kernel_cache_cold", lambda: False)
+    res = cli.invoke(app, ["run", str(tmp_path / "scene.yaml"), "-o", str(tmp_path / "b.nc")])
+    assert res.exit_code == 0 and "compiling" not in res.output
+
+
+def test_jobs_capped_by_cores(tmp_path, monkeypatch):
+    path = sweep(tmp_path, "sweep: {product: {eps: {path: walls.zwalls.zlo.epsilon, values: [1.0, 2.0]}}}\n")
+    monkeypatch.setattr(runner, "usable_cores", lambda: 1)
+    seen = {}
+    real = runner.execute
+
+    def spy(tasks, jobs, executor, scheduler):
+        seen["jobs"], seen["tasks"] = jobs, len(tasks)
+        return real(tasks, jobs, executor, scheduler)
+
+    monkeypatch.setattr(runner, "execute", spy)
+    res = cli.invoke(app, ["run", str(path), "-o", str(tmp_path / "o.nc"), "--jobs", "64"])
+    assert res.exit_code == 0, res.output
+    assert "--jobs 64 capped at 1 (the cores this machine lets the run use)" in res.output
+    assert seen == {"jobs": 1, "tasks": 1}
+
+
+def test_seconds_are_measured_per_case(tmp_path):
+    """Three cases in one batch; one loses an atom at the first steps and leaves the batch: its
+    seconds are a small fraction of those that ran 4000 steps (no batch average)."""
+    path = sweep(tmp_path, """\
+        sweep:
+          product:
+            top: {path: walls.zwalls.zhi.coord, values: [9.9, 9.95, 30.0]}
+        """)
+    ds = run_plan(load_plan(path), progress=False)
+    assert ds["status"].values.tolist() == ["ok", "ok", "failed"]
+    sec = ds["seconds"].values
+    assert sec[2] < 0.25 * min(sec[0], sec[1]), sec
+    assert sec[0] > 0 and sec[1] > 0
+
+
+def test_runtime_failure_printed_with_coordinates(tmp_path):
+    path = sweep(tmp_path, """\
+        sweep:
+          product:
+            top: {path: walls.zwalls.zhi.coord, values: [9.9, 30.0]}
+            eps: {path: walls.zwalls.zlo.epsilon, values: [1.0]}
+        """)
+    res = cli.invoke(app, ["run", str(path), "-o", str(tmp_path / "o.nc"), "-j", "1"])
+    assert res.exit_code == 1
+    line = next(ln for ln in res.output.splitlines() if ln.startswith("failed"))
+    assert line.startswith("failed (1 case: top=30.0, eps=1.0): atom ") and "left the box" in line
