@@ -481,9 +481,9 @@ def all_rows(sections: list[Section] | None = None) -> list[Row]:
 
 
 def _config_model() -> type[BaseModel]:
-    import wallbatch.config as cfg
+    from wallbatch.config.models import Config
 
-    return cfg.Config
+    return Config
 
 
 def undocumented() -> list[str]:
@@ -529,26 +529,15 @@ def config_keys() -> str:
 
 
 def styles_table() -> str:
-    """Wall styles: from the style registry (wallbatch.styles.STYLES) when it exists, else from the
-    wall models' `style` literals."""
+    """Wall styles: one row per `style:` value of the wall models, with the face arguments of the
+    style registry (``wallbatch.styles.STYLES``: LAMMPS fix name, parameters and their unit kinds)
+    where it has an entry, else of the face model."""
     try:
-        from wallbatch.styles import STYLES  # type: ignore[import-not-found]
+        from wallbatch.styles import STYLES  # type: ignore[attr-defined]
     except ImportError:
-        STYLES = None
+        STYLES = {}
+    registry = {getattr(st, "name", str(st)): st for st in (STYLES.values() if isinstance(STYLES, dict) else STYLES)}
     rows = ["| style | LAMMPS fix | face arguments (positional order) | other keys |", "| --- | --- | --- | --- |"]
-    if STYLES:
-        entries = STYLES.values() if isinstance(STYLES, dict) else STYLES
-        for st in entries:
-            name = getattr(st, "name", str(st))
-            fix = getattr(st, "lammps", None) or f"wall/{name}"
-            params = getattr(st, "params", None) or ()
-            ptxt = []
-            for p in params:
-                pname = getattr(p, "name", str(p))
-                kind = getattr(p, "unit", None) or getattr(p, "kind", None)
-                ptxt.append(f"`{pname}`" + (f" [{kind}]" if kind else ""))
-            rows.append(f"| `{name}` | `fix {fix}` | `coord`, " + (", ".join(ptxt) or "—") + " | — |")
-        return "\n".join(rows)
     sections = walk(_config_model())
     for sec in sections:
         if sec.path != "walls.ID" or "(`style:`" not in sec.title:
@@ -558,9 +547,20 @@ def styles_table() -> str:
         args = ", ".join(r.path for r in face.rows) if face else "—"
         other = ", ".join(r.path for r in sec.rows if r.path != "`style`" and not r.path.startswith("`xlo`"))
         for style in note.split("`style:`", 1)[1].rstrip(")").replace("\\|", " ").split():
-            s = style.strip("`")
-            fix = {"region": "wall/region", "region/ees": "wall/region/ees"}.get(s, f"wall/{s}")
-            rows.append(f"| `{s}` | `fix {fix}` | {args} | {other} |")
+            name = style.strip("`")
+            fix = {"region": "wall/region", "region/ees": "wall/region/ees"}.get(name, f"wall/{name}")
+            entry_args = args
+            if name in registry:
+                st = registry[name]
+                fix = getattr(st, "lammps", None) or fix
+                ptxt = []
+                for prm in getattr(st, "params", None) or ():
+                    pname = getattr(prm, "name", str(prm))
+                    kind = getattr(prm, "unit", None) or getattr(prm, "kind", None)
+                    ptxt.append(f"`{pname}`" + (f" [{kind}]" if isinstance(kind, str) and kind else ""))
+                if ptxt:
+                    entry_args = ", ".join(["`coord`"] + ptxt)
+            rows.append(f"| `{name}` | `fix {fix}` | {entry_args} | {other} |")
     return "\n".join(rows)
 
 

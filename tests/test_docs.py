@@ -150,7 +150,7 @@ def test_generated_reference_shows_the_models_defaults_and_lammps_names():
     minimize = text.split("### `minimize`", 1)[1].split("\n### ", 1)[0]
     row = next(line for line in minimize.splitlines() if line.startswith("| `maxiter` |"))
     cells = [c.strip() for c in row.strip("|").split("|")]
-    from wallbatch.config import Config
+    from wallbatch.config.models import Config
 
     default = Config.model_fields["minimize"].annotation.__args__[0].model_fields["maxiter"].default
     assert cells[2] == f"`{default}`" and cells[4] == "`maxiter`" and "(> 0)" in cells[1]
@@ -173,7 +173,7 @@ def test_site_builds_strictly(tmp_path):
     assert not leaks, "the built site (docstrings included) cites files outside the repository:\n" + "\n".join(leaks)
     assert not any("<!-- generated:" in t for t in html.values())
     config = html[tmp_path / "site" / "reference" / "config" / "index.html"]
-    from wallbatch.config import Config
+    from wallbatch.config.models import Config
 
     for key in Config.model_fields:
         assert f"<code>{key}</code>" in config, key
