@@ -222,6 +222,23 @@ KEYS: dict[str, Key] = {
     "output.dump.every": Key("Frame interval in steps (step 0 included).", "", "`dump ID all netcdf N`"),
     "output.dump.fields": Key("Per-atom fields to write.", "", "`x y z vx vy vz`"),
     "sweep": Key("Turns the scene into a grid of cases (see the sweep section).", "", "— (a `loop` of runs)"),
+    "sweep.product": Key("A full grid: one results dimension per entry, named by the key. An entry is "
+                         "`{path, values}` or, as shorthand, `PATH: VALUES` (the dimension is named after "
+                         "the path's last part).", "", "—"),
+    "sweep.product.NAME.path": Key("Dotted path(s) into the validated model that this dimension sets "
+                                   "(`walls.zw.zlo.epsilon`, `box.hi.2`); a list sets several together.", "",
+                                   "—"),
+    "sweep.product.NAME.values": Key("A list, `{linspace: [a, b, n]}`, `{logspace: [a, b, n]}` (base-10 "
+                                     "exponents) or `{range: [a, b, step]}` (b excluded).", "", "—"),
+    "sweep.zip": Key("Parameters that move together on one dimension; their values become extra "
+                     "coordinates.", "", "—"),
+    "sweep.zip.dim": Key("Name of the zip's dimension.", "", "—"),
+    "sweep.zip.params": Key("The parameters, each `{path, values}` with values of equal length.", "", "—"),
+    "sweep.zip.params.NAME.path": Key("As `product`'s `path`.", "", "—"),
+    "sweep.zip.params.NAME.values": Key("As `product`'s `values`; every parameter of the zip has as many.", "",
+                                        "—"),
+    "sweep.replicas": Key("Independent random streams of every grid point: a last dimension `replica`.", "",
+                          "—"),
 }
 
 # unit kinds -> attribute of wallbatch.units.UnitSystem (or a formula of them)
@@ -284,6 +301,7 @@ class Section:
     title: str
     doc: str
     rows: list[Row] = field(default_factory=list)
+    model: Any = None
 
 
 def _strip(ann: Any) -> tuple[Any, list[Any]]:
@@ -308,6 +326,9 @@ def _union_args(ann: Any) -> tuple[Any, ...] | None:
 def _constraints(meta: list[Any]) -> list[str]:
     out = []
     for m in meta:
+        if type(m).__name__ == "FieldInfo":  # Annotated[..., Field(...)] inside a Union or list
+            out += _constraints(list(m.metadata))
+            continue
         for cls, sym in ((at.Gt, ">"), (at.Ge, ">="), (at.Lt, "<"), (at.Le, "<=")):
             if isinstance(m, cls):
                 out.append(f"{sym} {getattr(m, sym_attr(cls))}")
@@ -427,7 +448,7 @@ def walk(model: type[BaseModel], path: str = "", title: str = "", note: str = ""
     """Sections (one per model, depth first) with one row per field; `note` qualifies the titles of
     nested sections (the wall style they belong to)."""
     doc = inspect.cleandoc(model.__doc__ or "") if model.__doc__ and model.__doc__ != BaseModel.__doc__ else ""
-    sec = Section(path, title or ((f"`{path}`" + note) if path else "Top level"), doc)
+    sec = Section(path, title or ((f"`{path}`" + note) if path else "Top level"), doc, model=model)
     out = [sec]
     names = list(model.model_fields)
     faces = [n for n in names if n in FACES]
@@ -476,8 +497,17 @@ def _wall_prefix(path: str) -> str:
     return ""
 
 
+def sweep_sections() -> list[Section]:
+    """The sweep grammar (`sweep:` of a config or a sweep file): the Sweep, Param and Zip models;
+    the value forms (linspace, logspace, range) are described in the `values` row."""
+    from wallbatch.config import sweep as sw
+
+    keep = {getattr(sw, n) for n in ("Sweep", "Param", "Zip") if hasattr(sw, n)}
+    return [sec for sec in walk(sw.Sweep, "sweep") if sec.model in keep]
+
+
 def all_rows(sections: list[Section] | None = None) -> list[Row]:
-    return [r for s in (sections or walk(_config_model())) for r in s.rows]
+    return [r for s in (sections or walk(_config_model()) + sweep_sections()) for r in s.rows]
 
 
 def _config_model() -> type[BaseModel]:
@@ -508,16 +538,23 @@ def _cell(text: str) -> str:
     return "`".join(re.sub(r"(?<!\\)\|", r"\\|", p) if i % 2 == 0 else p for i, p in enumerate(parts))
 
 
-def config_keys() -> str:
+def _link_sections(text: str) -> str:
+    """`docs/physics.md §8.6` (or `physics.md §8.6`) as a link to that section of the Physics page
+    (the reference pages live in docs/reference/)."""
+    return re.sub(r"(?:docs/)?physics\.md §(\d+(?:\.\d+)?[a-z]?)",
+                  lambda m: f"[Physics §{m.group(1)}](../physics.md#s{m.group(1).replace('.', '-')})", text)
+
+
+def config_keys(sections: list[Section] | None = None) -> str:
     """The generated key tables, one section per model."""
-    sections = walk(_config_model())
+    sections = walk(_config_model()) if sections is None else sections
     out = []
     for sec in sections:
         if not sec.rows:
             continue
         out.append(f"### {sec.title}\n")
         if sec.doc:
-            out.append(sec.doc.replace("\n", " ") + "\n")
+            out.append(_link_sections(sec.doc.replace("\n", " ")) + "\n")
         out.append("| key | type | default | unit | LAMMPS | meaning |")
         out.append("| --- | --- | --- | --- | --- | --- |")
         for r in sec.rows:
@@ -660,6 +697,7 @@ GENERATORS = {
     "wall-styles": styles_table,
     "cli": cli_reference,
     "output-variables": output_variables,
+    "sweep-keys": lambda: config_keys(sweep_sections()),
 }
 
 
