@@ -161,12 +161,13 @@ def test_generated_reference_shows_the_models_defaults_and_lammps_names():
     assert "## `wallbatch run`" in cli and "| `--resume`, `--no-resume` | flag | `--no-resume` |" in cli
 
 
+@pytest.mark.slow  # 3.5 s alone, 7-9 s on a busy 2-core machine
 @pytest.mark.skipif(importlib.util.find_spec("mkdocs") is None or importlib.util.find_spec("mkdocstrings") is None,
                     reason='mkdocs is not installed (pip install -e ".[docs]")')
 def test_site_builds_strictly(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", ""),
                NO_MKDOCS_2_WARNING="1")
-    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "-d", str(tmp_path / "site")],
+    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-d", str(tmp_path / "site")],
                           cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     html = {p: p.read_text(encoding="utf-8") for p in (tmp_path / "site").rglob("*.html")}
