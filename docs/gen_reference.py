@@ -246,12 +246,27 @@ _KIND_ATTR = {"distance": "distance", "energy": "energy", "time": "time", "mass"
               "temperature": "temperature", "velocity": "velocity", "force": "force", "pressure": "pressure"}
 
 
-_DERIVED = {
-    "1/distance": lambda u: f"1/{u.distance}",
-    "energy/distance²": lambda u: f"{u.energy}/{u.distance}²",
-    "mass distance²/time": lambda u: f"{u.mass}·{u.distance}²/{u.time}",
-    "density (lj) or distance": lambda u: u.distance,
-}
+_BASE_KINDS = ("temperature", "distance", "velocity", "pressure", "energy", "force", "time", "mass")
+
+
+def unit_text(kind: str, u: Any) -> str:
+    """A unit kind (`energy/distance^2`, `1/distance`, `mass distance²/time`) in unit system u."""
+    if u.name == "lj":
+        return "reduced"
+    if kind == "density (lj) or distance":
+        return u.distance
+    return _kind(re.sub("|".join(_BASE_KINDS), lambda m: getattr(u, m.group(0)), kind))
+
+
+def _kind(kind: str) -> str:
+    """A unit kind as the docs print it (`energy/distance^2` -> `energy/distance²`)."""
+    return kind.replace("^2", "²").replace("^3", "³")
+
+
+def _kinds_in_use() -> list[str]:
+    kinds = {_kind(k.unit) for k in KEYS.values() if k.unit}
+    kinds |= {_kind(r.unit) for r in all_rows() if r.unit}
+    return sorted(kinds - set(_KIND_ATTR), key=lambda k: (len(k), k))
 
 
 def _unit_systems() -> dict[str, Any]:
@@ -269,13 +284,8 @@ def unit_kinds_table() -> str:
     for kind, attr in _KIND_ATTR.items():
         vals = [getattr(systems[n], attr) for n in names]
         rows.append(f"| {kind} | " + " | ".join("reduced" if v == "1" else v for v in vals) + " |")
-    for kind, fmt in _DERIVED.items():
-        rows.append(f"| {kind} | " + " | ".join(fmt(systems[n]) if n != "lj" else "reduced" for n in names)
-                    + " |")
-    missing = sorted({k.unit for k in KEYS.values() if k.unit and k.unit not in _KIND_ATTR and k.unit
-                      not in _DERIVED})
-    if missing:
-        raise ValueError(f"unit kinds without a row in the unit table: {missing}")
+    for kind in _kinds_in_use():
+        rows.append(f"| {kind} | " + " | ".join(unit_text(kind, systems[n]) for n in names) + " |")
     return "\n".join(rows)
 
 
@@ -470,10 +480,11 @@ def walk(model: type[BaseModel], path: str = "", title: str = "", note: str = ""
         ann = info.annotation
         cons = ", ".join(_constraints(list(info.metadata)))
         k = KEYS.get(key)
-        desc = (info.description or (k.doc if k else "")).strip()
+        reg = _registry_param(path, note, name)
+        desc = (info.description or getattr(reg, "doc", "") or (k.doc if k else "")).strip()
         typ = (k.type if k and k.type else type_text(ann))
-        sec.rows.append(Row(shown, typ, default, required, cons, desc, k.unit if k else "",
-                            k.lammps if k else "", ))
+        unit = getattr(reg, "unit", "") or (k.unit if k else "")
+        sec.rows.append(Row(shown, typ, default, required, cons, desc, unit, k.lammps if k else ""))
         sec.rows[-1].key = key  # type: ignore[attr-defined]
         child = key if name in collapsed else _child_path(path, name, ann)
         models = _models_in(ann)
@@ -486,6 +497,27 @@ def walk(model: type[BaseModel], path: str = "", title: str = "", note: str = ""
                 sub = f" (`style:` {label})" if styles else note
                 out += walk(m, child, title=f"`{child}`{sub}", note=sub)
     return out
+
+
+def _registry() -> dict[str, Any]:
+    try:
+        from wallbatch.styles import STYLES  # type: ignore[attr-defined]
+    except ImportError:
+        return {}
+    return {getattr(st, "name", str(st)): st for st in (STYLES.values() if isinstance(STYLES, dict) else STYLES)}
+
+
+def _registry_param(path: str, note: str, name: str) -> Any:
+    """The style registry's entry for a face parameter (unit kind, doc), when the face section
+    belongs to exactly one registered style."""
+    if path != "walls.ID.FACE":
+        return None
+    styles = [x for x in re.findall(r"`([^`]+)`", note) if x != "style:"]
+    style = _registry().get(styles[0]) if len(styles) == 1 else None
+    for prm in getattr(style, "parameters", None) or ():
+        if getattr(prm, "name", None) == name:
+            return prm
+    return None
 
 
 def _wall_prefix(path: str) -> str:
@@ -559,7 +591,7 @@ def config_keys(sections: list[Section] | None = None) -> str:
         out.append("| --- | --- | --- | --- | --- | --- |")
         for r in sec.rows:
             typ = r.type + (f" ({r.constraints})" if r.constraints and r.constraints not in r.type else "")
-            out.append(f"| {r.path} | {_cell(typ)} | {r.default} | {r.unit or '—'} | {r.lammps or '—'} | "
+            out.append(f"| {r.path} | {_cell(typ)} | {r.default} | {_kind(r.unit) or '—'} | {r.lammps or '—'} | "
                        f"{_cell(r.description) or '—'} |")
         out.append("")
     return "\n".join(out)
@@ -569,11 +601,7 @@ def styles_table() -> str:
     """Wall styles: one row per `style:` value of the wall models, with the face arguments of the
     style registry (``wallbatch.styles.STYLES``: LAMMPS fix name, parameters and their unit kinds)
     where it has an entry, else of the face model."""
-    try:
-        from wallbatch.styles import STYLES  # type: ignore[attr-defined]
-    except ImportError:
-        STYLES = {}
-    registry = {getattr(st, "name", str(st)): st for st in (STYLES.values() if isinstance(STYLES, dict) else STYLES)}
+    registry = _registry()
     rows = ["| style | LAMMPS fix | face arguments (positional order) | other keys |", "| --- | --- | --- | --- |"]
     sections = walk(_config_model())
     for sec in sections:
@@ -591,10 +619,10 @@ def styles_table() -> str:
                 st = registry[name]
                 fix = getattr(st, "lammps", None) or fix
                 ptxt = []
-                for prm in getattr(st, "params", None) or ():
+                for prm in getattr(st, "parameters", None) or getattr(st, "params", None) or ():
                     pname = getattr(prm, "name", str(prm))
                     kind = getattr(prm, "unit", None) or getattr(prm, "kind", None)
-                    ptxt.append(f"`{pname}`" + (f" [{kind}]" if isinstance(kind, str) and kind else ""))
+                    ptxt.append(f"`{pname}`" + (f" [{_kind(kind)}]" if isinstance(kind, str) and kind else ""))
                 if ptxt:
                     entry_args = ", ".join(["`coord`"] + ptxt)
             rows.append(f"| `{name}` | `fix {fix}` | {entry_args} | {other} |")
