@@ -7,7 +7,14 @@ from typing import Any, Callable
 
 import numpy as np
 
-from wallbatch.config.ensemble import DEFAULT_FIXES, INTEGRATORS
+from wallbatch.config.ensemble import (
+    DEFAULT_FIXES,
+    INTEGRATORS,
+    BerendsenFix,
+    LangevinFix,
+    NvtFix,
+    RescaleFix,
+)
 from wallbatch.scene.case import CaseError
 
 
@@ -41,12 +48,13 @@ class EnsembleFixSpec:
                 self.tally)
 
 
-def build_fixes(cfg: Any, mask: Callable[[str], np.ndarray], seed_key: tuple[int, ...]) -> tuple[EnsembleFixSpec, ...]:
-    """The case's fixes in config order (default: nve on all). A 2-D run without an enforce2d
-    gets one on all atoms, applied after every other force."""
-    from wallbatch.config.ensemble import BerendsenFix, LangevinFix, NvtFix, RescaleFix
-
-    given = cfg.fixes if cfg.fixes is not None else None
+def build_fixes(cfg: Any, mask: Callable[[str], np.ndarray],
+                seed_key: tuple[int, ...]) -> tuple[EnsembleFixSpec, ...] | None:
+    """The case's fixes in config order; None for the default (nve on all, 3-D). A 2-D run
+    without an enforce2d gets one on all atoms, applied after every other force."""
+    given = cfg.fixes
+    if given is None and cfg.dimension == 3:
+        return None
     out: list[EnsembleFixSpec] = []
     if given is None:
         out = [EnsembleFixSpec(fid, f["style"], mask(f["group"])) for fid, f in DEFAULT_FIXES.items()]
@@ -73,8 +81,10 @@ def build_fixes(cfg: Any, mask: Callable[[str], np.ndarray], seed_key: tuple[int
     return tuple(out)
 
 
-def is_plain_nve(fixes: tuple[EnsembleFixSpec, ...]) -> bool:
+def is_plain_nve(fixes: tuple[EnsembleFixSpec, ...] | None) -> bool:
     """True when the fixes are just velocity Verlet on every atom (the engine's built-in step)."""
+    if fixes is None:
+        return True
     if not fixes or any(f.style not in ("nve", "nve/asphere") for f in fixes):
         return False
     counts = np.sum([f.group for f in fixes], axis=0)
