@@ -234,6 +234,14 @@ def expand_fix_lines(data: Any, srcmap: Any) -> tuple[Any, list[str]]:
     return {**data, "fixes": fixes}, problems
 
 
+def drop_fix_tag(loc: tuple) -> tuple:
+    """A validation error's location without the union tag Pydantic puts after a fix-ID
+    (fixes.nh.nvt.damp -> fixes.nh.damp)."""
+    if len(loc) > 2 and loc[0] == "fixes" and loc[2] in FIX_STYLES:
+        return loc[:2] + loc[3:]
+    return loc
+
+
 def check_ensemble(cfg: Any) -> list[tuple[tuple, str]]:
     """Cross-field checks of `fixes:` and `dimension:` (path, message)."""
     problems: list[tuple[tuple, str]] = []

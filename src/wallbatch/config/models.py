@@ -78,7 +78,7 @@ def _bound(v: Any) -> float | None:
 
 from pydantic import BeforeValidator  # noqa: E402
 
-from wallbatch.config.ensemble import EnsembleFix, check_ensemble
+from wallbatch.config.ensemble import EnsembleFix, check_ensemble, drop_fix_tag
 from wallbatch.config.ensemble import expand_fix_lines as expand_ensemble_lines
 from wallbatch.config.fixline import FixLineError, parse_fix_line
 from wallbatch.expr import VariableError, Variables
@@ -535,7 +535,7 @@ def validate_data(data: Any, srcmap: SourceMap) -> Config:
                 msg = "fld (lubrication models, fix wall ... fld yes) is not supported: remove it"
             elif err["type"] == "extra_forbidden":
                 msg = "unknown key (misspelled? see shared/spec/config.md for the valid keys)"
-            problems.append(srcmap.format(tuple(err["loc"]), msg))
+            problems.append(srcmap.format(drop_fix_tag(tuple(err["loc"])), msg))
         raise ConfigError(problems) from None
     problems = [srcmap.format(path, msg) for path, msg in check_scene(cfg)]
     if problems:
