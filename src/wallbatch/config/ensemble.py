@@ -251,6 +251,8 @@ def check_ensemble(cfg: Any) -> list[tuple[tuple, str]]:
     integrated: dict[str, str] = {}  # atom group -> fix-ID that integrates it
     ellipsoids = any(g.shape is not None for g in cfg.atoms)
     for fid, fix in fixes.items():
+        if fid in cfg.walls:
+            add(("fixes", fid), f"fix-ID '{fid}' is also a wall's: LAMMPS fix-IDs are unique, rename one")
         if fix.group not in groups:
             add(("fixes", fid, "group"), f"unknown group '{fix.group}' (groups: {', '.join(groups)})")
             continue
