@@ -293,3 +293,7 @@ def test_2d_lattice_in_3d_and_3d_lattice_in_2d_are_refused():
         config_from_dict({**base, "lattice": {"style": "sq", "scale": 0.8}})
     with pytest.raises(ConfigError, match="lattice.style: lattice fcc is 3-D"):
         config_from_dict({**base, "dimension": 2, "lattice": {"style": "fcc", "scale": 0.8}})
+    with pytest.raises(ConfigError, match=r"walls.w.units: lattice hex has different x and y spacings"):
+        config_from_dict({**base, "dimension": 2, "lattice": {"style": "hex", "scale": 0.8},
+                          "box": {**base["box"], "boundary": ["f", "p", "p"]},
+                          "walls": {"w": "fix w all wall/harmonic xlo 0.0 1.0 1.0 1.0"}})

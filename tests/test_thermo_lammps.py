@@ -212,8 +212,9 @@ def test_2d_sq2_lattice_harmonic_walls_nvt_match_lammps():
 
 
 def test_example_exports_its_fix_lines_and_validates_against_lammps():
-    """configs/lj-adsorption-nvt.yaml (LJ fluid, lj93 substrate, fix nvt written as a LAMMPS
-    line): the export carries the fix line and `validate` agrees with LAMMPS over 100 steps."""
+    """sweeps/lj-adsorption-epsilon.yaml over configs/lj-adsorption-nvt.yaml (LJ fluid, lj93
+    substrate, fix nvt written as a LAMMPS line): one batch; the export carries the fix line and
+    `validate` agrees with LAMMPS over 100 steps."""
     from pathlib import Path
 
     import wallbatch
@@ -222,8 +223,9 @@ def test_example_exports_its_fix_lines_and_validates_against_lammps():
     from wallbatch.scene.build import build_case
 
     root = Path(__file__).resolve().parents[1]
-    plan = wallbatch.load(root / "configs/lj-adsorption-nvt.yaml", sets=["run.steps=100", "run.thermo=20"])
+    plan = wallbatch.load(root / "sweeps/lj-adsorption-epsilon.yaml", sets=["run.steps=100", "run.thermo=20"])
     assert len(plan.cases) == 4
+    assert len(wallbatch.check(plan).batches) == 1
     sc = plan.cases[3]
     exp = export_case(sc.config, build_case(sc.config, sc.seed_key))
     assert "fix             nh fluid nvt temp 1.0 1.0 0.5 tchain 3 tloop 1 drag 0.0" in exp.script

@@ -287,6 +287,15 @@ def check_ensemble(cfg: Any) -> list[tuple[tuple, str]]:
                 add(("walls", fid, "axis"), "a z flow wall in a 2-D run (dimension: 2)")
         if ellipsoids:
             add(("dimension",), "ellipsoids (shape) are 3-D only")
+        if cfg.lattice is not None and cfg.lattice.style == "hex":
+            for fid, wall in cfg.walls.items():
+                if getattr(wall, "units", "box") == "lattice":
+                    add(("walls", fid, "units"), "lattice hex has different x and y spacings (a, sqrt(3) a): give "
+                        "this wall's coordinates in box units (units: box)")
+            for name, region in cfg.regions.items():
+                if region.units == "lattice":
+                    add(("regions", name, "units"), "lattice hex has different x and y spacings (a, sqrt(3) a): "
+                        "give this region in box units (units: box)")
         if cfg.lattice is not None and cfg.lattice.style not in ("sq", "sq2", "hex"):
             add(("lattice", "style"), f"lattice {cfg.lattice.style} is 3-D: a 2-D run uses sq, sq2 or hex")
     elif cfg.lattice is not None and cfg.lattice.style in ("sq", "sq2", "hex"):

@@ -6,12 +6,13 @@ structure runs as one set of array operations; a single case is a batch of one. 
 chunk of steps later without touching the rest.
 
 One step n (counter first):
-  1. initial_integrate   v += dt/2 ftm2v f/m ; x += dt v          (fix nve)
+  1. initial_integrate   fix nvt chain half step; v += dt/2 ftm2v f/m ; x += dt v (integrated atoms)
   2. post_integrate      wall/reflect
   3. periodic wrap, lost-atom check
-  4. force clear, post_force: soft walls (energies only on sample steps)
-  5. final_integrate     v += dt/2 ftm2v f/m
-  6. end_of_step         dt/reset when n % every == 0
+  4. force clear, post_force: soft walls (energies only on sample steps), langevin, enforce2d
+  5. final_integrate     v += dt/2 ftm2v f/m; fix nvt chain half step
+  6. end_of_step         temp/berendsen, temp/rescale, langevin tally (engine/ensemble.py), wall/flow,
+                         dt/reset when n % every == 0
 A case that fails (atom behind a wall, lost, NaN, a bad variable value) leaves the batch with its
 message; the others go on untouched.
 """
