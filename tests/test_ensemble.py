@@ -33,10 +33,6 @@ timestep: 0.005
 """
 
 
-def run_text(text: str):
-    return api.run(config_from_dict(__import__("yaml").safe_load(text)))
-
-
 # ----------------------------------------------------------------------------- fix lines
 
 
@@ -115,6 +111,18 @@ def test_bad_fixes_name_file_line_and_field(fixes, where):
         load_config_text(BAD.replace("FIXES", fixes))
 
 
+def test_thermostats_and_frozen_groups_with_ellipsoids_are_refused():
+    base = {"units": "lj", "box": {"lo": [0, 0, 0], "hi": [8, 8, 8]}, "run": {"steps": 1},
+            "atoms": [{"group": "e", "mass": 1.0, "shape": [1.0, 0.5, 0.5], "create": {"positions": [[2, 2, 2]]}},
+                      {"group": "p", "mass": 1.0, "create": {"positions": [[5, 5, 5]]}}]}
+    with pytest.raises(ConfigError, match="fixes.nh.style: fix nvt on ellipsoids is not supported"):
+        config_from_dict({**base, "fixes": {"nh": "fix nh all nvt temp 1 1 0.1"}})
+    with pytest.raises(ConfigError, match="fixes: group.s. p are integrated by no fix"):
+        config_from_dict({**base, "fixes": {"a": "fix a e nve/asphere"}})
+    cfg = config_from_dict({**base, "fixes": {"a": "fix a e nve/asphere", "b": "fix b p nve"}})
+    assert build_case(cfg).fixes is not None
+
+
 def test_2d_with_a_z_wall_is_refused_at_the_wall():
     text = BAD.replace("fixes:\nFIXES\n", "dimension: 2\n").replace("[p, p, f]", "[p, p, p]").replace(
         "units box\"", "units box pbc yes\"")
@@ -124,19 +132,27 @@ def test_2d_with_a_z_wall_is_refused_at_the_wall():
         load_config_text(BAD.replace("fixes:\nFIXES\n", "dimension: 2\n"))
 
 
-def test_nvt_on_a_group_with_no_atoms_is_refused():
-    cfg = config_from_dict({
-        "units": "lj", "lattice": {"style": "sc", "scale": 0.5},
-        "box": {"lo": [0, 0, 0], "hi": [6, 6, 6]},
-        "regions": {"tiny": {"style": "sphere", "center": [0.7, 0.7, 0.7], "radius": 0.1, "units": "box"}},
-        "atoms": [{"group": "gas", "mass": 1.0, "create": {"positions": [[1, 1, 1], [3, 3, 3]]}},
-                  {"group": "none", "mass": 1.0, "create": {"file": "missing.npz"}}],
-        "fixes": {"nh": "fix nh gas nvt temp 1 1 0.1"}, "run": {"steps": 1}})
-    assert cfg.fixes["nh"].damp == 0.1
-    from wallbatch.scene.ensemble import build_fixes
-    n = 2
-    with pytest.raises(CaseError, match="fixes.nh.group: group 'gas' has no atoms"):
-        build_fixes(cfg, lambda g: np.zeros(n, bool), ())
+def test_nvt_on_a_group_with_no_atoms_is_refused(tmp_path):
+    """Only a .npz file can give a group no atoms; the error names file:line:col and the field."""
+    np.savez(tmp_path / "empty.npz", x=np.zeros((0, 3)))
+    text = textwrap.dedent("""\
+        units: lj
+        box: {lo: [0, 0, 0], hi: [6, 6, 6]}
+        atoms:
+          - group: gas
+            create: {positions: [[1, 1, 1], [3, 3, 3]]}
+            mass: 1.0
+          - group: none
+            create: {file: empty.npz}
+            mass: 1.0
+        fixes:
+          move: {style: nve, group: gas}
+          nh: {style: nvt, group: none, temp: [1, 1], damp: 0.1}
+        run: {steps: 1}
+        """)
+    cfg = load_config_text(text, "scene.yaml", base=tmp_path)
+    with pytest.raises(CaseError, match=r"scene.yaml:12:\d+: fixes.nh.group: group 'none' has no atoms"):
+        build_case(cfg)
 
 
 # ----------------------------------------------------------------------------- frozen atoms
@@ -181,14 +197,14 @@ def _plan(fixes: str, sweep: str):
 
 @pytest.mark.parametrize("fixes,sweep", [
     ('nh: "fix nh all nvt temp 1.0 1.0 0.1"',
-     "product:\n  T: {path: fixes.nh.temp, values: [[0.8, 0.8], [1.6, 1.6]]}\n"
-     "  damp: {path: fixes.nh.damp, values: [0.05, 0.5]}\n"),
+     ("product:\n  T: {path: fixes.nh.temp, values: [[0.8, 0.8], [1.6, 1.6]]}\n"
+     "  damp: {path: fixes.nh.damp, values: [0.05, 0.5]}\n")),
     ('nve: {style: nve}\nbath: "fix bath all langevin 1.0 1.0 0.5 4242 zero yes tally yes"',
-     "product:\n  T: {path: fixes.bath.temp, values: [[0.8, 0.8], [1.6, 1.6]]}\n"
-     "  damp: {path: fixes.bath.damp, values: [0.1, 1.0]}\n"),
+     ("product:\n  T: {path: fixes.bath.temp, values: [[0.8, 0.8], [1.6, 1.6]]}\n"
+     "  damp: {path: fixes.bath.damp, values: [0.1, 1.0]}\n")),
     ('nve: {style: nve}\nber: "fix ber all temp/berendsen 1.0 1.0 0.5"\nres: "fix res all temp/rescale 10 1 1 0.1 0.5"',
-     "product:\n  T: {path: [fixes.ber.temp, fixes.res.temp], values: [[0.8, 0.8], [1.6, 1.6]]}\n"
-     "  damp: {path: fixes.ber.damp, values: [0.1, 1.0]}\n"),
+     ("product:\n  T: {path: [fixes.ber.temp, fixes.res.temp], values: [[0.8, 0.8], [1.6, 1.6]]}\n"
+     "  damp: {path: fixes.ber.damp, values: [0.1, 1.0]}\n")),
 ])
 def test_temperature_by_damp_sweep_is_one_batch_and_bit_identical_to_single_runs(fixes, sweep):
     plan = _plan(fixes, sweep)

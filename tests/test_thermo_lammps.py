@@ -14,10 +14,10 @@ import tempfile
 
 import numpy as np
 import pytest
-
 from lammps_oracle import _load_lammps, _parse_thermo, requires_lammps
-from wallbatch.config.models import config_from_dict
+
 from wallbatch.batch.runner import run_config
+from wallbatch.config.models import config_from_dict
 
 pytestmark = [requires_lammps, pytest.mark.lammps]
 
@@ -50,7 +50,8 @@ def run_lammps_script(x, v, mass, head: list[str], fixes: list[str], steps: int,
             lmp.command(f"run {steps}")
         finally:
             lmp.close()
-        rows = np.array(_parse_thermo(open(log).read(), len(columns) + 1))
+        with open(log, encoding="utf-8") as fh:
+            rows = np.array(_parse_thermo(fh.read(), len(columns) + 1))
     return {c: rows[:, j + 1] for j, c in enumerate(columns)}
 
 
@@ -196,7 +197,7 @@ def test_2d_sq2_lattice_harmonic_walls_nvt_match_lammps():
         lmp.command(c)
     pts = np.ctypeslib.as_array(lmp.gather_atoms("x", 1, 3)).reshape(-1, 3).copy()
     lmp.close()
-    key = lambda p: np.lexsort(np.round(p, 9).T[::-1])  # noqa: E731
+    key = lambda p: np.lexsort(np.round(p, 9).T[::-1])
     np.testing.assert_allclose(pts[key(pts)], case.x[key(case.x)], atol=1e-12)
     ref = run_lammps_script(case.x, case.v, 1.0, head,
                             ["timestep 0.004", cfg["walls"]["w"]["fix"], "fix_modify w energy yes",

@@ -13,9 +13,17 @@ Mapping keys mirror the fix line's arguments. Absent `fixes:` means `{nve: {styl
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, PositiveFloat, PositiveInt, field_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    NonNegativeFloat,
+    PositiveFloat,
+    PositiveInt,
+    field_validator,
+)
 
 from wallbatch.config.fixline import FixLineError, _Words
 
@@ -101,7 +109,7 @@ class Enforce2dFix(_Fix):
     style: Literal["enforce2d"]
 
 
-EnsembleFix = Annotated[Union[NveFix, NveAsphereFix, NvtFix, LangevinFix, BerendsenFix, RescaleFix, Enforce2dFix],
+EnsembleFix = Annotated[NveFix | NveAsphereFix | NvtFix | LangevinFix | BerendsenFix | RescaleFix | Enforce2dFix,
                         Field(discriminator="style")]
 
 
@@ -245,7 +253,7 @@ def drop_fix_tag(loc: tuple) -> tuple:
 def check_ensemble(cfg: Any) -> list[tuple[tuple, str]]:
     """Cross-field checks of `fixes:` and `dimension:` (path, message)."""
     problems: list[tuple[tuple, str]] = []
-    add = lambda path, msg: problems.append((path, msg))  # noqa: E731
+    add = lambda path, msg: problems.append((path, msg))
     groups = ["all"] + [g.group for g in cfg.atoms]
     fixes = cfg.fixes if cfg.fixes is not None else {}
     integrated: dict[str, str] = {}  # atom group -> fix-ID that integrates it
@@ -275,6 +283,11 @@ def check_ensemble(cfg: Any) -> list[tuple[tuple, str]]:
                     "have no shape")
         if fix.style == "enforce2d" and cfg.dimension != 2:
             add(("fixes", fid, "style"), "fix enforce2d is for 2-D runs: set dimension: 2")
+    if ellipsoids and cfg.fixes is not None:
+        left = [g for g in groups[1:] if g not in integrated]
+        if left:
+            add(("fixes",), f"group(s) {', '.join(left)} are integrated by no fix: frozen atoms are not supported "
+                "in scenes with ellipsoids (integrate every atom with nve or nve/asphere)")
     if cfg.dimension == 2:
         if cfg.box.boundary[2] != "p":
             add(("box", "boundary"), "a 2-D run (dimension: 2) needs a periodic z boundary, as LAMMPS")

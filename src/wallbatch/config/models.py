@@ -490,6 +490,7 @@ class Config(Model):
     output: Output = Output()
     sweep: dict[str, Any] | None = None
     _base_dir: Path = PrivateAttr(default=Path("."))  # folder that relative `file:` paths start from
+    _srcmap: Any = PrivateAttr(default=None)  # where each value stands, for errors found when building
 
 
 
@@ -537,6 +538,7 @@ def validate_data(data: Any, srcmap: SourceMap) -> Config:
                 msg = "unknown key (misspelled? see shared/spec/config.md for the valid keys)"
             problems.append(srcmap.format(drop_fix_tag(tuple(err["loc"])), msg))
         raise ConfigError(problems) from None
+    cfg._srcmap = srcmap
     problems = [srcmap.format(path, msg) for path, msg in check_scene(cfg)]
     if problems:
         raise ConfigError(problems)

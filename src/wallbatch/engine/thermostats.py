@@ -24,7 +24,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
 # ----------------------------------------------------------------------------- temperature
 
 
@@ -97,7 +96,7 @@ class NHChain:
 
     @classmethod
     def start(cls, ncases: int, tchain: int, damp: np.ndarray, dof: float, boltz: float,
-              tloop: int = 1, drag: np.ndarray | float = 0.0) -> "NHChain":
+              tloop: int = 1, drag: np.ndarray | float = 0.0) -> NHChain:
         """A chain at rest (eta = eta_dot = 0), as at `fix nvt` creation."""
         z = np.zeros((ncases, tchain))
         return cls(z.copy(), np.zeros((ncases, tchain + 1)), z.copy(), z.copy(), np.zeros(ncases),

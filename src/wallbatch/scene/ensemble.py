@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -62,19 +63,22 @@ def build_fixes(cfg: Any, mask: Callable[[str], np.ndarray],
         for k, (fid, f) in enumerate(given.items()):
             group = mask(f.group)
             if isinstance(f, (NvtFix, LangevinFix, BerendsenFix, RescaleFix)) and not group.any():
-                raise CaseError(f"fixes.{fid}.group: group '{f.group}' has no atoms: fix {f.style} needs atoms "
-                                f"to thermostat")
+                msg = f"group '{f.group}' has no atoms: fix {f.style} needs atoms to thermostat"
+                where = getattr(cfg, "_srcmap", None)
+                raise CaseError(where.format(("fixes", fid, "group"), msg) if where is not None
+                                else f"fixes.{fid}.group: {msg}")
             kw: dict[str, Any] = {}
             if isinstance(f, NvtFix):
-                kw = dict(t_start=f.temp[0], t_stop=f.temp[1], damp=f.damp, tchain=f.tchain, tloop=f.tloop,
-                          drag=f.drag)
+                kw = {"t_start": f.temp[0], "t_stop": f.temp[1], "damp": f.damp, "tchain": f.tchain,
+                      "tloop": f.tloop, "drag": f.drag}
             elif isinstance(f, LangevinFix):
-                kw = dict(t_start=f.temp[0], t_stop=f.temp[1], damp=f.damp, zero=f.zero, tally=f.tally,
-                          seed=(cfg.seed, *seed_key, f.seed, k))
+                kw = {"t_start": f.temp[0], "t_stop": f.temp[1], "damp": f.damp, "zero": f.zero,
+                      "tally": f.tally, "seed": (cfg.seed, *seed_key, f.seed, k)}
             elif isinstance(f, BerendsenFix):
-                kw = dict(t_start=f.temp[0], t_stop=f.temp[1], damp=f.damp)
+                kw = {"t_start": f.temp[0], "t_stop": f.temp[1], "damp": f.damp}
             elif isinstance(f, RescaleFix):
-                kw = dict(t_start=f.temp[0], t_stop=f.temp[1], every=f.every, window=f.window, fraction=f.fraction)
+                kw = {"t_start": f.temp[0], "t_stop": f.temp[1], "every": f.every, "window": f.window,
+                      "fraction": f.fraction}
             out.append(EnsembleFixSpec(fid, f.style, group, **kw))
     if getattr(cfg, "dimension", 3) == 2 and not any(s.style == "enforce2d" for s in out):
         out.append(EnsembleFixSpec("__enforce2d__", "enforce2d", mask("all")))
