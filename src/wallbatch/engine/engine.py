@@ -207,7 +207,7 @@ class Engine:
         self.wrap()
         out = self.compute_forces(outputs)
         if self.ensemble is not None:
-            self.ensemble.post_force(s)  # langevin, enforce2d
+            self.ensemble.post_force(s, active)  # langevin, enforce2d
         self.check_lost()
         self.final_integrate(dtfm, dt)
         if self.ensemble is not None:

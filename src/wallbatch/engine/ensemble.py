@@ -103,6 +103,7 @@ class Ensemble:
         self.langevin = [f for f in self.fixes if f.style == "langevin"]
         self.enforce2d = [f for f in self.fixes if f.style == "enforce2d"]
         self.rescalers = [f for f in self.fixes if f.style in ("temp/berendsen", "temp/rescale")]
+        self.live: np.ndarray | None = None  # this step's advancing cases (None: all)
 
     @staticmethod
     def needed(case: Case) -> bool:
@@ -134,15 +135,24 @@ class Ensemble:
             s.v[:, m] += dtfm[:, m] * s.f[:, m]
             s.x[:, m] += dt[:, None, None] * s.v[:, m]
 
-    def post_force(self, s: BatchState) -> None:
+    def post_force(self, s: BatchState, active: np.ndarray | None = None) -> None:
+        """Langevin forces, then enforce2d. `active` (C,) marks the cases that advance this step
+        (a run to a time): the others draw no random numbers and get no force, so a case's
+        random stream does not depend on the batch it runs in."""
+        self.live = None if active is None or np.all(active > 0) else active > 0  # for this step's later hooks
         for f in self.langevin:
             if not f.rngs:
                 continue
             idx = np.nonzero(f.group)[0]
-            u = np.full(s.x.shape, 0.5)  # atoms outside the group get no force
-            u[:, idx] = np.stack([r.random((len(idx), 3)) for r in f.rngs])
-            f.force = langevin_force(s.v, s.mass, f.mask(), f.target(s), f.damp, s.dt, u, s.units.ftm2v,
+            live = np.ones(s.ncases, bool) if self.live is None else self.live
+            u = np.full(s.x.shape, 0.5)  # atoms outside the group (and idle cases) get no random force
+            for c in np.nonzero(live)[0]:
+                u[c, idx] = f.rngs[c].random((len(idx), 3))
+            dt = np.where(s.dt > 0, s.dt, 1.0)  # an idle case has dt = 0
+            f.force = langevin_force(s.v, s.mass, f.mask(), f.target(s), f.damp, dt, u, s.units.ftm2v,
                                      s.units.mvv2e, s.units.boltz, zero=f.zero)
+            if not live.all():
+                f.force[~live] = 0.0
             s.f += f.force
         for f in self.enforce2d:
             if f.all:
@@ -159,7 +169,8 @@ class Ensemble:
         else:
             s.v[:, m] += dtfm[:, m] * s.f[:, m]
         for f in self.nvt:
-            f.chain.t_current = f.temperature(s)
+            t_now = f.temperature(s)  # an idle case keeps its carried value (bit-identity across batches)
+            f.chain.t_current = t_now if self.live is None else np.where(self.live, t_now, f.chain.t_current)
             scale_group(s.v, f.chain.half_step(s.dt, f.target(s)), f.mask())
 
     def end_of_step(self, s: BatchState, active: np.ndarray | None = None) -> None:
@@ -186,9 +197,11 @@ class Ensemble:
             f.removed = f.removed + removed
         for f in self.langevin:
             if f.tally:
-                f.last_dt = s.dt.copy()
-                f.power = langevin_power(f.force, s.v)
-                f.work = f.work + f.power * s.dt
+                power = langevin_power(f.force, s.v)
+                live = np.ones(s.ncases, bool) if self.live is None else self.live
+                f.last_dt = np.where(live, s.dt, f.last_dt)
+                f.power = np.where(live, power, f.power)
+                f.work = f.work + np.where(live, power * s.dt, 0.0)
 
     def ecouple(self, ncases: int) -> np.ndarray:
         total = np.zeros(ncases)
@@ -198,5 +211,6 @@ class Ensemble:
         return total
 
     def take(self, keep: np.ndarray) -> None:
+        self.live = None
         for f in self.fixes:
             f.take(keep)
