@@ -107,6 +107,7 @@ def compare(ds, ref, keys=("temp", "ke", "pe", "etot", "ecouple", "econserve")):
 @pytest.mark.parametrize("line", [
     "fix nh all nvt temp 1.0 1.0 0.1",
     "fix nh all nvt temp 2.0 0.8 0.2 tchain 5",
+    "fix nh all nvt temp 1.5 1.5 0.3 tchain 2 tloop 3 drag 0.5",
 ])
 def test_nvt_slit_matches_lammps(line):
     x, v = slit_gas()
@@ -252,3 +253,35 @@ def test_2d_export_writes_dimension_and_enforce2d():
     assert "fix             bath all langevin 1.0 1.0 0.5 77 zero yes tally no" in script
     assert script.index("wall/harmonic") < script.index("enforce2d")  # after every force fix
     assert "fix             wb_nve" not in script  # fixes: replaces the default integrator
+
+
+@pytest.mark.parametrize("units,T,lines", [
+    ("real", 300.0, ["fix nh all nvt temp 300.0 250.0 100.0"]),
+    ("metal", 300.0, ["fix nve all nve", "fix ber all temp/berendsen 300.0 300.0 0.5"]),
+    ("real", 300.0, ["fix nve all nve", "fix bath all langevin 0.0 0.0 200.0 9 zero yes tally yes"]),
+])
+def test_thermostats_in_real_and_metal_units_match_lammps(units, T, lines):
+    """Argon-like gas (m = 39.948 g/mol) between lj93 walls: boltz, mvv2e and ftm2v enter the
+    chain masses, the Berendsen energy and the Langevin drag as in LAMMPS."""
+    from wallbatch.units import UNIT_SYSTEMS
+
+    u = UNIT_SYSTEMS[units]
+    rng = np.random.default_rng(5)
+    n, m = 150, 39.948
+    x = np.column_stack([rng.uniform(0, 30, n), rng.uniform(0, 30, n), rng.uniform(5, 31, n)])
+    v = rng.normal(0.0, np.sqrt(u.boltz * T / (u.mvv2e * m)), (n, 3))
+    dt = 2.0 if units == "real" else 0.002
+    wall = "fix zw all wall/lj93 zlo EDGE 0.2 3.4 8.5 zhi EDGE 0.2 3.4 8.5 units box"
+    cfg = {"units": units, "box": {"lo": [0, 0, 0], "hi": [30, 30, 36], "boundary": ["p", "p", "f"]},
+           "atoms": [{"group": "gas", "mass": m, "create": {"positions": x.tolist()},
+                      "velocity": {"values": v.tolist()}}],
+           "timestep": dt, "walls": {"zw": {"fix": wall, "energy": True}},
+           "fixes": {ln.split()[1]: ln for ln in lines}, "run": {"steps": 500, "thermo": 50},
+           "output": {"thermo": ["step", "temp", "ke", "pe", "etot", "ecouple", "econserve"]}}
+    ds = run_config(config_from_dict(cfg))
+    head = [f"units {units}", "atom_style atomic", "atom_modify map array", "boundary p p f",
+            "region box block 0 30 0 30 0 36 units box", "create_box 1 box"]
+    ref = run_lammps_script(x, v, m, head, [f"timestep {dt!r}", wall, "fix_modify zw energy yes"] + lines, 500, 50,
+                            COLUMNS)
+    compare(ds, ref)
+    assert abs(ref["ecouple"][-1]) > 1e-3 * abs(ref["ke"][0])
