@@ -55,7 +55,7 @@ class NveAsphereFix(_Fix):
 
 
 class NvtFix(_Fix):
-    """fix nvt temp Tstart Tstop Tdamp [tchain N] [tloop N] [drag D]: Nose-Hoover chain."""
+    """`fix nvt temp Tstart Tstop Tdamp [tchain N] [tloop N] [drag D]`: Nose-Hoover chain."""
 
     style: Literal["nvt"]
     temp: tuple[PositiveFloat, PositiveFloat]
@@ -66,7 +66,7 @@ class NvtFix(_Fix):
 
 
 class LangevinFix(_Fix):
-    """fix langevin Tstart Tstop damp seed [zero yes] [tally yes]: drag plus random force."""
+    """`fix langevin Tstart Tstop damp seed [zero yes] [tally yes]`: drag plus random force."""
 
     style: Literal["langevin"]
     temp: Temps
