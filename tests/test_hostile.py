@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import numpy as np
@@ -87,6 +88,11 @@ def config_error(path: Path, sets=()) -> list[str]:
     ("? [a, b]\n: 1\n", "f.yaml:1:3: (top level):", "a key must be plain text or a number"),
     ('"a\\nb": 1\n', "f.yaml:1:1: (top level):", "a key may not contain a line break"),
     ("a: 1\na: 2\n", "f.yaml:2:1: a:", "defined twice (first at line 1); keep one"),
+    ("walls:\n  0x1: a\n  1: b\n", "f.yaml:3:3: walls.1:",
+     "defined twice (first at line 2 as 0x1; YAML reads both as 1); keep one"),
+    ("walls:\n  1: a\n  '1': b\n", "f.yaml:3:3: walls.1:", "defined twice (first at line 2); keep one"),
+    ("walls:\n  ~: a\n", "f.yaml:2:3: walls:", "the key ~ reads as null: write a name"),
+    ("a: \x07\n", "f.yaml:1:4:", "the character U+0007 is not allowed in YAML"),
     ("a: [1, 2\n", "f.yaml:2:1:", "YAML syntax error"),
     ("", "f.yaml:", "the file is empty"),
 ])
@@ -360,19 +366,18 @@ def test_lock_held_by_a_live_process_refuses(scene, tmp_path):
 
 @pytest.mark.slow
 def test_concurrent_runs_on_one_output(tmp_path):
-    (tmp_path / "scene.yaml").write_text(SCENE.replace("steps: 40, thermo: 20", "steps: 3000000, thermo: 300000"))
+    (tmp_path / "scene.yaml").write_text(SCENE.replace("steps: 40, thermo: 20", "steps: 200000000, thermo: 20000000"))
     out = tmp_path / "r.nc"
     cmd = [sys.executable, "-m", "wallbatch.cli", "run", "scene.yaml", "-o", str(out), "-j", "1"]
     first = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         lock = tmp_path / "r.nc.lock"
-        for _ in range(600):
+        for _ in range(1200):
             if lock.exists() and lock.read_text().strip():
                 break
-            import time
-
             time.sleep(0.05)
-        second = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=120)
+        second = subprocess.run(cmd + ["--force"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+        assert first.poll() is None, "the first run ended too early for the test"
         assert second.returncode == 2
         assert f"is being written by another wallbatch run (PID {first.pid}" in second.stderr
     finally:

@@ -173,3 +173,25 @@ def test_sigkill_of_the_parent_leaves_no_worker(sweep):
     proc, _, workers, _, out = _interrupt(sweep, signal.SIGKILL, False)
     assert proc.returncode == -signal.SIGKILL
     assert len(_finished(parts_dir(out))) >= 2  # finished parts survive a kill -9 too
+
+
+def test_a_killed_worker_is_one_message_and_the_parts_stay(sweep):
+    out = sweep.parent / "out.nc"
+    proc, log = _start(sweep, out)
+    try:
+        workers = _wait_for_parts_and_workers(proc, parts_dir(out), log, n=1)
+        victim = max(workers)  # a worker (the resource tracker, if any, started first)
+        os.kill(victim, signal.SIGKILL)
+        proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    text = log.read_text()
+    saved = _finished(parts_dir(out))
+    assert proc.returncode == 2, text
+    assert (f"error: a worker process died (killed, or out of memory?): the {len(saved)} finished case(s) are "
+            f"kept in {parts_dir(out)}; rerun with --resume") in text
+    assert "Traceback" not in text and len(saved) >= 1
+    time.sleep(1.0)
+    assert not _alive(workers)

@@ -21,6 +21,7 @@ import sys
 import threading
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Callable, Iterator
 
@@ -528,7 +529,7 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
             dumps = good[0].dump_every > 0 and output is not None
             runs = execute([[todo[i] for i in t] for t in tasks], jobs, executor, scheduler)
             try:
-                for k, batch in runs:
+                for k, batch in _worker_deaths(runs, parts, saved):
                     for i, res in zip(tasks[k], batch):
                         res.seconds += build_seconds[i]
                         if dumps:
@@ -568,6 +569,18 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
             return ds
     except KeyboardInterrupt:
         raise Interrupted(len(saved) if parts is not None else finished, total, parts) from None
+
+
+def _worker_deaths(runs: Iterator[tuple[int, list[CaseResult]]], parts: Path | None,
+                   saved: set[int]) -> Iterator[tuple[int, list[CaseResult]]]:
+    """Results as they come; a worker process that died (killed, out of memory) is a RunError
+    that says what was kept."""
+    try:
+        yield from runs
+    except BrokenProcessPool:
+        kept = f"the {len(saved)} finished case(s) are kept in {parts}; rerun with --resume" if parts else \
+            "no output file was given, nothing was kept"
+        raise RunError(f"a worker process died (killed, or out of memory?): {kept}") from None
 
 
 def _free_bytes(folder: Path) -> int:

@@ -138,7 +138,9 @@ def _reader_error(exc: Any, text: str, filename: str) -> str:
     line = text.count("\n", 0, pos) + 1
     col = pos - (text.rfind("\n", 0, pos) + 1) + 1
     char = getattr(exc, "character", "")
-    code = f"U+{ord(char):04X}" if isinstance(char, str) and len(char) == 1 else repr(char)
+    if isinstance(char, str) and len(char) == 1:
+        char = ord(char)
+    code = f"U+{char:04X}" if isinstance(char, int) else repr(char)
     return f"{filename}:{line}:{col}: the character {code} is not allowed in YAML (a control character?)"
 
 
@@ -194,17 +196,32 @@ def load_yaml(text: str, filename: str = "<config>") -> tuple[Any, SourceMap]:
                 raise ConfigError([f"{at(n)}: {shorten(dotted)}: nested more than {MAX_DEPTH} levels deep"])
             active.add(id(n))
             if isinstance(n, yaml.MappingNode):
-                seen: dict[str, int] = {}
+                seen: dict[Any, tuple[int, str]] = {}
                 for k, v in n.value:
                     if not isinstance(k, yaml.ScalarNode) or k.tag not in SAFE_TAGS:
                         raise ConfigError([f"{at(k)}: {shorten(dotted)}: a key must be plain text or a number"])
                     key = k.value
                     if "\n" in key or "\r" in key:
                         raise ConfigError([f"{at(k)}: {shorten(dotted)}: a key may not contain a line break"])
-                    if key in seen:
+                    if k.tag.endswith(":merge"):
+                        walk(v, path + (key,), active)
+                        continue
+                    try:  # the key as YAML reads it: `1`, `0x1` and `+1` are one key; `~` is null
+                        value = loader.construct_object(k)
+                        same = str(value) if isinstance(value, (str, int, float)) and not isinstance(
+                            value, bool) else key  # `1:` and `'1':` name one fix too
+                    except (yaml.YAMLError, TypeError, ValueError, OverflowError):
+                        value, same = key, key
+                    if value is None:
+                        raise ConfigError([f"{at(k)}: {shorten(dotted)}: the key {shorten(key or '(empty)', 40)} "
+                                           f"reads as null: write a name"])
+                    if same in seen:
+                        line, first = seen[same]
+                        alias = "" if first == key else f" as {shorten(first, 40)}; YAML reads both as {same}"
                         problems.append(f"{at(k)}: {shorten('.'.join(str(p) for p in path + (key,)))}: "
-                                        f"defined twice (first at line {seen[key]}); keep one")
-                    seen[key] = k.start_mark.line + 1
+                                        f"defined twice (first at line {line}{alias}); keep one")
+                    else:
+                        seen[same] = (k.start_mark.line + 1, key)
                     walk(v, path + (key,), active)
             else:
                 for i, v in enumerate(n.value):
