@@ -301,6 +301,26 @@ def test_limits_on_steps_and_samples(tmp_path):
     assert res.exit_code == 2 and "run.thermo makes 100,000,002 samples: more than the limit" in res.output
 
 
+def test_atoms_and_memory_checked_before_building(scene, tmp_path, monkeypatch):
+    res = run("run", scene, "-o", tmp_path / "a.nc", "--set", "atoms.0.create.random.count=1e10")
+    assert res.exit_code == 2
+    assert "error: the scene would create 10,000,000,000 atoms, more than the limit of 100,000,000" in res.output
+    # a lattice at an absurd density: estimated from the box volume, refused before any site is made
+    scene.write_text(SCENE.replace("create: {random: {count: 20, overlap: 0.8, region: slab}}",
+                                   "create: {lattice: {}}") + "lattice: {style: fcc, scale: 1.0e12}\n")
+    res = run("run", scene, "-o", tmp_path / "b.nc")
+    assert res.exit_code == 2 and "atoms, more than the limit of 100,000,000" in res.output
+    scene.write_text(SCENE)
+    monkeypatch.setenv("WALLBATCH_MAX_MEMORY", "10K")
+    p = sweep_file(tmp_path, "sweep: {product: {n: {path: atoms.0.create.random.count, values: [20, 30]}}}\n")
+    res = run("run", p, "-o", tmp_path / "c.nc")
+    # 50 atoms held (80 B each) + the batch running (450 B each): 26,500 bytes > 10,000
+    assert res.exit_code == 2 and ("error: the 2 case(s) create 50 atoms: about 26.5 kB in memory, more than the "
+                                   "10.0 kB available (WALLBATCH_MAX_MEMORY sets the limit)") in res.output
+    monkeypatch.setenv("WALLBATCH_MAX_MEMORY", "1M")
+    assert run("run", p, "-o", tmp_path / "c.nc").exit_code == 0
+
+
 # ============================================================================================
 # the output: never an input, never silently overwritten, locked while running
 

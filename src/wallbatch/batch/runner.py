@@ -29,7 +29,7 @@ import numpy as np
 import xarray as xr
 
 from wallbatch.version import __version__
-from wallbatch.config.models import Config
+from wallbatch.config.models import Config, lattice_spacing
 from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict
 from wallbatch.engine import compiled
 from wallbatch.engine.engine import CaseResult, run_cases
@@ -83,6 +83,75 @@ def build_cases(plan: SweepPlan, seconds: list[float] | None = None) -> tuple[li
         if seconds is not None:
             seconds.append(time.perf_counter() - t0)
     return built, errors
+
+
+MAX_ATOMS = 100_000_000  # atoms of one case
+HELD_BYTES_PER_ATOM = 80  # a built case waiting to run (measured: 73 B/atom)
+RUN_BYTES_PER_ATOM = 450  # a running batch at its peak (measured: 425 B/atom, flat walls)
+LATTICE_BASIS = {"sc": 1, "bcc": 2, "fcc": 4}
+
+
+def estimate_atoms(cfg: Config) -> int:
+    """Atoms a config will create, from the config alone (an upper bound for lattices: the whole
+    box; atoms files are not opened and count 0 here)."""
+    n = 0
+    for g in cfg.atoms:
+        c = g.create
+        if c.random is not None:
+            n += c.random.count
+        elif c.positions is not None:
+            n += len(c.positions)
+        elif c.lattice is not None and cfg.lattice is not None:
+            spacing = lattice_spacing(cfg)
+            volume = float(np.prod(np.subtract(cfg.box.hi, cfg.box.lo)))
+            if spacing and spacing > 0:
+                n += int(min(volume / spacing ** 3 * LATTICE_BASIS.get(cfg.lattice.style, 4), 1e18))
+    return n
+
+
+def memory_available() -> int:
+    """Bytes a run may use: WALLBATCH_MAX_MEMORY (bytes, or with a K/M/G/T suffix) if set, else
+    the memory the kernel reports available (MemAvailable)."""
+    env = os.environ.get("WALLBATCH_MAX_MEMORY", "").strip().upper()
+    if env:
+        scale = {"K": 1e3, "M": 1e6, "G": 1e9, "T": 1e12}.get(env[-1:], 1.0)
+        try:
+            return int(float(env[:-1] if env[-1:] in "KMGT" else env) * scale)
+        except ValueError:
+            raise RunError(f"WALLBATCH_MAX_MEMORY={env}: give bytes, or a number with K, M, G or T") from None
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return 1 << 62  # unknown: no limit
+
+
+def check_memory(plan: SweepPlan, jobs: int) -> None:
+    """Refuse, before building anything, a plan whose atoms cannot fit in memory: every case is
+    built first (HELD_BYTES_PER_ATOM each), then the running batches need RUN_BYTES_PER_ATOM."""
+    atoms = [estimate_atoms(sc.config) for sc in plan.cases]
+    if not atoms:
+        return
+    big = max(range(len(atoms)), key=atoms.__getitem__)
+    if atoms[big] > MAX_ATOMS:
+        which = f"case {plan.cases[big].label}" if plan.dims else "the scene"
+        raise RunError(f"{which} would create {atoms[big]:,} atoms, more than the limit of {MAX_ATOMS:,}")
+    total = sum(atoms)
+    need = HELD_BYTES_PER_ATOM * total + RUN_BYTES_PER_ATOM * min(total, atoms[big] * MAX_BATCH * max(1, jobs))
+    have = memory_available()
+    if need > have:
+        raise RunError(f"the {len(atoms)} case(s) create {total:,} atoms: about {_size(need)} in memory, more "
+                       f"than the {_size(have)} available (WALLBATCH_MAX_MEMORY sets the limit); run fewer "
+                       f"cases or atoms at a time")
+
+
+def _size(nbytes: float) -> str:
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if nbytes >= scale:
+            return f"{nbytes / scale:.1f} {unit}"
+    return f"{nbytes:.0f} bytes"
 
 
 def check_size(case: Case) -> None:
@@ -492,6 +561,7 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
     finished = 0  # cases run (without an output file)
     try:
         with stop_on_signals():
+            check_memory(plan, jobs if executor == "local" else 1)
             build_seconds: list[float] = []
             cases, errors = build_cases(plan, build_seconds)
             good = [c for c in cases if c is not None]
