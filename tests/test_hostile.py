@@ -282,6 +282,10 @@ def test_variable_dividing_by_zero_fails_that_case_only(tmp_path):
     assert res.exit_code == 1, res.output
     assert "2 of 3 case(s) ok" in res.output
     assert "failed (1 case: d=2): cannot set up the case: variable 'a': Divide by 0 in variable formula" in res.output
+    res = run("check", p)
+    assert res.exit_code == 1
+    assert ("1 case(s) cannot be built (d=2): cannot set up the case: variable 'a': Divide by 0 in variable "
+            "formula") in res.output
     with xr.open_dataset(out) as ds:
         assert ds["status"].values.tolist() == ["ok", "failed", "ok"]
         assert np.isfinite(ds["pe"].sel(d=3).values).all() and np.isnan(ds["pe"].sel(d=2).values).all()

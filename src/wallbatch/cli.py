@@ -167,8 +167,12 @@ def check(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
     typer.echo(lines[0])
     for line in lines[1:1 + len(plan.dims)]:
         typer.echo(line)
+    groups: dict[str, list[str]] = {}
     for i, msg in report.errors.items():
-        typer.echo(f"  case {plan.cases[i].label} cannot be built: {msg}", err=True)
+        groups.setdefault(msg, []).append(plan.cases[i].label)
+    for msg, labels in groups.items():
+        shown = "; ".join(labels[:4]) + (f"; and {len(labels) - 4} more" if len(labels) > 4 else "")
+        typer.echo(f"  {len(labels)} case(s) cannot be built ({shown}): {msg}", err=True)
     for line in lines[1 + len(plan.dims):]:
         typer.echo(line)
     if not report.ok:

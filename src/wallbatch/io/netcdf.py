@@ -206,7 +206,8 @@ def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
         if name in ds:
             unit = {"min_energy_before": u.energy, "min_energy": u.energy, "min_fnorm": u.force}.get(name, "1")
             ds[name].attrs.update(units=unit, long_name=long_name)
-    ds["seconds"].attrs.update(units="s", long_name="wall-clock seconds the case took (its share of its batch)")
+    ds["seconds"].attrs.update(units="s", long_name="wall-clock seconds of the case: its build, plus the running "
+                                                 "time of its batch shared among the cases running at each sample")
     text_attrs = {
         "status": "ok or failed", "error": "error message of a failed case, empty when ok",
         "face": "wall face, as fixID/face", "face_fix": "fix ID of the face", "face_name": "face name (xlo ... zhi)",
