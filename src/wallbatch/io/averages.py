@@ -69,8 +69,9 @@ def profile_variables(results: Sequence[Any], case: Case, shape: tuple[int, ...]
                     arr[i] = r.data[name]
             data_vars[name] = xr.Variable(sweep_dims + ("window", bdim), arr.reshape(shape + arr.shape[1:]), attrs={
                 "units": profile_units(case, q),
-                "long_name": f"{PROFILE_LONG[q]} profile along {'xyz'[p.axis]} of group atoms, averaged over "
-                             f"{p.repeat} samples every {p.every} steps per window (fix ave/chunk norm all)"})
+                "long_name": f"{PROFILE_LONG[q]} along {'xyz'[p.axis]}",
+                "comment": f"window averages of {p.repeat} samples every {p.every} steps ending at window_step, "
+                           f"as LAMMPS fix ave/chunk norm all; empty bins are 0"})
     return data_vars, coords
 
 
@@ -84,15 +85,16 @@ def _stats(da: xr.DataArray, dim: str) -> tuple[xr.DataArray, xr.DataArray, xr.D
 
 
 def _put(ds: xr.Dataset, name: str, stats: tuple, units: str, long_name: str, where: str) -> None:
+    """Store mean, sem and converged of `name`; `where` (the averaged range) goes to `comment`."""
     mean, sem, conv = stats
-    ds[f"{name}_mean"] = mean
-    ds[f"{name}_mean"].attrs.update(units=units, long_name=f"mean of {long_name} {where}")
-    ds[f"{name}_sem"] = sem
-    ds[f"{name}_sem"].attrs.update(units=units, long_name=f"standard error of the mean of {long_name} (block "
-                                   f"averaging) {where}")
-    ds[f"{name}_sem_converged"] = conv
-    ds[f"{name}_sem_converged"].attrs.update(units="1", long_name=f"block averaging of {name} reached a plateau "
-                                             f"(false: the sem is a lower bound; run longer)")
+    for suffix, value, unit, long in (
+            ("_mean", mean, units, f"time mean of {long_name}"),
+            ("_sem", sem, units, f"standard error of the time mean of {long_name}"),
+            ("_sem_converged", conv, "1", f"block averaging of {name} reached a plateau")):
+        ds[name + suffix] = value
+        ds[name + suffix].attrs.update(units=unit, long_name=long, comment=where)
+    ds[f"{name}_sem"].attrs["comment"] = f"{where}; block averaging (Flyvbjerg-Petersen), see docs/profiles.md"
+    ds[f"{name}_sem_converged"].attrs["comment"] = "false: no plateau, the sem is a lower bound (run longer)"
 
 
 def add_averages(ds: xr.Dataset, case: Case) -> None:
@@ -104,13 +106,12 @@ def add_averages(ds: xr.Dataset, case: Case) -> None:
             axis = ds.coords["time"]
         keep = np.asarray(axis.values, float) >= start - 1e-9 * max(1.0, abs(start))
         sub = ds.isel(sample=np.nonzero(keep)[0])
-        where = (f"over samples at or after {'step' if case.run_time is None else 'time'} {start:g}")
+        where = f"samples at or after {'step' if case.run_time is None else 'time'} {start:g}"
         for name in list(ds.data_vars):
             da = ds[name]
             if "sample" not in da.dims or name in NOT_AVERAGED or da.dtype.kind not in "fiu":
                 continue
-            _put(ds, name, _stats(sub[name], "sample"), da.attrs.get("units", "1"),
-                 da.attrs.get("long_name", name), where)
+            _put(ds, name, _stats(sub[name], "sample"), da.attrs.get("units", "1"), name, where)
         _wall_pressure(ds, case, keep)
     if "window" in ds.dims:
         keepw = ds["window_step"].values >= start
@@ -120,7 +121,7 @@ def add_averages(ds: xr.Dataset, case: Case) -> None:
                 if name.startswith("profile_") and "window" in ds[name].dims:
                     da = ds[name]
                     _put(ds, name, _stats(sub[name], "window"), da.attrs.get("units", "1"),
-                         f"the {name} windows", f"over windows at or after step {start:g}")
+                         da.attrs.get("long_name", name), f"windows at or after step {start:g}")
 
 
 def _wall_pressure(ds: xr.Dataset, case: Case, keep: np.ndarray) -> None:
@@ -159,8 +160,10 @@ def _wall_pressure(ds: xr.Dataset, case: Case, keep: np.ndarray) -> None:
             conv = xr.where(is_soft, conv, rc)
     if mean is None:
         return
-    where = "over samples at or after averages.start"
+    where = f"samples at or after {'step' if case.run_time is None else 'time'} {case.average_start:g}"
     order = [d for d in mean.dims if d != "face"] + ["face"]
     mean, sem, conv = (a.transpose(*order) for a in (mean, sem, conv))
-    _put(ds, "wall_pressure", (mean, sem, conv), u.pressure,
-         "the wall pressure (normal force over face area, > 0 pushing the wall outward)", where)
+    _put(ds, "wall_pressure", (mean, sem, conv), u.pressure, "wall pressure", where)
+    ds["wall_pressure_mean"].attrs["comment"] = (
+        f"{where}; normal force on the face over its area, > 0 when the atoms push the wall outward "
+        f"(-wall_force/area on lo faces, +wall_force/area on hi faces; reflect faces: impulse over time)")
