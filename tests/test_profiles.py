@@ -13,7 +13,7 @@ from wallbatch.api import load, run
 from wallbatch.batch.runner import build_cases, run_config
 from wallbatch.config.models import config_from_dict, load_config_text
 from wallbatch.config.source import ConfigError
-from wallbatch.engine.engine import run_cases
+from wallbatch.engine.engine import Engine, run_cases
 from wallbatch.engine.profiles import bin_index, bin_sums
 from wallbatch.io.netcdf import write_netcdf
 from wallbatch.scene.build import build_case
@@ -239,3 +239,18 @@ def test_batching_is_bit_identical_and_netcdf_round_trip(tmp_path):
     assert back["across_bin"].attrs["units"] == "1" and list(back["window_step"].values) == [20, 40, 60, 80, 100]
     np.testing.assert_array_equal(back["wall_pressure_sem"].values, ds["wall_pressure_sem"].values)
     assert back["temp_mean"].dims == ("k",) and back["wall_force_mean"].dims == ("k", "face")
+
+
+def test_engine_holds_cases_x_windows_x_bins_floats():
+    """The engine stores exactly one float64 per case, window and bin per quantity, plus one
+    running sum per case and bin per accumulated sum (the memory benchmark's numbers)."""
+    prof = {"axis": "z", "bins": 7, "every": 5, "repeat": 2, "freq": 10, "quantities": ["density/number", "vz"]}
+    cfg = ideal_gas(30, 60, HARMONIC, prof, sweep={"product": {"k": {"path": "walls.w.zlo.epsilon",
+                                                                     "values": [2.0, 3.0, 4.0, 5.0]}}})
+    cases, _ = build_cases(load(cfg))
+    eng = Engine(cases)
+    eng.run()
+    store = eng.profiles.out[0]
+    assert {q: a.shape for q, a in store.items()} == {"density/number": (4, 6, 7), "vz": (4, 6, 7)}
+    assert sum(a.nbytes for a in store.values()) == 2 * 4 * 6 * 7 * 8
+    assert sorted(eng.profiles.sums[0]) == ["count", "vz"]
