@@ -254,3 +254,23 @@ def test_engine_holds_cases_x_windows_x_bins_floats():
     assert {q: a.shape for q, a in store.items()} == {"density/number": (4, 6, 7), "vz": (4, 6, 7)}
     assert sum(a.nbytes for a in store.values()) == 2 * 4 * 6 * 7 * 8
     assert sorted(eng.profiles.sums[0]) == ["count", "vz"]
+
+
+def test_failed_case_profiles_and_means_are_nan():
+    """A case that fails mid-run keeps its grid place: NaN windows, NaN means, converged false;
+    the other case is untouched (same numbers as run alone)."""
+    prof = {"axis": "z", "bins": 10, "every": 5, "repeat": 2, "freq": 10, "quantities": ["density/number"]}
+    walls = {"w": {"style": "harmonic", "units": "box", "zlo": [-1.0, 2.0, 1.0, 4.0], "zhi": ["v_top", 2.0, 1.0, 4.0]}}
+    cfg = ideal_gas(50, 100, walls, prof, sweep={"product": {"top": {"path": "variables.top",
+                                                                     "values": ["11.0", "11.0 - ramp(0, 10.5)"]}}})
+    cfg["variables"] = {"top": "11.0"}
+    ds = run(cfg)
+    assert list(ds.status.values) == ["ok", "failed"], ds.error.values
+    bad = ds.isel(top=1)
+    assert np.isnan(bad["profile_across_density_number"]).all()
+    assert np.isnan(bad["profile_across_density_number_mean"]).all()
+    assert not bad["profile_across_density_number_sem_converged"].any()
+    assert np.isnan(bad["wall_pressure_mean"]).all() and np.isnan(bad["temp_sem"])
+    good = ds.isel(top=0)
+    assert np.isfinite(good["profile_across_density_number"]).all()
+    np.testing.assert_allclose((good["profile_across_density_number"] * 64 * 1.0).sum("across_bin"), 50, rtol=1e-12)
