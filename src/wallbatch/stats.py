@@ -11,7 +11,7 @@ of variance c_k (1/n_k normalisation) the estimate of the standard error of the 
 s_k grows with k while the blocks are shorter than the correlation time and then stays flat (the
 plateau) at the true standard error.
 
-Plateau rule used here (deterministic, documented in docs/profiles.md):
+Plateau rule used here (deterministic, documented in docs/howto/profiles.md):
   * a level is *usable* when it has at least `min_blocks` values (default 16);
   * a usable level k is *on the plateau* when it has a later usable level and no later usable
     level lies significantly above it: s_j <= s_k + z ds_j for every usable j > k (z = 2.5);

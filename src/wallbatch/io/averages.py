@@ -93,7 +93,7 @@ def _put(ds: xr.Dataset, name: str, stats: tuple, units: str, long_name: str, wh
             ("_sem_converged", conv, "1", f"block averaging of {name} reached a plateau")):
         ds[name + suffix] = value
         ds[name + suffix].attrs.update(units=unit, long_name=long, comment=where)
-    ds[f"{name}_sem"].attrs["comment"] = f"{where}; block averaging (Flyvbjerg-Petersen), see docs/profiles.md"
+    ds[f"{name}_sem"].attrs["comment"] = f"{where}; block averaging (Flyvbjerg-Petersen), see docs/howto/profiles.md"
     ds[f"{name}_sem_converged"].attrs["comment"] = "false: no plateau, the sem is a lower bound (run longer)"
 
 
