@@ -274,3 +274,37 @@ def test_failed_case_profiles_and_means_are_nan():
     good = ds.isel(top=0)
     assert np.isfinite(good["profile_across_density_number"]).all()
     np.testing.assert_allclose((good["profile_across_density_number"] * 64 * 1.0).sum("across_bin"), 50, rtol=1e-12)
+
+
+def test_two_d_profiles_per_area_and_two_dof():
+    """dimension: 2 (LAMMPS adof = 2, bin 'volume' = box area * delta / L): with one bin and
+    samples on the thermo steps, the profile temperature is the thermo temperature (2N - 2 dof)
+    times (N - 1) / N, and density * area = N."""
+    n = 40
+    rng = np.random.default_rng(4)
+    pos = np.column_stack([rng.uniform(0, 8, n), rng.uniform(2, 6, n), np.zeros(n)]).tolist()
+    cfg = {
+        "dimension": 2,
+        "box": {"lo": [0, 0, -0.5], "hi": [8, 8, 0.5], "boundary": ["p", "f", "p"]},
+        "atoms": [{"group": "gas", "create": {"positions": pos}, "mass": 1.0, "velocity": {"temperature": 1.0}}],
+        "walls": {"w": {"style": "harmonic", "units": "box", "ylo": [-1.0, 2.0, 1.0, 4.0],
+                        "yhi": [9.0, 2.0, 1.0, 4.0]}},
+        "fixes": {"nve": {"style": "nve"}, "e2d": {"style": "enforce2d"}},
+        "timestep": 0.005, "run": {"steps": 200, "thermo": 10},
+        "output": {"profiles": {"one": {"axis": "y", "bins": 1, "every": 10, "repeat": 5, "freq": 50,
+                                        "quantities": ["density/number", "temp"]},
+                                "many": {"axis": "x", "delta": 0.5, "every": 10, "repeat": 5, "freq": 50,
+                                         "quantities": ["density/number"]}}},
+    }
+    ds = run(cfg)
+    assert ds.status.item() == "ok", ds.error.item()
+    np.testing.assert_allclose(ds["profile_one_density_number"].values[:, 0] * 64.0, n, rtol=1e-12)
+    np.testing.assert_allclose((ds["profile_many_density_number"] * 8 * 0.5).sum("many_bin"), n, rtol=1e-12)
+    temp = ds["temp"].values
+    steps = ds["step"].values
+    for k, w in enumerate(ds["window_step"].values):
+        picked = temp[(steps > w - 50) & (steps <= w)]
+        assert picked.size == 5
+        assert ds["profile_one_temp"].values[k, 0] == pytest.approx(picked.mean() * (n - 1) / n, rel=1e-12)
+    with pytest.raises(ConfigError, match="output.profiles.one.axis: a 2-d simulation"):
+        config_from_dict({**cfg, "output": {"profiles": {"one": {**cfg["output"]["profiles"]["one"], "axis": "z"}}}})

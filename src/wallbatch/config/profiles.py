@@ -74,6 +74,8 @@ def check_profiles(cfg: Any, groups: list[str]) -> list[tuple[tuple, str]]:
             if steps is not None and p.freq > steps:
                 add(at + ("freq",), f"freq ({p.freq}) is longer than the run ({steps} steps): no window would "
                     f"close; the first window ends at step freq")
+        if cfg.dimension == 2 and p.axis == "z":
+            add(at + ("axis",), "a 2-d simulation (dimension: 2) has no z profile: use x or y")
         if p.group not in groups:
             add(at + ("group",), f"unknown group '{p.group}' (groups: {', '.join(groups)})")
         if cfg.run.time is not None:

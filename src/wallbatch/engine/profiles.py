@@ -9,10 +9,11 @@ once (flat index case * nbins + bin: no Python loop over atoms). When the window
 
     density/number = sum(count) / repeat / V_bin               [1/distance^3]
     density/mass   = sum(m) / repeat / V_bin * mv2d             [mass/distance^3; g/cm^3 real, metal]
-    temp           = mvv2e sum(m v^2) / (3 sum(count) k_B)      [temperature] (LAMMPS adof 3, cdof 0)
+    temp           = mvv2e sum(m v^2) / (d sum(count) k_B)      [temperature] (LAMMPS adof = d, cdof 0)
     vx, vy, vz     = sum(v) / sum(count)                        [velocity]
 
-V_bin = box volume * delta / L_axis; a bin with no atom in the window is 0 (not NaN).
+V_bin = box volume * delta / L_axis (d = 2: box area * delta / L_axis, densities per area, as
+LAMMPS); a bin with no atom in the window is 0 (not NaN).
 """
 
 from __future__ import annotations
@@ -66,8 +67,9 @@ class ProfileSampler:
         self.units = c0.units
         self.ncases = len(cases)
         steps = int(c0.steps or 0)
+        self.dimension = int(c0.dimension)
         self.lengths = c0.box_hi - c0.box_lo
-        self.volume = float(np.prod(self.lengths))
+        self.volume = float(np.prod(self.lengths[:self.dimension]))  # an area in 2-D, as LAMMPS
         self.windows = [p.window_steps(steps) for p in self.specs]
         self.samples = [set(p.sample_steps(steps)) for p in self.specs]
         self.instants = sorted(set().union(*self.samples)) if self.samples else []
@@ -112,7 +114,7 @@ class ProfileSampler:
                 elif q == "density/mass":
                     val = sums["mass"] / p.repeat / vbin * MV2D[u.name]
                 elif q == "temp":
-                    val = np.where(count > 0, u.mvv2e * sums["mv2"] / (3.0 * count * u.boltz), 0.0)
+                    val = np.where(count > 0, u.mvv2e * sums["mv2"] / (self.dimension * count * u.boltz), 0.0)
                 else:
                     val = np.where(count > 0, sums[q] / count, 0.0)
                 out[q][rows, k] = val[rows]

@@ -29,7 +29,7 @@ NOT_AVERAGED = {"step", "time", "dt"}
 PROFILE_LONG = {
     "density/number": "number density",
     "density/mass": "mass density",
-    "temp": "temperature (3 degrees of freedom per atom)",
+    "temp": "temperature (dimension degrees of freedom per atom)",
     "vx": "mean x velocity", "vy": "mean y velocity", "vz": "mean z velocity",
 }
 
@@ -38,10 +38,11 @@ def profile_units(case: Case, quantity: str) -> str:
     """Units attribute of a profile quantity in the case's unit system (density/mass in g/cm^3 for
     real and metal, as LAMMPS fix ave/chunk)."""
     u = case.units
+    d = int(case.dimension)
     if quantity == "density/number":
-        return "1" if u.name == "lj" else f"{u.distance}^-3"
+        return "1" if u.name == "lj" else f"{u.distance}^-{d}"
     if quantity == "density/mass":
-        return "1" if u.name == "lj" else "g/cm^3"
+        return "1" if u.name == "lj" else ("g/cm^3" if d == 3 else "1e-8 g/cm^2")  # LAMMPS mv2d
     if quantity == "temp":
         return u.temperature
     return u.velocity
@@ -134,7 +135,8 @@ def _wall_pressure(ds: xr.Dataset, case: Case, keep: np.ndarray) -> None:
     labels = list(ds["face"].values)
     by_label = {f.label: f for f in faces}
     sign = np.array([float(by_label[lab].side) for lab in labels])
-    area = np.array([float(np.prod(np.delete(lengths, by_label[lab].dim))) for lab in labels])
+    plane = lengths[:case.dimension]  # 2-D: a face's "area" is the length of the other in-plane side
+    area = np.array([float(np.prod(np.delete(plane, by_label[lab].dim))) for lab in labels])
     factor = xr.DataArray(sign / area * u.nktv2p, dims=("face",))
     idx = np.nonzero(keep)[0]
     soft = set(f.label for w in case.soft_walls for f in w.faces)
