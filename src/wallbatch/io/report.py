@@ -15,7 +15,9 @@ import numpy as np
 import xarray as xr
 
 # Dimensions that belong to one case's outputs; every other dimension is a sweep dimension.
-CASE_DIMS = ("sample", "fix", "face", "spatial", "rfix")
+CASE_DIMS = ("sample", "fix", "face", "spatial", "rfix", "window")
+AVG_SUFFIXES = ("_mean", "_sem", "_sem_converged")
+SHOWN_MEANS = 8  # cases listed in the summary's time averages
 SAMPLE_AXES = ("sample", "step", "time")
 TEXT_VARS = ("status", "error")
 KINDS = ("auto", "line", "heatmap")
@@ -29,7 +31,24 @@ def sweep_dims(ds: xr.Dataset) -> list[str]:
     """Sweep dimension names in declared order (the order of `status`, then any others)."""
     order = list(ds["status"].dims) if "status" in ds else []
     order += [d for d in ds.dims if d not in order]
-    return [str(d) for d in order if d not in CASE_DIMS]
+    return [str(d) for d in order if d not in CASE_DIMS and not _is_bin_dim(ds, str(d))]
+
+
+def _is_bin_dim(ds: xr.Dataset, dim: str) -> bool:
+    """A profile's bin dimension `<name>_bin` (its variables also run over `window`)."""
+    return dim.endswith("_bin") and any(dim in v.dims and ("window" in v.dims or name.endswith(AVG_SUFFIXES))
+                                        for name, v in ds.data_vars.items() if str(name).startswith("profile_"))
+
+
+def _pm(mean: float, sem: float, converged: bool = True) -> str:
+    """`mean ± sem` with sem to 2 significant digits and mean to the same decimal place; a `*`
+    marks an error bar whose block averaging found no plateau (a lower bound)."""
+    if not np.isfinite(mean):
+        return "nan"
+    if not np.isfinite(sem) or sem <= 0:
+        return f"{mean:.6g} ± {_fmt(sem)}" + ("" if converged else "*")
+    digits = max(0, 1 - int(np.floor(np.log10(sem))))
+    return f"{mean:.{digits}f} ± {sem:.{digits}f}" + ("" if converged else "*")
 
 
 def ok_mask(ds: xr.Dataset) -> xr.DataArray:
@@ -101,9 +120,15 @@ def summary(ds: xr.Dataset, errors: int = 5, slowest: int = 5) -> str:
                     unit = f" [{units}]" if units and units != "1" else ""
                     line += f"  {c}: {_fmt(vals.min())} .. {_fmt(vals.max())}{unit}" if vals.size else ""
                     break
+        elif d == "window" and "window_step" in ds.coords:
+            line += f"  profile windows ending at step {_values(ds['window_step'].values, 6)}"
         elif d in ds.coords:
             line += f"  {_values(ds[d].values)}"
         lines.append(line)
+    for d in ds.dims:
+        if _is_bin_dim(ds, str(d)):
+            c = ds[d].values
+            lines.append(f"  {str(d):<{width}}  {ds.sizes[d]:>5}  bin centres {_fmt(c.min())} .. {_fmt(c.max())}")
 
     total = int(ok.size)
     n_ok = int(ok.sum())
@@ -130,7 +155,7 @@ def summary(ds: xr.Dataset, errors: int = 5, slowest: int = 5) -> str:
     lines += ["", "Variables (over ok cases):"]
     rows = []
     for name, da in ds.data_vars.items():
-        if _is_text(da):
+        if _is_text(da) or (str(name).endswith(AVG_SUFFIXES) and not str(name).startswith("profile_")):
             continue
         vals = np.asarray(da.where(ok).values if set(ok.dims) <= set(da.dims) else da.values, float)
         finite = vals[np.isfinite(vals)]
@@ -140,6 +165,7 @@ def summary(ds: xr.Dataset, errors: int = 5, slowest: int = 5) -> str:
     if rows:
         w = [max(len(r[i]) for r in rows) for i in range(3)]
         lines += [f"  {r[0]:<{w[0]}}  {r[1]:<{w[1]}}  {r[2]:<{w[2]}}  {r[3]}" for r in rows]
+    lines += _averages_section(ds, sdims, ok)
 
     if "seconds" in ds:
         sec = ds["seconds"]
@@ -152,6 +178,45 @@ def summary(ds: xr.Dataset, errors: int = 5, slowest: int = 5) -> str:
             status = str(ds["status"].values[idx]) if "status" in ds else ""
             lines.append(f"  {_fmt(flat[i]):>10} s  {_case_label(coords)}" + (f"  ({status})" if status else ""))
     return "\n".join(lines) + "\n"
+
+
+def _averages_section(ds: xr.Dataset, sdims: list[str], ok: xr.DataArray) -> list[str]:
+    """Means with their block-averaged standard errors, per case (the first SHOWN_MEANS ok
+    cases); profiles are left to `ds.wallbatch.profile` and `wallbatch plot`."""
+    names = [str(n)[:-5] for n in ds.data_vars if str(n).endswith("_mean") and not str(n).startswith("profile_")
+             and f"{str(n)[:-5]}_sem" in ds]
+    if not names:
+        return []
+    where = ds[f"{names[0]}_mean"].attrs.get("comment", "")
+    where = f" over {where}" if where else ""
+    lines = ["", f"Time averages{where} (± standard error from block averaging; * = no plateau, a lower bound):"]
+    cases = [idx for idx in np.ndindex(*ok.shape) if bool(ok.values[idx])] if ok.ndim else [()]
+    for idx in cases[:SHOWN_MEANS]:
+        coords = {d: ds[d].values[i] if d in ds.coords else i for d, i in zip(ok.dims, idx)}
+        if sdims:
+            lines.append(f"  {_case_label(coords)}")
+        pick = dict(zip(ok.dims, idx))
+        for name in names:
+            m = ds[f"{name}_mean"].isel({k: v for k, v in pick.items() if k in ds[f"{name}_mean"].dims})
+            e = ds[f"{name}_sem"].isel({k: v for k, v in pick.items() if k in ds[f"{name}_sem"].dims})
+            c = (ds[f"{name}_sem_converged"].isel({k: v for k, v in pick.items()
+                                                    if k in ds[f"{name}_sem_converged"].dims})
+                 if f"{name}_sem_converged" in ds else xr.ones_like(m, dtype=bool))
+            units = ds[f"{name}_mean"].attrs.get("units", "")
+            unit = f" [{units}]" if units and units != "1" else ""
+            if m.ndim == 0:
+                text = _pm(float(m), float(e), bool(c))
+            else:
+                entry = m.dims[0] if m.ndim == 1 else None
+                parts = []
+                for j in np.ndindex(*m.shape):
+                    label = "/".join(_fmt(ds[d].values[k]) if d in ds.coords else str(k) for d, k in zip(m.dims, j))
+                    parts.append(f"{label} {_pm(float(m.values[j]), float(e.values[j]), bool(c.values[j]))}")
+                text = "   ".join(parts) if entry else "; ".join(parts)
+            lines.append(f"    {name:<16}{unit:<12} {text}")
+    if len(cases) > SHOWN_MEANS:
+        lines.append(f"  ... and {len(cases) - SHOWN_MEANS} more case(s): ds.wallbatch.mean(NAME) gives them all")
+    return lines
 
 
 @xr.register_dataset_accessor("wallbatch")
@@ -174,6 +239,29 @@ class WallbatchAccessor:
 
     def plot(self, var: str, out: str | Path, **kwargs: Any):
         return plot(self._ds, var, out, **kwargs)
+
+    def profile(self, name: str, quantity: str) -> xr.DataArray:
+        """The windows of profile `name`'s `quantity` (`density/number`, `temp`, ...): the
+        DataArray `profile_<name>_<quantity>` (sweep..., window, <name>_bin)."""
+        var = f"profile_{name}_{quantity.replace('/', '_')}"
+        if var not in self._ds:
+            have = sorted(str(v) for v in self._ds.data_vars if str(v).startswith("profile_")
+                          and not str(v).endswith(AVG_SUFFIXES))
+            raise KeyError(f"no profile {name!r} with quantity {quantity!r} ({var}); profiles here: "
+                           f"{', '.join(have) or 'none (add output.profiles to the config)'}")
+        return self._ds[var]
+
+    def mean(self, var: str) -> xr.Dataset:
+        """Time average of `var` (a thermo/wall output, `wall_pressure`, or a profile variable):
+        a Dataset with `mean`, `sem` (block-averaged standard error) and `converged`."""
+        base = var[:-5] if var.endswith("_mean") else var
+        if f"{base}_mean" not in self._ds:
+            have = sorted(str(v)[:-5] for v in self._ds.data_vars if str(v).endswith("_mean"))
+            raise KeyError(f"no time average of {var!r}; averaged here: {', '.join(have) or 'none'}")
+        out = xr.Dataset({"mean": self._ds[f"{base}_mean"], "sem": self._ds[f"{base}_sem"]})
+        if f"{base}_sem_converged" in self._ds:
+            out["converged"] = self._ds[f"{base}_sem_converged"]
+        return out
 
 
 # ----------------------------------------------------------------------------- selection
@@ -276,9 +364,12 @@ def _sample_axis(ds: xr.Dataset, x: str | None) -> str:
 
 
 def _axis_label(ds: xr.Dataset, name: str) -> str:
-    """A short axis label: the variable or dimension name, with its units unless dimensionless."""
-    units = ds[name].attrs.get("units") if name in ds.variables else None
-    return f"{name} [{units}]" if units and units != "1" else name
+    """A short axis label: the variable or dimension name (a profile's bins: their description),
+    with its units unless dimensionless."""
+    attrs = ds[name].attrs if name in ds.variables else {}
+    units = attrs.get("units")
+    text = attrs.get("long_name", name) if _is_bin_dim(ds, name) else name
+    return f"{text} [{units}]" if units and units != "1" else text
 
 
 def _coord_value(ds: xr.Dataset, dim: str, i: int) -> Any:
@@ -321,8 +412,12 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
     if var not in ds.data_vars or var not in plottable:
         raise ValueError(f"unknown variable {var!r}; plottable variables: {', '.join(plottable)}")
     sdims = sweep_dims(ds)
-    if x is not None and x not in SAMPLE_AXES and x not in sdims:
-        raise ValueError(f"x={x}: give one of {', '.join(list(SAMPLE_AXES) + sdims)}")
+    if x is None and "sample" not in ds[var].dims and var.endswith("_mean") and sdims:
+        bins = [d for d in ds[var].dims if _is_bin_dim(ds, str(d))]
+        x = None if bins else next((d for d in sdims if d in ds[var].dims), None)  # a mean against the sweep
+    var_bins = [str(d) for d in ds[var].dims if _is_bin_dim(ds, str(d))]
+    if x is not None and x not in SAMPLE_AXES and x not in sdims and x not in var_bins:
+        raise ValueError(f"x={x}: give one of {', '.join(list(SAMPLE_AXES) + sdims + var_bins)}")
     if hue is not None and hue not in ds.dims:
         raise ValueError(f"hue={hue}: unknown dimension; valid: {', '.join(map(str, ds.dims))}")
     if hue is not None and hue == x:
@@ -336,13 +431,29 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
     ok = ok_mask(sub)
     da = sub[var].where(ok) if "status" in sub else sub[var]
     da.attrs = sub[var].attrs
-    sem_name = f"{var}_sem"
-    sem = sub[sem_name].where(ok) if sem_name in sub.data_vars and "status" in sub else sub.get(sem_name)
+    # the standard error of `var`: `<var>_sem`, or `<X>_sem` for a block average `<X>_mean`
+    sem_name = f"{var}_sem" if f"{var}_sem" in sub.data_vars else (
+        f"{var[:-5]}_sem" if var.endswith("_mean") and f"{var[:-5]}_sem" in sub.data_vars else "")
+    sem = (sub[sem_name].where(ok) if "status" in sub else sub[sem_name]) if sem_name else None
     chosen = {k: _fmt(sub[k].values) for k in (sel or {}) if k in sub.coords and sub[k].ndim == 0}
     suffix = _case_label(chosen) if chosen else ""
     long_name = da.attrs.get("long_name", var)
 
-    if x is None or x in SAMPLE_AXES:
+    bins = [str(d) for d in da.dims if _is_bin_dim(ds, str(d))]
+    if bins and (x is None or x == bins[0]):  # a profile against its bin centres
+        if kind == "heatmap":
+            raise ValueError("kind='heatmap' needs x and hue to be two sweep dimensions")
+        base = var[:-5] if var.endswith("_mean") else var
+        if f"{base}_mean" in sub and f"{base}_sem" in sub:  # the window mean with its standard error
+            da, sem, sem_name = sub[f"{base}_mean"], sub[f"{base}_sem"], f"{base}_sem"
+            if "status" in sub:
+                da, sem = da.where(ok), sem.where(ok)
+            what = f"{base}: window mean"
+        else:
+            da, sem, what = (da.mean("window", skipna=True) if "window" in da.dims else da), None, f"{base}: window mean"
+        da.attrs = sub[base].attrs if base in sub else sub[var].attrs
+        along, xdata, xlabel, marker = bins[0], sub[bins[0]], _axis_label(sub, bins[0]), "o"
+    elif x is None or x in SAMPLE_AXES:
         if kind == "heatmap":
             raise ValueError("kind='heatmap' needs x and hue to be two sweep dimensions")
         if "sample" not in da.dims and "sample" in ds[var].dims:
@@ -388,10 +499,12 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
 
     # panels, colour, style, averaged dims
     rest = [str(d) for d in da.dims if d != along and da.sizes[d] > 1]
-    facet = next((d for d in FACET_DIMS if d in rest and d != hue), None)
+    points = along != "sample"  # markers with error bars against a sweep dim or bin centres
+    facet = None if points else next((d for d in FACET_DIMS if d in rest and d != hue), None)
     if facet is not None and da.sizes[facet] > MAX_FACETS:
         raise ValueError(f"{var} has {da.sizes[facet]} {facet} entries: pick some with sel {facet}=...")
     lines = [d for d in rest if d != facet and d != "replica"]
+    lines = [d for d in lines if d in FACET_DIMS] + [d for d in lines if d not in FACET_DIMS]  # never averaged
     if hue is None:
         hue = lines[0] if lines else None
     if hue is not None and hue not in rest:
@@ -450,12 +563,18 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
                 kw: dict[str, Any] = {"color": colors[h], "linestyle": STYLES[st] if style else "-"}
                 if marker:
                     kw.update(marker=marker, markersize=4)
-                ax.plot(xv, yv, **kw)
+                lov = hiv = None
                 if lo is not None:
                     lov = np.asarray(lo.squeeze(drop=True).values, float).reshape(-1)
                     hiv = np.asarray(hi.squeeze(drop=True).values, float).reshape(-1)
-                    if lov.size == yv.size:
-                        ax.fill_between(xv, lov, hiv, color=colors[h], alpha=0.2, linewidth=0)
+                    if lov.size != yv.size:
+                        lov = hiv = None
+                if lov is not None and points:  # error bars: y - lo below, hi - y above
+                    ax.errorbar(xv, yv, yerr=[yv - lov, hiv - yv], capsize=2, **kw)
+                    continue
+                ax.plot(xv, yv, **kw)
+                if lov is not None:
+                    ax.fill_between(xv, lov, hiv, color=colors[h], alpha=0.2, linewidth=0)
         if failed is not None and bool(failed.any()):
             _mark_failed(ax, sub, failed, along, xdata, numeric_x)
         if not numeric_x:
