@@ -20,11 +20,13 @@ from wallbatch.io import report
 ROOT = Path(__file__).resolve().parents[1]
 SWEEPS = sorted((ROOT / "sweeps").glob("*.yaml"))
 SHORT = ["run.steps=200", "run.thermo=50"]
+EXTRA = {"lj-slit-profiles-epsilon.yaml": ["output.profiles.across.freq=100", "output.profiles.across.repeat=10",
+                                           "output.averages.start=100"]}
 
 
 @pytest.fixture(scope="module", params=[p.name for p in SWEEPS])
 def shipped(request) -> tuple[str, xr.Dataset]:
-    plan = load_plan(ROOT / "sweeps" / request.param, SHORT)
+    plan = load_plan(ROOT / "sweeps" / request.param, SHORT + EXTRA.get(request.param, []))
     return request.param, run_plan(plan, jobs=1, progress=False)
 
 
@@ -68,7 +70,8 @@ def test_default_time_series_of_every_shipped_sweep(shipped, var, tmp_path):
     legend = [t.get_text() for t in fig.legends[0].get_texts()]
     colour_dim = next(d for d in sdims if d != "replica")
     # one entry per value of the first sweep dimension: its name, not a path list
-    assert legend[:ds.sizes[colour_dim]] == [f"{colour_dim}={report._fmt(v)}" for v in ds[colour_dim].values]
+    assert [t for t in legend if t.startswith(f"{colour_dim}=")] == [
+        f"{colour_dim}={report._fmt(v)}" for v in ds[colour_dim].values]
     assert not any("walls." in t or "," in t.split("=")[0] for t in legend)
     n_lines = sum(len(ax.get_lines()) for ax in panels)
     assert n_lines <= 12 * faces  # readable: at most colours x styles per panel, never one per case
@@ -157,3 +160,24 @@ def test_cli_plot_without_matplotlib_is_one_line(tmp_path):
                           str(tmp_path / "p.png")], capture_output=True, text=True, timeout=120)
     assert res.returncode == 2
     assert res.stderr.strip() == "error: plot needs matplotlib: pip install 'wallbatch[plot]'"
+
+
+def test_profile_plot_of_the_shipped_profile_sweep(tmp_path):
+    plan = load_plan(ROOT / "sweeps" / "lj-slit-profiles-epsilon.yaml",
+                     SHORT + EXTRA["lj-slit-profiles-epsilon.yaml"])
+    ds = run_plan(plan, jobs=1, progress=False)
+    _, fig = report.plot(ds, "profile_across_density_number", tmp_path / "d.png", return_figure=True)
+    ax = fig.axes[0]
+    assert "bin centre" in ax.get_xlabel()
+    assert [t.get_text() for t in fig.legends[0].get_texts() if t.get_text().startswith("epsilon=")] == [
+        "epsilon=0.5", "epsilon=1", "epsilon=2", "epsilon=4"]
+    assert len(ax.containers) == 4  # one series of error bars (window mean +- s.e.) per epsilon
+    np.testing.assert_allclose(ax.containers[1].lines[0].get_ydata(),
+                               ds["profile_across_density_number_mean"].isel(epsilon=1).values)
+    _boxes_fit(fig)
+    _, fig = report.plot(ds, "wall_pressure_mean", tmp_path / "p.png", return_figure=True)
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "epsilon" and len(ax.containers) == 2  # one per face, in colour
+    assert [t.get_text() for t in fig.legends[0].get_texts() if t.get_text().startswith("face=")] == [
+        "face=pore/zlo", "face=pore/zhi"]
+    _boxes_fit(fig)

@@ -153,8 +153,10 @@ def test_time_series_colour_style_and_replica_mean(sweep_ds, tmp_path):
     fig = _plot(sweep_ds, "temp", tmp_path, hue="epsilon")
     ax = fig.axes[0]
     assert len(ax.get_lines()) == 6
-    assert [t.get_text() for t in fig.legends[0].get_texts()] == [
-        "epsilon=0.5", "epsilon=1", "epsilon=2", "sigma=0.8", "sigma=1.2", "s.e. over replicas"]
+    texts = [t.get_text() for t in fig.legends[0].get_texts()]  # one row per group, filled column by column
+    assert [t for t in texts if t.strip()] == ["epsilon=0.5", "sigma=0.8", "s.e. over replicas", "epsilon=1",
+                                               "sigma=1.2", "epsilon=2"]
+    assert fig.legends[0]._ncols == 3
     assert ax.get_xlabel() == "step" and ax.get_ylabel() == "temp"
     assert "translational temperature" in fig._suptitle.get_text()
     assert "mean of 2 replicas, band: +-1 s.e." in fig._suptitle.get_text()
@@ -203,7 +205,10 @@ def test_summary_plot_against_sweep_dim(sweep_ds, tmp_path):
     assert ax.get_xlabel() == "epsilon" and "time mean of potential energy" in fig._suptitle.get_text()
     assert [t.get_text() for t in fig.legends[0].get_texts()] == ["sigma=0.8", "sigma=1.2"]
     ax = _plot(sweep_ds, "seconds", tmp_path, x="sigma").axes[0]  # no sample dim: plotted as is
-    assert len(ax.get_lines()) == 3 and ax.get_ylabel() == "seconds [s]"  # colour epsilon, replicas averaged
+    # colour epsilon, replicas averaged: one error-bar series (mean +- s.e. over the 2 replicas) per epsilon
+    assert len(ax.containers) == 3 and ax.get_ylabel() == "seconds [s]"
+    sec = sweep_ds["seconds"].isel(epsilon=0)
+    np.testing.assert_allclose(ax.containers[0].lines[0].get_ydata(), sec.mean("replica").values)
 
 
 def test_failed_cases_are_gaps(tmp_path):

@@ -434,6 +434,8 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
     # the standard error of `var`: `<var>_sem`, or `<X>_sem` for a block average `<X>_mean`
     sem_name = f"{var}_sem" if f"{var}_sem" in sub.data_vars else (
         f"{var[:-5]}_sem" if var.endswith("_mean") and f"{var[:-5]}_sem" in sub.data_vars else "")
+    if sem_name and set(sub[sem_name].dims) != set(sub[var].dims):
+        sem_name = ""  # e.g. pe_sem is the error of the block average pe_mean, not of each sample of pe
     sem = (sub[sem_name].where(ok) if "status" in sub else sub[sem_name]) if sem_name else None
     chosen = {k: _fmt(sub[k].values) for k in (sel or {}) if k in sub.coords and sub[k].ndim == 0}
     suffix = _case_label(chosen) if chosen else ""
@@ -615,7 +617,7 @@ def _legend(fig, ax, ds: xr.Dataset, hue: str | None, style: str | None, colors:
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    handles: list = []
+    colour: list = []
     if hue is not None and len(colors) > MAX_LEGEND:
         import matplotlib as mpl
 
@@ -625,17 +627,23 @@ def _legend(fig, ax, ds: xr.Dataset, hue: str | None, style: str | None, colors:
         bar = fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap="viridis"), ax=fig.axes)
         bar.set_label(_axis_label(ds, hue))
     elif hue is not None:
-        handles += [Line2D([], [], color=c, label=f"{hue}={_fmt(_coord_value(ds, hue, i))}")
-                    for i, c in enumerate(colors)]
-    if style is not None:
-        handles += [Line2D([], [], color="black", linestyle=STYLES[i], label=f"{style}={_fmt(_coord_value(ds, style, i))}")
-                    for i in range(ds.sizes[style])]
+        colour = [Line2D([], [], color=c, label=f"{hue}={_fmt(_coord_value(ds, hue, i))}")
+                  for i, c in enumerate(colors)]
+    styles = [Line2D([], [], color="black", linestyle=STYLES[i], label=f"{style}={_fmt(_coord_value(ds, style, i))}")
+              for i in range(ds.sizes[style])] if style is not None else []
+    extra: list = []
     if band:
-        handles.append(Patch(color="grey", alpha=0.3, label=band))
+        extra.append(Patch(color="grey", alpha=0.3, label=band))
     if any(line.get_label() == "failed case" for a in fig.axes for line in a.get_lines()):
-        handles.append(Line2D([], [], color="red", marker="x", linestyle="none", label="failed case"))
-    if handles:
-        fig.legend(handles=handles, fontsize="small", loc="outside right upper")
+        extra.append(Line2D([], [], color="red", marker="x", linestyle="none", label="failed case"))
+    rows = [r for r in (colour, styles, extra) if r]
+    if not rows:
+        return
+    ncols = min(max(len(r) for r in rows), 6)
+    rows = [r[k:k + ncols] for r in rows for k in range(0, len(r), ncols)]  # a group per row
+    blank = Line2D([], [], linestyle="none", label=" ")
+    handles = [row[c] if c < len(row) else blank for c in range(ncols) for row in rows]  # column-major
+    fig.legend(handles=handles, fontsize="small", loc="outside lower center", ncols=ncols)
 
 
 def _save(fig, out: str | Path, return_figure: bool):
