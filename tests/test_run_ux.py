@@ -146,3 +146,18 @@ def test_runtime_failure_printed_with_coordinates(tmp_path):
     assert res.exit_code == 1
     line = next(ln for ln in res.output.splitlines() if ln.startswith("failed"))
     assert line.startswith("failed (1 case: top=30.0, eps=1.0): atom ") and "left the box" in line
+
+
+def test_tasks_bounded_by_atoms(tmp_path, monkeypatch):
+    """A running batch holds at most MAX_BATCH_ATOMS atoms (its memory is bounded), and the
+    results do not depend on how the cases were split."""
+    path = sweep(tmp_path, "sweep: {product: {eps: {path: walls.zwalls.zlo.epsilon, values: [1, 2, 3, 4, 5]}}}\n")
+    plan = load_plan(path, ["run.steps=40", "run.thermo=20"])
+    whole = run_plan(plan, progress=False)
+    built, _ = runner.build_cases(plan)
+    assert [len(t) for t in runner.make_tasks(dict(enumerate(built)), jobs=1)] == [5]
+    monkeypatch.setattr(runner, "MAX_BATCH_ATOMS", 60)  # 30 atoms per case: 2 cases per task
+    assert [len(t) for t in runner.make_tasks(dict(enumerate(built)), jobs=1)] == [2, 2, 1]
+    split = run_plan(plan, progress=False)
+    for name in ("pe", "temp", "wall_force"):
+        np.testing.assert_array_equal(split[name].values, whole[name].values)

@@ -39,6 +39,7 @@ from wallbatch.scene.build import build_case
 from wallbatch.scene.case import Case, CaseError, structure_key
 
 MAX_BATCH = 256  # cases per task: big enough to amortise Python overhead, small enough to resume
+MAX_BATCH_ATOMS = 1_000_000  # atoms per task (all its cases): bounds a running batch's memory (~450 MB)
 MAX_STEPS = 10**12  # steps of one case (10^12 steps of one atom take days)
 MAX_SAMPLES = 1_000_000  # samples of one case (each a row of every output)
 PART_FORMAT = 2  # layout of a part file (a part of another layout is recomputed)
@@ -139,7 +140,8 @@ def check_memory(plan: SweepPlan, jobs: int) -> None:
         which = f"case {plan.cases[big].label}" if plan.dims else "the scene"
         raise RunError(f"{which} would create {atoms[big]:,} atoms, more than the limit of {MAX_ATOMS:,}")
     total = sum(atoms)
-    need = HELD_BYTES_PER_ATOM * total + RUN_BYTES_PER_ATOM * min(total, atoms[big] * MAX_BATCH * max(1, jobs))
+    running = max(atoms[big], min(atoms[big] * MAX_BATCH, MAX_BATCH_ATOMS)) * max(1, jobs)  # tasks at once
+    need = HELD_BYTES_PER_ATOM * total + RUN_BYTES_PER_ATOM * min(total, running)
     have = memory_available()
     if need > have:
         raise RunError(f"the {len(atoms)} case(s) create {total:,} atoms: about {_size(need)} in memory, more "
@@ -198,13 +200,15 @@ def check_layout(plan: SweepPlan, cases: list[Case | None]) -> None:
 
 def make_tasks(cases: dict[int, Case], jobs: int) -> list[list[int]]:
     """Group case indices by structure, then split each group into about `jobs` tasks (at most
-    MAX_BATCH cases each), so every worker gets work and each task is still one batch."""
+    MAX_BATCH cases and MAX_BATCH_ATOMS atoms each), so every worker gets work, each task is
+    still one batch and the memory of a running batch stays bounded."""
     groups: dict[tuple, list[int]] = {}
     for i, c in cases.items():
         groups.setdefault(structure_key(c), []).append(i)
     tasks = []
     for idx in groups.values():
-        size = min(MAX_BATCH, max(1, math.ceil(len(idx) / max(1, jobs))))
+        by_atoms = max(1, MAX_BATCH_ATOMS // max(1, cases[idx[0]].natoms))  # same structure: same atoms
+        size = min(MAX_BATCH, by_atoms, max(1, math.ceil(len(idx) / max(1, jobs))))
         tasks.extend(idx[k:k + size] for k in range(0, len(idx), size))
     return tasks
 

@@ -22,8 +22,9 @@ class ConfigError(ValueError):
     """Invalid config: one line per problem, `file:line:col: path: message`."""
 
     def __init__(self, problems: list[str]):
-        self.problems = problems
-        super().__init__("\n".join(problems))
+        # a message never carries more than a few hundred characters of user text
+        self.problems = [p if len(p) <= 2000 else p[:1997] + "..." for p in problems]
+        super().__init__("\n".join(self.problems))
 
 
 class SourceMap:
