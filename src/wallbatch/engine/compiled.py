@@ -68,7 +68,7 @@ def enabled() -> bool:
 
 # ----------------------------------------------------------------------------- compiled kernels
 # The force formulas below are the ones of potentials.py written out for scalars, with the same
-# operations in the same order (tests/test_fast.py checks them against potentials.py: keep them in
+# operations in the same order (tests/engine/test_compiled.py checks them against potentials.py: keep them in
 # step when a style's F(r) changes there).
 
 if njit is not None:

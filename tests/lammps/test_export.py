@@ -7,7 +7,7 @@ the install hint when LAMMPS cannot be imported. LAMMPS-needing tests are skippe
 
 Every wallbatch run here takes the NumPy path (WALLBATCH_NUMBA=0, an autouse fixture): compiling
 the numba kernels from a cold cache takes about a minute of CPU, far beyond this file's budget,
-and tests/test_fast.py and the pair tests check that the compiled paths give the NumPy results.
+and tests/engine/test_compiled.py and the pair tests check that the compiled paths give the NumPy results.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ runner = CliRunner()
 def _numpy_path(monkeypatch):
     monkeypatch.setenv("WALLBATCH_NUMBA", "0")
 
-CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+CONFIGS = Path(__file__).resolve().parents[2] / "configs"
 SPACING = (4.0 / 0.8442) ** (1.0 / 3.0)  # fcc 0.8442 in lj units: 1.6795961913825073
 
 # Four explicit atoms (exact data-file lines) and six random ones in a second group whose name
@@ -575,7 +575,7 @@ def test_flow_is_refused_by_validate_before_lammps(tmp_path, monkeypatch):
     result = validate(write(tmp_path, FLOW_SCENE.replace(", RULE", "")))
     assert result.exit_code == 2, result.output
     assert "walls.fl: wall/flow redraws velocities from random numbers" in result.output
-    assert "tests/test_flow.py" in result.output and "pip install" not in result.output
+    assert "tests/engine/test_flow.py" in result.output and "pip install" not in result.output
 
 
 def test_pair_and_press_script():
@@ -766,7 +766,7 @@ def test_case_selection(tmp_path):
                      ("epsilon", "name=value")):
         with pytest.raises(ExportError, match=msg):
             select_case(plan, sel)
-    zipped = load_plan(Path(__file__).resolve().parents[1] / "sweeps" / "box-height-atoms-zip.yaml")
+    zipped = load_plan(Path(__file__).resolve().parents[2] / "sweeps" / "box-height-atoms-zip.yaml")
     assert select_case(zipped, "lz=16.0").coords == {"geometry": 1}  # a zip parameter names its dimension
     assert select_case(zipped, "geometry=2").coords == {"geometry": 2}
     exp = export_selected(plan, "epsilon=1.0,sigma=0.8")
@@ -797,7 +797,7 @@ def validate(*args: str):
 EXPORTABLE = {"colloid-slit", "dt-reset-rescue", "harmonic-confinement", "lj1043-graphite", "lj126-piston",
               "lj93-slit", "morse-metal", "quickstart", "reflect-piston", "reflect-swiggle",
               "ellipsoids-ees-slit", "colloid-cavity", "cylinder-obstacle", "lj-liquid-slit"}
-FLOW = {"flow-seed"}  # exported, but compared with LAMMPS only statistically (tests/test_flow.py)
+FLOW = {"flow-seed"}  # exported, but compared with LAMMPS only statistically (tests/engine/test_flow.py)
 
 
 @requires_lammps
@@ -812,7 +812,7 @@ def test_validate_shipped_configs(name):
     if any(w.style == "flow" for w in cfg.walls.values()):
         assert name in FLOW
         assert result.exit_code == 2, result.output
-        assert "cannot be compared sample by sample" in result.output and "tests/test_flow.py" in result.output
+        assert "cannot be compared sample by sample" in result.output and "tests/engine/test_flow.py" in result.output
         return
     assert name in EXPORTABLE
     assert result.exit_code == 0, result.output
@@ -826,7 +826,7 @@ def test_shipped_configs_are_listed():
     assert EXPORTABLE | FLOW == {p.stem for p in CONFIGS.glob("*.yaml")}
     for name in sorted(EXPORTABLE | FLOW):
         check_exportable(load_plan(CONFIGS / f"{name}.yaml").cases[0].config)
-    assert (CONFIGS.parent / "tests" / "test_flow.py").exists()  # where validate's refusal points
+    assert (CONFIGS.parent / validate_mod.FLOW_TESTS).exists()  # where validate's refusal points
 
 
 @requires_lammps

@@ -459,7 +459,7 @@ STOP_CASES = [  # (wall style, z0, params, energy, minimize) -> stop reason, (it
                          ids=[c[5].replace(" ", "-") for c in STOP_CASES])
 def test_stop_reasons_reachable_from_config(wall, z0, params, energy, minimize, reason, counts):
     """Every stopping criterion from a plain config (one atom at a wall; counts as LAMMPS's, see
-    tests/test_minimize.py; the atom at z = 3 is beyond the cut-off: zero force)."""
+    tests/engine/test_minimize.py; the atom at z = 3 is beyond the cut-off: zero force)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MinimizeWarning)
         d = run_one(one_atom_scene(wall, z0, params, minimize, energy=energy, steps=0)).data

@@ -17,7 +17,7 @@ every output must agree to 1e-9 relative (absolute floor FLOOR times the series'
 magnitude, for values that cross or sit at zero). Observed (22Jul2025): every series within
 ~2e-14 of its largest magnitude, except the lj1043 sphere-out wall of the lattice scene (6e-13 on
 region_force, 2e-13 on the final v): summation order and libm differences, far below 1e-9. (LAMMPS's
-closed-form ees torque alone loses ~4e-13 relative far from the wall: tests/test_ellipsoid.py.)
+closed-form ees torque alone loses ~4e-13 relative far from the wall: tests/styles/test_ellipsoid.py.)
 
 Output mapping: wallbatch `ke` = LAMMPS `ke` + `c_erotate/asphere` (wallbatch's ke includes the
 rotational energy); `etot` = `etotal` + erotate; `erot` = erotate/asphere; `temp`, `pe` as is;
