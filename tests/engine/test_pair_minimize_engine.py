@@ -26,6 +26,7 @@ from typer.testing import CliRunner
 from wallbatch.cli import app
 from wallbatch.config.models import load_config_text
 from wallbatch.engine.engine import CaseResult, Engine, run_cases
+from wallbatch.lammps.log import minimize_stats
 from wallbatch.scene.case import structure_key
 from wallbatch.batch.runner import run_config
 from wallbatch.scene.case import MinimizeWarning
@@ -165,10 +166,8 @@ def lammps_minimize(x, lo, hi, boundary, pair, fixes, style, args, timestep=0.00
             lmp.commands_string(f"min_style {style}\nminimize {args}")
             xf, pe = gather(lmp, "x", len(x)), lmp.get_thermo("pe")
         with open(log, encoding="utf-8") as fh:
-            stats = {k.strip(): val.strip() for k, _, val in
-                     (line.partition("=") for line in fh.read().splitlines() if "=" in line)}
-    counts = tuple(int(a) for a in stats["Iterations, force evaluations"].split())
-    return xf, pe, stats["Stopping criterion"], counts
+            stats = minimize_stats(fh.read())[-1]
+    return xf, pe, stats.stop_reason, (stats.iterations, stats.evaluations)
 
 
 # ============================================================================= 1. pair + press

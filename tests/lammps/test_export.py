@@ -37,6 +37,7 @@ from wallbatch.lammps.export import (
     select_case,
 )
 from wallbatch.config.sweep import load_plan
+from wallbatch.lammps.log import last_thermo
 
 runner = CliRunner()
 
@@ -655,16 +656,16 @@ Loop time of 8.673e-06 on 1 procs for 10 steps with 2 atoms
 
 
 def test_log_parsers():
-    table = validate_mod._parse_thermo(MIN_LOG, 2)  # the run's table, not the minimizer's
+    table = last_thermo(MIN_LOG, 2)  # the run's table, not the minimizer's
     assert table.tolist() == [[0.0, -0.081622382197368323], [10.0, -0.081622382197381965]]
-    res = validate_mod._parse_minimize(MIN_LOG)
+    res = validate_mod._min_results(MIN_LOG)
     assert res["stop_reason"].tolist() == ["force tolerance"]
     assert (res["iterations"][0], res["evaluations"][0]) == (86.0, 87.0)
     assert res["energy_before"][0] == -0.0288614430174737
     assert (res["energy"][0], res["fnorm"][0]) == (-0.081622382197368323, 5.034062824216522e-11)
     assert res["fnorm:scale"][0] == 0.0082885234
     with pytest.raises(validate_mod.LammpsRunError, match="no minimization results"):
-        validate_mod._parse_minimize(MIN_LOG.split("Minimization stats")[0])
+        validate_mod._min_results(MIN_LOG.split("Minimization stats")[0])
 
 
 def test_compare_region_force_and_min_results():
