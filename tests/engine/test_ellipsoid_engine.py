@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from factories import run_ok as run
 
 from wallbatch.config.models import load_config_text
 from wallbatch.engine.engine import run_cases
@@ -30,12 +31,6 @@ timestep: {dt}
 run: {{steps: {steps}, thermo: {steps}}}
 output: {{thermo: [step, time, dt, temp, ke, pe, etot, erot]}}
 """
-
-
-def run(text: str):
-    res = run_cases([build_case(load_config_text(text))])[0]
-    assert res.status == "ok", res.error
-    return res
 
 
 def drift(dt: float, shape: str = "[1.0, 0.4, 0.6]", orientation: str = "random") -> float:

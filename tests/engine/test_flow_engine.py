@@ -157,6 +157,9 @@ def gas_run(rule: str, folder: Path) -> dict[str, np.ndarray]:
     }
 
 
+SLOW_FIXTURES = ("gas", "lj_runs")  # 5-11 s each: conftest.py marks every test that takes one `slow`
+
+
 @pytest.fixture(scope="module")
 def gas(tmp_path_factory) -> dict[str, dict[str, np.ndarray]]:
     folder = tmp_path_factory.mktemp("gas")

@@ -20,17 +20,18 @@ import warnings
 import numpy as np
 import pytest
 import xarray as xr
+from factories import case_of
+from factories import run_ok as run_one  # asserts the case finished
 from lammps_oracle import _load_lammps, requires_lammps
 from typer.testing import CliRunner
 
 from wallbatch.cli import app
 from wallbatch.config.models import load_config_text
-from wallbatch.engine.engine import CaseResult, Engine, run_cases
+from wallbatch.engine.engine import Engine, run_cases
 from wallbatch.lammps.log import minimize_stats
 from wallbatch.scene.case import structure_key
 from wallbatch.batch.runner import run_config
 from wallbatch.scene.case import MinimizeWarning
-from wallbatch.scene.build import build_case
 from wallbatch.units import UNIT_SYSTEMS
 
 # ----------------------------------------------------------------------------- scenes
@@ -59,16 +60,6 @@ def scene_yaml(x, v, lo, hi, boundary: str, *, pair: str | None = None, walls: s
     out = f"output: {{thermo: {json.dumps(list(outputs))}"
     lines.append(out + (f", dump: {{every: {dump}, fields: [x, v]}}}}" if dump else "}"))
     return "\n".join(lines) + "\n" + extra
-
-
-def case_of(text: str):
-    return build_case(load_config_text(text))
-
-
-def run_one(text: str) -> CaseResult:
-    res = run_cases([case_of(text)])[0]
-    assert res.status == "ok", res.error
-    return res
 
 
 def lj93_walls(fid: str = "zw", eps: float = 1.0, sigma: float = 1.0, rc: float = 2.5, energy: bool = True,

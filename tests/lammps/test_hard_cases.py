@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from factories import run_one
 from lammps_oracle import LammpsRunError, Scene, requires_lammps, run_lammps
 from scipy import stats
 from scipy.optimize import brentq
@@ -55,10 +56,6 @@ def variant(name: str, sets: dict | None = None, drop: tuple[str, ...] = ()) -> 
     for key in drop:
         data.pop(key)
     return config_from_dict(data, base=HARD)
-
-
-def run_one(cfg: Config) -> CaseResult:
-    return run_cases([build_case(cfg)])[0]
 
 
 def finite(res: CaseResult) -> bool:
