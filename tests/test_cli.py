@@ -441,6 +441,7 @@ def test_check_bad_config_exit_2(tmp_path):
 
 
 @pytest.mark.skipif(shutil.which("wallbatch") is None, reason="console script not installed")
+@pytest.mark.slow  # starts the installed `wallbatch` in fresh processes: 4-9 s
 def test_console_script_end_to_end(tmp_path):
     cfg = write(tmp_path, SCENE)
     out = tmp_path / "e2e.nc"
