@@ -23,10 +23,10 @@ _TESTS_DIR = os.path.dirname(os.path.abspath(__file__))
 if _TESTS_DIR not in sys.path:
     sys.path.insert(0, _TESTS_DIR)
 
-import factories  # noqa: E402
-import lammps_oracle  # noqa: E402
+import factories
+import lammps_oracle
 
-from wallbatch.lammps import log as lammps_log_module  # noqa: E402
+from wallbatch.lammps import log as lammps_log_module
 
 LAMMPS_FIXTURES = frozenset({"lammps_module", "lammps_script", "lammps_run_log"})
 

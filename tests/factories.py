@@ -14,7 +14,12 @@ from typing import Any
 import xarray as xr
 
 from wallbatch.batch.runner import run_config
-from wallbatch.config.models import Config, config_from_dict, load_config, load_config_text
+from wallbatch.config.models import (
+    Config,
+    config_from_dict,
+    load_config,
+    load_config_text,
+)
 from wallbatch.engine.engine import CaseResult, run_cases
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import Case

@@ -41,8 +41,16 @@ import pytest
 
 from wallbatch.lammps.log import last_thermo, thermo_tables
 
-__all__ = ["Scene", "LammpsRunError", "lammps_available", "lammps_log", "load_lammps", "requires_lammps", "run_lammps",
-           "run_script"]
+__all__ = [
+    "LammpsRunError",
+    "Scene",
+    "lammps_available",
+    "lammps_log",
+    "load_lammps",
+    "requires_lammps",
+    "run_lammps",
+    "run_script",
+]
 
 
 class LammpsRunError(RuntimeError):
