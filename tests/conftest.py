@@ -9,8 +9,9 @@ the leaves units/expr and api, cli, layers at the top). Helper modules, importab
 Markers, so that `pytest -m "not slow and not lammps"` is the fast subset:
 - `lammps`: added to every test that carries `lammps_oracle.requires_lammps` or takes a LAMMPS
   fixture below; a test marked `lammps` by hand is skipped when LAMMPS is not usable.
-- `slow` (> ~5 s): mark the test, or list a slow (module-scoped) fixture in the module's
-  `SLOW_FIXTURES` tuple: every test that takes it is marked.
+- `slow`: every test over about 5 s, and a few of 1-3 s (long convergence and statistics runs) so
+  that the fast subset stays under a minute on two busy cores. Mark the test, or list a slow
+  (module-scoped) fixture in the module's `SLOW_FIXTURES` tuple: every test that takes it is marked.
 """
 
 import os

@@ -39,6 +39,7 @@ def drift(dt: float, shape: str = "[1.0, 0.4, 0.6]", orientation: str = "random"
     return abs(d[-1] - d[0])
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_tumbling_ellipsoids_between_ees_walls_conserve_energy_to_second_order():
     """nve/asphere + wall/ees: translational + rotational + wall energy, error O(dt^2). The cut-off
     spans the slit, so no atom crosses it (the ees energy is not shifted)."""

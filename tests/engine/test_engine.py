@@ -70,6 +70,7 @@ def test_soft_walls_conserve_energy_to_second_order(style):
     assert 3.0 < drift[0] / drift[1] < 5.0
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_reflect_energy_error_is_first_order():
     # A harmonic zlo spring spanning the box pushes every atom against a reflecting zhi wall
     # (a "ball bouncing on a floor"). Between bounces velocity Verlet with this linear force has

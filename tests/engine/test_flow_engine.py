@@ -370,6 +370,7 @@ def two_wall_scene(x, v, steps: int = 400, thermo: int = 50, thermo_keys=("step"
                  thermo_keys=thermo_keys)
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_flow_crossings_equals_redraws_per_sample_summed_over_walls():
     """Ideal gas (velocities change only at redraws), two flow walls on different axes, two
     replicas: flow_crossings of each sample equals the number of velocity changes made by the flow
@@ -466,6 +467,7 @@ def test_same_config_and_seed_is_bit_identical():
     assert a[0].data["flow_crossings"][1:].sum() > 50  # the walls did redraw
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_streams_differ_per_replica_master_seed_and_wall_seed():
     """The initial state is written out, so it is the same for every seed: a change of the
     replica (seed_key), the master seed or the wall's seed changes the redraws, and nothing else
@@ -483,6 +485,7 @@ def test_streams_differ_per_replica_master_seed_and_wall_seed():
         assert not np.array_equal(other.data["flow_crossings"], base.data["flow_crossings"]), name
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_case_in_a_batch_of_three_is_bit_identical_to_the_case_alone():
     """Three cases with vflow 0.2, 0.4, 0.8 (replicas 0, 1, 2) share one batch (flow parameters
     are per case); each is bit-identical to the same case run alone."""
@@ -498,6 +501,7 @@ def test_case_in_a_batch_of_three_is_bit_identical_to_the_case_alone():
     assert not np.array_equal(batch[0].frames["v"][-1], batch[2].frames["v"][-1])
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_two_flow_walls_in_one_scene_get_independent_streams():
     """Group a and its twin group b (same x and v, shifted along y) in an ideal gas, each with a
     flow wall of identical parameters and the same wall seed. Shared streams would keep the twins

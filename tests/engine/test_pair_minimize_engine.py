@@ -251,6 +251,7 @@ def wca_scene(x, v, dt: float, steps: int, thermo: int, rc: float = 2.0 ** (1 / 
                       walls=lj93_walls(rc=0.4 ** (1 / 6) if rc < 2 else 2.5))
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_energy_fluctuation_is_second_order():
     """Velocity Verlet conserves a shadow energy H~ = H + dt^2 g(x, v) + O(dt^4), so over a fixed
     stretch of simulated time the sampled etot fluctuates about its mean by an amount O(dt^2): the
