@@ -79,7 +79,7 @@ class Engine:
             for i in range(len(c0.flow_walls)):
                 rngs = [np.random.default_rng(np.random.SeedSequence(list(c.flow_seeds[i]))) for c in cases]
                 self.flow.append(FlowKernel([c.flow_walls[i] for c in cases], rngs, c0.box_lo, c0.box_hi, c0.units))
-        self.ees: list = [w for w in self.soft if w.style.name == "ees"]  # wall/ees (ellipsoids)
+        self.ees: list = [w for w in self.soft if w.style.needs_shape]  # wall/ees (ellipsoids)
         self.region_walls: list = build_region_kernels(cases)  # wall/region and wall/region/ees
         self.min_info: dict[int, dict[str, np.ndarray]] = {}  # case -> minimization results
         self.fast = attach_fast_path(self)  # compiled chunks of steps (fast.py), or None

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from wallbatch.expr import Variables
-from wallbatch.styles.flat import WallStyle
+from wallbatch.styles.base import WallStyle
 from wallbatch.units import UnitSystem
 
 Value = float | str  # a number, or the name of an equal-style variable (without v_)

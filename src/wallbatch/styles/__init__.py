@@ -1,4 +1,29 @@
-"""Wall potential styles: pure energy/force functions and their registry (one entry per style).
+"""Wall potential styles: one registry entry (`WallStyle`) per style and the registry `STYLES`.
 
 May import: numpy, wallbatch.geometry and the leaves (units, expr).
 """
+
+from __future__ import annotations
+
+from wallbatch.styles.base import Param, WallStyle
+from wallbatch.styles.ees import EES
+from wallbatch.styles.flat import STYLES as FLAT_STYLES
+
+# every wall style with per-face parameters, in a fixed order (the compiled dispatch numbers them)
+STYLES: dict[str, WallStyle] = {**FLAT_STYLES, EES.name: EES}
+
+
+def register(style: WallStyle) -> WallStyle:
+    """Add a style to the registry (a module defining a new style calls this once at import)."""
+    if style.name in STYLES and STYLES[style.name] is not style:
+        raise ValueError(f"wall style {style.name!r} is registered twice")
+    STYLES[style.name] = style
+    return style
+
+
+def region_styles() -> tuple[str, ...]:
+    """Styles usable as the potential of wall/region."""
+    return tuple(n for n, s in STYLES.items() if s.region)
+
+
+__all__ = ["STYLES", "FLAT_STYLES", "Param", "WallStyle", "register", "region_styles"]
