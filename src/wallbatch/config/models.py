@@ -1,4 +1,4 @@
-"""The config language (shared/spec/config.md): YAML loading with line numbers, Pydantic models,
+"""The config language (docs/reference/config.md): YAML loading with line numbers, Pydantic models,
 and the cross-field checks. The models are the single source of truth for a scene; the engine
 never sees raw YAML.
 
@@ -363,7 +363,7 @@ class ReflectWall(_FaceWall):
 
 
 class FlowWall(Model):
-    """fix wall/flow (physics.md §8)."""
+    """fix wall/flow (docs/physics.md §8)."""
 
     style: Literal["flow"]
     group: str = "all"
@@ -427,7 +427,7 @@ class Minimize(Model):
 
 
 class DtReset(Model):
-    """fix dt/reset (physics.md §9)."""
+    """fix dt/reset (docs/physics.md §9)."""
 
     every: PositiveInt
     group: str = "all"
@@ -477,7 +477,7 @@ class Output(Model):
 
 
 class Config(Model):
-    """One scene (shared/spec/config.md)."""
+    """One scene (docs/reference/config.md)."""
 
     name: str = "wallbatch"
     units: Literal["lj", "real", "metal"] = "lj"
@@ -537,7 +537,7 @@ def validate_data(data: Any, srcmap: SourceMap) -> Config:
             if err["type"] == "extra_forbidden" and err["loc"][-1] == "fld":
                 msg = "fld (lubrication models, fix wall ... fld yes) is not supported: remove it"
             elif err["type"] == "extra_forbidden":
-                msg = "unknown key (misspelled? see shared/spec/config.md for the valid keys)"
+                msg = "unknown key (misspelled? see docs/reference/config.md for the valid keys)"
             problems.append(srcmap.format(tuple(err["loc"]), msg))
         raise ConfigError(problems) from None
     problems = [srcmap.format(path, msg) for path, msg in check_scene(cfg)]
@@ -697,6 +697,8 @@ def _check_min(entry: WallStyle | None, key: str, value: Any, path: tuple, add: 
     p = entry.param(key)
     if p.min is not None and isinstance(value, float) and value < p.min:
         add(path, f"{key} must be >= {p.min:g}")
+    elif p.positive and isinstance(value, float) and not value > 0:
+        add(path, f"{key} must be > 0")
 
 
 def _check_region_wall(cfg: "Config", fid: str, wall: Any, add: Any, check_var: Any) -> None:

@@ -1,4 +1,4 @@
-"""Sweeps (shared/spec/config.md "Sweeps"): expand one scene into a labelled grid of cases.
+"""Sweeps (docs/reference/config.md "Sweeps"): expand one scene into a labelled grid of cases.
 
 `product` entries are full-grid dimensions, a `zip` moves several parameters together on one
 dimension, `replicas` adds independent random streams. Paths address the validated model, so a

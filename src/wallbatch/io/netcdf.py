@@ -1,4 +1,4 @@
-"""Results as a labelled xarray Dataset, written to NetCDF-4 (shared/spec/outputs.md).
+"""Results as a labelled xarray Dataset, written to NetCDF-4 (docs/reference/outputs.md).
 
 Dimensions: one per sweep entry (in declared order), `sample`, `fix`, `face`. A run without a
 sweep has no sweep dimensions. A failed case keeps its grid place with NaN outputs.

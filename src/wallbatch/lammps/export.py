@@ -1,17 +1,18 @@
-"""`wallbatch export-lammps`: one case as a LAMMPS input script and data file (docs/validate.md).
+"""`wallbatch export-lammps`: one case as a LAMMPS input script and data file (docs/howto/validate.md).
 
 The export reproduces the case exactly: the data file holds the case's initial positions,
 velocities, masses and radii as shortest round-trip floats (`repr`), every value is in box units
 (lattice values are converted; variable wall coordinates in lattice units get a scaled helper
 variable), walls keep their config order, `fix dt/reset` comes after every wall (wallbatch's step-0
 ordering), and `thermo_style custom` lists the outputs wallbatch samples with `thermo_modify norm
-no`. A comment block at the top lists every row of the decisions table (shared/spec/physics.md,
-docs/physics.md) the case touches.
+no`. A comment block at the top lists every row of the decisions table (docs/deviations.md;
+physics in docs/physics.md) the case touches.
 
 Adding a feature is one small function and one registry line:
-  * a wall style: a writer in `WALL_WRITERS` (config style name -> writer(fid, wall, spec, s));
-    today lj93 lj126 lj1043 colloid harmonic morse ees (fix wall/STYLE), reflect, region
-    (fix wall/region), region/ees (fix wall/region/ees) and flow (fix wall/flow);
+  * a wall style: every style of the registry (wallbatch.styles.STYLES) is written by
+    `_soft_wall` from its entry (fix wall/STYLE, its parameters, its decisions-table rows);
+    other walls have a writer in `WALL_WRITERS` (config style name -> writer(fid, wall, spec, s)):
+    reflect, region (fix wall/region), region/ees (fix wall/region/ees) and flow (fix wall/flow);
   * a pair style: a writer in `PAIR_WRITERS` (lj/cut);
   * an atom kind: a writer in `ATOM_WRITERS` (chosen by `_atom_style`: atomic, sphere, ellipsoid);
   * `minimize:` is written by `_minimize` (min_style, min_modify dmax, minimize, then
@@ -104,7 +105,7 @@ class LammpsExport:
 
 # ----------------------------------------------------------------------------- decisions table
 
-# The rows of the decisions table (shared/spec/physics.md) that today's features can touch.
+# The rows of the decisions table (docs/deviations.md) that today's features can touch.
 DECISIONS: dict[str, str] = {
     "dt_reset_order": "dt/reset at step 0: wallbatch computes the step-0 dt after all forces; fix dt/reset is "
                       "therefore defined after every wall fix",
@@ -122,7 +123,7 @@ DECISIONS: dict[str, str] = {
             "same plane",
     "region_colloid": "wall/region with colloid: wallbatch uses the fix wall/colloid physics on the region surface "
                       "(energy and force consistent); LAMMPS's wall/region colloid flips the force and the sign of "
-                      "the energy's log term and subtracts an LJ93-style constant (physics.md quirk #1). This script "
+                      "the energy's log term and subtracts an LJ93-style constant (docs/deviations.md, quirk #1). This script "
                       "runs LAMMPS's own physics, so trajectories differ once a particle feels the wall; written with "
                       "epsilon -> -epsilon, LAMMPS's flipped force is exactly fix wall/colloid's (energies still "
                       "differ): `wallbatch validate` compares that variant",
@@ -411,7 +412,7 @@ def _soft_wall(fid: str, wall: Any, spec: SoftWallSpec, s: _Script) -> None:
                 const = s.case.variables.constant_value(v)
                 if const is None:
                     raise ExportError(f"walls.{fid}.{face.name}.{key}: LAMMPS ignores a variable {key} ({key} = 0, "
-                                      f"physics.md decisions table) and v_{v} changes during the run: cannot export")
+                                      f"docs/deviations.md, decisions table) and v_{v} changes during the run: cannot export")
                 s.decide(f"{style.name}_{key}", note + f" ({face.label}: v_{v} = {_num(const)})")
                 v = const
             values[key] = f"v_{v}" if isinstance(v, str) else float(v)
@@ -495,7 +496,7 @@ def _region_wall(fid: str, wall: Any, spec: RegionWallSpec, s: _Script) -> None:
         if s.force_matched:
             words["epsilon"] = _num(-float(words["epsilon"]))
             why = ("wall/region colloid written with -epsilon: LAMMPS's flipped force equals fix wall/colloid's, "
-                   "its energy is a different formula (decisions table, physics.md quirk #1)")
+                   "its energy is a different formula (decisions table, docs/deviations.md quirk #1)")
             s.expected[f"wall_energy[{fid}]"] = why
             if spec.energy:
                 s.expected.update({"pe": why, "etot": why})
@@ -799,7 +800,7 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
         _dt_reset(s)
     if case.natoms < 2:
         why = ("one atom: LAMMPS's thermo ke comes from the temperature, 0 with 3N-3 = 0 degrees of freedom; "
-               "wallbatch reports 1/2 m v^2 (docs/physics.md)")
+               "wallbatch reports 1/2 m v^2 (docs/physics.md §14.1)")
         s.notes.append(why)
         s.expected.update({"ke": why, "etot": why})
     if cfg.lattice is not None:
@@ -830,8 +831,8 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
     lines = [f"# LAMMPS input written by {title}",
              f"# Run it next to {data_name}:  lmp -in {script_name}",
              "#",
-             "# Where wallbatch decides differently from LAMMPS (decisions table: shared/spec/physics.md,",
-             "# docs/physics.md), as far as this case is concerned:"]
+             "# Where wallbatch decides differently from LAMMPS (decisions table: docs/deviations.md,",
+             "# physics: docs/physics.md), as far as this case is concerned:"]
     s.decisions = {k: s.decisions[k] for k in [*DECISIONS, *s.decisions] if k in s.decisions}  # table order
     lines += _bullets(list(s.decisions.values()) or ["(none)"])
     lines += ["#", "# Export notes:"]

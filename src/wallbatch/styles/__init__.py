@@ -9,16 +9,9 @@ from wallbatch.styles.base import Param, WallStyle
 from wallbatch.styles.ees import EES
 from wallbatch.styles.flat import STYLES as FLAT_STYLES
 
-# every wall style with per-face parameters, in a fixed order (the compiled dispatch numbers them)
+# every wall style with per-face parameters, in a fixed order (the compiled dispatch numbers them);
+# a new style is one entry here (the config models, fix lines and kernels are built from this at import)
 STYLES: dict[str, WallStyle] = {**FLAT_STYLES, EES.name: EES}
-
-
-def register(style: WallStyle) -> WallStyle:
-    """Add a style to the registry (a module defining a new style calls this once at import)."""
-    if style.name in STYLES and STYLES[style.name] is not style:
-        raise ValueError(f"wall style {style.name!r} is registered twice")
-    STYLES[style.name] = style
-    return style
 
 
 def region_styles() -> tuple[str, ...]:
@@ -26,4 +19,4 @@ def region_styles() -> tuple[str, ...]:
     return tuple(n for n, s in STYLES.items() if s.region)
 
 
-__all__ = ["STYLES", "FLAT_STYLES", "Param", "WallStyle", "register", "region_styles"]
+__all__ = ["STYLES", "FLAT_STYLES", "Param", "WallStyle", "region_styles"]
