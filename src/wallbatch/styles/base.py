@@ -2,7 +2,7 @@
 
 Everything else (the config face models and their positional form, the fix-line reader and
 writer, the LAMMPS export, the parameter checks, the compiled kernel dispatch and the per-style
-tests) is derived from these entries; see docs/developing.md, "Adding a wall style".
+tests) is derived from these entries; see docs/developer.md, "Adding a wall style".
 """
 
 from __future__ import annotations
