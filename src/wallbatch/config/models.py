@@ -78,14 +78,20 @@ def _bound(v: Any) -> float | None:
     return float(v)
 
 
-from pydantic import BeforeValidator  # noqa: E402
+from pydantic import BeforeValidator, WithJsonSchema  # noqa: E402
 
 from wallbatch.config.fixline import FixLineError, parse_fix_line
 from wallbatch.expr import VariableError, Variables
 from wallbatch.units import lattice_constant
 
-Coord = Annotated[Union[float, str], BeforeValidator(_coord)]
-Param = Annotated[Union[float, str], BeforeValidator(_param)]
+# what the loader accepts, for the JSON schema: a number, or a string that is a number, v_name (or EDGE)
+_NUMBER_TEXT = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+COORD_SCHEMA = {"anyOf": [{"type": "number"}, {"type": "string", "pattern": (
+    rf"^\s*(?:EDGE|v_[A-Za-z_][A-Za-z0-9_]*|{_NUMBER_TEXT})\s*$")}]}
+PARAM_SCHEMA = {"anyOf": [{"type": "number"}, {"type": "string", "pattern": (
+    rf"^\s*(?:v_[A-Za-z_][A-Za-z0-9_]*|{_NUMBER_TEXT})\s*$")}]}
+Coord = Annotated[Union[float, str], BeforeValidator(_coord), WithJsonSchema(COORD_SCHEMA)]
+Param = Annotated[Union[float, str], BeforeValidator(_param), WithJsonSchema(PARAM_SCHEMA)]
 Bound = Annotated[Union[float, None], BeforeValidator(_bound)]
 Vec3 = tuple[float, float, float]
 
