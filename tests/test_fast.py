@@ -99,7 +99,7 @@ STYLE_PARAMS = {
 
 @pytest.mark.parametrize("style", sorted(STYLE_PARAMS))
 def test_compiled_forces_match_potentials(style):
-    """fast._force is potentials.py's F(r) written for scalars: same value to 1e-14 over the range."""
+    """The compiled force is the registry's own F(r), jit-compiled: same value to 1e-14 over the range."""
     p = STYLE_PARAMS[style]
     lo = p.get("radius", 0.0) + 0.05
     r = np.linspace(lo, p["cutoff"], 257)

@@ -128,4 +128,3 @@ EES = WallStyle(
      cutoff_param()),
     shifted=False, needs_shape=True, region=False, compiled=False, virial=False,
     doc="ellipsoid against a flat wall (Babadi-Ejtehadi); needs atoms with a shape")
-EES_STYLE = EES
