@@ -157,6 +157,33 @@ KEYS: dict[str, Key] = {
     "walls.ID.r0": Key("region with morse: equilibrium distance.", "distance", "`r0`", NUM_OR_VAR),
     "walls.ID.cutoff": Key("region, region/ees: cut-off distance from the surface (box units).", "distance",
                            "`CUTOFF`"),
+    "dimension": Key("2 or 3 (default). 2-D as LAMMPS: z periodic and thin, no z walls, z velocities and "
+                     "forces zeroed (enforce2d), 2 degrees of freedom per atom; lattices sq, sq2, hex.", "",
+                     "`dimension 2`"),
+    "fixes": Key("Integrators and thermostats, fix-ID -> fix (mapping form or a verbatim LAMMPS fix line), "
+                 "applied in LAMMPS order. Absent: `fix nve` on all atoms. Atoms in no integrating group "
+                 "never move (static obstacles) but still feel and exert forces.", "", "`fix ID GROUP STYLE ...`"),
+    "fixes.NAME.style": Key("nve, nve/asphere, nvt, langevin, temp/berendsen, temp/rescale or enforce2d.", "",
+                            "the fix style"),
+    "fixes.NAME.group": Key("The atom group the fix acts on (default all).", "", "`GROUP`"),
+    "fixes.NAME.temp": Key("[Tstart, Tstop]: the target temperature ramps linearly over the run.", "temperature",
+                           "`temp Tstart Tstop` (nvt), `Tstart Tstop` (langevin, berendsen, rescale)"),
+    "fixes.NAME.damp": Key("Relaxation time of the thermostat (> 0).", "time", "`Tdamp` / `damp`"),
+    "fixes.NAME.tchain": Key("Length of the Nose-Hoover chain (nvt; default 3).", "", "`tchain N`"),
+    "fixes.NAME.tloop": Key("Sub-cycles of the chain update per half step (nvt; default 1).", "", "`tloop N`"),
+    "fixes.NAME.drag": Key("Drag factor damping the chain (nvt; default 0).", "", "`drag D`"),
+    "fixes.NAME.seed": Key("Random seed of the Langevin force (per case and replica the stream derives from it "
+                           "and the master seed).", "", "`seed`"),
+    "fixes.NAME.zero": Key("Langevin: remove the net random force, so the total momentum is kept.", "",
+                           "`zero yes`"),
+    "fixes.NAME.tally": Key("Langevin: tally the energy exchanged with the bath into `ecouple`.", "",
+                            "`tally yes`"),
+    "fixes.NAME.omega": Key("Langevin on ellipsoid rotations: not supported (refused).", "", "`omega yes`"),
+    "fixes.NAME.every": Key("temp/rescale: rescale every N steps.", "", "`N`"),
+    "fixes.NAME.window": Key("temp/rescale: rescale only when |T - Ttarget| exceeds this.", "temperature",
+                             "`window`"),
+    "fixes.NAME.fraction": Key("temp/rescale: fraction (0-1] of the difference removed at each rescale.", "",
+                               "`fraction`"),
     "dt_reset": Key("Adaptive timestep.", "", "`fix ID GROUP dt/reset N Tmin Tmax Xmax`"),
     "dt_reset.every": Key("Reset every N steps (and at step 0, after all forces).", "", "`N`"),
     "dt_reset.group": Key("Atoms whose motion limits dt.", "", "`GROUP`"),
@@ -193,6 +220,27 @@ KEYS: dict[str, Key] = {
     "output.dump": Key("Per-atom trajectories (AMBER NetCDF), one file per case.", "", "`dump netcdf`"),
     "output.dump.every": Key("Frame interval in steps (step 0 included).", "", "`dump ID all netcdf N`"),
     "output.dump.fields": Key("Per-atom fields to write.", "", "`x y z vx vy vz`"),
+    "output.profiles": Key("Profiles across the box, by name: one binned axis each, sampled and averaged as "
+                           "fix ave/chunk (norm all); variables `profile_NAME_QUANTITY` (see the profiles "
+                           "how-to).", "", "`compute chunk/atom bin/1d` + `fix ave/chunk`"),
+    "output.profiles.NAME.axis": Key("Axis of the bins; they start at the box's lower bound.", "",
+                                     "`bin/1d x|y|z lower`"),
+    "output.profiles.NAME.bins": Key("Number of equal bins over the box (give `bins` or `delta`).", "",
+                                     "`bin/1d z lower 1/N units reduced`"),
+    "output.profiles.NAME.delta": Key("Bin width; ceil(L/delta) bins (give `bins` or `delta`).", "distance",
+                                      "`bin/1d z lower delta units box`"),
+    "output.profiles.NAME.every": Key("Steps between samples.", "", "`Nevery`"),
+    "output.profiles.NAME.repeat": Key("Samples per window (repeat * every <= freq).", "", "`Nrepeat`"),
+    "output.profiles.NAME.freq": Key("A window closes at every multiple of freq (a multiple of every; step 0 "
+                                     "opens none).", "", "`Nfreq`"),
+    "output.profiles.NAME.quantities": Key("What is averaged per bin: density/number, density/mass, temp, vx, "
+                                           "vy, vz.", "", "`density/number density/mass temp vx vy vz`"),
+    "output.profiles.NAME.group": Key("Atoms binned.", "", "the fix's group-ID"),
+    "output.averages": Key("Where the time averages (`_mean`, `_sem`) start; default: every sample.", "",
+                           "— (`fix ave/time` without error bars)"),
+    "output.averages.start": Key("First step averaged (inclusive), for a step-based run.", "", "—"),
+    "output.averages.time": Key("First simulated time averaged (inclusive), for a run to a time.", "time",
+                                "—"),
     "sweep": Key("Turns the scene into a grid of cases (see the sweep section).", "", "— (a `loop` of runs)"),
     "sweep.product": Key("A full grid: one results dimension per entry, named by the key. An entry is "
                          "`{path, values}` or, as shorthand, `PATH: VALUES` (the dimension is named after "

@@ -26,6 +26,7 @@ from pydantic import (
     model_validator,
 )
 
+from wallbatch.config.profiles import Averages, Profile, check_profiles
 from wallbatch.config.source import FACES, ConfigError, SourceMap, load_yaml
 from wallbatch.styles import STYLES, WallStyle, region_styles
 from wallbatch.styles import Param as StyleParam
@@ -33,7 +34,7 @@ from wallbatch.styles import Param as StyleParam
 REGION_POTENTIALS = region_styles()
 THERMO_KEYWORDS = (
     "step", "time", "dt", "temp", "ke", "pe", "etot", "press", "atoms", "erot",
-    "reflect_count", "reflect_impulse", "flow_crossings",
+    "reflect_count", "reflect_impulse", "flow_crossings", "ecouple", "econserve",
 )
 VAR_RE = re.compile(r"^v_[A-Za-z_][A-Za-z0-9_]*$")
 NAME_RE = r"^[A-Za-z_][A-Za-z0-9_\-]*$"
@@ -80,6 +81,8 @@ def _bound(v: Any) -> float | None:
 
 from pydantic import BeforeValidator, WithJsonSchema  # noqa: E402
 
+from wallbatch.config.ensemble import EnsembleFix, check_ensemble, drop_fix_tag
+from wallbatch.config.ensemble import expand_fix_lines as expand_ensemble_lines
 from wallbatch.config.fixline import FixLineError, parse_fix_line
 from wallbatch.expr import VariableError, Variables
 from wallbatch.units import lattice_constant
@@ -123,7 +126,7 @@ class Box(Model):
 class Lattice(Model):
     """`lattice STYLE SCALE`: in lj units scale is the reduced density, otherwise the lattice constant."""
 
-    style: Literal["sc", "bcc", "fcc"]
+    style: Literal["sc", "bcc", "fcc", "sq", "sq2", "hex"]  # sq, sq2, hex: 2-D (dimension: 2)
     scale: PositiveFloat
 
 
@@ -480,6 +483,8 @@ class Dump(Model):
 class Output(Model):
     thermo: list[Literal[THERMO_KEYWORDS]] = ["step", "time", "dt", "temp", "ke", "pe", "etot"]  # type: ignore[valid-type]
     dump: Dump | None = None
+    profiles: dict[str, Profile] = {}  # name -> binned axis (config/profiles.py)
+    averages: Averages | None = None
 
 
 class Config(Model):
@@ -498,10 +503,13 @@ class Config(Model):
     walls: dict[str, Wall] = {}
     dt_reset: DtReset | None = None
     minimize: Minimize | None = None
+    dimension: Literal[2, 3] = 3
+    fixes: dict[str, EnsembleFix] | None = None  # integrators and thermostats; None: nve on all
     run: Run
     output: Output = Output()
     sweep: dict[str, Any] | None = None
     _base_dir: Path = PrivateAttr(default=Path("."))  # folder that relative `file:` paths start from
+    _srcmap: Any = PrivateAttr(default=None)  # where each value stands, for errors found when building
 
 
 
@@ -533,6 +541,9 @@ def _expand_fix_lines(data: Any, srcmap: SourceMap) -> Any:
 def validate_data(data: Any, srcmap: SourceMap) -> Config:
     """Validate loaded YAML data into a Config, then run the cross-field checks."""
     data = _expand_fix_lines(data, srcmap)
+    data, problems = expand_ensemble_lines(data, srcmap)
+    if problems:
+        raise ConfigError(problems)
     try:
         cfg = Config.model_validate(data)
     except ValidationError as exc:
@@ -544,8 +555,9 @@ def validate_data(data: Any, srcmap: SourceMap) -> Config:
                 msg = "fld (lubrication models, fix wall ... fld yes) is not supported: remove it"
             elif err["type"] == "extra_forbidden":
                 msg = "unknown key (misspelled? see docs/reference/config.md for the valid keys)"
-            problems.append(srcmap.format(tuple(err["loc"]), msg))
+            problems.append(srcmap.format(drop_fix_tag(tuple(err["loc"])), msg))
         raise ConfigError(problems) from None
+    cfg._srcmap = srcmap
     problems = [srcmap.format(path, msg) for path, msg in check_scene(cfg)]
     if problems:
         raise ConfigError(problems)
@@ -681,6 +693,8 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
             add(("output", "thermo"), f"{key} needs {what} in the scene")
     if "erot" in cfg.output.thermo and not shape_groups and not file_groups:
         add(("output", "thermo"), "erot is the rotational energy of ellipsoids: no group has a shape")
+    problems.extend(check_ensemble(cfg))  # fixes: and dimension:
+    problems += check_profiles(cfg, groups)
     return problems
 
 

@@ -91,6 +91,18 @@ _VALUE_FORMS = {  # the forms of a sweep's values
 }
 
 
+def _fixes(schema: dict) -> None:
+    """A fix under `fixes:` is a mapping of its model or a LAMMPS fix line."""
+    fixes = schema["properties"].get("fixes")
+    if fixes is None:
+        return
+    for alt in fixes.get("anyOf", [fixes]):
+        if isinstance(alt.get("additionalProperties"), dict):
+            alt["additionalProperties"] = {"anyOf": [alt["additionalProperties"], {
+                **FIX_LINE, "description": "the fix as a LAMMPS fix line: `fix ID group STYLE args ...` (ID = this "
+                                           "key)"}]}
+
+
 def _describe(schema: dict) -> None:
     """Give every property a description: the model's, else the key table's (config/keys.py)."""
     defs = schema["$defs"]
@@ -140,6 +152,7 @@ def config_json_schema() -> dict:
     schema = _with_sweep(Config.model_json_schema())
     _faces(schema["$defs"])
     _walls(schema)
+    _fixes(schema)
     _describe(schema)
     return {"$schema": "https://json-schema.org/draft/2020-12/schema",
             **{k: v for k, v in schema.items() if k != "title"},

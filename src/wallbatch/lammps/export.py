@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from wallbatch.version import __version__
+from wallbatch.config.ensemble import to_ensemble_line
 from wallbatch.config.fixline import to_fix_line
 from wallbatch.config.models import Config, config_from_dict
 from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict, set_path
@@ -286,7 +287,11 @@ def lammps_ready(cfg: Config, steps: int | None = None) -> tuple[Config, list[st
         thermo = max(1, round(thermo.time / dt))
         notes.append(f"sampling every {run.thermo.time} time units converted to every {thermo} steps "
                      f"(interval / timestep {dt!r})")
-    return _with(cfg, {"run": {"steps": int(steps), "thermo": int(thermo)}}), notes
+    changes: dict[str, Any] = {"run": {"steps": int(steps), "thermo": int(thermo)}}
+    if cfg.output.profiles or cfg.output.averages is not None:  # their windows/start need the full run
+        changes["output.profiles"], changes["output.averages"] = {}, None
+        notes.append("output.profiles and output.averages left out (not exported; the run length changed)")
+    return _with(cfg, changes), notes
 
 
 def lab_frame(cfg: Config) -> tuple[Config, list[str]]:
@@ -719,7 +724,8 @@ def _variables(s: _Script) -> None:
 
 
 THERMO_KEYWORDS = {"step": "step", "time": "time", "dt": "dt", "temp": "temp", "ke": "ke", "pe": "pe",
-                   "etot": "etotal", "atoms": "atoms", "press": "press"}
+                   "etot": "etotal", "atoms": "atoms", "press": "press", "ecouple": "ecouple",
+                   "econserve": "econserve"}
 
 
 def _minimize(s: _Script) -> list[str]:
@@ -779,10 +785,17 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
             s.notes.append(f"group {g!r} written as {s.groups[g]!r} (LAMMPS IDs: letters, digits, underscores)")
     atoms = ATOM_WRITERS[_atom_style(case)](case, taken | set(case.variables.names()))
     integrate = []
-    for fid, group, style in atoms.integrate:
+    for fid, group, style in atoms.integrate if cfg.fixes is None else ():
         lid = _lammps_id(fid, s.fix_ids | set(cfg.walls))
         s.fix_ids.add(lid)
         integrate.append(f"fix             {lid} {group} {style}")
+    enforce2d = []  # after every force fix, so it zeroes their z forces
+    for fid, fix in (cfg.fixes or {}).items():  # integrators and thermostats, as written (config order)
+        line = to_ensemble_line(s.fix_id(fid), fix.model_copy(update={"group": s.group(fix.group)}))
+        s.fix_ids.add(line.split()[1])
+        (enforce2d if fix.style == "enforce2d" else integrate).append(_pad(line))
+    if cfg.dimension == 2 and not enforce2d:
+        enforce2d.append(_pad(f"fix {s.fix_id('wb_enforce2d')} all enforce2d"))
 
     # decisions that depend on the whole case
     if cfg.units == "lj":
@@ -846,7 +859,7 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
         s.notes.insert(0, f"validate's variant: wall/region colloid fix(es) {', '.join(s.region_colloid)} written "
                           f"with -epsilon (LAMMPS's flipped force is then exactly wallbatch's)")
     lines += _bullets([exact, *s.notes])
-    lines += ["", f"units           {cfg.units}", "dimension       3",
+    lines += ["", f"units           {cfg.units}", f"dimension       {cfg.dimension}",
               "boundary        " + " ".join("p" if p else "f" for p in case.periodic),
               f"atom_style      {atoms.style}", "atom_modify     map yes"]
     if cfg.lattice is not None:
@@ -860,7 +873,7 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
     for vname, text in s.variables.items():
         lines.append(f'variable        {vname} equal "{text}"')
     lines += ["", f"timestep        {_num(case.dt)}", "neigh_modify    every 1 delay 0 check no", *integrate]
-    lines += [_pad(f) for f in s.fixes]
+    lines += [_pad(f) for f in s.fixes] + enforce2d
     lines += atoms.extra
     lines += ["", "thermo_style    custom step " + " ".join(c.keyword for c in columns if c.source == "thermo"),
               'thermo_modify   norm no format float "%.17g"',
