@@ -308,3 +308,35 @@ def test_structure_key_refuses_a_field_it_has_no_rule_for():
     ext = Extended(**{f.name: getattr(a, f.name) for f in dataclasses.fields(Case)})
     with pytest.raises(TypeError, match="no rule for a object"):
         structure_key(ext)
+
+
+@pytest.mark.parametrize("name", sorted(n for n, s in STYLES.items() if s.compiled))
+def test_compiled_engine_runs_every_compiled_style(name, monkeypatch):
+    """A registered compiled style runs in the numba path (no fallback) and gives the NumPy
+    engine's samples (to 1e-14 of each output's scale, as tests/test_fast.py)."""
+    fast = pytest.importorskip("wallbatch.engine.compiled")
+    if fast.njit is None:
+        pytest.skip("numba not importable")
+    style = STYLES[name]
+    p = values(style)
+    faces = {f: {"coord": c, **{k: v for k, v in p.items() if k != "radius"}} for f, c in (("zlo", 0.0), ("zhi", 9.0))}
+    group = {"group": "a", "create": {"random": {"count": 40, "region": "mid"}}, "mass": 1.0,
+             "velocity": {"temperature": 1.0}}
+    if style.needs_radius:
+        group["radius"] = p["radius"]
+    d = {"seed": 3, "box": {"lo": [0, 0, 0], "hi": [5, 5, 9], "boundary": ["p", "p", "f"]}, "atoms": [group],
+         "regions": {"mid": {"style": "block", "lo": [0, 0, 1.4], "hi": [5, 5, 7.6], "units": "box"}},
+         "walls": {"w": {"style": name, "units": "box", "energy": True, **faces}},
+         "timestep": 0.002, "run": {"steps": 200, "thermo": 50}}
+    case = build_case(config_from_dict(d))
+    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
+    ref = Engine([case]).run()[0]
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    eng = Engine([case])
+    got = eng.run()[0]
+    assert eng.fast is not None and eng.fast.compiled_chunks > 0 and eng.fast.fallbacks == 0
+    assert ref.status == got.status == "ok"
+    assert np.all(ref.data["wall_force"][1:] != 0.0)  # the walls act on atoms at every sample
+    for key, want in ref.data.items():
+        scale = np.nanmax(np.abs(want)) if np.isfinite(want).any() else 0.0
+        np.testing.assert_allclose(got.data[key], want, rtol=0, atol=1e-14 * max(scale, 1e-300), err_msg=key)
