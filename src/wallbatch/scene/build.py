@@ -105,6 +105,17 @@ def _lattice_positions(cfg: Config, region: str | None) -> np.ndarray:
     return pts
 
 
+def _is_npz(file: Path) -> bool:
+    """A NumPy .npz archive (a zip file), as opposed to a LAMMPS data file (text)."""
+    if file.suffix == ".npz":
+        return True
+    try:
+        with open(file, "rb") as fh:
+            return fh.read(2) == b"PK"
+    except OSError:
+        return False
+
+
 def _data_file_atoms(cfg: Config, g: Any, file: Path, path: str) -> dict[str, np.ndarray]:
     """A group's atoms from a LAMMPS data file (all of them, or the atom IDs of `create.ids`),
     sorted by ID. The group's `mass` and `velocity` override the file's, as LAMMPS's `mass`,
@@ -172,7 +183,7 @@ def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]
         else:
             file = Path(c.file)
             file = file if file.is_absolute() else cfg._base_dir / file
-            if file.suffix == ".data":
+            if not _is_npz(file):  # a LAMMPS data file (any name: data.NAME, NAME.data, ...)
                 data = _data_file_atoms(cfg, g, file, f"{path}.create")
             else:
                 try:
@@ -250,7 +261,8 @@ def _ellipsoid_state(g: Any, data: dict[str, np.ndarray], n: int, rng: np.random
         quat = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
     if not np.all(np.linalg.norm(quat, axis=1) > 0):
         raise _fail(f"{path}.orientation", "a quaternion of length 0 has no orientation")
-    quat = normalize(quat)
+    unit = np.abs(np.einsum("ij,ij->i", quat, quat) - 1.0) <= 2e-15  # already unit (e.g. a data file's)
+    quat = np.where(unit[:, None], quat, normalize(quat)) if "quat" in data else normalize(quat)
     if "angmom" in data:
         angmom = _per_atom(data["angmom"], n, 3, f"{path}.create.file")
     elif g.angmom is not None:
