@@ -289,7 +289,7 @@ velocity        all set 0.1 -0.2 0.3 units box
 pair_style      lj/cut 2.5
 pair_coeff      1 1 1.0 1.0
 pair_modify     shift yes
-variable        top equal "$(zhi) - ramp(0.0, 1.5)"
+variable        top equal $(zhi)-ramp(0.0,1.5)
 fix             1 all nve
 fix             walls all wall/lj93 zlo EDGE 1.0 1.0 2.5 zhi v_top 1.0 1.0 $(2.5*1.0) units box
 fix_modify      walls energy yes
@@ -310,7 +310,7 @@ def test_lattice_region_create_atoms_variables_match_lammps(tmp_path: Path) -> N
     cfg_path.write_text(result.text)
     cfg = load_config(cfg_path)
     assert cfg.lattice.scale == 0.5 and cfg.atoms[0].create.lattice is not None
-    assert cfg.walls["walls"].zhi.cutoff == 2.5 and cfg.variables["top"].startswith("6")
+    assert cfg.walls["walls"].zhi.cutoff == 2.5 and cfg.variables["top"] == "12-ramp(0.0,1.5)"
     ref = _run_lammps_script(script, ["temp", "ke", "pe", "etotal"])
     ds = api.run(cfg)
     assert int(ds.sizes.get("atom", 0) or build_case(cfg).natoms) == _count_atoms(tmp_path, LATTICE_SLIT)
@@ -344,7 +344,7 @@ create_atoms    1 random 120 4821 mid overlap 0.9 maxtry 100
 create_atoms    1 single 4.0 4.0 0.6 units box
 mass            1 1.0
 velocity        all create 1.2 87287 loop geom
-variable        wig equal "swiggle(8.0, 0.3, 0.5)"
+variable        wig equal "8.0 - 0.5*time"
 fix             1 all nve
 fix             lo all wall/lj126 zlo EDGE 1.0 1.0 2.5 units box
 fix             hi all wall/harmonic zhi v_wig 5.0 1.0 1.5 units box
@@ -415,11 +415,15 @@ def test_read_data_groups_minimize_match_lammps(tmp_path: Path) -> None:
     (tmp_path / "min.yaml").write_text(result.text)
     cfg = load_config(tmp_path / "min.yaml")
     assert cfg.minimize.dmax == 0.05 and cfg.minimize.maxiter == 50
-    assert len(cfg.atoms) == 4  # heavy/light x low/high
+    # heavy/light x low/high: four groups of atom IDs in the data file
+    assert sorted(g.group for g in cfg.atoms) == ["heavy_low", "heavy_only", "low_only", "type1"]
+    heavy = next(g for g in cfg.atoms if g.group == "heavy_low").create
+    assert heavy.file == "start.data" and heavy.ids.split()[0] == "1"
     ref = _run_lammps_script(script, ["temp", "ke", "pe", "etotal"])
     ds = api.run(cfg)
+    assert ds["min_iterations"].item() == 50
     for j, key in enumerate(["temp", "ke", "pe", "etot"], start=1):
-        np.testing.assert_allclose(ds[key].values.ravel(), ref[:, j], rtol=1e-7, atol=1e-10)
+        np.testing.assert_allclose(ds[key].values.ravel(), ref[:, j], rtol=1e-9, atol=1e-12)
 
 
 def test_substitutions_and_var_override(tmp_path: Path) -> None:
@@ -447,3 +451,31 @@ run 10
     assert r2.data["box"]["hi"] == [30.0, 10.0, 10.0]
     assert float("%.20g" % (1 / 3)) == 1 / 3  # $() keeps every bit
     assert math.isclose(r2.data["walls"]["w"]["xhi"], 29.5)
+
+
+@pytest.mark.lammps
+@needs_lammps
+@pytest.mark.parametrize("style", ["sphere", "ellipsoid"])
+def test_data_file_masses_bitwise_as_lammps_read_data(style: str, tmp_path: Path) -> None:
+    """Masses from density * volume (and density alone for point particles) in LAMMPS's order of
+    operations: the same doubles as LAMMPS's rmass after read_data."""
+    from wallbatch.lammps.validate import load_lammps
+
+    rng = np.random.default_rng(2)
+    n = 20
+    x = rng.random((n, 3)) * 9 + 0.5
+    m = rng.random(n) * 3 + 0.5
+    kw = {"radius": np.r_[np.zeros(3), rng.random(n - 3) * 0.5 + 0.2]} if style == "sphere" else {
+        "shape": np.r_[np.zeros((2, 3)), rng.random((n - 2, 3)) * 0.5 + 0.2], "quat": rng.normal(size=(n, 4))}
+    path = write_data_file(tmp_path / "a.data", (0, 0, 0), (10, 10, 10), x, m, v=rng.normal(size=(n, 3)), **kw)
+    lmp = load_lammps().lammps(cmdargs=["-screen", "none", "-log", "none", "-nocite"])
+    try:
+        for cmd in (f"atom_style {style}", "atom_modify map yes", f"read_data {path}"):
+            lmp.command(cmd)
+        rmass = np.ctypeslib.as_array(lmp.extract_atom("rmass"), shape=(n,)).copy()
+        ids = np.ctypeslib.as_array(lmp.extract_atom("id"), shape=(n,)).copy()
+    finally:
+        lmp.close()
+    df = read_data_file(path)
+    assert np.array_equal(df.mass[ids - 1], rmass)
+    np.testing.assert_allclose(df.mass, m, rtol=1e-15)  # the written density gives the mass back

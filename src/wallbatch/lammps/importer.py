@@ -1110,7 +1110,12 @@ class _Importer:
         for g in list(used) + list(self.atoms.groups):
             if np.array_equal(self.atoms.groups[g], mask) and g not in taken:
                 return g
-        base = f"type{atype}"
+        inside = [g for g in used if g in self.atoms.groups and not np.any(mask & ~self.atoms.groups[g])]
+        base = "_".join(inside) if inside else f"type{atype}"
+        if base in self.atoms.groups:  # a strict subset of that LAMMPS group: the rest of it
+            base += "_only"
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_\-]*", base):
+            base = f"g_{base}"
         name, k = base, 2
         while name in taken or name in self.atoms.groups:
             name, k = f"{base}_{k}", k + 1
@@ -1306,6 +1311,8 @@ def _yaml(data: dict, comments: dict[str, list[str]], header: list[str], tail: l
              "pair": ["pair"], "dt_reset": ["dt_reset"], "minimize": ["minimize"], "run": ["run"],
              "output": ["output"], "variables": ["variables"], "atoms": ["atoms", "integrators"],
              "dimension": ["dimension"]}
+    if "output" not in data:  # thermo_style lines that gave the default outputs
+        comments = {**comments, "run": comments.get("run", []) + comments.get("output", [])}
     for key, value in data.items():
         out.append("")
         for k in order.get(key, []):
