@@ -15,7 +15,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "wallbatch"
 
 # Lowest first: a module may import only from its own layer's folder or from lower layers.
 LAYERS = ["version", "units", "expr", "stats", "geometry", "styles", "config", "scene", "engine", "io", "batch", "lammps",
-          "api", "cli"]
+          "api", "convergence", "cli"]
 
 
 def _module_name(path: Path) -> str:

@@ -1,4 +1,4 @@
-"""The `wallbatch` command line: run, check, show, plot, schema, export-lammps, import-lammps, validate."""
+"""The `wallbatch` command line: run, check, show, plot, schema, export-lammps, validate."""
 
 from __future__ import annotations
 
@@ -230,6 +230,64 @@ def import_lammps(script: Path = typer.Argument(..., help="LAMMPS input script (
                    f"script (listed at its end)", err=True)
         if strict:
             raise typer.Exit(1)
+
+
+def _floats(text: str | None, option: str) -> list[float] | None:
+    if not text:
+        return None
+    try:
+        return [float(v) for v in text.replace(" ", "").split(",") if v]
+    except ValueError:
+        typer.echo(f"error: {option} {text}: write numbers separated by commas, e.g. {option} 0.01,0.005,0.0025",
+                   err=True)
+        raise typer.Exit(2) from None
+
+
+@app.command()
+def convergence(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
+                case: str = typer.Option(None, "--case", help="one case of a sweep: index or name=value,..."),
+                dt: str = typer.Option(None, "--dt", help="timesteps, comma-separated (default: the scene's "
+                                       "timestep x 2, 1, 1/2, 1/4, 1/8); the smallest is the reference"),
+                xmax: str = typer.Option(None, "--xmax", help="dt/reset xmax values (scenes with dt_reset)"),
+                rtol: float = typer.Option(None, "--rtol", help="print the cheapest timestep whose error is "
+                                           "at most this (relative RMS against the finest run)"),
+                output_var: list[str] = typer.Option(None, "--var", help="outputs --rtol applies to "
+                                                     "(repeatable; default: all)"),
+                set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)"),
+                output: Path = typer.Option(None, "-o", "--output", help="write the runs as NetCDF with a dt "
+                                            "(or xmax) dimension"),
+                plot_to: Path = typer.Option(None, "--plot", help="write a PNG of error and drift against cost"),
+                ) -> None:
+    """Run one case at a ladder of timesteps over the same simulated time and print, per output,
+    the error against the finest run, the observed order, the energy drift and the cost."""
+    from wallbatch.convergence import ConvergenceError
+    from wallbatch.convergence import convergence as run_ladder
+    from wallbatch.convergence import plot as plot_ladder
+    from wallbatch.lammps.export import ExportError
+
+    plan = _plan(config, set_)
+    try:
+        report = run_ladder(plan, case=case, dts=_floats(dt, "--dt"), xmaxs=_floats(xmax, "--xmax"))
+    except (ConvergenceError, ExportError, CaseError, ConfigError) as exc:
+        typer.echo(f"error: {config}: {exc}", err=True)
+        raise typer.Exit(2) from None
+    typer.echo(report.table())
+    if output is not None:
+        report.dataset.to_netcdf(output)
+        typer.echo(f"-> {output}")
+    if plot_to is not None:
+        typer.echo(f"-> {plot_ladder(report, plot_to)}")
+    if rtol is not None:
+        try:
+            best = report.recommend(rtol, output_var or None)
+        except ConvergenceError as exc:
+            typer.echo(f"error: {exc}", err=True)
+            raise typer.Exit(2) from None
+        if best is None:
+            typer.echo(f"no {report.dim} of the ladder meets rtol {rtol:g}: try smaller values", err=True)
+            raise typer.Exit(1)
+        typer.echo(f"cheapest {report.dim} with every error <= {rtol:g}: {best.h:g} "
+                   f"({best.seconds:.3f} s, {best.atom_steps_per_s:.3g} atom-steps/s)")
 
 
 if __name__ == "__main__":  # pragma: no cover
