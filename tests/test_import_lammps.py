@@ -479,3 +479,42 @@ def test_data_file_masses_bitwise_as_lammps_read_data(style: str, tmp_path: Path
     df = read_data_file(path)
     assert np.array_equal(df.mass[ids - 1], rmass)
     np.testing.assert_allclose(df.mass, m, rtol=1e-15)  # the written density gives the mass back
+
+
+def test_shipped_example_imports_and_sweeps(tmp_path: Path) -> None:
+    """The docs' path: import examples/lammps/in.wall, add a sweep:, run every case."""
+    out = tmp_path / "wall.yaml"
+    res = CliRunner().invoke(app, ["import-lammps", str(ROOT / "examples" / "lammps" / "in.wall"), "-o", str(out),
+                                   "--strict", "--var", "rho=0.4"])
+    assert res.exit_code == 0, res.output
+    out.write_text(out.read_text() + "sweep:\n  product:\n    epsilon: {path: [walls.walls.zlo.epsilon, "
+                   "walls.walls.zhi.epsilon], values: [0.5, 2.0]}\n")
+    plan = api.load(out, ["run.steps=20"])
+    assert len(plan.cases) == 2 and plan.cases[0].config.lattice.scale == 0.4  # --var beats `variable index`
+    ds = api.run(plan)
+    assert (ds["status"] == "ok").all()
+    e = ds["wall_energy"].values  # (epsilon, sample, fix): the stronger wall binds more
+    assert np.all(e[1, -1] < e[0, -1]) and e[1, -1, 0] < 0
+
+
+def test_end_of_import_issues_point_at_their_lines(tmp_path: Path) -> None:
+    text = """units lj
+boundary f f f
+region box block 0 10 0 10 0 10 units box
+create_box 2 box
+create_atoms 1 single 2 2 2 units box
+create_atoms 2 single 5 5 5 units box
+mass * 1.0
+pair_style lj/cut 2.5
+pair_coeff 1 1 1.0 1.0
+pair_coeff 2 2 0.5 1.0
+group one type 1
+fix 1 one nve
+fix w all wall/lj93 zlo v_nowhere 1.0 1.0 2.5 units box
+"""
+    r = import_lammps_text(text, tmp_path)
+    got = {i.line: i.reason for i in r.unsupported}
+    assert "several lj/cut coefficient sets" in got[10]
+    assert "integrated [0, 1] time(s)" in got[12]
+    assert "no run command" in got[13]
+    assert any("v_nowhere" in i.text and "not defined" in i.reason for i in r.unsupported)

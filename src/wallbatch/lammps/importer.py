@@ -271,6 +271,7 @@ class _Importer:
         self.config_variables: set[str] = set()
         self.lines_before_run: list[_Cmd] = []
         self.stopped = False
+        self.where: dict[str, _Cmd] = {}  # topic -> the command an end-of-import issue points at
 
     # -- bookkeeping ------------------------------------------------------------------------
 
@@ -278,6 +279,11 @@ class _Importer:
         """Keep the current command as a comment above config section `key`."""
         c = self.cmd
         self.comments.setdefault(key, []).append(f"{c.line}: {c.raw}")
+
+    def issue_at(self, topic: str, text: str, reason: str) -> None:
+        """An issue found while writing the config, pointed at the command of `topic`."""
+        c = self.where.get(topic)
+        self.unsupported.append(Issue(c.line, c.raw, reason) if c else Issue(0, text, reason))
 
     def unsupported_here(self, reason: str) -> None:
         c = self.cmd
@@ -394,6 +400,7 @@ class _Importer:
                 raise LammpsImportError(f"{path}: cannot read the script: {exc.strerror}") from None
             raise Unsupported(f"include file {path} cannot be read ({exc.strerror})") from None
         for cmd in _logical_lines(text, str(path)):
+            self.where["end"] = cmd
             if self.stopped:
                 return
             self.cmd = cmd
@@ -830,6 +837,7 @@ class _Importer:
         else:
             raise Unsupported(f"variable style {style} is not supported (equal, index, internal, string)")
         self.note_line("variables")
+        self.where[f"var:{name}"] = self.cmd
 
     # -- commands: forces, fixes, run ---------------------------------------------------------
 
@@ -854,6 +862,7 @@ class _Importer:
         for i in _type_range(w[1], n):
             for j in _type_range(w[2], n):
                 self.pair_coeffs[(min(i, j), max(i, j))] = (eps, sig)
+        self.where["pair_coeff"] = self.cmd
         self.note_line("pair")
 
     def c_pair_modify(self, w: list[str]) -> None:
@@ -889,6 +898,7 @@ class _Importer:
             if len(w) > 4:
                 raise Unsupported(f"fix {style} keywords {' '.join(w[4:])} are not supported")
             self.integrators.append((fid, group, style))
+            self.where.setdefault("integrate", self.cmd)
             self.note_line("integrators")
             return
         if style == "dt/reset":
@@ -926,6 +936,7 @@ class _Importer:
                 raise Unsupported(f"fix dt/reset keyword {kw[k]!r} is not supported")
             k += 2
         self.dt_reset = spec
+        self.where["dt_reset"] = self.cmd
         self.note_line("dt_reset")
 
     def c_fix_modify(self, w: list[str]) -> None:
@@ -1149,9 +1160,9 @@ class _Importer:
             if not coeffs:
                 raise LammpsImportError(f"{self.script}: pair_style lj/cut without pair_coeff")
             if len(coeffs) > 1:
-                self.unsupported.append(Issue(0, "pair_coeff", f"several lj/cut coefficient sets {sorted(coeffs)}: "
+                self.issue_at("pair_coeff", "pair_coeff", f"several lj/cut coefficient sets {sorted(coeffs)}: "
                                               f"wallbatch has one epsilon and sigma for all atom pairs (per-type "
-                                              f"coefficients are not supported yet); the first is used"))
+                                              f"coefficients are not supported yet); the first is used")
             eps, sig = next(iter(self.pair_coeffs.values()))
             data["pair"] = {"style": "lj/cut", "epsilon": eps, "sigma": sig, "cutoff": self.pair["cutoff"],
                             **({"shift": True} if self.pair.get("shift") else {})}
@@ -1189,7 +1200,7 @@ class _Importer:
             try:
                 d["group"] = self.wall_group(d["group"], pmasks, "fix dt/reset")
             except Unsupported as exc:
-                self.unsupported.append(Issue(0, "fix dt/reset", str(exc)))
+                self.issue_at("dt_reset", "fix dt/reset", str(exc))
             if d["group"] == "all":
                 del d["group"]
             if d.get("units", "lattice") == "lattice" and self.lattice is None:
@@ -1199,7 +1210,7 @@ class _Importer:
         if self.minimize is not None:
             data["minimize"] = self.minimize
         if self.run is None:
-            self.unsupported.append(Issue(0, "(end of script)", "no run command: imported as a run of 0 steps"))
+            self.issue_at("end", "(end of script)", "no run command: imported as a run of 0 steps")
         data["run"] = {"steps": self.run or 0, "thermo": self.thermo}
         output: dict[str, Any] = {}
         if self.thermo_style is not None and self.thermo_style != DEFAULT_THERMO:
@@ -1254,7 +1265,7 @@ class _Importer:
             if n in out:
                 continue
             if n not in self.vars:
-                self.unsupported.append(Issue(0, f"v_{n}", f"variable {n} is not defined"))
+                self.issue_at(f"var:{n}", f"v_{n}", f"variable {n} is not defined")
                 continue
             style, value = self.vars[n]
             if style == "equal":
@@ -1262,35 +1273,35 @@ class _Importer:
                 try:
                     names += [r.name for r in _walk(parse(value)) if isinstance(r, VarRef)]
                 except VariableError as exc:
-                    self.unsupported.append(Issue(0, f"v_{n}", f"equal-style formula of {n} that wallbatch cannot "
-                                                  f"evaluate: {exc}"))
+                    self.issue_at(f"var:{n}", f"v_{n}", f"equal-style formula of {n} that wallbatch cannot "
+                                  f"evaluate: {exc}")
             elif style == "internal":
                 out[n] = float(value)
             else:
                 try:
                     out[n] = float(value)
                 except ValueError:
-                    self.unsupported.append(Issue(0, f"v_{n}", f"{style} variable {n} is not a number"))
+                    self.issue_at(f"var:{n}", f"v_{n}", f"{style} variable {n} is not a number")
         return out
 
     def check_integrators(self, parts: list) -> None:
         """The integrator fixes must together integrate every atom once, nve/asphere for ellipsoids
         and nve for the others: wallbatch's (only) integration."""
         if not self.integrators:
-            self.unsupported.append(Issue(0, "(no fix nve)", "the script integrates no atom (no fix nve): wallbatch "
-                                          "integrates every atom with nve (nve/asphere for ellipsoids)"))
+            self.issue_at("end", "(no fix nve)", "the script integrates no atom (no fix nve): wallbatch "
+                                          "integrates every atom with nve (nve/asphere for ellipsoids)")
             return
         count = np.zeros(self.atoms.n, int)
         for fid, group, style in self.integrators:
             try:
                 count += self.atoms.group(group)
             except Unsupported as exc:
-                self.unsupported.append(Issue(0, f"fix {fid}", str(exc)))
+                self.issue_at("integrate", f"fix {fid}", str(exc))
         if np.any(count != 1):
-            self.unsupported.append(Issue(0, "fix " + " ".join(f[0] for f in self.integrators),
+            self.issue_at("integrate", "fix " + " ".join(f[0] for f in self.integrators),
                                           "wallbatch integrates every atom exactly once (nve): atoms integrated "
                                           f"{sorted(set(count.tolist()))} time(s) here (static or "
-                                          "doubly integrated atoms need the fixes: section of a newer wallbatch)"))
+                                          "doubly integrated atoms need the fixes: section of a newer wallbatch)")
 
 
 # ----------------------------------------------------------------------------- YAML
