@@ -518,3 +518,34 @@ fix w all wall/lj93 zlo v_nowhere 1.0 1.0 2.5 units box
     assert "integrated [0, 1] time(s)" in got[12]
     assert "no run command" in got[13]
     assert any("v_nowhere" in i.text and "not defined" in i.reason for i in r.unsupported)
+
+
+def test_thermostat_fixes_go_to_a_fixes_section_where_one_exists(tmp_path: Path, monkeypatch) -> None:
+    """Thermostats and partial integration are reported today; a wallbatch whose Config has a
+    `fixes:` section (issue 17) gets them as verbatim lines with the config's group names."""
+    import wallbatch.lammps.importer as imp
+
+    text = """units lj
+boundary p p f
+region box block 0 10 0 10 0 10 units box
+create_box 2 box
+create_atoms 1 single 2 2 2 units box
+create_atoms 2 single 5 5 5 units box
+mass * 1.0
+group mobile type 1
+fix 1 mobile nve
+fix bath mobile langevin 1.5 1.5 0.5 412513 zero yes
+fix w all wall/lj93 zlo EDGE 1.0 1.0 2.5 zhi EDGE 1.0 1.0 2.5 units box
+run 10
+"""
+    r = import_lammps_text(text, tmp_path)
+    assert {i.line for i in r.unsupported} == {9, 10}  # partial nve, langevin: not in this wallbatch
+
+    class WithFixes:
+        model_fields = {**imp.Config.model_fields, "fixes": None}
+
+    monkeypatch.setattr(imp, "Config", WithFixes)
+    r = import_lammps_text(text, tmp_path)
+    assert r.data["fixes"] == {"1": "fix 1 mobile nve", "bath": "fix bath mobile langevin 1.5 1.5 0.5 412513 zero yes"}
+    assert [g["group"] for g in r.data["atoms"]] == ["mobile", "type2"]
+    assert not r.unsupported

@@ -55,6 +55,8 @@ COSMETIC = frozenset({
 THERMO_MAP = {"step": "step", "time": "time", "dt": "dt", "temp": "temp", "ke": "ke", "pe": "pe", "etotal": "etot",
               "press": "press", "atoms": "atoms"}
 INTEGRATORS = ("nve", "nve/asphere", "nve/sphere")
+# thermostats and friends: imported as verbatim lines into `fixes:` where this wallbatch has one
+ENSEMBLE_FIXES = ("nvt", "langevin", "temp/berendsen", "temp/rescale", "enforce2d")
 DEFAULT_THERMO = ["step", "time", "dt", "temp", "ke", "pe", "etot"]
 
 
@@ -257,6 +259,7 @@ class _Importer:
         self.walls: dict[str, dict] = {}
         self.wall_lines: dict[str, _Cmd] = {}
         self.integrators: list[tuple[str, str, str]] = []  # (fix ID, group, style)
+        self.ensemble: list[tuple[str, str, list[str]]] = []  # (fix ID, group, words): fixes: entries
         self.dt_reset: dict | None = None
         self.computes: dict[str, str] = {}  # ID -> style
         self.thermo = 0
@@ -917,6 +920,11 @@ class _Importer:
             self.wall_lines[fid] = self.cmd
             self.note_line(f"walls.{fid}")
             return
+        if style in ENSEMBLE_FIXES and "fixes" in Config.model_fields:  # a wallbatch with a fixes: section
+            self.ensemble.append((fid, group, w))
+            self.where.setdefault("integrate", self.cmd)
+            self.note_line("integrators")
+            return
         raise Unsupported(f"fix {style} is not supported by this version of wallbatch")
 
     def fix_dt_reset(self, w: list[str]) -> None:
@@ -1146,15 +1154,22 @@ class _Importer:
         used = []
         for fid, wall in self.walls.items():
             used.append(wall.get("group", "all"))
+        used += [g for _, g, _ in self.ensemble]
         if self.dt_reset is not None:
             used.append(self.dt_reset["group"])
         integrator_only = {g for _, g, _ in self.integrators} - set(used)
+        if "fixes" in Config.model_fields and (self.ensemble or self.partial_integration()):
+            integrator_only = set()  # the fixes: section names these groups
         used += list(self.atoms.groups)  # every LAMMPS group the script defines keeps its atoms apart
         used = [g for g in dict.fromkeys(used) if g != "all" and g in self.atoms.groups and g not in integrator_only]
         parts = self.partitions(used)
         pmasks = {p: m for p, m, _ in parts}
         data["atoms"] = [{"group": p, **entry} for p, _, entry in parts]
-        self.check_integrators(parts)
+        fixes = self.fixes_section(pmasks)
+        if fixes:
+            data["fixes"] = fixes
+        else:
+            self.check_integrators(parts)
         if self.pair is not None:
             coeffs = set(self.pair_coeffs.values())
             if not coeffs:
@@ -1282,6 +1297,33 @@ class _Importer:
                     out[n] = float(value)
                 except ValueError:
                     self.issue_at(f"var:{n}", f"v_{n}", f"{style} variable {n} is not a number")
+        return out
+
+    def partial_integration(self) -> bool:
+        """Some atom is integrated by no fix nve, or by two."""
+        count = np.zeros(self.atoms.n, int)
+        for _, group, _ in self.integrators:
+            if group == "all" or group in self.atoms.groups:
+                count += self.atoms.group(group)
+        return bool(np.any(count != 1))
+
+    def fixes_section(self, pmasks: dict[str, np.ndarray]) -> dict[str, str]:
+        """`fixes:` (fix-ID -> verbatim LAMMPS line, its group renamed to the config's) when the
+        script has thermostats or integrates only part of the atoms and this wallbatch has a
+        fixes: section; {} when the default integration (nve on every atom) says it all."""
+        if "fixes" not in Config.model_fields:
+            return {}
+        if not self.ensemble and not self.partial_integration():
+            return {}
+        out = {}
+        lines = [(fid, group, ["fix", fid, group, style]) for fid, group, style in self.integrators] + self.ensemble
+        for fid, group, words in lines:
+            try:
+                name = self.wall_group(group, pmasks, f"fix {fid}")
+            except Unsupported as exc:
+                self.issue_at("integrate", f"fix {fid}", str(exc))
+                continue
+            out[fid] = " ".join(["fix", fid, name, *words[3:]])
         return out
 
     def check_integrators(self, parts: list) -> None:
