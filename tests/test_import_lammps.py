@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -23,7 +24,12 @@ from wallbatch import api
 from wallbatch.cli import app
 from wallbatch.config.models import config_from_dict, load_config, load_config_text
 from wallbatch.config.sweep import config_to_dict
-from wallbatch.lammps.export import export_selected, lab_frame, lammps_ready, write_export
+from wallbatch.lammps.export import (
+    export_selected,
+    lab_frame,
+    lammps_ready,
+    write_export,
+)
 from wallbatch.lammps.importer import import_lammps, import_lammps_text
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import CaseError
@@ -542,7 +548,7 @@ run 10
     assert {i.line for i in r.unsupported} == {9, 10}  # partial nve, langevin: not in this wallbatch
 
     class WithFixes:
-        model_fields = {**imp.Config.model_fields, "fixes": None}
+        model_fields: ClassVar[dict] = {**imp.Config.model_fields, "fixes": None}
 
     monkeypatch.setattr(imp, "Config", WithFixes)
     r = import_lammps_text(text, tmp_path)

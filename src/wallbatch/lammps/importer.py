@@ -38,10 +38,16 @@ import yaml
 from wallbatch.config.fixline import FixLineError, parse_fix_line
 from wallbatch.config.models import Config, Region, load_config_text
 from wallbatch.config.source import ConfigError
-from wallbatch.expr import EvalContext, VarRef, Variables, VariableError, _walk, parse
+from wallbatch.expr import EvalContext, VariableError, Variables, VarRef, _walk, parse
 from wallbatch.geometry.regions import RegionGeom
 from wallbatch.lammps.validate import load_lammps
-from wallbatch.scene.datafile import DataFileError, id_ranges, parse_id_ranges, read_data_file, select_ids
+from wallbatch.scene.datafile import (
+    DataFileError,
+    id_ranges,
+    parse_id_ranges,
+    read_data_file,
+    select_ids,
+)
 from wallbatch.units import LATTICE_POSITIONS, UNIT_SYSTEMS, lattice_constant
 
 __all__ = ["ImportResult", "Issue", "LammpsImportError", "import_lammps", "import_lammps_text"]
@@ -338,9 +344,9 @@ class _Importer:
             raise Unsupported(f"substitution for an undefined variable {name!r}")
         style, value = self.vars[name]
         if style == "equal":
-            return "%.15g" % self.eval_expr(value)
+            return "%.15g" % self.eval_expr(value)  # noqa: UP031 - LAMMPS C formats
         if style == "internal":
-            return "%.15g" % value
+            return "%.15g" % value  # noqa: UP031
         return str(value)
 
     def substitute(self, text: str) -> str:
@@ -647,9 +653,7 @@ class _Importer:
             while k < len(extra):
                 if extra[k] == "overlap" and k + 1 < len(extra):
                     spec["overlap"] = _num(extra[k + 1], "overlap")
-                elif extra[k] == "maxtry" and k + 1 < len(extra):
-                    pass
-                elif extra[k] == "units" and k + 1 < len(extra):
+                elif extra[k] == "maxtry" and k + 1 < len(extra) or extra[k] == "units" and k + 1 < len(extra):
                     pass
                 else:
                     raise Unsupported(f"create_atoms random keyword {extra[k]!r} is not supported")
@@ -930,7 +934,7 @@ class _Importer:
     def fix_dt_reset(self, w: list[str]) -> None:
         if len(w) < 8:
             raise Unsupported("fix dt/reset N Tmin Tmax Xmax [units box|lattice] [emax e]")
-        bound = lambda s: None if s in ("NULL", "INF") else _num(s, "a dt bound")  # noqa: E731
+        bound = lambda s: None if s in ("NULL", "INF") else _num(s, "a dt bound")
         spec: dict[str, Any] = {"every": _int(w[4], "N"), "group": w[2], "tmin": bound(w[5]), "tmax": bound(w[6]),
                                 "xmax": _num(w[7], "Xmax")}
         kw = w[8:]

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["DataFile", "DataFileError", "parse_id_ranges", "read_data_file", "write_data_file", "id_ranges"]
+__all__ = ["DataFile", "DataFileError", "id_ranges", "parse_id_ranges", "read_data_file", "write_data_file"]
 
 ATOM_STYLES = ("atomic", "sphere", "ellipsoid")
 _SECTIONS = ("Atoms", "Velocities", "Masses", "Ellipsoids", "Pair Coeffs", "PairIJ Coeffs", "Bonds", "Angles",
@@ -106,7 +106,7 @@ def read_data_file(path: str | Path, atom_style: str | None = None,
         lines = path.read_text().splitlines()
     except OSError as exc:
         raise DataFileError(f"{path}: cannot read the data file: {exc.strerror}") from None
-    where = lambda k: f"{path}:{k + 1}"  # noqa: E731
+    where = lambda k: f"{path}:{k + 1}"
 
     counts: dict[str, int] = {}
     bounds: dict[str, tuple[float, float]] = {}
@@ -358,13 +358,13 @@ def write_data_file(path: str | Path, box_lo, box_hi, x, mass, *, v=None, radius
     mass = np.broadcast_to(np.asarray(mass, float), (n,))
     ids = np.arange(1, n + 1)
     if types is None:
-        masses, inv = np.unique(mass, return_inverse=True)
+        _masses, inv = np.unique(mass, return_inverse=True)
         types = inv.astype(np.int64) + 1
     types = np.asarray(types, np.int64)
     image = np.zeros((n, 3), np.int64) if image is None else np.asarray(image, np.int64)
     style = "ellipsoid" if shape is not None else ("sphere" if radius is not None and np.any(np.asarray(radius) > 0)
                                                    else "atomic")
-    r = lambda *cols: [" ".join(repr(c) if isinstance(c, float) else str(c) for c in row)  # noqa: E731
+    r = lambda *cols: [" ".join(repr(c) if isinstance(c, float) else str(c) for c in row)
                        for row in zip(*(np.asarray(col).tolist() for col in cols))]
     ntypes = int(types.max()) if n else 1
     head = [title, "", f"{n} atoms", f"{ntypes} atom types"]
