@@ -183,6 +183,14 @@ def _type_range(word: str, ntypes: int) -> list[int]:
 # ----------------------------------------------------------------------------- atoms
 
 
+def _codes(values: np.ndarray) -> np.ndarray:
+    """Integer codes of float values (equal values, equal codes; NaN: -1)."""
+    out = np.full(len(values), -1, np.int64)
+    ok = ~np.isnan(values)
+    out[ok] = np.unique(values[ok], return_inverse=True)[1].ravel()
+    return out
+
+
 @dataclass
 class _Chunk:
     kind: str  # lattice | random | single | file
@@ -1082,14 +1090,18 @@ class _Importer:
         a = self.atoms
         if a.n == 0:
             raise LammpsImportError(f"{self.script}: the script creates no atoms")
-        keys: dict[tuple, list[int]] = {}
-        for i in range(a.n):
-            kind = a.chunks[a.chunk[i]].kind
-            key = ("single" if kind == "single" else int(a.chunk[i]), int(a.types[i]),
-                   float(a.mass[i]) if not np.isnan(a.mass[i]) else None,
-                   float(a.radius[i]) if not np.isnan(a.radius[i]) else None, int(a.vel[i]),
-                   tuple(bool(a.groups[g][i]) for g in used))
-            keys.setdefault(key, []).append(i)
+        # one row of integer keys per atom; equal rows = one wallbatch group
+        single = np.array([c.kind == "single" for c in a.chunks])[a.chunk]
+        cols = [np.where(single, -1, a.chunk), a.types, _codes(a.mass), _codes(a.radius), a.vel]
+        cols += [a.groups[g].astype(np.int64) for g in used]
+        _, first, inverse = np.unique(np.stack(cols, axis=1), axis=0, return_index=True, return_inverse=True)
+        inverse = inverse.ravel()
+        keys: dict[tuple, np.ndarray] = {}
+        for k in np.argsort(first, kind="stable"):  # groups in order of their first atom
+            i = int(first[k])
+            key = (None, int(a.types[i]), None if np.isnan(a.mass[i]) else float(a.mass[i]),
+                   None if np.isnan(a.radius[i]) else float(a.radius[i]), int(a.vel[i]))
+            keys[key + (int(k),)] = np.flatnonzero(inverse == k)
         names: set[str] = set()
         out = []
         for key, idx in keys.items():
@@ -1111,17 +1123,20 @@ class _Importer:
                 spec["count"] = int(mask.sum())
                 entry["create"] = {"random": spec}
             t = key[1]
+            if key[3] is not None:
+                entry["radius"] = key[3]
+            elif chunk.kind != "file" and self.atom_style == "sphere":
+                entry["radius"] = 0.5  # LAMMPS's default diameter 1 for created sphere atoms
             if key[2] is not None:
                 entry["mass"] = key[2]
+            elif chunk.kind != "file" and self.atom_style == "sphere":
+                r = entry["radius"]  # LAMMPS: density 1 for created sphere atoms
+                entry["mass"] = 4.0 * math.pi / 3.0 * r * r * r if r > 0 else 1.0
             elif chunk.kind != "file" or (self.atom_style == "atomic" and t in self.type_mass):
                 if t not in self.type_mass and chunk.kind != "file":
                     raise Unsupported(f"atom type {t} has no mass (mass {t} VALUE)")
                 if t in self.type_mass:
                     entry["mass"] = self.type_mass[t]
-            if key[3] is not None:
-                entry["radius"] = key[3]
-            elif chunk.kind != "file" and self.atom_style == "sphere":
-                entry["radius"] = 0.5  # LAMMPS's default diameter 1 for created sphere atoms
             if key[4]:
                 entry["velocity"] = a.velocities[key[4]]
             name = self.part_name(mask, used, t, names)

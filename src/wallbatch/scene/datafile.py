@@ -199,7 +199,6 @@ def read_data_file(path: str | Path, atom_style: str | None = None,
         raise DataFileError(f"{path}: box bounds must have lo < hi")
 
     order = np.argsort(ids, kind="stable")
-    pos = {int(i): n for n, i in enumerate(ids[order].tolist())}  # ID -> sorted index
     ids, types, x, image, table = ids[order], types[order], x[order], image[order], table[order]
 
     # wrap positions outside a periodic box (read_data's remap)
@@ -246,19 +245,17 @@ def read_data_file(path: str | Path, atom_style: str | None = None,
         if "Ellipsoids" in sections:
             at, _, erows = sections["Ellipsoids"]
             etab = _table(erows, (8,), where, "Ellipsoids", "ellipsoid")
-            for row, (line_no, _) in zip(etab, erows):
-                n = pos.get(int(row[0]))
-                if n is None or flag[n] != 1:
-                    raise DataFileError(f"{where(line_no)}: atom ID {int(row[0])} is not an ellipsoid (ellipsoidflag "
-                                        f"1) of the Atoms section")
-                if np.any(row[1:4] <= 0):
-                    raise DataFileError(f"{where(line_no)}: ellipsoid diameters must be > 0")
-                shape[n] = 0.5 * row[1:4]
-                q = row[4:8]
-                norm = math.sqrt(float(np.dot(q, q)))
-                if norm == 0.0:
-                    raise DataFileError(f"{where(line_no)}: a quaternion of length 0 has no orientation")
-                quat[n] = q
+            n = _positions(ids, etab[:, 0], erows, where, "Ellipsoids")
+            bad = np.flatnonzero(flag[n] != 1)
+            if bad.size:
+                raise DataFileError(f"{where(erows[bad[0]][0])}: atom ID {int(etab[bad[0], 0])} is not an ellipsoid "
+                                    f"(ellipsoidflag 1) of the Atoms section")
+            if np.any(etab[:, 1:4] <= 0):
+                raise DataFileError(f"{where(at)}: ellipsoid diameters must be > 0")
+            if np.any(np.all(etab[:, 4:8] == 0, axis=1)):
+                raise DataFileError(f"{where(at)}: a quaternion of length 0 has no orientation")
+            shape[n] = 0.5 * etab[:, 1:4]
+            quat[n] = etab[:, 4:8]
         missing_shape = (flag == 1) & np.all(shape == 0, axis=1)
         if np.any(missing_shape):
             raise DataFileError(f"{path}: atom ID {int(ids[np.flatnonzero(missing_shape)[0]])} has ellipsoidflag 1 "
@@ -272,19 +269,27 @@ def read_data_file(path: str | Path, atom_style: str | None = None,
         width = 4 if atom_style == "atomic" else 7
         vtab = _table(vrows, (width,), where, "Velocities", atom_style)
         v = np.zeros((natoms, 3))
+        n = _positions(ids, vtab[:, 0], vrows, where, "Velocities")
+        v[n] = vtab[:, 1:4]
+        if atom_style == "ellipsoid":
+            angmom[n] = vtab[:, 4:7]
         seen = np.zeros(natoms, bool)
-        for row, (line_no, _) in zip(vtab, vrows):
-            n = pos.get(int(row[0]))
-            if n is None:
-                raise DataFileError(f"{where(line_no)}: atom ID {int(row[0])} is not in the Atoms section")
-            v[n] = row[1:4]
-            seen[n] = True
-            if atom_style == "ellipsoid":
-                angmom[n] = row[4:7]
+        seen[n] = True
         if not seen.all():
             raise DataFileError(f"{where(at)}: the Velocities section misses atom ID "
                                 f"{int(ids[np.flatnonzero(~seen)[0]])}")
     return DataFile(atom_style, lo, hi, ids, types, x, image, mass, radius, v, shape, quat, angmom, type_masses)
+
+
+def _positions(ids: np.ndarray, wanted: np.ndarray, rows: list[tuple[int, str]], where, section: str) -> np.ndarray:
+    """Indices (into the ID-sorted atoms) of the IDs a section's rows name."""
+    k = np.searchsorted(ids, wanted)
+    k = np.minimum(k, len(ids) - 1)
+    bad = np.flatnonzero(ids[k] != wanted)
+    if bad.size:
+        raise DataFileError(f"{where(rows[bad[0]][0])}: atom ID {int(wanted[bad[0]])} in the {section} section is "
+                            f"not in the Atoms section")
+    return k
 
 
 def _table(rows: list[tuple[int, str]], widths: tuple[int, ...], where, section: str, style: str) -> np.ndarray:
