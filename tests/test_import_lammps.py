@@ -555,3 +555,22 @@ run 10
     assert r.data["fixes"] == {"1": "fix 1 mobile nve", "bath": "fix bath mobile langevin 1.5 1.5 0.5 412513 zero yes"}
     assert [g["group"] for g in r.data["atoms"]] == ["mobile", "type2"]
     assert not r.unsupported
+
+
+def test_include_and_continuation_lines(tmp_path: Path) -> None:
+    (tmp_path / "walls.in").write_text("fix w all wall/harmonic zlo EDGE ${k} 1.0 2.0 &\n    zhi EDGE ${k} 1.0 2.0 units box\n")
+    text = """variable k equal 20.0
+units lj
+boundary p p f
+region box block 0 10 0 10 0 10 units box
+create_box 1 box
+create_atoms 1 single 5 5 5 units box
+mass 1 1.0
+fix 1 all nve
+include walls.in
+include missing.in
+run 10
+"""
+    r = import_lammps_text(text, tmp_path)
+    assert r.data["walls"]["w"]["zhi"] == {"coord": "EDGE", "epsilon": 20.0, "sigma": 1.0, "cutoff": 2.0}
+    assert [(i.line, "missing.in" in i.reason) for i in r.unsupported] == [(10, True)]
