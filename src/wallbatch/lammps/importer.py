@@ -446,6 +446,9 @@ class _Importer:
         handler = getattr(self, "c_" + name.replace("/", "_"), None)
         if handler is not None:
             handler(w)
+        elif name in ("neighbor", "neigh_modify"):
+            self.ignore_here("neighbor-list setting: wallbatch builds its own lists (LAMMPS gives the same forces as "
+                             "long as its list misses no pair)")
         elif name in COSMETIC:
             self.ignore_here("output or performance setting only: no effect on the results")
         else:
