@@ -1,6 +1,6 @@
 """Reading results back: a text summary, quick plots and the config's JSON schema.
 
-Works on the results layout of shared/spec/outputs.md, whether the Dataset comes from
+Works on the results layout of docs/reference/outputs.md, whether the Dataset comes from
 `runner.run_plan` or from `xarray.open_dataset(results.nc)`. Importing this module registers the
 `ds.wallbatch` accessor (`.summary()`, `.sweep_dims`, `.ok`), so results stay a plain Dataset.
 matplotlib is imported only by `plot`.

@@ -1,4 +1,4 @@
-"""`wallbatch import-lammps`: a LAMMPS input script -> an equivalent wallbatch config (docs/import-lammps.md).
+"""`wallbatch import-lammps`: a LAMMPS input script -> an equivalent wallbatch config (docs/howto/import-lammps.md).
 
 The script is read as LAMMPS reads it: `&` continues a line, an unquoted `#` starts a comment,
 `$x`, `${name}` and `$(expr[:format])` are substituted before a line runs (equal-style values as
@@ -1479,7 +1479,7 @@ def import_lammps(script: str | Path, output: str | Path | None = None, variable
             create["file"] = _relative(create["file"], out_dir)
     header = [f"Imported from {script} by wallbatch import-lammps.",
               "Each section is preceded by the LAMMPS lines it comes from (line number: command).",
-              "Add a sweep: block to run it over parameters (see docs/config.md)."]
+              "Add a sweep: block to run it over parameters (docs/howto/sweep-a-wall.md)."]
     problems: list[str] = []
     try:
         load_config_text(_yaml(data, {}, [], []), str(output or "<imported config>"), base=out_dir)

@@ -137,6 +137,9 @@ class Case:
     flow_seeds: tuple[tuple[int, ...], ...] = ()  # random stream key per flow wall
     fix_order: tuple[str, ...] = ()  # fixes with a global scalar (soft, ees, region), config order
     minimize: Any = None  # minimize.MinSettings, or None
+    # integrators and thermostats (scene.ensemble.EnsembleFixSpec, config order); None: fix nve on all
+    fixes: tuple | None = None
+    dimension: int = 3  # 2: enforce2d, temperatures over 2 dof per atom
 
     @property
     def natoms(self) -> int:
@@ -218,6 +221,7 @@ def structure_key(case: Case) -> tuple:
               for w in case.region_walls),
         tuple((w.fix_id, w.group.tobytes(), w.axis, w.walls.tobytes(), w.rule) for w in case.flow_walls),
         None if case.minimize is None else case.minimize.style,
+        None if case.fixes is None else tuple(f.structure() for f in case.fixes), case.dimension,
     )
 
 
