@@ -526,35 +526,59 @@ fix w all wall/lj93 zlo v_nowhere 1.0 1.0 2.5 units box
     assert any("v_nowhere" in i.text and "not defined" in i.reason for i in r.unsupported)
 
 
-def test_thermostat_fixes_go_to_a_fixes_section_where_one_exists(tmp_path: Path, monkeypatch) -> None:
-    """Thermostats and partial integration are reported today; a wallbatch whose Config has a
-    `fixes:` section (issue 17) gets them as verbatim lines with the config's group names."""
-    import wallbatch.lammps.importer as imp
-
-    text = """units lj
-boundary p p f
-region box block 0 10 0 10 0 10 units box
-create_box 2 box
-create_atoms 1 single 2 2 2 units box
-create_atoms 2 single 5 5 5 units box
-mass * 1.0
-group mobile type 1
-fix 1 mobile nve
-fix bath mobile langevin 1.5 1.5 0.5 412513 zero yes
-fix w all wall/lj93 zlo EDGE 1.0 1.0 2.5 zhi EDGE 1.0 1.0 2.5 units box
-run 10
+NVT_FROZEN = """# an LJ fluid under fix nvt above a frozen lattice layer (a static obstacle)
+units           lj
+boundary        p p f
+lattice         fcc 0.6
+region          box block 0 4 0 4 0 5
+create_box      2 box
+region          low block INF INF INF INF INF 0.9
+region          mid block INF INF INF INF 1.4 3.6
+create_atoms    2 region low
+create_atoms    1 region mid
+mass            * 1.0
+group           solid type 2
+group           fluid type 1
+velocity        fluid set 0.3 0.1 -0.2 units box
+pair_style      lj/cut 2.5
+pair_coeff      * * 1.0 1.0
+fix             1 fluid nvt temp 1.5 1.5 0.1
+fix             w fluid wall/lj93 zhi EDGE 1.0 1.0 2.5 units box
+fix_modify      w energy yes
+thermo_style    custom step temp ke pe etotal ecouple
+thermo_modify   norm no format float %.17g
+thermo          25
+run             200
 """
-    r = import_lammps_text(text, tmp_path)
-    assert {i.line for i in r.unsupported} == {9, 10}  # partial nve, langevin: not in this wallbatch
 
-    class WithFixes:
-        model_fields: ClassVar[dict] = {**imp.Config.model_fields, "fixes": None}
 
-    monkeypatch.setattr(imp, "Config", WithFixes)
-    r = import_lammps_text(text, tmp_path)
-    assert r.data["fixes"] == {"1": "fix 1 mobile nve", "bath": "fix bath mobile langevin 1.5 1.5 0.5 412513 zero yes"}
-    assert [g["group"] for g in r.data["atoms"]] == ["mobile", "type2"]
-    assert not r.unsupported
+def test_thermostats_and_frozen_groups_go_to_fixes(tmp_path: Path) -> None:
+    r = import_lammps_text(NVT_FROZEN, tmp_path)
+    assert r.complete, r.text
+    assert r.data["fixes"] == {"1": "fix 1 fluid nvt temp 1.5 1.5 0.1"}
+    assert [g["group"] for g in r.data["atoms"]] == ["solid", "fluid"]
+    assert r.data["walls"]["w"]["group"] == "fluid"
+    assert r.data["output"]["thermo"] == ["step", "temp", "ke", "pe", "etot", "ecouple"]
+    bad = import_lammps_text(NVT_FROZEN.replace("nvt temp 1.5 1.5 0.1", "nvt temp 1.5 1.5 -0.1"), tmp_path)
+    assert not bad.complete and bad.problems[0].startswith("line 17: fix             1 fluid nvt temp 1.5 1.5 -0.1")
+    assert "fixes.1.damp" in bad.problems[0]
+
+
+@pytest.mark.lammps
+@needs_lammps
+def test_nvt_with_a_frozen_layer_matches_lammps(tmp_path: Path) -> None:
+    script = tmp_path / "in.nvt"
+    script.write_text(NVT_FROZEN)
+    result = import_lammps(script, tmp_path / "nvt.yaml")
+    assert result.complete, result.text
+    (tmp_path / "nvt.yaml").write_text(result.text)
+    cfg = load_config(tmp_path / "nvt.yaml")
+    ref = _run_lammps_script(script, ["temp", "ke", "pe", "etotal", "ecouple"])
+    ds = api.run(cfg)
+    assert (ds["status"] == "ok").all(), ds["error"].values
+    for j, key in enumerate(["temp", "ke", "pe", "etot", "ecouple"], start=1):
+        np.testing.assert_allclose(ds[key].values.ravel(), ref[:, j], rtol=1e-9, atol=1e-12)
+    assert abs(ref[-1, 5]) > 1e-3  # the thermostat did work
 
 
 def test_include_and_continuation_lines(tmp_path: Path) -> None:
@@ -574,3 +598,44 @@ run 10
     r = import_lammps_text(text, tmp_path)
     assert r.data["walls"]["w"]["zhi"] == {"coord": "EDGE", "epsilon": 20.0, "sigma": 1.0, "cutoff": 2.0}
     assert [(i.line, "missing.in" in i.reason) for i in r.unsupported] == [(10, True)]
+
+
+TWO_D = """# 2-D: an sq2 lattice between harmonic walls
+dimension       2
+units           lj
+boundary        p f p
+atom_style      atomic
+lattice         sq2 0.7
+region          box block 0 6 0 6 -0.5 0.5
+create_box      1 box
+region          inner block INF INF 1.1 4.9 INF INF
+create_atoms    1 region inner
+mass            1 1.0
+velocity        all set 0.2 -0.4 0.0 units box
+fix             1 all nve
+fix             2d all enforce2d
+fix             w all wall/harmonic ylo EDGE 5.0 1.0 1.5 yhi EDGE 5.0 1.0 1.5 units box
+fix_modify      w energy yes
+thermo_style    custom step temp ke pe etotal
+thermo_modify   norm no format float %.17g
+thermo          20
+run             200
+"""
+
+
+@pytest.mark.lammps
+@needs_lammps
+def test_two_dimensional_script_matches_lammps(tmp_path: Path) -> None:
+    script = tmp_path / "in.2d"
+    script.write_text(TWO_D)
+    result = import_lammps(script, tmp_path / "2d.yaml")
+    assert result.complete, result.text
+    assert result.data["dimension"] == 2 and result.data["lattice"]["style"] == "sq2"
+    (tmp_path / "2d.yaml").write_text(result.text)
+    cfg = load_config(tmp_path / "2d.yaml")
+    ref = _run_lammps_script(script, ["temp", "ke", "pe", "etotal"])
+    assert build_case(cfg).natoms == _count_atoms(tmp_path, TWO_D)
+    ds = api.run(cfg)
+    assert (ds["status"] == "ok").all(), ds["error"].values
+    for j, key in enumerate(["temp", "ke", "pe", "etot"], start=1):
+        np.testing.assert_allclose(ds[key].values.ravel(), ref[:, j], rtol=1e-9, atol=1e-12)

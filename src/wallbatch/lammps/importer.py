@@ -30,17 +30,21 @@ import re
 import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 import yaml
 
+from wallbatch.config.ensemble import FIX_STYLES as ENSEMBLE_STYLES
+from wallbatch.config.ensemble import parse_ensemble_line
 from wallbatch.config.fixline import FixLineError, parse_fix_line
-from wallbatch.config.models import Config, Region, load_config_text
+from wallbatch.config.models import Config, Lattice, Region, load_config_text
 from wallbatch.config.source import ConfigError
 from wallbatch.expr import EvalContext, VariableError, Variables, VarRef, _walk, parse
 from wallbatch.geometry.regions import RegionGeom
 from wallbatch.lammps.validate import load_lammps
+from wallbatch.scene.build import _lattice_positions as lattice_positions
 from wallbatch.scene.datafile import (
     DataFileError,
     id_ranges,
@@ -59,10 +63,10 @@ COSMETIC = frozenset({
     "write_dump", "write_coeff", "info", "plugin", "partition", "special_bonds",
 })
 THERMO_MAP = {"step": "step", "time": "time", "dt": "dt", "temp": "temp", "ke": "ke", "pe": "pe", "etotal": "etot",
-              "press": "press", "atoms": "atoms"}
+              "press": "press", "atoms": "atoms", "ecouple": "ecouple", "econserve": "econserve"}
 INTEGRATORS = ("nve", "nve/asphere", "nve/sphere")
-# thermostats and friends: imported as verbatim lines into `fixes:` where this wallbatch has one
-ENSEMBLE_FIXES = ("nvt", "langevin", "temp/berendsen", "temp/rescale", "enforce2d")
+# thermostats and friends: imported as verbatim lines into `fixes:`
+ENSEMBLE_FIXES = tuple(s for s in ENSEMBLE_STYLES if s not in INTEGRATORS)
 DEFAULT_THERMO = ["step", "time", "dt", "temp", "ke", "pe", "etot"]
 
 
@@ -516,6 +520,9 @@ class _Importer:
             return 1.0
         if self.spacing is None:
             raise Unsupported("units lattice (the LAMMPS default) needs a lattice command first (or add units box)")
+        if self.lattice is not None and self.lattice["style"] == "hex":
+            raise Unsupported("lattice units of a hex lattice scale x and y differently (a, sqrt(3) a): write this "
+                              "command with units box")
         return self.spacing
 
     def c_region(self, w: list[str]) -> None:
@@ -680,17 +687,11 @@ class _Importer:
         self.note_line("atoms")
 
     def lattice_points(self, region: str | None) -> np.ndarray:
-        """The lattice points wallbatch creates (scene.build's rule: lo <= x < hi, region test)."""
-        a = self.spacing
-        lo, hi = np.asarray(self.box[0]), np.asarray(self.box[1])
-        basis = np.asarray(LATTICE_POSITIONS[self.lattice["style"]])
-        ranges = [np.arange(np.floor(lo[d] / a) - 1, np.ceil(hi[d] / a) + 1) for d in range(3)]
-        cells = np.stack(np.meshgrid(*ranges, indexing="ij"), axis=-1).reshape(-1, 3)
-        pts = ((cells[:, None, :] + basis[None, :, :]) * a).reshape(-1, 3)
-        pts = pts[np.all((pts >= lo) & (pts < hi), axis=1)]
-        if region is not None:
-            pts = pts[self.geom(region).contains(pts)]
-        return pts
+        """The lattice points wallbatch creates for `create: {lattice: ...}` (scene.build's rule)."""
+        scene = SimpleNamespace(units=self.units, lattice=Lattice.model_validate(self.lattice),
+                                box=SimpleNamespace(lo=tuple(self.box[0]), hi=tuple(self.box[1])),
+                                regions={k: Region.model_validate(v) for k, v in self.regions.items()})
+        return lattice_positions(scene, region)
 
     def c_mass(self, w: list[str]) -> None:
         if len(w) != 3:
@@ -912,6 +913,7 @@ class _Importer:
         if len(w) < 4:
             raise Unsupported("fix takes an ID, a group and a style")
         fid, group, style = w[1], w[2], w[3]
+        self.where[f"fix:{fid}"] = self.cmd
         if style in INTEGRATORS:
             if len(w) > 4:
                 raise Unsupported(f"fix {style} keywords {' '.join(w[4:])} are not supported")
@@ -936,6 +938,11 @@ class _Importer:
             self.note_line(f"walls.{fid}")
             return
         if style in ENSEMBLE_FIXES and "fixes" in Config.model_fields:  # a wallbatch with a fixes: section
+            try:
+                parse_ensemble_line(" ".join(w), fid)
+            except FixLineError as exc:
+                raise Unsupported(str(exc)) from None
+            self.atoms.group(group)  # must exist
             self.ensemble.append((fid, group, w))
             self.where.setdefault("integrate", self.cmd)
             self.note_line("integrators")
@@ -1338,7 +1345,8 @@ class _Importer:
         if not self.ensemble and not self.partial_integration():
             return {}
         out = {}
-        lines = [(fid, group, ["fix", fid, group, style]) for fid, group, style in self.integrators] + self.ensemble
+        lines = [(fid, group, ["fix", fid, group, "nve" if style == "nve/sphere" else style])
+                 for fid, group, style in self.integrators] + self.ensemble
         for fid, group, words in lines:
             try:
                 name = self.wall_group(group, pmasks, f"fix {fid}")
@@ -1415,6 +1423,13 @@ def _yaml(data: dict, comments: dict[str, list[str]], header: list[str], tail: l
 # ----------------------------------------------------------------------------- entry points
 
 
+def _with_line(problem: str, imp: _Importer) -> str:
+    """A validation problem of walls.ID / fixes.ID prefixed with the script line of fix ID."""
+    m = re.search(r": (?:walls|fixes)\.([A-Za-z0-9_]+)", problem)
+    c = imp.where.get(f"fix:{m.group(1)}") if m else None
+    return f"line {c.line}: {c.raw}  ->  {problem}" if c else problem
+
+
 def _relative(path: str, base: Path) -> str:
     try:
         return os.path.relpath(Path(path).resolve(), base.resolve())
@@ -1484,7 +1499,7 @@ def import_lammps(script: str | Path, output: str | Path | None = None, variable
     try:
         load_config_text(_yaml(data, {}, [], []), str(output or "<imported config>"), base=out_dir)
     except ConfigError as exc:
-        problems = list(exc.problems)
+        problems = [_with_line(p, imp) for p in exc.problems]
     tail = []
     if imp.notes:
         tail += ["Notes:"] + [f"  {n}" for n in imp.notes]
