@@ -14,7 +14,6 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
-from typing import ClassVar
 
 import numpy as np
 import pytest
