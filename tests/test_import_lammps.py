@@ -222,7 +222,7 @@ mass 1 1.0
 pair_style lj/cut/coul/long 2.5
 compute myT all temp/partial 0 1 1
 fix 1 all nve
-fix 2 all langevin 1.0 1.0 0.5 48279
+fix 2 all npt temp 1.0 1.0 0.5 iso 1.0 1.0 5.0
 dump d1 all xyz 100 dump.xyz
 thermo 10
 thermo_modify norm no
@@ -234,7 +234,7 @@ def test_unsupported_commands_are_listed_by_line(tmp_path: Path) -> None:
     result = import_lammps_text(UNSUPPORTED, tmp_path)
     lines = {i.line: i.reason for i in result.unsupported}
     assert set(lines) == {8, 9, 11, 12}, lines
-    assert "pair_style lj/cut/coul/long" in lines[8] and "temp/partial" in lines[9] and "langevin" in lines[11]
+    assert "pair_style lj/cut/coul/long" in lines[8] and "temp/partial" in lines[9] and "npt" in lines[11]
     assert not result.complete
     tail = result.text.split("NOT IMPORTED (4)")[1]
     for n in (8, 9, 11, 12):
@@ -245,7 +245,7 @@ def test_unsupported_commands_are_listed_by_line(tmp_path: Path) -> None:
     res = runner.invoke(app, ["import-lammps", str(script), "-o", str(tmp_path / "c.yaml")])
     assert res.exit_code == 0
     res = runner.invoke(app, ["import-lammps", str(script), "-o", str(tmp_path / "c.yaml"), "--strict"])
-    assert res.exit_code == 1 and "in.script:11: fix 2 all langevin" in res.output
+    assert res.exit_code == 1 and "in.script:11: fix 2 all npt" in res.output
 
 
 # ----------------------------------------------------------------------------- scripts vs LAMMPS
@@ -515,13 +515,14 @@ pair_coeff 1 1 1.0 1.0
 pair_coeff 2 2 0.5 1.0
 group one type 1
 fix 1 one nve
+fix 2 one nve
 fix w all wall/lj93 zlo v_nowhere 1.0 1.0 2.5 units box
 """
     r = import_lammps_text(text, tmp_path)
     got = {i.line: i.reason for i in r.unsupported}
     assert "several lj/cut coefficient sets" in got[10]
-    assert "integrated [0, 1] time(s)" in got[12]
-    assert "no run command" in got[13]
+    assert "no run command" in got[14]
+    assert any(p.startswith("line 13: fix 2 one nve") for p in r.problems), r.problems  # integrated twice
     assert any("v_nowhere" in i.text and "not defined" in i.reason for i in r.unsupported)
 
 

@@ -62,6 +62,9 @@ COSMETIC = frozenset({
     "comm_style", "processors", "newton", "package", "suffix", "timer", "title", "write_data", "write_restart",
     "write_dump", "write_coeff", "info", "plugin", "partition", "special_bonds",
 })
+# not run by --exact: they write files, print or run shell commands, and change no atom
+SETUP_SKIPPED = frozenset({"log", "print", "shell", "echo", "info", "dump", "dump_modify", "undump", "write_data",
+                           "write_restart", "write_dump", "write_coeff", "restart", "thermo_style", "thermo_modify"})
 THERMO_MAP = {"step": "step", "time": "time", "dt": "dt", "temp": "temp", "ke": "ke", "pe": "pe", "etotal": "etot",
               "press": "press", "atoms": "atoms", "ecouple": "ecouple", "econserve": "econserve"}
 INTEGRATORS = ("nve", "nve/asphere", "nve/sphere")
@@ -1449,7 +1452,9 @@ def run_setup_in_lammps(script: Path, commands: list[_Cmd], variables: dict[str,
     try:
         os.chdir(script.parent)
         for c in commands:
-            lmp.command(c.raw)
+            words = _strip_comment(c.raw).split()
+            if words and words[0] not in SETUP_SKIPPED:
+                lmp.command(c.raw)
         lmp.command(f'write_data "{data_out.resolve()}" nocoeff')
     except Exception as exc:  # noqa: BLE001 - LAMMPS raises a plain Exception with its message
         raise LammpsImportError(f"LAMMPS stopped while running the script's setup (--exact): "
