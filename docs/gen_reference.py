@@ -253,6 +253,27 @@ KEYS: dict[str, Key] = {
     "output.dump": Key("Per-atom trajectories (AMBER NetCDF), one file per case.", "", "`dump netcdf`"),
     "output.dump.every": Key("Frame interval in steps (step 0 included).", "", "`dump ID all netcdf N`"),
     "output.dump.fields": Key("Per-atom fields to write.", "", "`x y z vx vy vz`"),
+    "output.profiles": Key("Profiles across the box, by name: one binned axis each, sampled and averaged as "
+                           "fix ave/chunk (norm all); variables `profile_NAME_QUANTITY` (see the profiles "
+                           "how-to).", "", "`compute chunk/atom bin/1d` + `fix ave/chunk`"),
+    "output.profiles.NAME.axis": Key("Axis of the bins; they start at the box's lower bound.", "",
+                                     "`bin/1d x|y|z lower`"),
+    "output.profiles.NAME.bins": Key("Number of equal bins over the box (give `bins` or `delta`).", "",
+                                     "`bin/1d z lower 1/N units reduced`"),
+    "output.profiles.NAME.delta": Key("Bin width; ceil(L/delta) bins (give `bins` or `delta`).", "distance",
+                                      "`bin/1d z lower delta units box`"),
+    "output.profiles.NAME.every": Key("Steps between samples.", "", "`Nevery`"),
+    "output.profiles.NAME.repeat": Key("Samples per window (repeat * every <= freq).", "", "`Nrepeat`"),
+    "output.profiles.NAME.freq": Key("A window closes at every multiple of freq (a multiple of every; step 0 "
+                                     "opens none).", "", "`Nfreq`"),
+    "output.profiles.NAME.quantities": Key("What is averaged per bin: density/number, density/mass, temp, vx, "
+                                           "vy, vz.", "", "`density/number density/mass temp vx vy vz`"),
+    "output.profiles.NAME.group": Key("Atoms binned.", "", "the fix's group-ID"),
+    "output.averages": Key("Where the time averages (`_mean`, `_sem`) start; default: every sample.", "",
+                           "— (`fix ave/time` without error bars)"),
+    "output.averages.start": Key("First step averaged (inclusive), for a step-based run.", "", "—"),
+    "output.averages.time": Key("First simulated time averaged (inclusive), for a run to a time.", "time",
+                                "—"),
     "sweep": Key("Turns the scene into a grid of cases (see the sweep section).", "", "— (a `loop` of runs)"),
     "sweep.product": Key("A full grid: one results dimension per entry, named by the key. An entry is "
                          "`{path, values}` or, as shorthand, `PATH: VALUES` (the dimension is named after "

@@ -25,6 +25,7 @@ from pydantic import (
     model_validator,
 )
 
+from wallbatch.config.profiles import Averages, Profile, check_profiles
 from wallbatch.config.source import FACES, POSITIONAL, ConfigError, SourceMap, load_yaml
 
 SOFT_STYLES = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "ees")
@@ -479,6 +480,8 @@ class Dump(Model):
 class Output(Model):
     thermo: list[Literal[THERMO_KEYWORDS]] = ["step", "time", "dt", "temp", "ke", "pe", "etot"]  # type: ignore[valid-type]
     dump: Dump | None = None
+    profiles: dict[str, Profile] = {}  # name -> binned axis (config/profiles.py)
+    averages: Averages | None = None
 
 
 class Config(Model):
@@ -688,6 +691,7 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
     if "erot" in cfg.output.thermo and not shape_groups and not file_groups:
         add(("output", "thermo"), "erot is the rotational energy of ellipsoids: no group has a shape")
     problems.extend(check_ensemble(cfg))  # fixes: and dimension:
+    problems += check_profiles(cfg, groups)
     return problems
 
 

@@ -29,6 +29,7 @@ from wallbatch.engine.ensemble import Ensemble
 from wallbatch.engine.flow import FlowKernel
 from wallbatch.engine.minimize import minimize
 from wallbatch.engine.pair import PairLJCut
+from wallbatch.engine.profiles import ProfileSampler
 from wallbatch.engine.state import BatchState
 from wallbatch.engine.walls import build_kernels, build_region_kernels
 from wallbatch.geometry.quaternion import richardson, rotational_energy
@@ -88,6 +89,7 @@ class Engine:
         self.ensemble = Ensemble(cases, self.state) if Ensemble.needed(c0) else None
         # compiled chunks of steps, or None; scenes with fixes: beyond nve on all run on NumPy
         self.fast = attach_fast_path(self) if self.ensemble is None else None
+        self.profiles = ProfileSampler(cases) if c0.profiles else None  # output.profiles
 
     # -- the step ----------------------------------------------------------------------------
 
@@ -403,14 +405,17 @@ class Engine:
             if c0.run_time is None:
                 samples = set(sample_instants(c0))
                 dumps = set(range(0, c0.steps + 1, c0.dump_every)) if c0.dump_every else set()
+                profile = set(self.profiles.instants) if self.profiles else set()  # never step 0
                 if 0 in dumps:
                     self.dump_frame()
                 done = 0
-                for target in sorted(samples | dumps)[1:]:
+                for target in sorted(samples | dumps | profile)[1:]:
                     self.advance(target - done, sample=target in samples)
                     done = target
                     if target in dumps and self.state.ncases:
                         self.dump_frame()
+                    if target in profile:
+                        self.profiles.sample(self.state)
             else:
                 for target in sample_instants(c0)[1:]:
                     self.advance_to_time(target)
@@ -449,6 +454,8 @@ class Engine:
             else:
                 results.append(CaseResult("ok", "", seconds, {k: v[c] for k, v in stacked.items()}, frames[c]))
             results[-1].data.update(self.min_info.get(c, {}))
+            if self.profiles is not None:
+                results[-1].data.update(self.profiles.case_data(c, failed=c in self.errors))
         return results
 
 

@@ -17,6 +17,7 @@ import xarray as xr
 from wallbatch.version import __version__
 from wallbatch.config.sweep import SweepDim
 from wallbatch.engine.engine import CaseResult, sample_instants
+from wallbatch.io.averages import add_averages, profile_variables
 from wallbatch.scene.case import Case
 
 LONG_NAMES = {
@@ -143,6 +144,9 @@ def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
     data_vars["seconds"] = (sweep_dims, np.asarray([r.seconds for r in results], float).reshape(shape))
     if dump_paths is not None:
         data_vars["dump_path"] = (sweep_dims, np.asarray(dump_paths, dtype=object).reshape(shape))
+    pvars, pcoords = profile_variables(results, c0, shape, sweep_dims)  # output.profiles
+    data_vars.update(pvars)
+    coords.update(pcoords)
     ds = xr.Dataset(data_vars, coords=coords)
     for name in ds.variables:
         if name in units:
@@ -178,6 +182,7 @@ def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
         "wallbatch_version": __version__,
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
     })
+    add_averages(ds, c0)  # <var>_mean/_sem/_sem_converged, wall_pressure_*
     return ds
 
 

@@ -284,7 +284,11 @@ def lammps_ready(cfg: Config, steps: int | None = None) -> tuple[Config, list[st
         thermo = max(1, round(thermo.time / dt))
         notes.append(f"sampling every {run.thermo.time} time units converted to every {thermo} steps "
                      f"(interval / timestep {dt!r})")
-    return _with(cfg, {"run": {"steps": int(steps), "thermo": int(thermo)}}), notes
+    changes: dict[str, Any] = {"run": {"steps": int(steps), "thermo": int(thermo)}}
+    if cfg.output.profiles or cfg.output.averages is not None:  # their windows/start need the full run
+        changes["output.profiles"], changes["output.averages"] = {}, None
+        notes.append("output.profiles and output.averages left out (not exported; the run length changed)")
+    return _with(cfg, changes), notes
 
 
 def lab_frame(cfg: Config) -> tuple[Config, list[str]]:

@@ -25,6 +25,7 @@ from wallbatch.scene.case import (
     MinimizeWarning,
     MinSettings,
     PairSpec,
+    ProfileSpec,
     ReflectSpec,
     RegionWallSpec,
     SoftWallSpec,
@@ -378,7 +379,34 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
         pair=_pair_spec(cfg), region_walls=tuple(regional), flow_walls=tuple(flows),
         flow_seeds=tuple(flow_seeds), fix_order=tuple(fix_order), minimize=_min_settings(cfg, dt),
         fixes=build_fixes(cfg, mask, seed_key), dimension=cfg.dimension,
+        profiles=_profiles(cfg, mask), average_start=_average_start(cfg),
     )
+
+
+def _profiles(cfg: Config, mask: Any) -> tuple[ProfileSpec, ...]:
+    """output.profiles in box units; with `delta`, ceil(L / delta) bins (the last one may reach past
+    the box, as LAMMPS bin/1d); with `bins`, delta = L / bins."""
+    out = []
+    for name, p in cfg.output.profiles.items():
+        axis = "xyz".index(p.axis)
+        lo, hi = float(cfg.box.lo[axis]), float(cfg.box.hi[axis])
+        if p.bins is not None:
+            nbins, delta = int(p.bins), (hi - lo) / p.bins
+        else:
+            delta = float(p.delta)
+            nbins = int((hi - lo) / delta)
+            if lo + nbins * delta < hi:
+                nbins += 1
+        out.append(ProfileSpec(name, axis, lo, delta, max(nbins, 1), p.every, p.repeat, p.freq,
+                               tuple(p.quantities), mask(p.group)))
+    return tuple(out)
+
+
+def _average_start(cfg: Config) -> float:
+    av = cfg.output.averages
+    if av is None:
+        return 0.0
+    return float(av.time if av.time is not None else (av.start or 0))
 
 
 def _pair_spec(cfg: Config) -> PairSpec | None:
