@@ -343,7 +343,7 @@ def test_run_failing_case_exit_1_and_file_written(tmp_path):
     with xr.open_dataset(out) as ds:
         assert ds["status"].item() == "failed"
         err = ds["error"].item()
-        assert "walls.lo" in err and "zlo" in err and "atom 0" in err and "step 0" in err
+        assert "walls.lo" in err and "zlo" in err and "atom ID 1" in err and "step 0" in err
         assert "behind the wall" in err
         for name in NUMERIC_OUTPUTS:
             assert np.all(np.isnan(ds[name].values)), name

@@ -101,7 +101,7 @@ def test_ees_atom_inside_the_wall_fails_the_case_with_the_lammps_meaning():
                         "create: {positions: [[4, 4, 0.45], [4, 4, 4]]}")
     res = run_cases([build_case(load_config_text(text))])[0]
     assert res.status == "failed"
-    assert "walls.slit (wall/ees zlo): atom 0" in res.error and "Particle on or inside fix wall surface" in res.error
+    assert "walls.slit (wall/ees zlo): atom ID 1 " in res.error and "Particle on or inside fix wall surface" in res.error
 
 
 def test_ees_wall_on_point_atoms_is_an_error():

@@ -504,7 +504,7 @@ def test_atom_behind_wall_fails_the_case():
     msg = res.error
     assert "piston" in msg and "zlo" in msg
     assert "step 51" in msg
-    assert "atom 1" in msg
+    assert "atom ID 2" in msg
     assert "harmonic" in msg
     for name, values in res.data.items():
         assert np.isnan(values).all(), name
@@ -516,7 +516,7 @@ def test_atom_behind_wall_at_setup():
     ds = run(d)
     assert ds.status.item() == "failed"
     msg = ds.error.item()
-    assert "walls.w" in msg and "zlo" in msg and "step 0" in msg and "atom 1" in msg
+    assert "walls.w" in msg and "zlo" in msg and "step 0" in msg and "atom ID 2" in msg
     assert np.isnan(ds.ke.values).all() and ds.ke.shape == (6,)  # steps 0..5, thermo 1
 
 
@@ -531,7 +531,7 @@ def test_lost_atom_through_fixed_boundary():
     assert res.status == "failed"
     msg = res.error
     assert "lost" in msg.lower()
-    assert "atom 1" in msg and "step 5" in msg and "fixed z boundary" in msg
+    assert "atom ID 2" in msg and "step 5" in msg and "fixed z boundary" in msg
     for name, values in res.data.items():
         assert np.isnan(values).all(), name
 

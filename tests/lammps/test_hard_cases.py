@@ -362,7 +362,7 @@ def test_colloid_jumping_into_contact_fails_at_the_lammps_step():
     cfg = variant("colloid-contact", {"timestep": 0.15, "run.steps": 20, "run.thermo": 1})
     res = run_one(cfg)
     assert res.status == "failed"
-    for needle in ("walls.zwalls (wall/colloid zlo)", "atom 2", "at step 4:", "its surface touches or crosses",
+    for needle in ("walls.zwalls (wall/colloid zlo)", "atom ID 3", "at step 4:", "its surface touches or crosses",
                    LAMMPS_WALL_ERROR):
         assert needle in res.error, res.error
     distance = float(res.error.split("at distance ")[1].split()[0])
@@ -419,7 +419,7 @@ def test_atom_exactly_on_a_soft_wall_fails_at_setup(style):
     cfg = variant("on-wall", {"walls.floor.style": style})
     res = run_one(cfg)
     assert res.status == "failed"
-    for needle in (f"walls.floor (wall/{style} zlo)", "atom 1 at distance 0 ", "at step 0:",
+    for needle in (f"walls.floor (wall/{style} zlo)", "atom ID 2 at distance 0 ", "at step 0:",
                    "on or behind the wall", LAMMPS_WALL_ERROR):
         assert needle in res.error, res.error
 

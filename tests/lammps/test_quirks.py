@@ -177,7 +177,7 @@ def test_region_ees_too_close_uses_the_true_sigma_n():
     ds = run_config(config_from_dict(_region_ees_scene(1.8, -45.0)[0]))
     assert ds.status.item() == "failed"
     msg = ds.error.item()
-    assert "walls.shell (wall/region/ees ball)" in msg and "atom 0" in msg and "step 0" in msg
+    assert "walls.shell (wall/region/ees ball)" in msg and "atom ID 1" in msg and "step 0" in msg
     assert "Particle on or inside surface of region used in fix wall/region/ees" in msg
     ds = run_config(config_from_dict(_region_ees_scene(1.0, 45.0)[0]))
     assert ds.status.item() == "ok", ds.error.item()

@@ -155,7 +155,7 @@ class Engine:
                 for c, a in zip(ci.tolist(), ai.tolist()):
                     first.setdefault(c, a)
                 s.fail(np.array(sorted(first)), lambda c, d=d: (
-                    f"atom {first[c]} left the box through the fixed {'xyz'[d]} boundary at step "
+                    f"atom ID {first[c] + 1} left the box through the fixed {'xyz'[d]} boundary at step "
                     f"{int(s.step[c])} (LAMMPS: Lost atoms): put a wall on that face, or make it periodic"))
 
     def compute_forces(self, outputs: bool) -> dict[str, tuple[np.ndarray, ...]]:
