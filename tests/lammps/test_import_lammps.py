@@ -34,7 +34,7 @@ from wallbatch.scene.build import build_case
 from wallbatch.scene.case import CaseError
 from wallbatch.scene.datafile import DataFileError, read_data_file, write_data_file
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CONFIGS = sorted((ROOT / "configs").glob("*.yaml")) + sorted((ROOT / "configs" / "hard").glob("*.yaml"))
 STEPS = 60
 NO_LAMMPS = ("reflect_count", "reflect_impulse", "flow_crossings")
@@ -256,7 +256,8 @@ def _run_lammps_script(script: Path, columns: list[str], variables: dict[str, st
     `step` + `columns`, 17 digits via thermo_modify)."""
     import os
 
-    from wallbatch.lammps.validate import _parse_thermo, load_lammps
+    from wallbatch.lammps.log import last_thermo
+    from wallbatch.lammps.validate import load_lammps
 
     module = load_lammps()
     args = ["-screen", "none", "-log", "none", "-nocite"]
@@ -272,7 +273,7 @@ def _run_lammps_script(script: Path, columns: list[str], variables: dict[str, st
     finally:
         os.chdir(here)
         lmp.close()
-    return _parse_thermo(log.read_text(), len(columns) + 1)
+    return last_thermo(log.read_text(), len(columns) + 1)
 
 
 THERMO = "thermo_style custom step temp ke pe etotal\nthermo_modify norm no format float %.17g\n"
