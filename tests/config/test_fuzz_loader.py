@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from wallbatch.config.source import ConfigError
 from wallbatch.config.sweep import load_plan
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SEEDS = sorted(p.relative_to(ROOT) for p in [*ROOT.glob("configs/*.yaml"), *ROOT.glob("sweeps/*.yaml")])
 TOKENS = [": ", "- ", "[", "]", "{", "}", ",", "&a ", "*a", "!!python/object/apply:os.system ['true']", "!tag ",
           "? ", "\n", "\n  ", "\t", "#", "|", ">", "'", '"', ".inf", "-.inf", ".nan", "NaN", "1e308", "-1e308",

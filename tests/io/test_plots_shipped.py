@@ -17,7 +17,7 @@ from wallbatch.batch.runner import run_plan
 from wallbatch.config.sweep import load_plan
 from wallbatch.io import report
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SWEEPS = sorted((ROOT / "sweeps").glob("*.yaml"))
 SHORT = ["run.steps=200", "run.thermo=50"]
 EXTRA = {"lj-slit-profiles-epsilon.yaml": ["output.profiles.across.freq=100", "output.profiles.across.repeat=10",
