@@ -252,6 +252,15 @@ def test_non_finite_numbers_refused(scene, setting, words):
     assert msg.startswith("--set ") or msg.startswith(f"{scene}:")
 
 
+def test_region_bounds_may_be_infinite_never_nan(scene):
+    (msg,) = config_error(scene, ["regions.slab.lo=[.nan, 0, 1]"])
+    assert msg == "--set regions.slab.lo=[.nan, 0, 1]: regions.slab.lo: expected numbers, got NaN"
+    (msg,) = config_error(scene, ["regions.slab={style: sphere, center: [3, 3, .inf], radius: 1, units: box}"])
+    assert "regions.slab.center: expected a finite number" in msg
+    plan = load_plan(scene, ["regions.slab.lo=[-.inf, -.inf, 1]"])  # an open side, as LAMMPS's INF
+    assert plan.cases[0].config.regions["slab"].lo == (-np.inf, -np.inf, 1.0)
+
+
 def test_dt_reset_bounds_nan_refused_inf_word_allowed(scene):
     scene.write_text(SCENE + "dt_reset: {every: 1, tmin: .nan, tmax: INF, xmax: 0.05, units: box}\n")
     (msg,) = config_error(scene)

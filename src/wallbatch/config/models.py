@@ -227,6 +227,9 @@ class Pair(Model):
 
 
 class Region(Model):
+    # block/cylinder bounds may be infinite (an open side, LAMMPS's INF in `region`); nothing may be NaN
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=True)
+
     style: Literal["block", "sphere", "cylinder"]
     side: Literal["in", "out"] = "in"
     units: Literal["lattice", "box"] = "lattice"
@@ -235,6 +238,16 @@ class Region(Model):
     center: Union[Vec3, tuple[float, float], None] = None
     radius: PositiveFloat | None = None
     axis: Literal["x", "y", "z"] | None = None
+
+    @field_validator("lo", "hi", "center", "radius")
+    @classmethod
+    def _no_nan(cls, v: Any, info: Any) -> Any:
+        values = v if isinstance(v, tuple) else (v,)
+        if any(x is not None and math.isnan(x) for x in values):
+            raise ValueError("expected numbers, got NaN")
+        if info.field_name in ("center", "radius") and any(x is not None and math.isinf(x) for x in values):
+            raise ValueError("expected a finite number")
+        return v
 
     @model_validator(mode="after")
     def _shape(self) -> "Region":
