@@ -244,6 +244,8 @@ def _worker_init(parent: int) -> None:
     """In each worker: Ctrl-C is the parent's business (it stops the workers), and a worker dies
     with its parent (Linux parent-death signal, and a watcher thread elsewhere)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for sig in (signal.SIGTERM, signal.SIGHUP):  # not the parent's handlers (inherited by fork): end now
+        signal.signal(sig, signal.SIG_DFL)
     with contextlib.suppress(Exception):
         ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
     if os.getppid() != parent:
