@@ -103,6 +103,8 @@ def read_table(path: str | os.PathLike, keyword: str) -> TableData:
                         f"{_where(path, pline)}: unknown table parameter {params[k]!r} "
                         "(expected 'N n [FP fplo fphi]')"
                     )
+        except TableError:
+            raise
         except (IndexError, ValueError):
             raise TableError(
                 f"{_where(path, pline)}: bad table parameter line {lines[i].strip()!r} "
