@@ -19,9 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from wallbatch.config import config_from_dict
-from wallbatch.engine import Engine, run_cases
-from wallbatch.scene import Case, build_case
+from wallbatch.config.models import config_from_dict
+from wallbatch.engine.engine import Engine, run_cases
+from wallbatch.scene.case import Case
+from wallbatch.scene.build import build_case
 
 # The clock of every timing here: wall time by default; CPU time of this process (LAMMPS runs in
 # it too, serially) with set_clock("cpu"), steadier on a machine shared with other jobs.
@@ -102,7 +103,7 @@ def time_wallbatch(case: Case) -> tuple[float, Any]:
 
 def numba_state() -> str:
     """'numba' if the compiled path is on, else 'numpy'."""
-    from wallbatch import fast
+    from wallbatch.engine import compiled as fast
 
     return "numba" if fast.enabled() else "numpy"
 

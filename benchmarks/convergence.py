@@ -30,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import build, fmt, gas_slit, lammps_module, lammps_run, numba_state  # noqa: E402
 
-from wallbatch.engine import run_cases  # noqa: E402
+from wallbatch.engine.engine import run_cases  # noqa: E402
 
 SAMPLE = 0.128
 NSAMPLE = 64

@@ -19,9 +19,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from wallbatch.config import config_from_dict
-from wallbatch.engine import run_cases
-from wallbatch.scene import build_case
+from wallbatch.config.models import config_from_dict
+from wallbatch.engine.engine import run_cases
+from wallbatch.scene.build import build_case
 
 
 def flow_config(natoms: int, steps: int, rule: str) -> dict:
@@ -57,8 +57,8 @@ def main() -> None:
         wb = time.perf_counter() - t0
         rows.append((f"flow walls, LJ fluid, wallbatch rule {rule} ({res.status})", case.natoms, wb))
     try:
-        from wallbatch.export import export_case
-        from wallbatch.validate import load_lammps, run_lammps
+        from wallbatch.lammps.export import export_case
+        from wallbatch.lammps.validate import load_lammps, run_lammps
 
         module = load_lammps()
         cfg = config_from_dict(flow_config(args.atoms, args.steps, "lammps"))

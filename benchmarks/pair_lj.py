@@ -30,9 +30,9 @@ import time
 
 import numpy as np
 
-from wallbatch.config import config_from_dict
-from wallbatch.engine import run_cases
-from wallbatch.scene import build_case
+from wallbatch.config.models import config_from_dict
+from wallbatch.engine.engine import run_cases
+from wallbatch.scene.build import build_case
 
 DENSITY, TEMP, DT, SKIN, RC, THERMO = 0.8, 2.0, 0.005, 0.3, 2.5, 100
 GAP = 1.0  # distance of the outer lattice planes from the walls [sigma]
@@ -75,7 +75,7 @@ def run_wallbatch(x, v, lo, hi, steps: int) -> tuple[float, dict, int]:
     """Seconds around run_cases, the case's samples, and the pair's neighbor builds (-1: unknown)."""
     case = build_case(config_from_dict(config(x, v, lo, hi, steps)))
     builds = []
-    from wallbatch import pair as pair_mod
+    from wallbatch.engine import pair as pair_mod
 
     orig = pair_mod.PairLJCut.__init__
 
@@ -146,7 +146,7 @@ def main() -> None:
     ap.add_argument("--no-lammps", action="store_true")
     ap.add_argument("--no-numpy", action="store_true", help="skip the NumPy pair path")
     args = ap.parse_args()
-    from wallbatch import pair_numba
+    from wallbatch.engine import pair_compiled as pair_numba
 
     t0 = time.perf_counter()
     run_wallbatch(*slit(500), 10)

@@ -38,8 +38,8 @@ import common  # noqa: E402
 from common import (build, fmt, gas_slit, lammps_module, lammps_run, lj_slit, numba_state,  # noqa: E402
                     time_wallbatch, with_dt_reset)
 
-from wallbatch.runner import build_cases, run_plan  # noqa: E402
-from wallbatch.sweep import load_plan  # noqa: E402
+from wallbatch.batch.runner import build_cases, run_plan  # noqa: E402
+from wallbatch.config.sweep import load_plan  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SWEEP = ROOT / "sweeps" / "lj93-epsilon-sigma-cutoff.yaml"

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from wallbatch.engine import run_cases
-from wallbatch.runner import build_cases
-from wallbatch.sweep import load_plan
+from wallbatch.engine.engine import run_cases
+from wallbatch.batch.runner import build_cases
+from wallbatch.config.sweep import load_plan
 
 SWEEP = Path(__file__).resolve().parents[1] / "sweeps" / "lj93-epsilon-sigma-cutoff.yaml"
 

@@ -1,4 +1,4 @@
-"""Tests for wallbatch.config: the config language of shared/spec/config.md.
+"""Tests for wallbatch.config.models: the config language of shared/spec/config.md.
 
 Valid configs: every way of writing a wall gives the same validated model. Bad configs: a
 `ConfigError` whose message names `FILE:LINE:COL` of the offending value and its dotted path.
@@ -11,17 +11,16 @@ import re
 import pytest
 import yaml
 
-from wallbatch.config import (
+from wallbatch.config.models import (
     Config,
-    ConfigError,
     MorseWall,
     ReflectWall,
     SoftWall,
     config_from_dict,
     load_config,
     load_config_text,
-    load_yaml,
 )
+from wallbatch.config.source import ConfigError, load_yaml
 
 FILE = "cfg.yaml"
 

@@ -1,4 +1,4 @@
-"""AMBER NetCDF 1.0 trajectories (wallbatch.dump), read back with netCDF4 (and MDAnalysis if
+"""AMBER NetCDF 1.0 trajectories (wallbatch.io.amber), read back with netCDF4 (and MDAnalysis if
 it happens to be installed)."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import wallbatch
-from wallbatch.dump import LJ_NOTE, write_amber
+from wallbatch.io.amber import LJ_NOTE, write_amber
 
 F, N = 3, 4
 BOX_LO = np.array([-1.0, 0.0, 2.0])
@@ -157,7 +157,7 @@ def test_failed_write_leaves_nothing(tmp_path, monkeypatch):
     def boom(*args, **kwargs):
         raise OSError("disk full")
 
-    monkeypatch.setattr("wallbatch.dump.os.replace", boom)
+    monkeypatch.setattr("wallbatch.io.amber.os.replace", boom)
     with pytest.raises(OSError, match="disk full"):
         write_amber(target, time, x, v, BOX_LO, BOX_HI, "real")
     assert list(tmp_path.iterdir()) == []

@@ -19,7 +19,8 @@ import pytest
 from lammps_oracle import _load_lammps, requires_lammps
 from scipy.integrate import solve_ivp
 
-from wallbatch import ellipsoid as el
+from wallbatch.geometry import quaternion as el
+from wallbatch.styles import ees
 
 EX, EY, EZ = np.eye(3)
 
@@ -55,7 +56,7 @@ def _mp_energy(r, sn, eps, sigma):
 
 def _check_against_mp(r, sn, eps, sigma, dps=50):
     """Worst relative error (where well conditioned) and worst error / scale of E, F, T_w."""
-    got = el.ees_energy_force_torque(r, sn, eps, sigma)
+    got = ees.ees_energy_force_torque(r, sn, eps, sigma)
     worst_rel, worst_scaled = 0.0, 0.0
     for i in range(len(r)):
         ref = _mp_ees(r[i], sn[i], eps[i], sigma[i], dps)
@@ -83,10 +84,10 @@ def _wall_forces(x, q, semi, walls, eps, sigma):
     for coord, side in walls:
         n = -side * EX
         r = x[..., 0] - coord if side < 0 else coord - x[..., 0]
-        sn = el.sigma_n(q, semi, n)
-        e, fr, tw = el.ees_energy_force_torque(r, sn, eps, sigma)
+        sn = ees.sigma_n(q, semi, n)
+        e, fr, tw = ees.ees_energy_force_torque(r, sn, eps, sigma)
         f[..., 0] += -side * fr
-        tau += el.ees_torque(q, semi, n, tw)
+        tau += ees.ees_torque(q, semi, n, tw)
         energy += e
     return f, tau, energy
 
@@ -215,12 +216,12 @@ def test_ees_reference_xlo():
     q = el.from_axis_angle(EZ, 30.0, degrees=True)
     semi = np.array([1.0, 0.5, 0.5])
     n, side = EX, -1
-    sn = el.sigma_n(q, semi, n)
+    sn = ees.sigma_n(q, semi, n)
     assert sn == pytest.approx(0.9013878188659974, rel=2e-16)
-    e, f, tw = el.ees_energy_force_torque(2.5, sn, 1.0, 1.0)
+    e, f, tw = ees.ees_energy_force_torque(2.5, sn, 1.0, 1.0)
     assert e == pytest.approx(-0.008385934463405598, rel=2e-15)
     assert -side * f == pytest.approx(-0.0112139158, rel=1e-8)  # atom fx; f_w[1] = +0.0112139158
-    np.testing.assert_allclose(el.ees_torque(q, semi, n, tw), [0, 0, -0.00118123], rtol=5e-6, atol=1e-18)
+    np.testing.assert_allclose(ees.ees_torque(q, semi, n, tw), [0, 0, -0.00118123], rtol=5e-6, atol=1e-18)
 
 
 def test_ees_reference_zhi():
@@ -229,20 +230,20 @@ def test_ees_reference_zhi():
     semi = np.array([1.5, 0.75, 0.5])
     side = +1
     n = -side * EZ  # hi face: n points from the wall into the box, -z
-    sn = el.sigma_n(q, semi, n)
+    sn = ees.sigma_n(q, semi, n)
     assert sn == pytest.approx(1.1076573394968763, rel=4e-16)
-    e, f, tw = el.ees_energy_force_torque(2.4, sn, 1.0, 1.0)
+    e, f, tw = ees.ees_energy_force_torque(2.4, sn, 1.0, 1.0)
     assert e == pytest.approx(-0.010649851068480229, rel=2e-15)
     assert -side * f == pytest.approx(0.0159788, rel=5e-6)  # atom fz: pulled toward the zhi wall
-    np.testing.assert_allclose(el.ees_torque(q, semi, n, tw), [-0.00137018, 0.00458331, 0.0], rtol=0, atol=6e-9)
+    np.testing.assert_allclose(ees.ees_torque(q, semi, n, tw), [-0.00137018, 0.00458331, 0.0], rtol=0, atol=6e-9)
     # the same orientation seen by a zlo wall gets the same torque (τ is even in n)
-    np.testing.assert_allclose(el.ees_torque(q, semi, EZ, tw), el.ees_torque(q, semi, n, tw), atol=1e-18)
+    np.testing.assert_allclose(ees.ees_torque(q, semi, EZ, tw), ees.ees_torque(q, semi, n, tw), atol=1e-18)
 
 
 def test_tw_reference_value():
     """§15: T_w(r = 1.5, σn = 1.1) = 0.8736466968. §15 does not say ε and σ: the value is the one
     for ε = 1.3, σ = 0.9 (with ε = σ = 1, T_w = 2.5382281932332201)."""
-    _, _, tw = el.ees_energy_force_torque(1.5, 1.1, 1.3, 0.9)
+    _, _, tw = ees.ees_energy_force_torque(1.5, 1.1, 1.3, 0.9)
     assert tw == pytest.approx(0.8736466968, rel=1e-9)
 
 
@@ -283,9 +284,9 @@ def test_ees_energy_is_the_volume_integral_of_lj():
     eps = 8 * np.pi**2 * rho_w * rho_e * eps_lj * np.prod(semi)
     normals = [EZ, -EX, np.array([1.0, -2.0, 0.5]) / np.sqrt(5.25)]
     for normal, q in zip(normals, el.random_quaternions(rng, 3)):
-        sn = float(el.sigma_n(q, semi, normal))
+        sn = float(ees.sigma_n(q, semi, normal))
         for gap in (0.6, 1.0, 2.5, 7.0):  # r - σn: repulsive at 0.6, attractive beyond
-            e = float(el.ees_energy_force_torque(sn + gap, sn, eps, sigma)[0])
+            e = float(ees.ees_energy_force_torque(sn + gap, sn, eps, sigma)[0])
             ref = _volume_integral_energy(q, semi, normal, sn + gap, eps_lj, sigma, rho_w, rho_e)
             assert e == pytest.approx(ref, rel=1e-11), (normal, gap)
     # the tilted normal's σn is the support distance: max over surface points of x·n
@@ -294,7 +295,7 @@ def test_ees_energy_is_the_volume_integral_of_lj():
     u = rng.standard_normal((200000, 3))
     surface = (u / np.linalg.norm(u, axis=1, keepdims=True) * semi) @ el.rotation_matrix(q).T
     support = np.max(surface @ normal)
-    sn = el.sigma_n(q, semi, normal)
+    sn = ees.sigma_n(q, semi, normal)
     assert support <= sn * (1 + 1e-15) and support > sn * (1 - 1e-3)
 
 
@@ -305,7 +306,7 @@ def test_ees_energy_is_the_volume_integral_of_lj():
 def test_ees_force_and_torque_factor_are_derivatives_of_the_energy():
     """F = -∂E/∂r and T_w = (1/σn) ∂E/∂σn of the §4.7 closed forms (mpmath derivatives, 50 digits)."""
     for r, sn, eps, sigma in [(2.5, 0.9, 1.0, 1.0), (1.5, 1.1, 2.0, 0.8), (1.02, 1.0, 1.0, 1.0), (40.0, 0.3, 1.0, 1.0)]:
-        _, f, tw = el.ees_energy_force_torque(r, sn, eps, sigma)
+        _, f, tw = ees.ees_energy_force_torque(r, sn, eps, sigma)
         with mp.workdps(50):
             r_, sn_, e_, s_ = (mp.mpf(v) for v in (r, sn, eps, sigma))
             fd = -mp.diff(lambda x, a=sn_, b=e_, c=s_: _mp_energy(x, a, b, c), r_)
@@ -321,19 +322,19 @@ def test_ees_torque_is_minus_the_derivative_by_finite_rotations():
     normals = np.array([EX, -EZ, [0.6, 0.0, -0.8]])
     q = el.random_quaternions(rng, 3)
     r = np.array([2.4, 2.0, 3.1])
-    sn = el.sigma_n(q, semi, normals)
-    _, _, tw = el.ees_energy_force_torque(r, sn, 1.7, 1.0)
-    tau = el.ees_torque(q, semi, normals, tw)
+    sn = ees.sigma_n(q, semi, normals)
+    _, _, tw = ees.ees_energy_force_torque(r, sn, 1.7, 1.0)
+    tau = ees.ees_torque(q, semi, normals, tw)
     d = 1e-5
     for j, axis in enumerate(np.eye(3)):
-        e_plus = el.ees_energy_force_torque(r, el.sigma_n(_rotate(q, axis, d), semi, normals), 1.7, 1.0)[0]
-        e_minus = el.ees_energy_force_torque(r, el.sigma_n(_rotate(q, axis, -d), semi, normals), 1.7, 1.0)[0]
+        e_plus = ees.ees_energy_force_torque(r, ees.sigma_n(_rotate(q, axis, d), semi, normals), 1.7, 1.0)[0]
+        e_minus = ees.ees_energy_force_torque(r, ees.sigma_n(_rotate(q, axis, -d), semi, normals), 1.7, 1.0)[0]
         np.testing.assert_allclose(tau[:, j], -(e_plus - e_minus) / (2 * d), rtol=1e-7, atol=1e-11)
     assert np.max(np.abs(tau)) > 1e-3  # not vacuous
     # force by finite differences in r
-    e_p = el.ees_energy_force_torque(r + d, sn, 1.7, 1.0)[0]
-    e_m = el.ees_energy_force_torque(r - d, sn, 1.7, 1.0)[0]
-    np.testing.assert_allclose(el.ees_energy_force_torque(r, sn, 1.7, 1.0)[1], -(e_p - e_m) / (2 * d), rtol=1e-8)
+    e_p = ees.ees_energy_force_torque(r + d, sn, 1.7, 1.0)[0]
+    e_m = ees.ees_energy_force_torque(r - d, sn, 1.7, 1.0)[0]
+    np.testing.assert_allclose(ees.ees_energy_force_torque(r, sn, 1.7, 1.0)[1], -(e_p - e_m) / (2 * d), rtol=1e-8)
 
 
 def test_sphere_gets_zero_torque_and_orientation_free_sigma_n():
@@ -342,11 +343,11 @@ def test_sphere_gets_zero_torque_and_orientation_free_sigma_n():
     semi = np.full(3, 0.7)
     normals = rng.standard_normal((50, 3))
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    np.testing.assert_allclose(el.sigma_n(q, semi, normals), 0.7, rtol=1e-15)
-    tau = el.ees_torque(q, semi, normals, np.full(50, 3.0))
+    np.testing.assert_allclose(ees.sigma_n(q, semi, normals), 0.7, rtol=1e-15)
+    tau = ees.ees_torque(q, semi, normals, np.full(50, 3.0))
     assert np.max(np.abs(tau)) < 1e-15
     # an ellipsoid does get one
-    assert np.max(np.abs(el.ees_torque(q, np.array([1.0, 0.7, 0.4]), normals, np.full(50, 3.0)))) > 0.1
+    assert np.max(np.abs(ees.ees_torque(q, np.array([1.0, 0.7, 0.4]), normals, np.full(50, 3.0)))) > 0.1
 
 
 # ---------------------------------------------------------------------------------------------
@@ -392,7 +393,7 @@ def test_ees_random_points_and_tiny_t_against_mpmath():
     t_small = np.array([1e-12, 1e-10, 1e-9, 3e-8])
     worst_rel, worst_scaled = _check_against_mp(2.0 * np.ones(4), 2.0 * t_small, np.ones(4), np.ones(4), dps=120)
     assert worst_rel <= 1e-12
-    e, f, tw = el.ees_energy_force_torque(2.0, 0.0, 1.0, 1.0)
+    e, f, tw = ees.ees_energy_force_torque(2.0, 0.0, 1.0, 1.0)
     assert e == pytest.approx(-1 / 72 + (14 / 945) / 512, rel=1e-15)
     assert f == pytest.approx(-1 / 48 + (42 / 315) / 1024, rel=1e-15)
     assert tw == pytest.approx(-4 / (15 * 32) + (84 / 315) / 2048, rel=1e-15)
@@ -400,10 +401,10 @@ def test_ees_random_points_and_tiny_t_against_mpmath():
 
 def test_ees_broadcasting_shapes():
     r = np.full((2, 3), 2.0)
-    e, f, tw = el.ees_energy_force_torque(r, np.array([0.5, 0.9, 1.2]), np.array([[1.0], [2.0]]), 1.0)
+    e, f, tw = ees.ees_energy_force_torque(r, np.array([0.5, 0.9, 1.2]), np.array([[1.0], [2.0]]), 1.0)
     assert e.shape == f.shape == tw.shape == (2, 3)
     np.testing.assert_allclose(e[1], 2 * e[0], rtol=1e-15)
-    e0 = el.ees_energy_force_torque(2.0, 0.9, 1.0, 1.0)[0]
+    e0 = ees.ees_energy_force_torque(2.0, 0.9, 1.0, 1.0)[0]
     assert np.shape(e0) == () and e0 == e[0, 1]
 
 
@@ -490,7 +491,7 @@ def test_two_ees_walls_conserve_energy_second_order():
         recs = _nve_asphere(state, mass, semi, dt, round(2.5 / dt), WALLS, 20.0, 1.0, every=5)
         etot = np.array([r[4] for r in recs])
         errs.append(np.max(np.abs(etot - etot[0])))
-        gaps = [np.minimum(r[0][..., 0] - el.sigma_n(r[2], semi, EX), 6.0 - r[0][..., 0] - el.sigma_n(r[2], semi, -EX))
+        gaps = [np.minimum(r[0][..., 0] - ees.sigma_n(r[2], semi, EX), 6.0 - r[0][..., 0] - ees.sigma_n(r[2], semi, -EX))
                 for r in recs]
         assert np.all(np.min(gaps, axis=0) < 0.8)  # every atom came close to a wall
         moved = np.max(np.abs(recs[-1][3] - state[3]))
@@ -517,7 +518,7 @@ def test_sphere_shaped_ellipsoid_moves_like_a_point_particle():
         f = np.zeros_like(x)
         for coord, side in WALLS:
             r = x[..., 0] - coord if side < 0 else coord - x[..., 0]
-            f[..., 0] += -side * el.ees_energy_force_torque(r, 0.7, 20.0, 1.0)[1]
+            f[..., 0] += -side * ees.ees_energy_force_torque(r, 0.7, 20.0, 1.0)[1]
         return f
 
     f = force(x)
@@ -607,14 +608,14 @@ def test_lammps_reference_cases_run0():
         init, _ = _lammps_ellipsoids(np.array([pos]), np.zeros((1, 3)), q[i:i + 1], np.zeros((1, 3)),
                                      np.ones(1), semi[i:i + 1], box, fix, 0.005, [])
         qq = init["quat"][0]
-        sn = el.sigma_n(qq, semi[i], n)
-        e, f, tw = el.ees_energy_force_torque(r, sn, 1.0, 1.0)
+        sn = ees.sigma_n(qq, semi[i], n)
+        e, f, tw = ees.ees_energy_force_torque(r, sn, 1.0, 1.0)
         assert e == pytest.approx(init["energy"], rel=1e-14)
         dim = int(np.argmax(np.abs(n)))
         expected_f = np.zeros(3)
         expected_f[dim] = -side * f
         np.testing.assert_allclose(init["f"][0], expected_f, rtol=1e-14, atol=1e-300)
-        np.testing.assert_allclose(init["torque"][0], el.ees_torque(qq, semi[i], n, tw), rtol=1e-13, atol=1e-18)
+        np.testing.assert_allclose(init["torque"][0], ees.ees_torque(qq, semi[i], n, tw), rtol=1e-13, atol=1e-18)
 
 
 @requires_lammps

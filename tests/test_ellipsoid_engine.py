@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from wallbatch.config import load_config_text
-from wallbatch.engine import run_cases
-from wallbatch.scene import CaseError, build_case
+from wallbatch.config.models import load_config_text
+from wallbatch.engine.engine import run_cases
+from wallbatch.scene.case import CaseError
+from wallbatch.scene.build import build_case
 
 SLIT = """
 units: lj
@@ -76,7 +77,7 @@ def test_sphere_shaped_ellipsoids_move_like_point_particles():
     text = SLIT.format(shape="[0.5, 0.5, 0.5]", orientation="[0.3, 0.5, -0.2, 0.7]", dt=0.002, steps=400)
     case = build_case(load_config_text(text))
     other = build_case(load_config_text(text.replace("orientation: [0.3, 0.5, -0.2, 0.7]", "orientation: aligned")))
-    from wallbatch.engine import Engine
+    from wallbatch.engine.engine import Engine
 
     e1, e2 = Engine([case]), Engine([other])
     e1.run()
@@ -93,7 +94,7 @@ def test_point_atoms_carry_no_orientation_state():
                          "").replace("style: ees", "style: lj93").replace(", erot]", "]")
     case = build_case(load_config_text(plain))
     assert case.shape is None and case.quat is None and case.angmom is None
-    from wallbatch.engine import Engine
+    from wallbatch.engine.engine import Engine
 
     assert Engine([case]).state.quat is None
 
@@ -111,7 +112,7 @@ def test_ees_wall_on_point_atoms_is_an_error():
     text = SLIT.format(shape="[1.0, 0.4, 0.6]", orientation="aligned", dt=0.002, steps=10)
     text = text.replace("    velocity: {temperature: 1.0}\n", "    velocity: {temperature: 1.0}\n"
                         "  - group: dots\n    create: {positions: [[1, 1, 4]]}\n    mass: 1.0\n")
-    from wallbatch.config import ConfigError
+    from wallbatch.config.source import ConfigError
 
     with pytest.raises(ConfigError, match="walls.slit.group: wall/ees requires ellipsoids"):
         load_config_text(text)
@@ -186,7 +187,7 @@ def test_region_force_is_the_reaction_of_the_wall_forces():
     """At rest, every atom's force is its wall force: region_force = -(sum of atom forces)."""
     text = REGION.format(**REGION_CASES["block-in-lj93"], dt=0.002, steps=1).replace(
         "velocity: {temperature: 1.0}", "velocity: {values: [0, 0, 0]}")
-    from wallbatch.engine import Engine
+    from wallbatch.engine.engine import Engine
 
     eng = Engine([build_case(load_config_text(text))])
     out = eng.compute_forces(True)

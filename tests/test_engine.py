@@ -1,4 +1,4 @@
-"""Tests for wallbatch.engine (with walls.py and scene.py): the step, reflect, variables,
+"""Tests for wallbatch.engine.engine (with walls.py and scene.py): the step, reflect, variables,
 dt/reset, lattice scaling, groups, failures, time-based runs and batching.
 
 Every expected number is computed here by hand or by a small independent scalar reference
@@ -12,10 +12,11 @@ import math
 import numpy as np
 import pytest
 
-from wallbatch.config import config_from_dict
-from wallbatch.engine import Engine, run_cases, structure_key
-from wallbatch.runner import run_config
-from wallbatch.scene import build_case
+from wallbatch.config.models import config_from_dict
+from wallbatch.engine.engine import Engine, run_cases
+from wallbatch.scene.case import structure_key
+from wallbatch.batch.runner import run_config
+from wallbatch.scene.build import build_case
 
 FCC_LJ_0_8442 = 1.6795961913825073  # physics.md §2.1 table
 REAL_FTM2V = 1.0 / 48.88821291**2
@@ -481,7 +482,7 @@ def test_lattice_scale_is_the_constant_in_real_and_metal(units):
 
 
 def test_lattice_units_without_lattice_is_an_error():
-    from wallbatch.config import ConfigError
+    from wallbatch.config.source import ConfigError
     d = scene([atoms("a", [(4.0, 5, 5)])],
               {"w": {"style": "harmonic", "xlo": harmonic_face(1.0, 1.0, 2.5)}})
     with pytest.raises(ConfigError, match="units: box"):

@@ -23,10 +23,10 @@ import pytest
 from lammps_oracle import requires_lammps
 from typer.testing import CliRunner
 
-from wallbatch import validate as validate_mod
+from wallbatch.lammps import validate as validate_mod
 from wallbatch.cli import app
-from wallbatch.config import Config
-from wallbatch.export import (
+from wallbatch.config.models import Config
+from wallbatch.lammps.export import (
     ATOM_WRITERS,
     PAIR_WRITERS,
     WALL_WRITERS,
@@ -36,7 +36,7 @@ from wallbatch.export import (
     export_selected,
     select_case,
 )
-from wallbatch.sweep import load_plan
+from wallbatch.config.sweep import load_plan
 
 runner = CliRunner()
 
@@ -249,8 +249,8 @@ def test_time_dependent_morse_alpha_is_refused(tmp_path):
 
 def test_data_file_is_exact(tmp_path):
     """Every position, velocity and mass reads back (float()) to the identical double."""
-    from wallbatch.export import lammps_ready
-    from wallbatch.scene import build_case
+    from wallbatch.lammps.export import lammps_ready
+    from wallbatch.scene.build import build_case
 
     plan = load_plan(write(tmp_path, GOLDEN))
     sc = plan.cases[0]
@@ -284,8 +284,8 @@ def test_sphere_data_file(tmp_path):
 def test_lammps_reads_the_data_file_bit_exactly(tmp_path, monkeypatch, source):
     """The exported files, run as a user would (in their folder), up to the groups: LAMMPS holds
     the case's positions, velocities and per-atom masses bit for bit."""
-    from wallbatch.export import lammps_ready, write_export
-    from wallbatch.scene import build_case
+    from wallbatch.lammps.export import lammps_ready, write_export
+    from wallbatch.scene.build import build_case
 
     # radius 0.7, mass 3.3: LAMMPS's mass from diameter and density would be 3.3000000000000007
     plan = (load_plan(write(tmp_path, GOLDEN)) if source == "golden" else
@@ -327,8 +327,8 @@ def test_lammps_reads_the_ellipsoid_data_file(tmp_path, monkeypatch):
     again)."""
     from lammps import LMP_STYLE_ATOM, LMP_TYPE_ARRAY
 
-    from wallbatch.export import lammps_ready, write_export
-    from wallbatch.scene import build_case
+    from wallbatch.lammps.export import lammps_ready, write_export
+    from wallbatch.scene.build import build_case
 
     plan = load_plan(CONFIGS / "ellipsoids-ees-slit.yaml")
     sc = plan.cases[0]
@@ -515,8 +515,8 @@ def test_region_colloid_is_written_as_configured_and_force_matched_for_validate(
     """Decisions table: LAMMPS's wall/region colloid differs; the export keeps epsilon, validate's
     variant negates it (LAMMPS's flipped force is then fix wall/colloid's) and expects the energies
     to differ."""
-    from wallbatch.export import export_case, lammps_ready
-    from wallbatch.scene import build_case
+    from wallbatch.lammps.export import export_case, lammps_ready
+    from wallbatch.scene.build import build_case
 
     sc = load_plan(CONFIGS / "colloid-cavity.yaml").cases[0]
     cfg, _ = lammps_ready(sc.config, 10)
@@ -671,8 +671,8 @@ def test_compare_region_force_and_min_results():
     """Indices (fix, x/y/z) pick region_force; min_* are scalars; the stopping criterion compares
     text (the all-zero-forces pair of names is expected); min_fnorm ~0 uses the initial norm as
     its scale; min_energy gets MIN_RTOL."""
-    from wallbatch.engine import CaseResult
-    from wallbatch.export import Column, LammpsExport
+    from wallbatch.engine.engine import CaseResult
+    from wallbatch.lammps.export import Column, LammpsExport
 
     cols = (Column("region_force[w/y]", "f_w[2]", "region_force", (1, 1)),
             Column("min_fnorm", "fnorm", "min_fnorm", source="min"),
@@ -846,8 +846,8 @@ def test_validate_golden_scene(tmp_path):
 @requires_lammps
 def test_validate_faces_really_act(tmp_path):
     """Guard against a vacuous golden comparison: LAMMPS sees a force on every face."""
-    from wallbatch.export import lab_frame, lammps_ready
-    from wallbatch.scene import build_case
+    from wallbatch.lammps.export import lab_frame, lammps_ready
+    from wallbatch.scene.build import build_case
 
     plan = load_plan(write(tmp_path, GOLDEN))
     sc = plan.cases[0]
@@ -986,8 +986,8 @@ def test_validate_mixed_scene_with_every_new_column(tmp_path):
                   "wall_force[zees/zlo]"):
         assert label in rows and float(rows[label][2]) < 1e-12
     # not vacuous: in LAMMPS every fix acts at some sample, the walls torque the ellipsoids
-    from wallbatch.export import lammps_ready
-    from wallbatch.scene import build_case
+    from wallbatch.lammps.export import lammps_ready
+    from wallbatch.scene.build import build_case
 
     sc = load_plan(cfg).cases[0]
     c, _ = lammps_ready(sc.config)
@@ -1100,9 +1100,9 @@ def test_minimize_fire_keeps_the_created_velocities_lammps_does_not(tmp_path):
     other way to set them). LAMMPS's fire leaves its own damped velocities in the atoms, so the runs
     after the minimization part ways: validate reports it (exit 1) while the min_* rows agree."""
     text = WALLMIN.replace("style: cg", "style: fire")
-    from wallbatch.config import load_config_text
-    from wallbatch.engine import run_cases
-    from wallbatch.scene import build_case
+    from wallbatch.config.models import load_config_text
+    from wallbatch.engine.engine import run_cases
+    from wallbatch.scene.build import build_case
 
     res = run_cases([build_case(load_config_text(text))])[0]
     v0 = np.array([[0.3, 0.0, -0.2], [0.0, 0.4, 0.1], [-0.2, 0.1, 0.3], [0.1, -0.3, 0.0]])
@@ -1120,8 +1120,8 @@ def test_flow_export_runs_in_lammps(tmp_path):
     after the pair style, minimize, then the run) that samples the same steps."""
     plan = load_plan(CONFIGS / "flow-seed.yaml")
     sc = plan.cases[0]
-    from wallbatch.export import lammps_ready
-    from wallbatch.scene import build_case
+    from wallbatch.lammps.export import lammps_ready
+    from wallbatch.scene.build import build_case
 
     cfg, _ = lammps_ready(sc.config, 40)
     exp = validate_mod.export_case(cfg, build_case(cfg, sc.seed_key), data_dir=tmp_path)

@@ -1,4 +1,4 @@
-"""The compiled path (wallbatch.fast) against the NumPy engine, its reference.
+"""The compiled path (wallbatch.engine.compiled) against the NumPy engine, its reference.
 
 Every scene runs twice, with WALLBATCH_NUMBA=0 (NumPy) and =1 (numba), and every sampled output
 of every case must agree to 1e-14 relative (per series, against its largest magnitude), with the
@@ -13,11 +13,12 @@ import math
 import numpy as np
 import pytest
 
-from wallbatch import fast
-from wallbatch.config import config_from_dict
-from wallbatch.engine import Engine, structure_key
-from wallbatch.potentials import STYLES
-from wallbatch.scene import build_case
+from wallbatch.engine import compiled as fast
+from wallbatch.config.models import config_from_dict
+from wallbatch.engine.engine import Engine
+from wallbatch.scene.case import structure_key
+from wallbatch.styles.flat import STYLES
+from wallbatch.scene.build import build_case
 
 pytestmark = pytest.mark.skipif(fast.njit is None, reason="numba not importable")
 

@@ -1,4 +1,4 @@
-"""Tests for wallbatch.fixline: LAMMPS wall fix lines <-> the wall mapping form."""
+"""Tests for wallbatch.config.fixline: LAMMPS wall fix lines <-> the wall mapping form."""
 
 from __future__ import annotations
 
@@ -6,13 +6,7 @@ import re
 
 import pytest
 
-from wallbatch.fixline import (
-    FLAT_STYLES,
-    SUPPORTED_STYLES,
-    FixLineError,
-    parse_fix_line,
-    to_fix_line,
-)
+from wallbatch.config.fixline import FLAT_STYLES, SUPPORTED_STYLES, FixLineError, parse_fix_line, to_fix_line
 
 # --------------------------------------------------------------------------------------------
 # output forms

@@ -12,8 +12,16 @@ from lammps_oracle import _load_lammps, requires_lammps
 from scipy import stats
 from scipy.special import erfc
 
-from wallbatch.flow import (FlowKernel, FlowSpec, _velocities, check_flow, log_tail, positive_fraction,
-                            sample_flux_maxwellian, solve_flux_speed)
+from wallbatch.engine.flow import (
+    FlowKernel,
+    _velocities,
+    check_flow,
+    log_tail,
+    positive_fraction,
+    sample_flux_maxwellian,
+    solve_flux_speed,
+)
+from wallbatch.scene.case import FlowSpec
 from wallbatch.units import UNIT_SYSTEMS
 
 LJ = UNIT_SYSTEMS["lj"]
@@ -814,8 +822,8 @@ def test_check_flow_reports_every_problem():
 
 
 def test_a_run_with_a_flow_wall_redraws():
-    from wallbatch.config import config_from_dict
-    from wallbatch.runner import run_config
+    from wallbatch.config.models import config_from_dict
+    from wallbatch.batch.runner import run_config
 
     cfg = {"name": "flowgas", "units": "lj", "seed": 7,
            "box": {"lo": [0, 0, 0], "hi": [10, 10, 10], "boundary": ["p", "p", "p"]},

@@ -29,10 +29,12 @@ import xarray as xr
 from lammps_oracle import _load_lammps, requires_lammps
 from scipy import stats
 
-from wallbatch.config import ConfigError, load_config, load_config_text
-from wallbatch.engine import CaseResult, Engine, run_cases, structure_key
-from wallbatch.runner import run_config
-from wallbatch.scene import build_case
+from wallbatch.config.source import ConfigError
+from wallbatch.config.models import load_config, load_config_text
+from wallbatch.engine.engine import CaseResult, Engine, run_cases
+from wallbatch.scene.case import structure_key
+from wallbatch.batch.runner import run_config
+from wallbatch.scene.build import build_case
 
 U, KT, M = 0.4, 1.5, 1.0  # vflow, T (lj: kT = T), mass of the ideal-gas tests
 

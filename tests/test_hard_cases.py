@@ -27,11 +27,12 @@ from lammps_oracle import LammpsRunError, Scene, requires_lammps, run_lammps
 from scipy import stats
 from scipy.optimize import brentq
 
-from wallbatch.config import Config, config_from_dict, load_config
-from wallbatch.engine import CaseResult, Engine, run_cases
-from wallbatch.runner import run_config
-from wallbatch.scene import Case, build_case
-from wallbatch.sweep import config_to_dict, set_path
+from wallbatch.config.models import Config, config_from_dict, load_config
+from wallbatch.engine.engine import CaseResult, Engine, run_cases
+from wallbatch.batch.runner import run_config
+from wallbatch.scene.case import Case
+from wallbatch.scene.build import build_case
+from wallbatch.config.sweep import config_to_dict, set_path
 
 HARD = Path(__file__).resolve().parent.parent / "configs" / "hard"
 RTOL = 1e-9

@@ -1,4 +1,4 @@
-"""Tests for wallbatch.minimize: closed-form minima, LJ clusters between walls, batching,
+"""Tests for wallbatch.engine.minimize: closed-form minima, LJ clusters between walls, batching,
 every stopping criterion, and LAMMPS 22Jul2025 `minimize` as the oracle.
 
 All objectives are written here in numpy (no engine): a 9-3 / 12-6 / harmonic wall at z = 0
@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from lammps_oracle import _load_lammps, requires_lammps
-from wallbatch.minimize import MinResult, MinSettings, minimize
+from wallbatch.engine.minimize import MinResult, minimize
+from wallbatch.scene.case import MinSettings
 
 # ----------------------------------------------------------------------------- objectives
 

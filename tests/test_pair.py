@@ -1,4 +1,4 @@
-"""Tests for wallbatch.pair (pair_style lj/cut, physics.md §12): §12 check values, the neighbor
+"""Tests for wallbatch.engine.pair (pair_style lj/cut, physics.md §12): §12 check values, the neighbor
 list against a brute-force all-pairs sum, rebuild bookkeeping, force = -dE/dx, per-case bit
 identity, take(), and LAMMPS `run 0` parity (energy, per-atom forces, virial). Each of these runs
 on both paths (fixture `compiled`: NumPy reference and numba kernels); further tests check that
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from lammps_oracle import _load_lammps, requires_lammps
 
-from wallbatch import pair_numba
-from wallbatch.pair import DEFAULT_SKIN, PairLJCut, default_skin, lj_pair
+from wallbatch.engine import pair_compiled as pair_numba
+from wallbatch.engine.pair import DEFAULT_SKIN, PairLJCut, default_skin, lj_pair
 
 needs_numba = pytest.mark.skipif(pair_numba.njit is None, reason="numba not importable")
 
@@ -478,9 +478,9 @@ def test_path_selection(monkeypatch):
 def test_engine_paths_agree(monkeypatch):
     """The engine on both pair paths (an fcc LJ liquid melting between lj93 walls, 40 steps):
     thermo outputs equal to 1e-10 relative (rounding differences only, barely grown in 40 steps)."""
-    from wallbatch.config import config_from_dict
-    from wallbatch.engine import run_cases
-    from wallbatch.scene import build_case
+    from wallbatch.config.models import config_from_dict
+    from wallbatch.engine.engine import run_cases
+    from wallbatch.scene.build import build_case
 
     cfg = {
         "name": "lj-slit", "units": "lj", "seed": 3, "lattice": {"style": "fcc", "scale": 0.8},

@@ -24,10 +24,12 @@ from lammps_oracle import _load_lammps, requires_lammps
 from typer.testing import CliRunner
 
 from wallbatch.cli import app
-from wallbatch.config import load_config_text
-from wallbatch.engine import CaseResult, Engine, run_cases, structure_key
-from wallbatch.runner import run_config
-from wallbatch.scene import MinimizeWarning, build_case
+from wallbatch.config.models import load_config_text
+from wallbatch.engine.engine import CaseResult, Engine, run_cases
+from wallbatch.scene.case import structure_key
+from wallbatch.batch.runner import run_config
+from wallbatch.scene.case import MinimizeWarning
+from wallbatch.scene.build import build_case
 from wallbatch.units import UNIT_SYSTEMS
 
 # ----------------------------------------------------------------------------- scenes

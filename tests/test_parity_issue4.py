@@ -36,10 +36,11 @@ import numpy as np
 import pytest
 from lammps_oracle import _load_lammps, requires_lammps
 
-from wallbatch.config import load_config_text
-from wallbatch.engine import CaseResult, Engine, run_cases
-from wallbatch.regions import lammps_region_colloid
-from wallbatch.scene import Case, build_case
+from wallbatch.config.models import load_config_text
+from wallbatch.engine.engine import CaseResult, Engine, run_cases
+from wallbatch.engine.region_walls import lammps_region_colloid
+from wallbatch.scene.case import Case
+from wallbatch.scene.build import build_case
 
 pytestmark = requires_lammps
 

@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 
 from lammps_oracle import LammpsRunError, Scene, requires_lammps, run_lammps
-from wallbatch.config import config_from_dict
-from wallbatch.runner import run_config
+from wallbatch.config.models import config_from_dict
+from wallbatch.batch.runner import run_config
 
 pytestmark = requires_lammps
 

@@ -1,4 +1,4 @@
-"""Tests for wallbatch.potentials: §15 reference numbers, physics invariants, broadcasting."""
+"""Tests for wallbatch.styles.flat: §15 reference numbers, physics invariants, broadcasting."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import mpmath
 import numpy as np
 import pytest
 
-from wallbatch.potentials import STYLES, WallStyle, shifted_energy_force
+from wallbatch.styles.flat import STYLES, WallStyle, shifted_energy_force
 
 LJ = {"epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5}
 MORSE = {"D0": 1.5, "alpha": 2.0, "r0": 1.1, "cutoff": 3.0}

@@ -21,10 +21,11 @@ from lammps_oracle import (
     run_lammps,
 )
 
-from wallbatch.config import ConfigError, config_from_dict
-from wallbatch.engine import run_cases
-from wallbatch.runner import run_config
-from wallbatch.scene import build_case
+from wallbatch.config.source import ConfigError
+from wallbatch.config.models import config_from_dict
+from wallbatch.engine.engine import run_cases
+from wallbatch.batch.runner import run_config
+from wallbatch.scene.build import build_case
 
 MORSE_E_1_3 = -1.2706050535127498  # §15: morse D0 1.5, alpha 2, r0 1.1, rc 3, xlo r = 1.3
 MORSE_FW_1_3 = 1.32594649

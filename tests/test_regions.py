@@ -1,4 +1,4 @@
-"""Tests for wallbatch.regions: §5.1 contact geometry (hand-computed), fix wall/region against
+"""Tests for wallbatch.geometry.regions: §5.1 contact geometry (hand-computed), fix wall/region against
 LAMMPS 22Jul2025 (run 0 and short NVE runs), force = -grad E, the colloid decision, failures."""
 
 from __future__ import annotations
@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 from lammps_oracle import _load_lammps, requires_lammps
 
-from wallbatch.config import Region
-from wallbatch.potentials import STYLES, shifted_energy_force
-from wallbatch.regions import LAMMPS_MESSAGE, RegionGeom, RegionWallKernel, lammps_region_colloid
-from wallbatch.scene import RegionWallSpec
+from wallbatch.config.models import Region
+from wallbatch.styles.flat import STYLES, shifted_energy_force
+from wallbatch.geometry.regions import LAMMPS_MESSAGE, RegionGeom
+from wallbatch.engine.region_walls import RegionWallKernel, lammps_region_colloid
+from wallbatch.scene.case import RegionWallSpec
 from wallbatch.units import lattice_constant
 
 SQ = np.sqrt

@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from wallbatch import report
-from wallbatch.output import write_netcdf
-from wallbatch.runner import run_plan
-from wallbatch.sweep import load_plan
+from wallbatch.config.schema import config_json_schema
+from wallbatch.io import report
+from wallbatch.io.netcdf import write_netcdf
+from wallbatch.batch.runner import run_plan
+from wallbatch.config.sweep import load_plan
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -256,7 +257,7 @@ def test_select_by_coordinate(sweep_ds):
 
 
 def test_config_json_schema():
-    schema = report.config_json_schema()
+    schema = config_json_schema()
     back = json.loads(json.dumps(schema))
     assert back == schema
     assert schema["$schema"].startswith("https://json-schema.org/") and schema["title"] == "wallbatch config"

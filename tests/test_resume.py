@@ -19,8 +19,8 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from wallbatch.cli import app
-from wallbatch.runner import build_cases, case_key, load_part, make_tasks, parts_dir, run_plan, save_part
-from wallbatch.sweep import load_plan
+from wallbatch.batch.runner import build_cases, case_key, load_part, make_tasks, parts_dir, run_plan, save_part
+from wallbatch.config.sweep import load_plan
 
 cli = CliRunner()
 
@@ -309,7 +309,7 @@ def test_parts_from_save_part_are_reused(tmp_path):
     plan = load_plan(path)
     ref = run_plan(plan, progress=False)
     # hand-made parts for cases 0 and 5, from a run of those cases alone
-    from wallbatch.runner import _run_task
+    from wallbatch.batch.runner import _run_task
 
     built, _ = build_cases(plan)
     out = tmp_path / "out.nc"

@@ -9,9 +9,9 @@ import netCDF4
 import numpy as np
 import xarray as xr
 
-from wallbatch.engine import CaseResult
-from wallbatch.runner import Progress, run_plan
-from wallbatch.sweep import load_plan
+from wallbatch.engine.engine import CaseResult
+from wallbatch.batch.runner import Progress, run_plan
+from wallbatch.config.sweep import load_plan
 
 SCENE = """\
 name: dump-test

@@ -28,7 +28,7 @@ import mpmath
 import numpy as np
 import pytest
 
-from wallbatch.potentials import STYLES
+from wallbatch.styles.flat import STYLES
 
 TOL = 1e-13
 KAPPA = 10.0  # above this componentwise condition number S/|Q|, error is measured against S/KAPPA
@@ -305,8 +305,8 @@ def test_colloid_far_field_leading_order():
 def _lj126_wall_energy_in_run(monkeypatch, numba: bool) -> tuple[np.ndarray, float]:
     """wall_energy of one lj126 xlo wall over 4 steps, the atom at r = rc (1 - 1e-9) held still by
     a mass of 1e200 (v dt ~ 1e-202 does not move x); and the mpmath value of E(r) - E(rc)."""
-    from wallbatch.config import config_from_dict
-    from wallbatch.runner import run_config
+    from wallbatch.config.models import config_from_dict
+    from wallbatch.batch.runner import run_config
 
     monkeypatch.setenv("WALLBATCH_NUMBA", "1" if numba else "0")
     rc = 2.5

@@ -14,9 +14,9 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from wallbatch.cli import app
-from wallbatch.config import ConfigError
-from wallbatch.runner import build_cases, case_key, make_tasks, run_plan
-from wallbatch.sweep import SweepDim, SweepPlan, config_to_dict, load_plan, set_path
+from wallbatch.config.source import ConfigError
+from wallbatch.batch.runner import build_cases, case_key, make_tasks, run_plan
+from wallbatch.config.sweep import SweepDim, SweepPlan, config_to_dict, load_plan, set_path
 
 cli = CliRunner()
 
@@ -367,14 +367,14 @@ def test_path_that_does_not_exist_is_a_clear_error(tmp_path):
 
 
 def test_invalid_case_names_its_coordinates_and_field_before_running(tmp_path, monkeypatch):
-    import wallbatch.engine
-    import wallbatch.runner
+    import wallbatch.engine.engine
+    import wallbatch.batch.runner
 
     def boom(*a, **k):  # nothing may run
         raise AssertionError("a case ran")
 
-    monkeypatch.setattr(wallbatch.runner, "run_cases", boom)
-    monkeypatch.setattr(wallbatch.engine, "run_cases", boom)
+    monkeypatch.setattr(wallbatch.batch.runner, "run_cases", boom)
+    monkeypatch.setattr(wallbatch.engine.engine, "run_cases", boom)
     path = scene_with_sweep(tmp_path, """\
         product:
           cutoff: {path: [walls.zwalls.zlo.cutoff, walls.zwalls.zhi.cutoff], values: [2.5, -1.0]}

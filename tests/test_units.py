@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from wallbatch.config import config_from_dict
-from wallbatch.engine import Engine
-from wallbatch.runner import run_config
-from wallbatch.scene import build_case
+from wallbatch.config.models import config_from_dict
+from wallbatch.engine.engine import Engine
+from wallbatch.batch.runner import run_config
+from wallbatch.scene.build import build_case
 from wallbatch.units import UNIT_SYSTEMS, lattice_constant
 
 # physics.md §2: (boltz, mvv2e, ftm2v, default dt)

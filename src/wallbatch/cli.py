@@ -7,18 +7,18 @@ from pathlib import Path
 
 import typer
 
-from .config import ConfigError
-from .scene import CaseError
+from wallbatch.config.source import ConfigError
+from wallbatch.scene.case import CaseError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_show_locals=False,
                   help="Batches of wall-bounded particle simulations (LAMMPS wall fixes) to labelled NetCDF.")
 
 
 def _plan(config: Path, sets: list[str] | None):
-    from .sweep import load_plan
+    from wallbatch import api
 
     try:
-        return load_plan(config, sets or [])
+        return api.load(config, sets or [])
     except ConfigError as exc:
         typer.echo(f"error: invalid config\n{exc}", err=True)
         raise typer.Exit(2) from None
@@ -34,7 +34,7 @@ def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
         resume: bool = typer.Option(False, help="reuse the cases finished by an interrupted run (OUT.parts/)"),
         ) -> None:
     """Run the scene (and its sweep) of CONFIG and write the results as NetCDF."""
-    from .runner import run_plan
+    from wallbatch import api
 
     if executor not in ("local", "dask"):
         typer.echo(f"error: --executor must be local or dask, not {executor!r}", err=True)
@@ -45,7 +45,7 @@ def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
     plan = _plan(config, set_)
     out = output or config.with_suffix(".nc")
     try:
-        ds = run_plan(plan, out, jobs=jobs, executor=executor, scheduler=scheduler, resume=resume)
+        ds = api.run(plan, out, jobs=jobs, executor=executor, scheduler=scheduler, resume=resume)
     except CaseError as exc:
         typer.echo(f"error: {config}: {exc}", err=True)
         raise typer.Exit(2) from None
@@ -65,40 +65,23 @@ def check(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
           jobs: int = typer.Option(os.cpu_count() or 1, "--jobs", "-j", help="as for run: how tasks are split"),
           ) -> None:
     """Validate CONFIG (every case of its sweep) and print the plan, without running anything."""
-    from .engine import sample_instants
-    from .runner import build_cases, check_layout, make_tasks
+    from wallbatch import api
 
     plan = _plan(config, set_)
-    cases, errors = build_cases(plan)
     try:
-        check_layout(plan, cases)
+        report = api.check(plan, jobs=jobs)
     except CaseError as exc:
         typer.echo(f"error: {config}: {exc}", err=True)
         raise typer.Exit(2) from None
-    typer.echo(f"{config}: valid, {len(plan.cases)} case(s)")
-    for d in plan.dims:
-        vals = ", ".join(str(v) for v in d.values[:8]) + (" ..." if len(d.values) > 8 else "")
-        typer.echo(f"  dimension {d.name} ({len(d.values)}): {vals}   <- {d.path}")
-    for i, msg in errors.items():
+    lines = report.lines(str(config))
+    typer.echo(lines[0])
+    for line in lines[1:1 + len(plan.dims)]:
+        typer.echo(line)
+    for i, msg in report.errors.items():
         typer.echo(f"  case {plan.cases[i].label} cannot be built: {msg}", err=True)
-    built = {i: c for i, c in enumerate(cases) if c is not None}
-    tasks = make_tasks(built, jobs)
-    total = 0
-    for n, t in enumerate(tasks, 1):
-        c = built[t[0]]
-        kernels = (["nve"] + [f"wall/reflect {w.fix_id}" for w in c.reflect_walls]
-                   + [f"wall/{w.style.name} {w.fix_id}" for w in c.soft_walls] + (["dt/reset"] if c.dt_reset else []))
-        steps = c.steps
-        length = f"steps: {steps}" if steps is not None else f"time: {c.run_time}"
-        nsamp = len(sample_instants(c))
-        typer.echo(f"  batch {n}: {len(t)} case(s); atoms: {c.natoms}; units: {c.units.name}; dt: {c.dt}; "
-                   f"{length}; samples: {nsamp}")
-        typer.echo(f"    kernels: {', '.join(kernels)}")
-        if steps is not None:
-            total += steps * c.natoms * len(t)
-    if total:
-        typer.echo(f"  total atom-steps: {total:,}")
-    if errors:
+    for line in lines[1 + len(plan.dims):]:
+        typer.echo(line)
+    if not report.ok:
         raise typer.Exit(1)
 
 
@@ -115,7 +98,7 @@ def _open(results: Path):
 @app.command()
 def show(results: Path = typer.Argument(..., help="results NetCDF written by wallbatch run")) -> None:
     """Print a readable summary of a results file: dimensions, status counts, value ranges, slowest cases."""
-    from .report import summary
+    from wallbatch.io.report import summary
 
     typer.echo(summary(_open(results)))
 
@@ -129,7 +112,7 @@ def plot(results: Path = typer.Argument(..., help="results NetCDF written by wal
          sel: list[str] = typer.Option(None, "--sel", help="dim=value selection (repeatable)"),
          kind: str = typer.Option("auto", help="line | heatmap | auto")) -> None:
     """A quick matplotlib look at one variable: time series per case, or a summary over sweep dims."""
-    from .report import plot as make_plot
+    from wallbatch.io.report import plot as make_plot
 
     selection = {}
     for item in sel or []:
@@ -151,7 +134,7 @@ def schema() -> None:
     """Print the config's JSON schema (for editor completion of YAML files)."""
     import json
 
-    from .report import config_json_schema
+    from wallbatch.config.schema import config_json_schema
 
     typer.echo(json.dumps(config_json_schema(), indent=2))
 
@@ -165,7 +148,7 @@ def export_lammps(config: Path = typer.Argument(..., help="scene or sweep YAML f
                   set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)"),
                   ) -> None:
     """Write one case as a LAMMPS input script and data file that reproduce it exactly."""
-    from .export import ExportError, export_selected, write_export
+    from wallbatch.lammps.export import ExportError, export_selected, write_export
 
     plan = _plan(config, set_)
     try:
@@ -190,8 +173,8 @@ def validate(config: Path = typer.Argument(..., help="scene or sweep YAML file")
              ) -> None:
     """Run one case in wallbatch and in LAMMPS (Python module) and compare every shared output.
     Exit 0 if all agree within --rtol, 1 if not, 2 if it cannot run (no LAMMPS, cannot export)."""
-    from .export import ExportError, select_case
-    from .validate import LammpsMissing, validate_case
+    from wallbatch.lammps.export import ExportError, select_case
+    from wallbatch.lammps.validate import LammpsMissing, validate_case
 
     plan = _plan(config, set_)
     try:
@@ -205,6 +188,64 @@ def validate(config: Path = typer.Argument(..., help="scene or sweep YAML file")
     typer.echo(f"{config}: {report.text()}")
     if not report.ok:
         raise typer.Exit(1)
+
+
+def _floats(text: str | None, option: str) -> list[float] | None:
+    if not text:
+        return None
+    try:
+        return [float(v) for v in text.replace(" ", "").split(",") if v]
+    except ValueError:
+        typer.echo(f"error: {option} {text}: write numbers separated by commas, e.g. {option} 0.01,0.005,0.0025",
+                   err=True)
+        raise typer.Exit(2) from None
+
+
+@app.command()
+def convergence(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
+                case: str = typer.Option(None, "--case", help="one case of a sweep: index or name=value,..."),
+                dt: str = typer.Option(None, "--dt", help="timesteps, comma-separated (default: the scene's "
+                                       "timestep x 2, 1, 1/2, 1/4, 1/8); the smallest is the reference"),
+                xmax: str = typer.Option(None, "--xmax", help="dt/reset xmax values (scenes with dt_reset)"),
+                rtol: float = typer.Option(None, "--rtol", help="print the cheapest timestep whose error is "
+                                           "at most this (relative RMS against the finest run)"),
+                output_var: list[str] = typer.Option(None, "--var", help="outputs --rtol applies to "
+                                                     "(repeatable; default: all)"),
+                set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)"),
+                output: Path = typer.Option(None, "-o", "--output", help="write the runs as NetCDF with a dt "
+                                            "(or xmax) dimension"),
+                plot_to: Path = typer.Option(None, "--plot", help="write a PNG of error and drift against cost"),
+                ) -> None:
+    """Run one case at a ladder of timesteps over the same simulated time and print, per output,
+    the error against the finest run, the observed order, the energy drift and the cost."""
+    from wallbatch.convergence import ConvergenceError
+    from wallbatch.convergence import convergence as run_ladder
+    from wallbatch.convergence import plot as plot_ladder
+    from wallbatch.lammps.export import ExportError
+
+    plan = _plan(config, set_)
+    try:
+        report = run_ladder(plan, case=case, dts=_floats(dt, "--dt"), xmaxs=_floats(xmax, "--xmax"))
+    except (ConvergenceError, ExportError, CaseError, ConfigError) as exc:
+        typer.echo(f"error: {config}: {exc}", err=True)
+        raise typer.Exit(2) from None
+    typer.echo(report.table())
+    if output is not None:
+        report.dataset.to_netcdf(output)
+        typer.echo(f"-> {output}")
+    if plot_to is not None:
+        typer.echo(f"-> {plot_ladder(report, plot_to)}")
+    if rtol is not None:
+        try:
+            best = report.recommend(rtol, output_var or None)
+        except ConvergenceError as exc:
+            typer.echo(f"error: {exc}", err=True)
+            raise typer.Exit(2) from None
+        if best is None:
+            typer.echo(f"no {report.dim} of the ladder meets rtol {rtol:g}: try smaller values", err=True)
+            raise typer.Exit(1)
+        typer.echo(f"cheapest {report.dim} with every error <= {rtol:g}: {best.h:g} "
+                   f"({best.seconds:.3f} s, {best.atom_steps_per_s:.3g} atom-steps/s)")
 
 
 if __name__ == "__main__":  # pragma: no cover

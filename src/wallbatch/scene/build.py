@@ -6,154 +6,32 @@ masses, radii and initial velocities.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .config import Config, TimeInterval, lattice_spacing
-from .expr import Variables
-from .potentials import STYLES, WallStyle
-from .units import LATTICE_POSITIONS, UNIT_SYSTEMS, UnitSystem
-
-Value = float | str  # a number, or the name of an equal-style variable (without v_)
-
-
-class MinimizeWarning(UserWarning):
-    """A minimization whose objective lacks some wall energies (LAMMPS behaviour, reproduced)."""
-
-
-class CaseError(RuntimeError):
-    """A case cannot run (bad input found while building, or a failure during the run)."""
-
-
-@dataclass(frozen=True)
-class Face:
-    """One wall plane: `dim` 0/1/2, `side` -1 (lo) or +1 (hi). `coord` is a number in box units or
-    a variable name whose value is multiplied by `scale` (the lattice spacing, or 1)."""
-
-    label: str  # "fixID/face"
-    name: str
-    dim: int
-    side: int
-    coord: Value
-    scale: float
-    params: dict[str, Value]  # epsilon, sigma, cutoff, D0, alpha, r0 (box units; variables by name)
-
-
-@dataclass(frozen=True)
-class SoftWallSpec:
-    """fix wall/<style>: soft flat walls."""
-
-    fix_id: str
-    style: WallStyle
-    group: np.ndarray  # (N,) bool
-    energy: bool
-    faces: tuple[Face, ...]
-    virial: bool = False  # fix_modify virial: the wall virial joins press
-
-
-@dataclass(frozen=True)
-class ReflectSpec:
-    """fix wall/reflect; `frame` lab (v -> -v, LAMMPS) or wall (v -> 2 v_wall - v)."""
-
-    fix_id: str
-    group: np.ndarray
-    frame: str
-    faces: tuple[Face, ...]
-
-
-@dataclass(frozen=True)
-class DtResetSpec:
-    """fix dt/reset (physics.md §9); xmax in box units; None = no bound."""
-
-    every: int
-    group: np.ndarray
-    tmin: float | None
-    tmax: float | None
-    xmax: float
-    emax: float | None
-
-
-@dataclass(frozen=True)
-class PairSpec:
-    """pair_style lj/cut with one atom type (physics.md §12); `skin` is the neighbor skin."""
-
-    epsilon: float
-    sigma: float
-    cutoff: float
-    shift: bool
-    skin: float
-
-
-@dataclass(frozen=True)
-class RegionWallSpec:
-    """fix wall/region (`potential` a flat-wall style) or wall/region/ees (`potential` None)."""
-
-    fix_id: str
-    kind: str  # "region" | "region/ees"
-    region_name: str
-    region: Any  # regions.RegionGeom, box units
-    potential: WallStyle | None
-    group: np.ndarray
-    energy: bool
-    params: dict[str, Value]  # epsilon, sigma, cutoff, D0, alpha, r0 (box units; variables by name)
-    virial: bool = False
-
-
-@dataclass(frozen=True)
-class Case:
-    """One runnable scene: the engine's input."""
-
-    name: str
-    units: UnitSystem
-    box_lo: np.ndarray  # (3,)
-    box_hi: np.ndarray
-    periodic: np.ndarray  # (3,) bool
-    x: np.ndarray  # (N, 3)
-    v: np.ndarray  # (N, 3)
-    mass: np.ndarray  # (N,)
-    radius: np.ndarray  # (N,)
-    atom_group: np.ndarray  # (N,) index into group_names (creation group)
-    group_names: tuple[str, ...]
-    dt: float
-    variables: Variables
-    variable_text: tuple[tuple[str, str], ...]
-    soft_walls: tuple[SoftWallSpec, ...]
-    reflect_walls: tuple[ReflectSpec, ...]
-    dt_reset: DtResetSpec | None
-    steps: int | None  # run length in steps, or None for a time-based run
-    run_time: float | None
-    thermo: int | float  # int: every n steps (0 = first and last); float: every that much time
-    thermo_is_time: bool
-    outputs: tuple[str, ...]
-    dump_every: int = 0  # output.dump: a frame every that many steps (0: no dump)
-    dump_fields: tuple[str, ...] = ()
-    # ellipsoids (None when no atom has a shape): semi-axes (N,3) (0 for point atoms), unit
-    # quaternions (N,4) (w, x, y, z), space-frame angular momentum (N,3)
-    shape: np.ndarray | None = None
-    quat: np.ndarray | None = None
-    angmom: np.ndarray | None = None
-    pair: PairSpec | None = None
-    region_walls: tuple[RegionWallSpec, ...] = ()
-    flow_walls: tuple = ()  # flow.FlowSpec per wall/flow fix
-    flow_seeds: tuple[tuple[int, ...], ...] = ()  # random stream key per flow wall
-    fix_order: tuple[str, ...] = ()  # fixes with a global scalar (soft, ees, region), config order
-    minimize: Any = None  # minimize.MinSettings, or None
-
-    @property
-    def natoms(self) -> int:
-        return self.x.shape[0]
-
-
-def _no_closed_form(r, p):  # noqa: ANN001, ANN202
-    raise TypeError("wall/ees needs orientations: its kernel calls ellipsoid.ees_energy_force_torque")
-
-
-# wall/ees on flat faces: its energy needs the ellipsoid's orientation, so no (r, p) function;
-# its energy is not shifted at the cut-off (LAMMPS, physics.md §4.7)
-EES_STYLE = WallStyle("ees", ("epsilon", "sigma", "cutoff"), _no_closed_form, shifted=False)
+from wallbatch.config.models import Config, TimeInterval, lattice_spacing
+from wallbatch.expr import Variables
+from wallbatch.geometry.quaternion import normalize, random_quaternions
+from wallbatch.geometry.regions import RegionGeom
+from wallbatch.scene.case import (
+    Case,
+    CaseError,
+    DtResetSpec,
+    Face,
+    FlowSpec,
+    MinimizeWarning,
+    MinSettings,
+    PairSpec,
+    ReflectSpec,
+    RegionWallSpec,
+    SoftWallSpec,
+    Value,
+)
+from wallbatch.styles.ees import EES_STYLE
+from wallbatch.styles.flat import STYLES
+from wallbatch.units import LATTICE_POSITIONS, UNIT_SYSTEMS, UnitSystem
 
 
 def _fail(path: str, msg: str) -> CaseError:
@@ -165,8 +43,6 @@ def _fail(path: str, msg: str) -> CaseError:
 
 def _region_contains(cfg: Config, name: str, pts: np.ndarray) -> np.ndarray:
     """Points inside-or-on a region (side in), or strictly outside (side out)."""
-    from .regions import RegionGeom
-
     region = cfg.regions[name]
     return RegionGeom.from_config(region, None if region.units == "box" else lattice_spacing(cfg)).contains(pts)
 
@@ -328,8 +204,6 @@ def _ellipsoid_state(g: Any, data: dict[str, np.ndarray], n: int, rng: np.random
     """Semi-axes (n,3) (zeros: point atoms), unit quaternions (n,4) and angular momenta (n,3) of a
     group. Orientation: aligned (identity, the default), random (uniform on SO(3)), one
     quaternion [qw, qx, qy, qz] or a `quat` array from the .npz; quaternions are normalised."""
-    from .ellipsoid import normalize, random_quaternions
-
     if "shape" in data:
         shape = _per_atom(data["shape"], n, 3, f"{path}.create.file")
     else:
@@ -401,8 +275,6 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
             reflect.append(ReflectSpec(fid, mask(wall.group), wall.frame, _faces(cfg, fid, wall, ())))
             continue
         if wall.style == "flow":
-            from .flow import FlowSpec
-
             scale = 1.0 if wall.units == "box" else lattice_spacing(cfg)
             flows.append(FlowSpec(fid, mask(wall.group), "xyz".index(wall.axis), wall.vflow, wall.temperature,
                                   np.asarray(wall.coords, float) * scale, wall.rule))
@@ -418,8 +290,6 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
                                 f"{wall.group} needs a shape (ellipsoid semi-axes)")
         fix_order.append(fid)
         if wall.style in ("region", "region/ees"):
-            from .regions import RegionGeom
-
             region = cfg.regions[wall.region]
             spacing = None if region.units == "box" else lattice_spacing(cfg)
             potential = STYLES[wall.potential] if wall.style == "region" else None
@@ -473,8 +343,6 @@ def _pair_spec(cfg: Config) -> PairSpec | None:
 def _min_settings(cfg: Config, dt: float) -> Any:
     if cfg.minimize is None:
         return None
-    from .minimize import MinSettings
-
     quiet = [fid for fid, w in cfg.walls.items() if w.style not in ("reflect", "flow") and not w.energy]
     if quiet:
         warnings.warn(

@@ -32,12 +32,11 @@ consumes random numbers, so a run is bit-reproducible from the generators' state
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.special import erfc, erfcx, expit
 
-from .units import UnitSystem
+from wallbatch.scene.case import FlowSpec
+from wallbatch.units import UnitSystem
 
 _SQRT_PI = float(np.sqrt(np.pi))
 _EPS = float(np.finfo(float).eps)
@@ -255,20 +254,6 @@ def check_flow(axis: int | str, periodic: np.ndarray, box_lo: np.ndarray, box_hi
 
 
 # ----------------------------------------------------------------------------- kernel
-
-
-@dataclass(frozen=True)
-class FlowSpec:
-    """One fix wall/flow of one case, resolved: walls (K,) ascending absolute coordinates along
-    `axis` in box units; vflow [velocity] > 0; temperature [temperature] > 0."""
-
-    fix_id: str
-    group: np.ndarray  # (N,) bool
-    axis: int  # 0, 1, 2
-    vflow: float
-    temperature: float
-    walls: np.ndarray  # (K,)
-    rule: str = "exact"  # "exact" | "lammps"
 
 
 class FlowKernel:

@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from . import pair_numba
+from wallbatch.engine import pair_compiled as pair_numba
 
 # LAMMPS's default neighbor skin per unit style [length] (0.3 sigma in lj; 2 Angstrom in real/metal)
 DEFAULT_SKIN = {"lj": 0.3, "real": 2.0, "metal": 2.0}

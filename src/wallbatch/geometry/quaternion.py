@@ -1,5 +1,5 @@
-"""Ellipsoid mathematics: quaternions, inertia, the nve/asphere rotation step and the wall/ees
-ellipsoid-wall interaction (physics.md §4.7, §6, §11.2, §11.3).
+"""Ellipsoid mathematics: quaternions, inertia and the nve/asphere rotation step (the wall/ees
+ellipsoid-wall interaction is in wallbatch.styles.ees) (physics.md §4.7, §6, §11.2, §11.3).
 
 Everything is batched over arbitrary leading axes: quaternions are ``(..., 4)`` arrays
 ``(w, i, j, k)``, semi-axes ``(..., 3)``, angular momenta and normals ``(..., 3)``, scalars
@@ -29,8 +29,6 @@ import numpy as np
 __all__ = [
     "aligned",
     "angular_velocity",
-    "ees_energy_force_torque",
-    "ees_torque",
     "from_axis_angle",
     "inertia",
     "multiply",
@@ -39,7 +37,6 @@ __all__ = [
     "richardson",
     "rotation_matrix",
     "rotational_energy",
-    "sigma_n",
 ]
 
 INERTIA = 0.2  # moment of inertia prefactor of a uniform solid ellipsoid, I = (m/5)(b^2 + c^2), ...
@@ -222,110 +219,3 @@ def rotational_energy(q: np.ndarray, angmom: np.ndarray, inertia: np.ndarray) ->
     return 0.5 * (iw2[..., 0] + iw2[..., 1] + iw2[..., 2])
 
 
-# --------------------------------------------------------------------------------------------
-# wall/ees (§4.7, §6)
-
-
-def sigma_n(q: np.ndarray, shape: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """Distance [length] from the centre to the tangent plane with unit normal n̂ (§4.7), (...).
-
-    sigma_n = |S A^T n̂| = sqrt(n̂^T A S² A^T n̂), S = diag(a, b, c); ``normal`` (..., 3) broadcasts.
-    """
-    a = rotation_matrix(q)
-    n = np.asarray(normal, dtype=np.float64)
-    a, n = np.broadcast_arrays(a, n[..., None, :])
-    u = np.asarray(shape, dtype=np.float64) * _to_body(a, n[..., 0, :])
-    return np.sqrt(u[..., 0] * u[..., 0] + u[..., 1] * u[..., 1] + u[..., 2] * u[..., 2])
-
-
-def ees_torque(q: np.ndarray, shape: np.ndarray, normal: np.ndarray, tw: np.ndarray) -> np.ndarray:
-    """wall/ees torque [energy] τ = T_w (n̂ × (A S² A^T) n̂), (..., 3) (§4.7).
-
-    ``tw`` is T_w = (1/σn) ∂E/∂σn of :func:`ees_energy_force_torque`. τ = -∂E/∂θ for rotations of
-    the ellipsoid about space-fixed axes; a sphere (A S² A^T ∝ 1) gets none. Same for n̂ and -n̂.
-    """
-    a = rotation_matrix(q)
-    n = np.asarray(normal, dtype=np.float64)
-    a, n = np.broadcast_arrays(a, n[..., None, :])
-    n = n[..., 0, :]
-    s = np.asarray(shape, dtype=np.float64)
-    mn = _to_space(a, s * s * _to_body(a, n))
-    return np.asarray(tw, dtype=np.float64)[..., None] * np.cross(n, mn)
-
-
-# Taylor coefficients in s = t², t = sn/r, of the two bracketed attractive terms:
-#   G(t) = Σ_j t^2j / ((2j+1)(2j+3))          = (2t - 2(1-t²) atanh t) / (4t³)
-#   K(t) = Σ_j t^2j / ((2j+1)(2j+3)(2j+5))    = -(6t - 10t³ - 6(1-t²)² atanh t) / (48 t^5)
-# 28 terms reach the double-precision tail (< 1e-19 relative) for t < 1/2; fewer for smaller t.
-_SERIES_T = 0.5
-_J = np.arange(28, dtype=np.float64)
-_G_COEF = 1.0 / ((2 * _J + 1) * (2 * _J + 3))
-_K_COEF = 1.0 / ((2 * _J + 1) * (2 * _J + 3) * (2 * _J + 5))
-
-
-def _horner(coef: np.ndarray, s: np.ndarray) -> np.ndarray:
-    out = np.full_like(s, coef[-1])
-    for c in coef[-2::-1]:
-        out = out * s + c
-    return out
-
-
-def ees_energy_force_torque(r, sn, epsilon, sigma) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """wall/ees energy, force and torque factor (§4.7), arrays broadcast.
-
-    r [length] distance of the centre from the wall, sn = sigma_n [length] (r > sn >= 0, else the
-    result is not finite), epsilon [energy/length^3] (the effective Hamaker constant
-    8π² ρ_wall ρ_ellipsoid ε_LJ a b c), sigma [length]. Returns
-
-    * E [energy], *unshifted* (LAMMPS applies no cut-off shift to ees),
-    * F = -∂E/∂r [force], F > 0 repulsive,
-    * T_w = (1/sn) ∂E/∂sn [energy/length^2]; the torque is T_w (n̂ × A S² A^T n̂) (:func:`ees_torque`).
-
-    With t = sn/r, p = 1 - t² = h/r² (formed as ((r-sn)/r)((r+sn)/r), exact near contact) and
-    x = σ/r the closed forms of §4.7 are rewritten as
-
-        E   = εσ³ [ -(1/3) x³ G(t)/p  + (2/945) x⁹ (7 + 14t² + 3t⁴)/p⁷ ]
-        F   = εσ² [ -(1/3) x⁴ / p²    + (2/315) x¹⁰ (21 + 63t² + 27t⁴ + t⁶)/p⁸ ]
-        T_w = εσ  [ -4 x⁵ K(t)/p²     + (4/315) x¹¹ (21 + 30t² + 5t⁴)/p⁸ ]
-
-    where only G and K hide a cancellation (the ln term against the rational part, all digits
-    lost as t -> 0). They are summed as Taylor series in t² for t < 1/2, and from the closed forms
-    with ln((r-sn)/(r+sn)) for t >= 1/2, where at most ~1 digit cancels. Far field:
-    E -> -εσ⁶/(9r³), F -> -εσ⁶/(3r⁴), T_w -> -4εσ⁶/(15r⁵).
-    """
-    r, sn, eps, sig = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (r, sn, epsilon, sigma)))
-    out_shape = r.shape
-    r, sn, eps, sig = (v.reshape(-1) for v in (r, sn, eps, sig))
-    t = sn / r
-    s = t * t
-    p = ((r - sn) / r) * ((r + sn) / r)
-
-    far = t < _SERIES_T
-    # always all 28 terms: each element's value must not depend on the others in the array, so a
-    # case gives bit-identical numbers alone or in any batch
-    g = _horner(_G_COEF, s)
-    k = _horner(_K_COEF, s)
-    if not np.all(far):
-        near = ~far
-        tn, pn = t[near], p[near]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ln = np.log((r[near] - sn[near]) / (r[near] + sn[near]))
-        t3 = tn * tn * tn
-        g[near] = (2.0 * tn + pn * ln) / (4.0 * t3)
-        k[near] = -(6.0 * tn - 10.0 * t3 + 3.0 * pn * pn * ln) / (48.0 * t3 * tn * tn)
-
-    x = sig / r
-    x2 = x * x
-    x3 = x2 * x
-    x9 = x3 * x3 * x3
-    p2 = p * p
-    p4 = p2 * p2
-    p7 = p4 * p2 * p
-    p8 = p4 * p4
-    s2 = s * s
-    energy = eps * sig**3 * (-(1.0 / 3.0) * x3 * g / p + (2.0 / 945.0) * x9 * (7.0 + 14.0 * s + 3.0 * s2) / p7)
-    force = eps * sig**2 * (
-        -(1.0 / 3.0) * x3 * x / p2 + (2.0 / 315.0) * x9 * x * (21.0 + 63.0 * s + 27.0 * s2 + s2 * s) / p8
-    )
-    torque = eps * sig * (-4.0 * x3 * x2 * k / p2 + (4.0 / 315.0) * x9 * x2 * (21.0 + 30.0 * s + 5.0 * s2) / p8)
-    return energy.reshape(out_shape), force.reshape(out_shape), torque.reshape(out_shape)

@@ -65,6 +65,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wallbatch.scene.case import MinSettings
+
 __all__ = ["STOP_REASONS", "MinResult", "MinSettings", "minimize"]
 
 Objective = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
@@ -104,38 +106,6 @@ FIRE_VDFMAX = 2000  # consecutive iterations with v.f <= 0 before giving up
 
 # per-case phase: which evaluation the case is waiting for
 _DONE, _SETUP, _TRIAL, _QUAD, _V0, _STEP = -1, 0, 1, 2, 3, 4
-
-
-@dataclass(frozen=True)
-class MinSettings:
-    """``minimize etol ftol maxiter maxeval`` with ``min_style`` and ``min_modify dmax``.
-
-    etol [-] relative energy change, ftol [force] on the force 2-norm, dmax [length] largest
-    move of any coordinate in one line search (cg) or one step (fire), timestep [time] the
-    initial fire timestep (LAMMPS's current ``timestep``), norm: LAMMPS ``thermo_modify norm``
-    (energies divided by N inside the algorithm).
-    """
-
-    etol: float
-    ftol: float
-    maxiter: int
-    maxeval: int
-    style: str = "cg"
-    dmax: float = 0.1
-    timestep: float | None = None
-    norm: bool = False
-
-    def __post_init__(self) -> None:
-        if self.style not in ("cg", "fire"):
-            raise ValueError(f"min style must be 'cg' or 'fire', not {self.style!r}")
-        if not (self.etol >= 0 and self.ftol >= 0):
-            raise ValueError("etol and ftol must be >= 0")
-        if self.maxiter < 0 or self.maxeval < 0:
-            raise ValueError("maxiter and maxeval must be >= 0")
-        if not self.dmax > 0:
-            raise ValueError("dmax must be > 0")
-        if self.style == "fire" and not (self.timestep is not None and self.timestep > 0):
-            raise ValueError("min style fire needs a timestep > 0")
 
 
 @dataclass

@@ -35,17 +35,20 @@ from __future__ import annotations
 
 import math
 import os
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
+
+from wallbatch.engine.state import BatchState
+from wallbatch.engine.walls import ReflectKernel, SoftWallKernel
+from wallbatch.expr import VariableError
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
 except Exception:  # noqa: BLE001 - any import failure means "no compiled path"
     njit = None
 
-if TYPE_CHECKING:
-    from .engine import Engine
+Engine = Any  # the wallbatch.engine.engine.Engine this path is attached to (not imported: it imports us)
 
 STYLE_IDS = {"lj93": 0, "lj126": 1, "lj1043": 2, "colloid": 3, "harmonic": 4, "morse": 5}
 BIG = 1.0e20  # dt/reset's "no limit" (engine.BIG)
@@ -460,8 +463,6 @@ if njit is not None:
 
 def _eligible(engine: "Engine") -> bool:
     """Whitelist: flat soft walls of known styles, wall/reflect, dt/reset, variables; nothing else."""
-    from .walls import ReflectKernel, SoftWallKernel
-
     for name in ("pair", "quat"):
         obj = engine if name == "pair" else engine.state
         if getattr(obj, name, None) is not None:
@@ -508,8 +509,6 @@ class FastPath:
     def _values(self, nsteps: int, varying: bool) -> tuple[np.ndarray, np.ndarray] | None:
         """Per-step wall values: soft (C, S', F, 5) = coord, p0, p1, p2, cutoff and reflect
         coords (C, S', R); S' = nsteps when a value varies with time, else 1. None: fall back."""
-        from .expr import VariableError
-
         eng, s = self.engine, self.engine.state
         C = s.ncases
         nval = nsteps if varying else 1
@@ -521,7 +520,6 @@ class FastPath:
             if name not in cache:
                 if ctx is None:
                     steps = s.step[None, :] + np.arange(1, nval + 1, dtype=np.int64)[:, None]
-                    from .engine import BatchState
                     ctx = BatchState.context(_StepContext(s, steps))
                 cache[name] = np.broadcast_to(np.asarray(s.variables.evaluate(name, ctx), float), (nval, C))
             return cache[name]

@@ -11,7 +11,6 @@ import re
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-import yaml
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -26,135 +25,16 @@ from pydantic import (
     model_validator,
 )
 
-FACES = ("xlo", "xhi", "ylo", "yhi", "zlo", "zhi")
+from wallbatch.config.source import FACES, POSITIONAL, ConfigError, SourceMap, load_yaml
+
 SOFT_STYLES = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "ees")
 REGION_POTENTIALS = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse")
 THERMO_KEYWORDS = (
     "step", "time", "dt", "temp", "ke", "pe", "etot", "press", "atoms", "erot",
     "reflect_count", "reflect_impulse", "flow_crossings",
 )
-WALL_TAGS = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse", "ees", "reflect", "flow", "region",
-             "region/ees")
-POSITIONAL = {4: ("coord", "epsilon", "sigma", "cutoff"), 5: ("coord", "D0", "alpha", "r0", "cutoff")}
 VAR_RE = re.compile(r"^v_[A-Za-z_][A-Za-z0-9_]*$")
 NAME_RE = r"^[A-Za-z_][A-Za-z0-9_\-]*$"
-
-
-# ----------------------------------------------------------------------------- errors
-
-
-class ConfigError(ValueError):
-    """Invalid config: one line per problem, `file:line:col: path: message`."""
-
-    def __init__(self, problems: list[str]):
-        self.problems = problems
-        super().__init__("\n".join(problems))
-
-
-class SourceMap:
-    """Where each value of a YAML document stands: dotted path -> (line, column), 1-based."""
-
-    def __init__(self, filename: str, marks: dict[tuple, tuple[int, int]], data: Any):
-        self.filename = filename
-        self.marks = marks
-        self.data = data
-
-    def locate(self, loc: tuple) -> tuple[tuple, tuple[int, int] | None]:
-        """Resolve a Pydantic error location against the data: drop union tags and other loc
-        parts that index nothing, and return (path to show, nearest known mark)."""
-        path: list = []  # indexes the marks: mapping keys as written (text), list indices
-        shown: list = []  # what the user reads: field names, also for positional faces
-        node = self.data
-        for part in loc:
-            if isinstance(node, dict) and isinstance(part, str) and part not in node and part.lstrip("-").isdigit() \
-                    and int(part) in node:
-                part = int(part)  # a fix-ID like `1:` that YAML read as a number
-            if isinstance(node, dict) and part in node:
-                node = node[part]
-                path.append(str(part))
-                shown.append(part)
-            elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
-                node = node[part]
-                path.append(part)
-                shown.append(part)
-            elif isinstance(node, list) and part in POSITIONAL.get(len(node), ()):
-                i = POSITIONAL[len(node)].index(part)  # a field of a face written positionally
-                node = node[i]
-                path.append(i)
-                shown.append(part)
-            elif isinstance(node, dict) and isinstance(part, str) and (part in FACES or (
-                    part not in WALL_TAGS and not any(c in part for c in "[]()"))):
-                shown.append(part)  # a missing key: name it, point at its parent
-                node = None
-            elif isinstance(node, str) and isinstance(part, str) and part not in WALL_TAGS \
-                    and not any(c in part for c in "[]()"):
-                shown.append(part)  # a field of a wall written as a fix line: name it, point at the line
-        mark = None
-        for n in range(len(path), -1, -1):
-            mark = self.marks.get(tuple(path[:n]))
-            if mark:
-                break
-        return tuple(shown), mark
-
-    def format(self, loc: tuple, message: str) -> str:
-        path, mark = self.locate(loc)
-        where = f"{self.filename}:{mark[0]}:{mark[1]}" if mark else self.filename
-        dotted = ".".join(str(p) for p in path) or "(top level)"
-        return f"{where}: {dotted}: {message}"
-
-
-class _Loader(yaml.SafeLoader):
-    """SafeLoader that reads `1e-5` as a number (YAML 1.1 wants `1.0e-5`) and refuses
-    duplicate keys."""
-
-
-_Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)[eE][-+]?[0-9]+$"),
-    list("-+0123456789."),
-)
-
-
-def load_yaml(text: str, filename: str = "<config>") -> tuple[Any, SourceMap]:
-    """Parse YAML (safe) and keep the line/column of every value."""
-    try:
-        loader = _Loader(text)
-        try:
-            node = loader.get_single_node()
-        finally:
-            loader.dispose()
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"{filename}:{mark.line + 1}:{mark.column + 1}" if mark else filename
-        raise ConfigError([f"{where}: YAML syntax error: {getattr(exc, 'problem', exc)}"]) from None
-    if node is None:
-        raise ConfigError([f"{filename}: the file is empty"])
-    marks: dict[tuple, tuple[int, int]] = {}
-    problems: list[str] = []
-
-    def walk(n: yaml.Node, path: tuple) -> None:
-        marks[path] = (n.start_mark.line + 1, n.start_mark.column + 1)
-        if isinstance(n, yaml.MappingNode):
-            seen: dict[str, int] = {}
-            for k, v in n.value:
-                key = k.value
-                if key in seen:
-                    dotted = ".".join(str(p) for p in path + (key,))
-                    problems.append(
-                        f"{filename}:{k.start_mark.line + 1}:{k.start_mark.column + 1}: {dotted}: "
-                        f"defined twice (first at line {seen[key]}); keep one"
-                    )
-                seen[key] = k.start_mark.line + 1
-                walk(v, path + (key,))
-        elif isinstance(n, yaml.SequenceNode):
-            for i, v in enumerate(n.value):
-                walk(v, path + (i,))
-
-    walk(node, ())
-    if problems:
-        raise ConfigError(problems)
-    data = _Loader(text).get_single_data()
-    return data, SourceMap(filename, marks, data)
 
 
 # ----------------------------------------------------------------------------- value types
@@ -197,6 +77,10 @@ def _bound(v: Any) -> float | None:
 
 
 from pydantic import BeforeValidator  # noqa: E402
+
+from wallbatch.config.fixline import FixLineError, parse_fix_line
+from wallbatch.expr import VariableError, Variables
+from wallbatch.units import lattice_constant
 
 Coord = Annotated[Union[float, str], BeforeValidator(_coord)]
 Param = Annotated[Union[float, str], BeforeValidator(_param)]
@@ -615,8 +499,6 @@ def _expand_fix_lines(data: Any, srcmap: SourceMap) -> Any:
     a line that cannot be read is reported at its own wall."""
     if not isinstance(data, dict) or not isinstance(data.get("walls"), dict):
         return data
-    from .fixline import FixLineError, parse_fix_line
-
     walls, problems = {}, []
     for fid, w in data["walls"].items():
         try:
@@ -685,8 +567,6 @@ def _var_refs(value: Any) -> list[str]:
 
 def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
     """Cross-field checks that the models cannot do alone: (path, message) per problem."""
-    from .expr import VariableError, Variables
-
     problems: list[tuple[tuple, str]] = []
     add = lambda path, msg: problems.append((path, msg))  # noqa: E731
     groups = ["all"]
@@ -833,8 +713,6 @@ def _check_flow_wall(cfg: "Config", fid: str, wall: Any, add: Any) -> None:
 
 def lattice_spacing(cfg: "Config") -> float | None:
     """The lattice spacing of `lattice:` in box units (physics.md §2.1), or None without one."""
-    from .units import lattice_constant
-
     if cfg.lattice is None:
         return None
     return lattice_constant(cfg.lattice.style, cfg.lattice.scale, cfg.units)

@@ -20,15 +20,17 @@ from __future__ import annotations
 
 import time as _time
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
-from .expr import EvalContext, VariableError, Variables
-from .fast import attach_fast_path
-from .scene import Case
-from .units import UnitSystem
-from .walls import build_kernels, build_region_kernels
+from wallbatch.engine.compiled import attach_fast_path
+from wallbatch.engine.flow import FlowKernel
+from wallbatch.engine.minimize import minimize
+from wallbatch.engine.pair import PairLJCut
+from wallbatch.engine.state import BatchState
+from wallbatch.engine.walls import build_kernels, build_region_kernels
+from wallbatch.geometry.quaternion import richardson, rotational_energy
+from wallbatch.scene.case import Case, structure_key
 
 BIG = 1.0e20  # dt/reset's "no limit" (LAMMPS BIG)
 PAIR = "__pair__"  # key of the pair style's (energy, virial) among the force outputs
@@ -44,155 +46,6 @@ class CaseResult:
     seconds: float
     data: dict[str, np.ndarray] = field(default_factory=dict)
     frames: dict[str, np.ndarray] = field(default_factory=dict)  # output.dump: time (F,), x/v (F, N, 3)
-
-
-def structure_key(case: Case) -> tuple:
-    """Cases with equal keys can share a batch: same atoms, groups, fixes, variables, schedule."""
-    def faces(spec):
-        return tuple((f.name, f.scale, tuple(sorted(f.params)),
-                      f.coord if isinstance(f.coord, str) else "#",
-                      tuple(v if isinstance(v, str) else "#" for v in f.params.values())) for f in spec.faces)
-
-    variables = tuple((k, "#" if case.variables.constant_value(k) is not None else text)
-                      for k, text in case.variable_text)  # numeric constants may differ per case
-    return (
-        case.units.name, case.natoms, case.atom_group.tobytes(), tuple(case.periodic),
-        tuple(case.box_lo), tuple(case.box_hi), variables,
-        tuple((w.fix_id, w.style.name, w.group.tobytes(), w.energy, faces(w)) for w in case.soft_walls),
-        tuple((w.fix_id, w.frame, w.group.tobytes(), faces(w)) for w in case.reflect_walls),
-        None if case.dt_reset is None else (case.dt_reset.every, case.dt_reset.group.tobytes()),
-        case.steps, case.run_time, case.thermo, case.thermo_is_time, case.outputs, case.dump_every,
-        case.dump_fields, case.fix_order, case.shape is not None,
-        None if case.pair is None else (case.pair.shift, case.pair.skin),  # parameters may differ per case
-        tuple((w.fix_id, w.kind, w.region, None if w.potential is None else w.potential.name, w.group.tobytes(),
-               w.energy, tuple((k, v if isinstance(v, str) else "#") for k, v in sorted(w.params.items())))
-              for w in case.region_walls),
-        tuple((w.fix_id, w.group.tobytes(), w.axis, w.walls.tobytes(), w.rule) for w in case.flow_walls),
-        None if case.minimize is None else case.minimize.style,
-    )
-
-
-class BatchState:
-    """Positions, velocities, forces and clocks of C cases of N atoms, plus failure bookkeeping."""
-
-    def __init__(self, cases: list[Case]):
-        c0 = cases[0]
-        self.units: UnitSystem = c0.units
-        self.rows = np.arange(len(cases))  # original index of each live row
-        self.x = np.stack([c.x for c in cases]).astype(float)
-        self.v = np.stack([c.v for c in cases]).astype(float)
-        self.f = np.zeros_like(self.x)
-        self.mass = np.stack([c.mass for c in cases])
-        self.radius = np.stack([c.radius for c in cases])
-        self.box_lo, self.box_hi = c0.box_lo, c0.box_hi
-        self.periodic = np.nonzero(c0.periodic)[0]
-        self.fixed = np.nonzero(~c0.periodic)[0]
-        self.dt = np.array([c.dt for c in cases], float)
-        self.atime = np.zeros(len(cases))  # LAMMPS time accumulator: time = atime + (step - atimestep) dt
-        self.atimestep = np.zeros(len(cases), np.int64)
-        self.step = np.zeros(len(cases), np.int64)
-        self.variables: Variables = c0.variables
-        # constant variables whose value differs between the cases: per-case arrays
-        consts = {k: np.array([c.variables.constant_value(k) for c in cases]) for k, _ in c0.variable_text
-                  if c0.variables.constant_value(k) is not None}
-        self.var_values = {k: v for k, v in consts.items() if np.any(v != v[0])}
-        self.var_static: dict[str, np.ndarray] = {}
-        self.var_step: dict[str, np.ndarray] = {}
-        self.ctx: EvalContext | None = None  # this step's variable context
-        # vdisplace/swiggle/cwiggle: LAMMPS's (n - b) dt, or elapsed simulated time when dt varies
-        self.elapsed_is_time = c0.dt_reset is not None or c0.run_time is not None
-        self.end_step = c0.steps or 0
-        self.run_time = c0.run_time
-        self.failed: dict[int, str] = {}  # live row -> message, pending removal
-        # ellipsoids only (None otherwise): quaternions (C,N,4), angular momentum, torque, semi-axes
-        # and principal moments of inertia (C,N,3)
-        self.quat: np.ndarray | None = None
-        self.angmom: np.ndarray | None = None
-        self.torque: np.ndarray | None = None
-        self.shape: np.ndarray | None = None
-        self.inertia: np.ndarray | None = None
-        if c0.shape is not None:
-            from .ellipsoid import inertia
-
-            self.quat = np.stack([c.quat for c in cases]).astype(float)
-            self.angmom = np.stack([c.angmom for c in cases]).astype(float)
-            self.torque = np.zeros_like(self.angmom)
-            self.shape = np.stack([c.shape for c in cases]).astype(float)
-            self.inertia = inertia(self.mass, self.shape)
-
-    @property
-    def ncases(self) -> int:
-        return self.x.shape[0]
-
-    @property
-    def time(self) -> np.ndarray:
-        return self.atime + (self.step - self.atimestep) * self.dt
-
-    def set_dt(self, new_dt: np.ndarray) -> None:
-        """Change the timestep, closing the time accumulator first (as fix dt/reset does)."""
-        changed = new_dt != self.dt
-        if changed.any():
-            self.atime = np.where(changed, self.time, self.atime)
-            self.atimestep = np.where(changed, self.step, self.atimestep)
-            self.dt = np.where(changed, new_dt, self.dt)
-
-    # -- variables -------------------------------------------------------------------------
-
-    def context(self) -> EvalContext:
-        """What variables see at the current step (built once per step, see `variable`)."""
-        if self.ctx is not None:
-            return self.ctx
-        steps_done = self.step.astype(float)
-        if self.run_time is not None:
-            ramp = self.time / self.run_time
-        else:
-            ramp = steps_done / self.end_step if self.end_step > 0 else np.zeros(self.ncases)
-        elapsed = self.time if self.elapsed_is_time else steps_done * self.dt
-        self.ctx = EvalContext(step=self.step, begin_step=0, end_step=self.end_step, dt=self.dt, time=self.time,
-                           elapsed_time=elapsed, ramp_fraction=ramp, box_lo=tuple(self.box_lo),
-                           box_hi=tuple(self.box_hi), atoms=self.x.shape[1], values=self.var_values)
-        return self.ctx
-
-    def variable(self, name: str) -> np.ndarray:
-        """Value (C,) of an equal-style variable at the current step; constants are evaluated once."""
-        cache = self.var_step if self.variables.depends_on_time(name) else self.var_static
-        if name not in cache:
-            try:
-                value = self.variables.evaluate(name, self.context())
-            except VariableError:
-                value = self._variable_per_case(name)
-            cache[name] = np.broadcast_to(np.asarray(value, float), (self.ncases,))
-        return cache[name]
-
-    def _variable_per_case(self, name: str) -> np.ndarray:
-        """Slow path after an evaluation error: find the cases that fail, fail them, NaN there."""
-        out = np.full(self.ncases, np.nan)
-        ctx = self.context()
-        for c in range(self.ncases):
-            one = EvalContext(**{k: (v[c:c + 1] if isinstance(v, np.ndarray) else v) for k, v in vars(ctx).items()
-                                 if k != "values"}, values={k: v[c:c + 1] for k, v in ctx.values.items()})
-            try:
-                out[c] = self.variables.evaluate(name, one)[0]
-            except VariableError as exc:
-                self.fail(np.array([c]), lambda _c, e=exc: f"variables.{name} at step {int(self.step[_c])}: {e}")
-        return out
-
-    # -- failures --------------------------------------------------------------------------
-
-    def fail(self, rows: np.ndarray, message: Callable[[int], str]) -> None:
-        for c in np.atleast_1d(rows).tolist():
-            self.failed.setdefault(int(c), message(int(c)))
-
-    def take(self, keep: np.ndarray) -> None:
-        for name in ("rows", "x", "v", "f", "mass", "radius", "dt", "atime", "atimestep", "step"):
-            setattr(self, name, getattr(self, name)[keep])
-        if self.quat is not None:
-            for name in ("quat", "angmom", "torque", "shape", "inertia"):
-                setattr(self, name, getattr(self, name)[keep])
-        self.var_static = {k: v[keep] for k, v in self.var_static.items()}
-        self.var_values = {k: v[keep] for k, v in self.var_values.items()}
-        self.ctx = None
-        self.var_step = {}
 
 
 class Engine:
@@ -218,15 +71,11 @@ class Engine:
         # the compiled path (fast.py) runs only scenes without pair, flow, ees, region walls, ellipsoids
         self.pair = None  # pair.PairLJCut
         if c0.pair is not None:
-            from .pair import PairLJCut
-
             self.pair = PairLJCut(np.array([c.pair.epsilon for c in cases]), np.array([c.pair.sigma for c in cases]),
                                   np.array([c.pair.cutoff for c in cases]), box_lo=c0.box_lo, box_hi=c0.box_hi,
                                   periodic=c0.periodic, shift=c0.pair.shift, skin=c0.pair.skin)
         self.flow: list = []  # flow.FlowKernel per wall/flow fix
         if c0.flow_walls:
-            from .flow import FlowKernel
-
             for i in range(len(c0.flow_walls)):
                 rngs = [np.random.default_rng(np.random.SeedSequence(list(c.flow_seeds[i]))) for c in cases]
                 self.flow.append(FlowKernel([c.flow_walls[i] for c in cases], rngs, c0.box_lo, c0.box_hi, c0.units))
@@ -245,8 +94,6 @@ class Engine:
         s.v += dtfm * s.f
         s.x += dt[:, None, None] * s.v
         if s.quat is not None:
-            from .ellipsoid import richardson
-
             s.angmom += ((0.5 * s.units.ftm2v) * dt)[:, None, None] * s.torque
             s.quat = richardson(s.quat, s.angmom, s.inertia, (0.5 * dt)[:, None])
 
@@ -380,8 +227,6 @@ class Engine:
             "atoms": np.full(s.ncases, float(n)),
         }
         if s.quat is not None:  # compute erotate/asphere joins ke, so etot is the conserved total
-            from .ellipsoid import rotational_energy
-
             rec["erot"] = u.mvv2e * rotational_energy(s.quat, s.angmom, s.inertia).sum(axis=1)
             ke = ke + rec["erot"]
         pe = out[PAIR][0].copy() if PAIR in out else np.zeros(s.ncases)
@@ -499,8 +344,6 @@ class Engine:
         fix_modify energy). Reflect, flow and dt/reset are skipped; orientations are not minimized.
         Per case: min_iterations, min_evaluations, min_stop_reason, min_energy_before, min_energy,
         min_fnorm."""
-        from .minimize import minimize
-
         s = self.state
         scalar_fixes = self.soft + self.region_walls
 

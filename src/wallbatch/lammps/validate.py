@@ -37,9 +37,10 @@ from types import ModuleType
 
 import numpy as np
 
-from .config import Config
-from .engine import CaseResult, run_cases, sample_steps
-from .export import (
+from wallbatch.config.models import Config
+from wallbatch.config.sweep import SweepCase
+from wallbatch.engine.engine import CaseResult, run_cases, sample_steps
+from wallbatch.lammps.export import (
     ExportError,
     LammpsExport,
     check_exportable,
@@ -48,8 +49,8 @@ from .export import (
     lammps_ready,
     write_export,
 )
-from .scene import Case, build_case
-from .sweep import SweepCase
+from wallbatch.scene.build import build_case
+from wallbatch.scene.case import Case
 
 __all__ = [
     "FLOOR",

@@ -8,54 +8,13 @@ scales with the atoms near walls, not with N.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-from .potentials import WallStyle
-from .scene import Case, Face, ReflectSpec, SoftWallSpec
-
-if TYPE_CHECKING:
-    from .engine import BatchState
-
-Stacked = np.ndarray | str  # per-case numbers (C,), or a variable name
-
-
-def stack_values(values: list[float | str], what: str) -> Stacked:
-    """Per-case values of one field: numbers stack into an array; a variable must be the same
-    variable in every case of a batch."""
-    if all(isinstance(v, float) for v in values):
-        return np.asarray(values, dtype=float)
-    if all(v == values[0] for v in values):
-        return values[0]
-    raise ValueError(f"{what}: cases mixing numbers and variables cannot share a batch")
-
-
-class FaceValues:
-    """The values of one face over a batch, resolved each step through `value()`."""
-
-    def __init__(self, faces: list[Face]):
-        f0 = faces[0]
-        self.label, self.name, self.dim, self.side, self.scale = f0.label, f0.name, f0.dim, f0.side, f0.scale
-        self.coord = stack_values([f.coord for f in faces], f"{f0.label} coord")
-        self.params = {k: stack_values([f.params[k] for f in faces], f"{f0.label} {k}") for k in f0.params}
-
-    def take(self, keep: np.ndarray) -> None:
-        if isinstance(self.coord, np.ndarray):
-            self.coord = self.coord[keep]
-        for k, v in self.params.items():
-            if isinstance(v, np.ndarray):
-                self.params[k] = v[keep]
-
-    def position(self, state: "BatchState") -> np.ndarray:
-        """Wall position (C,) in box units at the current step."""
-        if isinstance(self.coord, np.ndarray):
-            return self.coord
-        return state.variable(self.coord) * self.scale
-
-    def param(self, key: str, state: "BatchState") -> np.ndarray:
-        v = self.params[key]
-        return v if isinstance(v, np.ndarray) else state.variable(v)
+from wallbatch.engine.region_walls import RegionEESKernel, RegionWallKernel
+from wallbatch.engine.state import BatchState, FaceValues
+from wallbatch.scene.case import Case, ReflectSpec, SoftWallSpec
+from wallbatch.styles.ees import ees_energy_force_torque, ees_torque, sigma_n
+from wallbatch.styles.flat import WallStyle
 
 
 class SoftWallKernel:
@@ -147,8 +106,6 @@ class EESWallKernel(SoftWallKernel):
     unshifted (LAMMPS); an atom with delta <= sigma_n is on or inside the wall."""
 
     def apply(self, state: "BatchState", outputs: bool) -> tuple[np.ndarray, np.ndarray] | None:
-        from .ellipsoid import ees_energy_force_torque, ees_torque, sigma_n
-
         C = state.ncases
         energy = np.zeros(C) if outputs else None
         vector = np.zeros((C, len(self.faces))) if outputs else None
@@ -252,8 +209,6 @@ def build_kernels(cases: list[Case], outputs: tuple[str, ...]) -> tuple[list[Sof
 
 def build_region_kernels(cases: list[Case]) -> list:
     """wall/region and wall/region/ees kernels of a batch, in config order."""
-    from .regions import RegionEESKernel, RegionWallKernel
-
     kernels = []
     for i, spec in enumerate(cases[0].region_walls):
         kind = RegionEESKernel if spec.kind == "region/ees" else RegionWallKernel

@@ -23,12 +23,14 @@ from typing import Callable, Iterator
 import numpy as np
 import xarray as xr
 
-from . import __version__
-from .config import Config
-from .engine import CaseResult, run_cases, structure_key
-from .output import build_dataset, write_netcdf
-from .scene import Case, CaseError, build_case
-from .sweep import SweepCase, SweepPlan, config_to_dict
+from wallbatch.version import __version__
+from wallbatch.config.models import Config
+from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict
+from wallbatch.engine.engine import CaseResult, run_cases
+from wallbatch.io.amber import write_amber
+from wallbatch.io.netcdf import build_dataset, write_netcdf
+from wallbatch.scene.build import build_case
+from wallbatch.scene.case import Case, CaseError, structure_key
 
 MAX_BATCH = 256  # cases per task: big enough to amortise Python overhead, small enough to resume
 
@@ -128,8 +130,6 @@ def dump_path(output: Path, sc: SweepCase) -> Path:
 
 
 def write_dump(path: Path, case: Case, res: CaseResult) -> None:
-    from .dump import write_amber
-
     if res.frames.get("time") is not None and len(res.frames["time"]):
         write_amber(path, res.frames["time"], res.frames.get("x"), res.frames.get("v"), case.box_lo, case.box_hi,
                     case.units.name, title=f"wallbatch {case.name}")

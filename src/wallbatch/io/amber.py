@@ -17,7 +17,7 @@ from pathlib import Path
 import netCDF4
 import numpy as np
 
-from . import __version__
+from wallbatch.version import __version__
 
 CONVENTION = "AMBER"
 CONVENTION_VERSION = "1.0"

@@ -31,13 +31,14 @@ from typing import Any
 
 import numpy as np
 
-from . import __version__
-from .config import Config, config_from_dict
-from .expr import Binary, Call, Keyword, Node, Num, Unary, to_lammps
-from .fixline import to_fix_line
-from .scene import Case, ReflectSpec, RegionWallSpec, SoftWallSpec, build_case
-from .sweep import SweepCase, SweepPlan, config_to_dict, set_path
-from .units import UNIT_SYSTEMS
+from wallbatch.version import __version__
+from wallbatch.config.fixline import to_fix_line
+from wallbatch.config.models import Config, config_from_dict
+from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict, set_path
+from wallbatch.expr import Binary, Call, Keyword, Node, Num, Unary, to_lammps
+from wallbatch.scene.build import build_case
+from wallbatch.scene.case import Case, ReflectSpec, RegionWallSpec, SoftWallSpec
+from wallbatch.units import UNIT_SYSTEMS
 
 __all__ = [
     "ATOM_WRITERS",

@@ -20,8 +20,8 @@ import numpy as np
 import yaml
 from pydantic import Field, PositiveInt, ValidationError, field_validator
 
-from .config import Config, ConfigError, Model, SourceMap, _Loader, load_yaml, validate_data
-
+from wallbatch.config.models import Config, Model, validate_data
+from wallbatch.config.source import ConfigError, SourceMap, _Loader, load_yaml
 
 # ----------------------------------------------------------------------------- the sweep models
 

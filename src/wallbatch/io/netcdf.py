@@ -14,11 +14,10 @@ from typing import Sequence
 import numpy as np
 import xarray as xr
 
-from . import __version__
-from .engine import CaseResult, sample_instants
-from .scene import Case
-from .sweep import SweepDim
-
+from wallbatch.version import __version__
+from wallbatch.config.sweep import SweepDim
+from wallbatch.engine.engine import CaseResult, sample_instants
+from wallbatch.scene.case import Case
 
 LONG_NAMES = {
     "time": "elapsed simulated time",
