@@ -57,7 +57,8 @@ def probe_wall(
         if steps:
             lmp.command("fix nve all nve")
         lmp.command(f"fix w all {fix}")
-        lmp.command("fix_modify w energy yes")
+        if "reflect" not in fix.split()[0]:
+            lmp.command("fix_modify w energy yes")
         lmp.command(f"run {steps}")
         ids = lmp.numpy.extract_atom("id")[:n].copy()
         order = np.argsort(ids)

@@ -10,7 +10,7 @@ import pytest
 
 from lammps_oracle import requires_lammps
 from wallbatch.expr import Binary, Call, Num, Unary, VarRef
-from wallbatch.potentials import harmonic, lj93, lj126, lj1043, morse
+from wallbatch.styles.flat import harmonic, lj93, lj126, lj1043, morse
 from wallbatch.styles.lepton import (
     LeptonError,
     compile_expression,

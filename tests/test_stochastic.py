@@ -90,7 +90,7 @@ def test_positions_leave_the_wall_at_the_crossing():
     out = np.vstack([reflect_positions(x[i : i + 1], v_old[i : i + 1], v_new[i : i + 1], 2, coords[i]) for i in range(2)])
     t = np.array([0.009 / 2.0, 0.02 / 4.0])
     np.testing.assert_allclose(out[:, 2], coords + v_new[:, 2] * t, rtol=1e-14)
-    np.testing.assert_allclose(out[:, :2], x[:, :2] + (v_new - v_old)[:, :2] * t[:, None], rtol=1e-14)
+    np.testing.assert_allclose(out[:, :2], x[:, :2] + (v_new - v_old)[:, :2] * t[:, None], rtol=1e-14, atol=1e-15)
 
 
 # ------------------------------------------------------------------------------ LAMMPS

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from lammps_oracle import requires_lammps
-from wallbatch.potentials import harmonic, lj93
+from wallbatch.styles.flat import harmonic, lj93
 from wallbatch.styles.table import (
     TableError,
     WallTable,
