@@ -61,6 +61,7 @@ SUPPORTED_STYLES: tuple[str, ...] = tuple(f"wall/{s}" for s in FLAT_STYLES) + (
     "wall/flow",
     "wall/region",
     "wall/region/ees",
+    "wall/reflect/stochastic",
 )
 
 _LJ_FIELDS = ("coord", "epsilon", "sigma", "cutoff")
@@ -235,6 +236,8 @@ def parse_fix_line(text: str, fix_id: str) -> dict:
         return _parse_flat(w, short, group)
     if short == "reflect":
         return _parse_reflect(w, group)
+    if short == "reflect/stochastic":
+        return _parse_stochastic(w, group)
     if short == "flow":
         return _parse_flow(w, group)
     if short == "region":
@@ -616,6 +619,8 @@ def to_fix_line(fix_id: str, wall: Any) -> str:
             words += ["pbc", "yes" if _flag(wall["pbc"], f"{where}.pbc") else "no"]
         if "fld" in wall and _flag(wall["fld"], f"{where}.fld"):
             raise ValueError(f"{where}.fld: fld yes (lubrication) is not supported")
+    elif style == "reflect/stochastic":
+        words += _stochastic_words(wall, where)
     elif style == "flow":
         _reject_unknown(
             wall, {"style", "group", "axis", "vflow", "temperature", "seed", "coords", "units"}, where
@@ -677,3 +682,95 @@ def _flag(value: Any, what: str) -> bool:
     if value in ("yes", "no"):
         return value == "yes"
     raise ValueError(f"{what}: expected true/false (or yes/no), got {value!r}")
+
+
+# --------------------------------------------------------------------------------------------
+# wall/reflect/stochastic
+
+_RSTYLE_ACCOM = {"diffusive": 0, "maxwell": 1, "ccl": 3}
+_STOCHASTIC_USAGE = "wall/reflect/stochastic diffusive|maxwell|ccl SEED face coord temp vx vy vz [accom ...] [units lattice|box]"
+
+
+def _parse_stochastic(w: _Words, group: str) -> dict:
+    """``wall/reflect/stochastic rstyle seed face pos temp vx vy vz [a | ax ay az] ... [units]``
+    -> ``{"style": "reflect/stochastic", "group", "rstyle", "seed", face: {coord, temp, vel,
+    accom}, "units"}``."""
+    if len(w) < 6:
+        raise w.missing(f"missing arguments: write 'fix {w[1]} {group} {_STOCHASTIC_USAGE}'")
+    rstyle = w[4]
+    if rstyle not in _RSTYLE_ACCOM:
+        raise w.error(4, "the reflection style must be diffusive, maxwell or ccl")
+    seed = w.integer(5, "SEED (the random seed)")
+    if seed <= 0:
+        raise w.error(5, "the random seed must be a positive integer")
+    nacc = _RSTYLE_ACCOM[rstyle]
+    fields = ("coord", "temp", "vx", "vy", "vz") + ("a", "b", "c")[:nacc]
+    out: dict[str, Any] = {"style": "reflect/stochastic", "group": group, "rstyle": rstyle, "seed": seed}
+    faces: dict[str, dict] = {}
+    i = 6
+    while i < len(w):
+        word = w[i]
+        if word in FACES:
+            if word in faces:
+                raise w.error(i, f"{word} wall defined twice: give each face once per fix")
+            got = _face_arguments(w, i, len(fields), FACES + ("units",))
+            if got < len(fields):
+                raise w.error(
+                    i,
+                    f"missing arguments for the {word} wall: rstyle {rstyle} faces take pos temp vx vy vz"
+                    f"{' and ' + str(nacc) + ' accommodation coefficient(s)' if nacc else ''} "
+                    f"({len(fields)} words), found {got}",
+                )
+            c = w[i + 1]
+            if c == "EDGE":
+                coord: Any = "EDGE"
+            elif _NUMBER_RE.match(c):
+                coord = float(c)
+            else:
+                raise w.error(i + 1, f"{word} pos must be EDGE or a number (no variables for this wall)"
+                              f"{_hint(c) if not c.startswith('v_') else ''}")
+            vals = [w.number(i + 1 + k, f"{word} {f}") for k, f in enumerate(fields) if k > 0]
+            face: dict[str, Any] = {"coord": coord, "temp": vals[0], "vel": vals[1:4]}
+            if nacc == 1:
+                face["accom"] = vals[4]
+            elif nacc == 3:
+                face["accom"] = vals[4:7]
+            faces[word] = face
+            i += 1 + len(fields)
+        elif word == "units":
+            out["units"] = _keyword_value(w, i, ("lattice", "box"))
+            i += 2
+        else:
+            raise w.error(
+                i, f"unknown face or keyword for wall/reflect/stochastic: expected a face ({' '.join(FACES)}) "
+                "or the keyword units",
+            )
+    if not faces:
+        raise w.error(3, f"no walls defined: give at least one face, e.g. 'fix {w[1]} {group} "
+                         f"wall/reflect/stochastic diffusive 1234 zlo EDGE 1.0 0.0 0.0 0.0'")
+    for name, face in faces.items():
+        out[name] = face
+    return out
+
+
+def _stochastic_words(wall: Mapping, where: str) -> list[str]:
+    _reject_unknown(wall, {"style", "group", "rstyle", "seed", "units", *FACES}, where)
+    rstyle = _choice(wall.get("rstyle"), tuple(_RSTYLE_ACCOM), f"{where}.rstyle")
+    words = ["wall/reflect/stochastic", rstyle, _fmt_int(wall.get("seed"), f"{where}.seed")]
+    faces = [k for k in wall if k in FACES]
+    if not faces:
+        raise ValueError(f"{where}: no faces ({' '.join(FACES)}) given")
+    for face in faces:
+        spec = _as_mapping(wall[face])
+        at = f"{where}.{face}"
+        words += [face, "EDGE" if spec.get("coord") == "EDGE" else _fmt_number(spec.get("coord"), f"{at}.coord"),
+                  _fmt_number(spec.get("temp"), f"{at}.temp")]
+        vel = spec.get("vel", (0.0, 0.0, 0.0))
+        words += [_fmt_number(v, f"{at}.vel") for v in vel]
+        accom = spec.get("accom")
+        if accom is not None:
+            accom = [accom] if not isinstance(accom, Sequence) else list(accom)
+            words += [_fmt_number(a, f"{at}.accom") for a in accom]
+    if "units" in wall:
+        words += ["units", _choice(wall["units"], ("lattice", "box"), f"{where}.units")]
+    return words

@@ -352,6 +352,52 @@ class ReflectWall(_FaceWall):
         return data
 
 
+class StochasticFace(Model):
+    """One face of wall/reflect/stochastic: position, wall temperature, wall velocity (in the wall's
+    plane) and accommodation coefficients (none for diffusive, one for maxwell, three for ccl)."""
+
+    coord: Union[float, Literal["EDGE"]]
+    temp: PositiveFloat
+    vel: Vec3 = (0.0, 0.0, 0.0)
+    accom: Union[float, Vec3, None] = None
+
+
+class StochasticWall(_FaceWall):
+    """fix wall/reflect/stochastic rstyle seed face args: thermal walls (diffusive, maxwell, ccl)."""
+
+    style: Literal["reflect/stochastic"]
+    rstyle: Literal["diffusive", "maxwell", "ccl"]
+    seed: Annotated[int, Field(ge=1)]
+    xlo: StochasticFace | None = None
+    xhi: StochasticFace | None = None
+    ylo: StochasticFace | None = None
+    yhi: StochasticFace | None = None
+    zlo: StochasticFace | None = None
+    zhi: StochasticFace | None = None
+
+    @model_validator(mode="after")
+    def _accommodation(self) -> "StochasticWall":
+        for name in FACES:
+            face = getattr(self, name)
+            if face is None:
+                continue
+            a = face.accom
+            if self.rstyle == "diffusive" and a is not None:
+                raise ValueError(f"{name}: accom is not used by rstyle diffusive (leave it out)")
+            if self.rstyle == "maxwell" and not isinstance(a, float):
+                raise ValueError(f"{name}: rstyle maxwell needs one accommodation coefficient, accom: a")
+            if self.rstyle == "ccl" and not isinstance(a, tuple):
+                raise ValueError(f"{name}: rstyle ccl needs three accommodation coefficients, accom: [ax, ay, az]")
+            values = () if a is None else (a,) if isinstance(a, float) else a
+            if any(not 0.0 <= x <= 1.0 for x in values):
+                raise ValueError(f"{name}: accommodation coefficients must be between 0 and 1, got {a}")
+            dim = "xyz".index(name[0])
+            if face.vel[dim] != 0.0:
+                raise ValueError(f"{name}: the wall velocity must lie in the wall's plane: vel[{dim}] "
+                                 f"({name[0]}) must be 0, got {face.vel[dim]}")
+        return self
+
+
 class FlowWall(Model):
     """fix wall/flow (physics.md §8)."""
 
@@ -396,7 +442,7 @@ class RegionEESWall(Model):
 
 
 Wall = Annotated[
-    Union[SoftWall, MorseWall, ReflectWall, FlowWall, RegionWall, RegionEESWall],
+    Union[SoftWall, MorseWall, ReflectWall, StochasticWall, FlowWall, RegionWall, RegionEESWall],
     Field(discriminator="style"),
 ]
 
@@ -661,7 +707,7 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
     for key, needs, what in (("reflect_count", "reflect", "a reflect wall"),
                              ("reflect_impulse", "reflect", "a reflect wall"),
                              ("flow_crossings", "flow", "a flow wall")):
-        if key in cfg.output.thermo and needs not in styles:
+        if key in cfg.output.thermo and needs not in styles and not (needs == "reflect" and "reflect/stochastic" in styles):
             add(("output", "thermo"), f"{key} needs {what} in the scene")
     if "erot" in cfg.output.thermo and not shape_groups and not file_groups:
         add(("output", "thermo"), "erot is the rotational energy of ellipsoids: no group has a shape")

@@ -11,7 +11,7 @@ import yaml
 
 FACES = ("xlo", "xhi", "ylo", "yhi", "zlo", "zhi")
 WALL_TAGS = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse", "ees", "reflect", "flow", "region",
-             "region/ees")
+             "region/ees", "reflect/stochastic", "lepton", "table")
 POSITIONAL = {4: ("coord", "epsilon", "sigma", "cutoff"), 5: ("coord", "D0", "alpha", "r0", "cutoff")}
 
 

@@ -29,7 +29,9 @@ import math
 
 import numpy as np
 
-__all__ = ["RSTYLES", "reflect_velocities", "reflect_positions", "thermal_sigma"]
+from wallbatch.engine.state import FaceValues
+
+__all__ = ["RSTYLES", "StochasticKernel", "reflect_velocities", "reflect_positions", "thermal_sigma"]
 
 RSTYLES = ("diffusive", "maxwell", "ccl")
 
@@ -109,3 +111,73 @@ def reflect_positions(
     out = x + (v_new - v_old) * t[:, None]
     out[:, dim] = np.where(vn > 0.0, coord + v_new[:, dim] * t, 2.0 * coord - x[:, dim])
     return out
+
+
+# ---------------------------------------------------------------------------------------------
+# The batch kernel
+
+
+class StochasticKernel:
+    """fix wall/reflect/stochastic over a batch (post_integrate, like wall/reflect): atoms past a
+    face get a velocity from the wall's rule and the crossing position; per case one random
+    stream per wall (seeded from the config seed, the case's sweep key and the wall's seed).
+    Counts and impulses (momentum given to the wall along +dim, force*time) as for wall/reflect."""
+
+    def __init__(self, specs: list, stats: bool):
+        s0 = specs[0]
+        self.fix_id = s0.fix_id
+        self.group = s0.group
+        self.all_atoms = bool(s0.group.all())
+        self.frame = s0.frame
+        self.rstyle = s0.frame.split("/", 1)[1]
+        self.faces = [FaceValues([s.faces[i] for s in specs]) for i in range(len(s0.faces))]
+        self.rngs = [np.random.default_rng(np.random.SeedSequence(list(s.seed))) for s in specs]
+        self.stats = stats
+        self.count: np.ndarray | None = None
+        self.impulse: np.ndarray | None = None
+
+    def take(self, keep: np.ndarray) -> None:
+        for face in self.faces:
+            face.take(keep)
+        self.rngs = [self.rngs[i] for i in np.nonzero(keep)[0]]
+        if self.count is not None:
+            self.count, self.impulse = self.count[keep], self.impulse[keep]
+
+    def setup(self, state) -> None:
+        if self.stats:
+            self.count = np.zeros((state.ncases, len(self.faces)))
+            self.impulse = np.zeros((state.ncases, len(self.faces)))
+
+    def apply(self, state, dt: np.ndarray) -> None:
+        u = state.units
+        for k, face in enumerate(self.faces):
+            coord = face.position(state)
+            pos = state.x[:, :, face.dim]
+            out = pos < coord[:, None] if face.side < 0 else pos > coord[:, None]
+            if not self.all_atoms:
+                out &= self.group
+            cases = np.nonzero(out.any(axis=1))[0]
+            if cases.size == 0:
+                continue
+            p = {key: face.param(key, state) for key in face.params}
+            for c in cases.tolist():
+                ai = np.nonzero(out[c])[0]
+                v_old = state.v[c, ai]
+                mass = state.mass[c, ai]
+                sigma = thermal_sigma(p["temp"][c], mass, u.boltz, u.mvv2e)
+                wall_v = np.array([p["vx"][c], p["vy"][c], p["vz"][c]])
+                accom = np.array([p["ax"][c], p["ay"][c], p["az"][c]])
+                v_new = reflect_velocities(self.rstyle, self.rngs[c], v_old, face.dim, face.side, sigma, wall_v,
+                                           accom[0] if self.rstyle == "maxwell" else accom)
+                state.x[c, ai] = reflect_positions(state.x[c, ai], v_old, v_new, face.dim, coord[c])
+                state.v[c, ai] = v_new
+                if self.stats:
+                    self.count[c, k] += ai.size
+                    self.impulse[c, k] += np.sum(mass * (v_old[:, face.dim] - v_new[:, face.dim])) / u.ftm2v
+
+    def take_stats(self) -> tuple[np.ndarray, np.ndarray]:
+        """Reflections and impulse since the previous sample; resets the counters."""
+        out = (self.count.copy(), self.impulse.copy())
+        self.count[:] = 0.0
+        self.impulse[:] = 0.0
+        return out

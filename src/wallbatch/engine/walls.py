@@ -12,7 +12,8 @@ import numpy as np
 
 from wallbatch.engine.region_walls import RegionEESKernel, RegionWallKernel
 from wallbatch.engine.state import BatchState, FaceValues
-from wallbatch.scene.case import Case, ReflectSpec, SoftWallSpec
+from wallbatch.engine.stochastic import StochasticKernel
+from wallbatch.scene.case import Case, ReflectSpec, SoftWallSpec, StochasticSpec
 from wallbatch.styles.ees import ees_energy_force_torque, ees_torque, sigma_n
 from wallbatch.styles.flat import WallStyle
 
@@ -201,8 +202,8 @@ def build_kernels(cases: list[Case], outputs: tuple[str, ...]) -> tuple[list[Sof
     soft = [(EESWallKernel if cases[0].soft_walls[i].style.name == "ees" else SoftWallKernel)(
         [c.soft_walls[i] for c in cases]) for i in range(len(cases[0].soft_walls))]
     stats = "reflect_count" in outputs or "reflect_impulse" in outputs
-    reflect = [ReflectKernel([c.reflect_walls[i] for c in cases], stats)
-               for i in range(len(cases[0].reflect_walls))]
+    reflect = [(StochasticKernel if isinstance(cases[0].reflect_walls[i], StochasticSpec) else ReflectKernel)(
+        [c.reflect_walls[i] for c in cases], stats) for i in range(len(cases[0].reflect_walls))]
     return soft, reflect
 
 

@@ -143,6 +143,9 @@ DECISIONS: dict[str, str] = {
     "flow_random": "wall/flow random numbers: wallbatch draws from NumPy generators (one stream per case and flow "
                    "wall), LAMMPS from RANMAR seeded with SEED: the runs agree statistically, not sample by sample "
                    "(`wallbatch validate` refuses flow cases)",
+    "stochastic_random": "wall/reflect/stochastic random numbers: wallbatch draws from NumPy generators (one stream "
+                         "per case and wall), LAMMPS from its own generator seeded with SEED: the runs agree "
+                         "statistically, not sample by sample",
     "reflect_frame": "wall/reflect on a moving wall: frame: wall (v -> 2 v_wall - v) cannot be expressed in LAMMPS, "
                      "which does v -> -v; this script reflects in the lab frame, so velocities differ from "
                      "wallbatch's after the first reflection on a moving wall (`wallbatch validate` compares the "
@@ -521,7 +524,26 @@ def _flow_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
         s.notes.append(f"walls.{fid}: coords {list(wall.coords)} lattice spacings written in box units")
 
 
+def _stochastic_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
+    """fix wall/reflect/stochastic rstyle seed face pos temp vx vy vz [accom ...] units box. The
+    random numbers differ (decisions table): LAMMPS and wallbatch agree statistically only."""
+    lid = s.fix_id(fid)
+    written = dict(wall.faces())
+    mapping: dict[str, Any] = {"style": "reflect/stochastic", "group": s.group(wall.group), "rstyle": wall.rstyle,
+                               "seed": int(wall.seed), "units": "box"}
+    for face in spec.faces:
+        f = written[face.name]
+        mapping[face.name] = {"coord": _coord_word(face, f.coord, s), "temp": f.temp, "vel": list(f.vel)}
+        if f.accom is not None:
+            mapping[face.name]["accom"] = f.accom if isinstance(f.accom, float) else list(f.accom)
+    s.fixes.append(to_fix_line(lid, mapping))
+    s.decide("stochastic_random")
+    if "reflect_count" in s.case.outputs or "reflect_impulse" in s.case.outputs:
+        s.notes.append(f"reflect_count / reflect_impulse of {fid} are wallbatch outputs with no LAMMPS counterpart")
+
+
 WALL_WRITERS: dict[str, WallWriter] = {
+    "reflect/stochastic": _stochastic_wall,
     **{style: _soft_wall for style in ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse", "ees")},
     "reflect": _reflect_wall,
     "region": _region_wall,

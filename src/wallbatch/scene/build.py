@@ -25,6 +25,7 @@ from wallbatch.scene.case import (
     MinSettings,
     PairSpec,
     ReflectSpec,
+    StochasticSpec,
     RegionWallSpec,
     SoftWallSpec,
     Value,
@@ -274,6 +275,10 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
         if wall.style == "reflect":
             reflect.append(ReflectSpec(fid, mask(wall.group), wall.frame, _faces(cfg, fid, wall, ())))
             continue
+        if wall.style == "reflect/stochastic":
+            reflect.append(_stochastic_spec(cfg, fid, wall, mask(wall.group), (cfg.seed, *seed_key, wall.seed,
+                                                                                len(reflect))))
+            continue
         if wall.style == "flow":
             scale = 1.0 if wall.units == "box" else lattice_spacing(cfg)
             flows.append(FlowSpec(fid, mask(wall.group), "xyz".index(wall.axis), wall.vflow, wall.temperature,
@@ -332,6 +337,18 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
     )
 
 
+def _stochastic_spec(cfg: Config, fid: str, wall: Any, group: np.ndarray, seed: tuple[int, ...]) -> StochasticSpec:
+    """wall/reflect/stochastic: faces with params temp, vx, vy, vz, ax, ay, az (ax for maxwell)."""
+    faces = []
+    for face, (_, spec) in zip(_faces(cfg, fid, wall, ()), wall.faces()):
+        a = spec.accom
+        acc = (0.0, 0.0, 0.0) if a is None else (a, a, a) if isinstance(a, float) else a
+        params = {"temp": spec.temp, "vx": spec.vel[0], "vy": spec.vel[1], "vz": spec.vel[2],
+                  "ax": acc[0], "ay": acc[1], "az": acc[2]}
+        faces.append(Face(face.label, face.name, face.dim, face.side, face.coord, face.scale, params))
+    return StochasticSpec(fid, group, f"stochastic/{wall.rstyle}", tuple(faces), seed)
+
+
 def _pair_spec(cfg: Config) -> PairSpec | None:
     if cfg.pair is None:
         return None
@@ -343,7 +360,8 @@ def _pair_spec(cfg: Config) -> PairSpec | None:
 def _min_settings(cfg: Config, dt: float) -> Any:
     if cfg.minimize is None:
         return None
-    quiet = [fid for fid, w in cfg.walls.items() if w.style not in ("reflect", "flow") and not w.energy]
+    quiet = [fid for fid, w in cfg.walls.items() if w.style not in ("reflect", "reflect/stochastic", "flow")
+             and not w.energy]
     if quiet:
         warnings.warn(
             f"minimize: wall(s) {', '.join(quiet)} have energy: false, so (as in LAMMPS without fix_modify "

@@ -61,6 +61,18 @@ class ReflectSpec:
 
 
 @dataclass(frozen=True)
+class StochasticSpec(ReflectSpec):
+    """fix wall/reflect/stochastic: `frame` is "stochastic/<rstyle>" (diffusive, maxwell, ccl);
+    face params temp, vx, vy, vz, ax, ay, az; `seed` keys the case's random stream of this wall."""
+
+    seed: tuple[int, ...] = ()
+
+    @property
+    def rstyle(self) -> str:
+        return self.frame.split("/", 1)[1]
+
+
+@dataclass(frozen=True)
 class DtResetSpec:
     """fix dt/reset (physics.md §9); xmax in box units; None = no bound."""
 
