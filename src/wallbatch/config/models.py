@@ -80,6 +80,8 @@ from pydantic import BeforeValidator  # noqa: E402
 
 from wallbatch.config.fixline import FixLineError, parse_fix_line
 from wallbatch.expr import VariableError, Variables
+from wallbatch.styles.lepton import LeptonError, compile_expression
+from wallbatch.styles.table import TableError, read_table
 from wallbatch.units import lattice_constant
 
 Coord = Annotated[Union[float, str], BeforeValidator(_coord)]
@@ -352,6 +354,52 @@ class ReflectWall(_FaceWall):
         return data
 
 
+class LeptonFace(Model):
+    """One face of wall/lepton: position, the energy as an expression of r (Lepton syntax, `;`
+    definitions allowed), the cut-off, and named parameters (numbers, sweepable)."""
+
+    coord: Coord
+    expression: Annotated[str, Field(min_length=1)]
+    cutoff: PositiveFloat
+    params: dict[str, float] = {}
+
+
+class LeptonWall(_FaceWall):
+    """fix wall/lepton face coord expression cutoff: E(r) from an expression, F = -dE/dr exactly."""
+
+    style: Literal["lepton"]
+    xlo: LeptonFace | None = None
+    xhi: LeptonFace | None = None
+    ylo: LeptonFace | None = None
+    yhi: LeptonFace | None = None
+    zlo: LeptonFace | None = None
+    zhi: LeptonFace | None = None
+
+
+class TableFace(Model):
+    """One face of wall/table: position, a LAMMPS table file (relative to the config) and the
+    keyword of its section, and the cut-off."""
+
+    coord: Coord
+    file: Annotated[str, Field(min_length=1)]
+    keyword: Annotated[str, Field(min_length=1)]
+    cutoff: PositiveFloat
+
+
+class TableWall(_FaceWall):
+    """fix wall/table tabstyle N face coord file keyword cutoff: a tabulated wall."""
+
+    style: Literal["table"]
+    tabstyle: Literal["linear", "spline"]
+    N: Annotated[int, Field(ge=2)]
+    xlo: TableFace | None = None
+    xhi: TableFace | None = None
+    ylo: TableFace | None = None
+    yhi: TableFace | None = None
+    zlo: TableFace | None = None
+    zhi: TableFace | None = None
+
+
 class StochasticFace(Model):
     """One face of wall/reflect/stochastic: position, wall temperature, wall velocity (in the wall's
     plane) and accommodation coefficients (none for diffusive, one for maxwell, three for ccl)."""
@@ -442,7 +490,8 @@ class RegionEESWall(Model):
 
 
 Wall = Annotated[
-    Union[SoftWall, MorseWall, ReflectWall, StochasticWall, FlowWall, RegionWall, RegionEESWall],
+    Union[SoftWall, MorseWall, ReflectWall, StochasticWall, LeptonWall, TableWall, FlowWall, RegionWall,
+          RegionEESWall],
     Field(discriminator="style"),
 ]
 
@@ -560,8 +609,9 @@ def _expand_fix_lines(data: Any, srcmap: SourceMap) -> Any:
     return {**data, "walls": walls}
 
 
-def validate_data(data: Any, srcmap: SourceMap) -> Config:
-    """Validate loaded YAML data into a Config, then run the cross-field checks."""
+def validate_data(data: Any, srcmap: SourceMap, base: Path | None = None) -> Config:
+    """Validate loaded YAML data into a Config, then run the cross-field checks (relative table
+    files of wall/table start from `base`)."""
     data = _expand_fix_lines(data, srcmap)
     try:
         cfg = Config.model_validate(data)
@@ -576,6 +626,8 @@ def validate_data(data: Any, srcmap: SourceMap) -> Config:
                 msg = "unknown key (misspelled? see shared/spec/config.md for the valid keys)"
             problems.append(srcmap.format(tuple(err["loc"]), msg))
         raise ConfigError(problems) from None
+    if base is not None:
+        cfg._base_dir = base
     problems = [srcmap.format(path, msg) for path, msg in check_scene(cfg)]
     if problems:
         raise ConfigError(problems)
@@ -595,14 +647,14 @@ def load_config(path: str | Path) -> Config:
 def load_config_text(text: str, filename: str = "<config>", base: Path = Path(".")) -> Config:
     """Parse and validate YAML text; relative `file:` paths start from `base`."""
     data, srcmap = load_yaml(text, filename)
-    cfg = validate_data(data, srcmap)
+    cfg = validate_data(data, srcmap, base)
     cfg._base_dir = base
     return cfg
 
 
 def config_from_dict(data: dict, base: Path = Path(".")) -> Config:
     """Validate an already-loaded mapping (no line numbers: errors name the field path)."""
-    cfg = validate_data(data, SourceMap("<dict>", {}, data))
+    cfg = validate_data(data, SourceMap("<dict>", {}, data), base)
     cfg._base_dir = base
     return cfg
 
@@ -681,6 +733,8 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
         if wall.style == "flow":
             _check_flow_wall(cfg, fid, wall, add)
             continue
+        if wall.style in ("lepton", "table"):
+            _check_custom_wall(cfg, fid, wall, add)
         if wall.units == "lattice" and cfg.lattice is None:
             add(("walls", fid), _LATTICE_MSG)
         for face, spec in wall.faces():
@@ -737,6 +791,33 @@ def _check_region_wall(cfg: "Config", fid: str, wall: Any, add: Any, check_var: 
         check_var(("walls", fid, k), value)
         if k != "alpha" and isinstance(value, float) and value < 0:
             add(("walls", fid, k), f"{k} must be >= 0")
+
+
+def _check_custom_wall(cfg: "Config", fid: str, wall: Any, add: Any) -> None:
+    """wall/lepton: each expression parses, uses only r, its definitions and its params, is
+    finite at the cut-off and divides by zero nowhere in (0, rc]. wall/table: each file and
+    section reads, and the cut-off lies inside the table."""
+    for face, spec in wall.faces():
+        if wall.style == "lepton":
+            if "cutoff" in spec.params:
+                add(("walls", fid, face, "params", "cutoff"), "'cutoff' is the face's cut-off, not a parameter name")
+                continue
+            try:
+                expr = compile_expression(spec.expression, tuple(spec.params))
+                expr.check(spec.cutoff, spec.params)
+            except LeptonError as exc:
+                add(("walls", fid, face, "expression"), str(exc))
+        else:
+            path = Path(spec.file)
+            path = path if path.is_absolute() else cfg._base_dir / path
+            try:
+                data = read_table(path, spec.keyword)
+            except TableError as exc:
+                add(("walls", fid, face, "file"), str(exc))
+                continue
+            if spec.cutoff > data.r[-1]:
+                add(("walls", fid, face, "cutoff"), f"cutoff {spec.cutoff:g} is beyond the table's last distance "
+                    f"{data.r[-1]:g} (LAMMPS: Fix wall/table wall cutoff is larger than table outer cutoff)")
 
 
 def _check_flow_wall(cfg: "Config", fid: str, wall: Any, add: Any) -> None:

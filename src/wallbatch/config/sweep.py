@@ -216,12 +216,12 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
     `sweep:` (if any) and validate every case."""
     data = copy.deepcopy(data)
     raw_sweep = data.pop("sweep", None) if isinstance(data, dict) else None
-    base = validate_data(data, srcmap)
+    base = validate_data(data, srcmap, base_dir)
     if overrides:
         base_data = config_to_dict(base)
         for key, value in overrides.items():
             set_path(base_data, key, value)
-        base = validate_data(base_data, srcmap)
+        base = validate_data(base_data, srcmap, base_dir)
         base_text = (f"# {srcmap.filename} with {', '.join(f'{k}={v}' for k, v in overrides.items())}\n"
                      + yaml.safe_dump(config_to_dict(base), sort_keys=False))
     base._base_dir = base_dir
@@ -252,7 +252,7 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
                     set_path(case_data, p, d.values[i])
         label = ", ".join(f"{k}={v}" for k, v in coords.items())
         try:
-            cfg = validate_data(case_data, srcmap)
+            cfg = validate_data(case_data, srcmap, base_dir)
         except ConfigError as exc:
             problems.extend(f"case {label}: {p}" for p in exc.problems)
             continue

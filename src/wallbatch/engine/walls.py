@@ -13,7 +13,7 @@ import numpy as np
 from wallbatch.engine.region_walls import RegionEESKernel, RegionWallKernel
 from wallbatch.engine.state import BatchState, FaceValues
 from wallbatch.engine.stochastic import StochasticKernel
-from wallbatch.scene.case import Case, ReflectSpec, SoftWallSpec, StochasticSpec
+from wallbatch.scene.case import Case, CustomWallSpec, ReflectSpec, SoftWallSpec, StochasticSpec
 from wallbatch.styles.ees import ees_energy_force_torque, ees_torque, sigma_n
 from wallbatch.styles.flat import WallStyle
 
@@ -132,6 +132,49 @@ class EESWallKernel(SoftWallKernel):
         return (energy, vector) if outputs else None
 
 
+class CustomWallKernel(SoftWallKernel):
+    """fix wall/lepton and wall/table over a batch: the soft-wall kernel run face by face, each
+    face with its own style (expression or table); outputs as for the other soft walls."""
+
+    def __init__(self, specs: list[CustomWallSpec]):
+        super().__init__(specs)
+        self.face_styles = specs[0].face_styles
+
+    def apply(self, state: "BatchState", outputs: bool) -> tuple[np.ndarray, np.ndarray] | None:
+        faces, style = self.faces, self.style
+        C = state.ncases
+        energy = np.zeros(C) if outputs else None
+        vector = np.zeros((C, len(faces))) if outputs else None
+        virial = np.zeros(C) if outputs and self.virial else None
+        try:
+            for k, (face, face_style) in enumerate(zip(faces, self.face_styles)):
+                self.faces, self.style = [face], face_style
+                res = super().apply(state, outputs)
+                if outputs:
+                    energy += res[0]
+                    vector[:, k] = res[1][:, 0]
+                    if virial is not None:
+                        virial += self.last_virial
+        finally:
+            self.faces, self.style = faces, style
+        if virial is not None:
+            self.last_virial = virial
+        return (energy, vector) if outputs else None
+
+    def _fail_inside(self, state: "BatchState", ci: np.ndarray, ai: np.ndarray, r: np.ndarray, face: str) -> None:
+        if self.style.name != "table":
+            super()._fail_inside(state, ci, ai, r, face)
+            return
+        first: dict[int, tuple[int, float]] = {}
+        for c, a, d in zip(ci.tolist(), ai.tolist(), r.tolist()):
+            first.setdefault(c, (a, d))
+        lo = self.style.lo
+        state.fail(np.array(sorted(first)), lambda c: (
+            f"walls.{self.fix_id} (wall/table {face}): atom {first[c][0]} at distance {first[c][1]:.6g} from the "
+            f"wall at step {int(state.step[c])} is nearer than the table's first distance {lo:g} "
+            f"(LAMMPS: Particle / wall distance < table inner cutoff)"))
+
+
 class ReflectKernel:
     """fix wall/reflect (physics.md §7): after the drift, an atom past a wall is mirrored about it
     and its normal velocity flipped (frame lab, LAMMPS) or reflected in the wall's frame
@@ -199,8 +242,12 @@ class ReflectKernel:
 
 def build_kernels(cases: list[Case], outputs: tuple[str, ...]) -> tuple[list[SoftWallKernel], list[ReflectKernel]]:
     """Flat soft walls (wall/ees included, as EESWallKernel) and reflecting walls of a batch."""
-    soft = [(EESWallKernel if cases[0].soft_walls[i].style.name == "ees" else SoftWallKernel)(
-        [c.soft_walls[i] for c in cases]) for i in range(len(cases[0].soft_walls))]
+    def kind(spec: SoftWallSpec) -> type:
+        if isinstance(spec, CustomWallSpec):
+            return CustomWallKernel
+        return EESWallKernel if spec.style.name == "ees" else SoftWallKernel
+
+    soft = [kind(cases[0].soft_walls[i])([c.soft_walls[i] for c in cases]) for i in range(len(cases[0].soft_walls))]
     stats = "reflect_count" in outputs or "reflect_impulse" in outputs
     reflect = [(StochasticKernel if isinstance(cases[0].reflect_walls[i], StochasticSpec) else ReflectKernel)(
         [c.reflect_walls[i] for c in cases], stats) for i in range(len(cases[0].reflect_walls))]

@@ -38,6 +38,7 @@ from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict, set_pat
 from wallbatch.expr import Binary, Call, Keyword, Node, Num, Unary, to_lammps
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import Case, ReflectSpec, RegionWallSpec, SoftWallSpec
+from wallbatch.styles.lepton import compile_expression
 from wallbatch.units import UNIT_SYSTEMS
 
 __all__ = [
@@ -524,6 +525,47 @@ def _flow_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
         s.notes.append(f"walls.{fid}: coords {list(wall.coords)} lattice spacings written in box units")
 
 
+def _custom_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
+    """fix wall/lepton (the face's expression, its parameters as Lepton `;` definitions with this
+    case's values) or fix wall/table (the table file by absolute path), in box units; energy and
+    wall_force columns as for the other soft walls. LAMMPS's wall/lepton vector is the force on
+    the atoms: the wall_force column compares with its negative."""
+    lid = s.fix_id(fid)
+    written = dict(wall.faces())
+    mapping: dict[str, Any] = {"style": wall.style, "group": s.group(wall.group), "units": "box"}
+    if wall.style == "table":
+        mapping.update(tabstyle=wall.tabstyle, N=int(wall.N))
+    if wall.pbc:
+        mapping["pbc"] = True
+    for face, style, sig in zip(spec.faces, spec.face_styles, spec.signature):
+        values: dict[str, Any] = {"coord": _coord_word(face, written[face.name].coord, s),
+                                  "cutoff": float(face.params["cutoff"])}
+        if wall.style == "lepton":
+            expr = compile_expression(sig, tuple(written[face.name].params))
+            values["expression"] = expr.lammps_text({k: float(v) for k, v in face.params.items() if k != "cutoff"})
+        else:
+            values.update(file=sig[0], keyword=sig[1])
+        mapping[face.name] = values
+    s.fixes.append(to_fix_line(lid, mapping))
+    if spec.energy:
+        s.fixes.append(f"fix_modify {lid} energy yes")
+    if spec.virial:
+        s.fixes.append(f"fix_modify {lid} virial yes")
+    s.energy_column(fid, lid)
+    first = sum(len(w.faces) for w in s.soft_written)
+    s.soft_written.append(spec)
+    for i, face in enumerate(spec.faces):
+        keyword = f"f_{lid}[{i + 1}]"
+        if wall.style == "lepton":
+            helper = _lammps_id(f"wb_{lid}_{face.name}_force", set(s.variables) | set(s.case.variables.names()))
+            s.variables[helper] = f"-{keyword}"
+            keyword = f"v_{helper}"
+        s.columns.append(Column(f"wall_force[{face.label}]", keyword, "wall_force", first + i))
+    if wall.style == "lepton":
+        s.notes.append(f"walls.{fid}: LAMMPS's wall/lepton vector is the force on the atoms, the opposite of "
+                       "wallbatch's wall_force (the force on the wall): compared through v_wb_..._force = -f_ID[i]")
+
+
 def _stochastic_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
     """fix wall/reflect/stochastic rstyle seed face pos temp vx vy vz [accom ...] units box. The
     random numbers differ (decisions table): LAMMPS and wallbatch agree statistically only."""
@@ -544,6 +586,8 @@ def _stochastic_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
 
 WALL_WRITERS: dict[str, WallWriter] = {
     "reflect/stochastic": _stochastic_wall,
+    "lepton": _custom_wall,
+    "table": _custom_wall,
     **{style: _soft_wall for style in ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse", "ees")},
     "reflect": _reflect_wall,
     "region": _region_wall,

@@ -5,6 +5,7 @@ masses, radii and initial velocities.
 
 from __future__ import annotations
 
+import functools
 import warnings
 from pathlib import Path
 from typing import Any
@@ -24,6 +25,7 @@ from wallbatch.scene.case import (
     MinimizeWarning,
     MinSettings,
     PairSpec,
+    CustomWallSpec,
     ReflectSpec,
     StochasticSpec,
     RegionWallSpec,
@@ -32,6 +34,8 @@ from wallbatch.scene.case import (
 )
 from wallbatch.styles.ees import EES_STYLE
 from wallbatch.styles.flat import STYLES
+from wallbatch.styles.lepton import compile_expression, lepton_style
+from wallbatch.styles.table import TableError, WallTable, read_table, table_style
 from wallbatch.units import LATTICE_POSITIONS, UNIT_SYSTEMS, UnitSystem
 
 
@@ -294,6 +298,9 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
                 raise CaseError(f"walls.{fid}: wall/{wall.style} requires extended particles: every atom of group "
                                 f"{wall.group} needs a shape (ellipsoid semi-axes)")
         fix_order.append(fid)
+        if wall.style in ("lepton", "table"):
+            soft.append(_custom_spec(cfg, fid, wall, group))
+            continue
         if wall.style in ("region", "region/ees"):
             region = cfg.regions[wall.region]
             spacing = None if region.units == "box" else lattice_spacing(cfg)
@@ -335,6 +342,38 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
         pair=_pair_spec(cfg), region_walls=tuple(regional), flow_walls=tuple(flows),
         flow_seeds=tuple(flow_seeds), fix_order=tuple(fix_order), minimize=_min_settings(cfg, dt),
     )
+
+
+def _custom_spec(cfg: Config, fid: str, wall: Any, group: np.ndarray) -> CustomWallSpec:
+    """wall/lepton (a compiled expression per face; params: cutoff and the expression's names)
+    or wall/table (a resampled table per face, files relative to the config; params: cutoff)."""
+    faces, styles, signature = [], [], []
+    for face, (_, spec) in zip(_faces(cfg, fid, wall, ()), wall.faces()):
+        if wall.style == "lepton":
+            expr = compile_expression(spec.expression, tuple(spec.params))
+            style = lepton_style(expr)
+            params = {"cutoff": spec.cutoff, **{n: float(spec.params.get(n, expr.defaults.get(n, 0.0)))
+                                                for n in expr.params}}
+            signature.append(spec.expression)
+        else:
+            path = Path(spec.file)
+            path = path if path.is_absolute() else cfg._base_dir / path
+            try:
+                table = _table(str(path.resolve()), spec.keyword, wall.tabstyle, wall.N)
+            except TableError as exc:
+                raise CaseError(f"walls.{fid}.{face.name}.file: {exc}") from None
+            style = table_style(table)
+            params = {"cutoff": spec.cutoff}
+            signature.append((str(path.resolve()), spec.keyword, wall.tabstyle, wall.N))
+        styles.append(style)
+        faces.append(Face(face.label, face.name, face.dim, face.side, face.coord, face.scale, params))
+    return CustomWallSpec(fid, styles[0], group, wall.energy, tuple(faces), wall.virial, tuple(styles),
+                          tuple(signature))
+
+
+@functools.lru_cache(maxsize=64)
+def _table(path: str, keyword: str, tabstyle: str, n: int) -> WallTable:
+    return WallTable.build(read_table(path, keyword), tabstyle, n)
 
 
 def _stochastic_spec(cfg: Config, fid: str, wall: Any, group: np.ndarray, seed: tuple[int, ...]) -> StochasticSpec:

@@ -51,6 +51,16 @@ class SoftWallSpec:
 
 
 @dataclass(frozen=True)
+class CustomWallSpec(SoftWallSpec):
+    """fix wall/lepton or wall/table: a style per face (`face_styles`, from its expression or
+    table); `signature` (per face: expression text, or table file, keyword, tabstyle, N) decides
+    which cases may share a batch."""
+
+    face_styles: tuple[WallStyle, ...] = ()
+    signature: tuple = ()
+
+
+@dataclass(frozen=True)
 class ReflectSpec:
     """fix wall/reflect; `frame` lab (v -> -v, LAMMPS) or wall (v -> 2 v_wall - v)."""
 
@@ -219,7 +229,8 @@ def structure_key(case: Case) -> tuple:
     return (
         case.units.name, case.natoms, case.atom_group.tobytes(), tuple(case.periodic),
         tuple(case.box_lo), tuple(case.box_hi), variables,
-        tuple((w.fix_id, w.style.name, w.group.tobytes(), w.energy, faces(w)) for w in case.soft_walls),
+        tuple((w.fix_id, w.style.name, w.group.tobytes(), w.energy, faces(w), getattr(w, "signature", ()))
+              for w in case.soft_walls),
         tuple((w.fix_id, w.frame, w.group.tobytes(), faces(w)) for w in case.reflect_walls),
         None if case.dt_reset is None else (case.dt_reset.every, case.dt_reset.group.tobytes()),
         case.steps, case.run_time, case.thermo, case.thermo_is_time, case.outputs, case.dump_every,

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wallbatch.expr import Binary, Call, Node, Num, Unary, VarRef, VariableError
+from wallbatch.styles.flat import WallStyle
 
 __all__ = [
     "LeptonError",
@@ -50,6 +51,7 @@ __all__ = [
     "free_names",
     "numba_kernel",
     "kernel_source",
+    "lepton_style",
 ]
 
 
@@ -850,3 +852,18 @@ def numba_kernel(expr: LeptonExpression) -> Callable:
     p (float64 array in ``expr.params`` order); cached per generated source. Bit-identical to
     :meth:`LeptonExpression.energy_force`. Callable from other jitted code (inlined)."""
     return _jit_kernel(kernel_source(expr))
+
+
+# ---------------------------------------------------------------------------------------------
+# As a flat-wall style
+
+
+def lepton_style(expr: LeptonExpression) -> WallStyle:
+    """One face's expression as a WallStyle: p holds the face's ``cutoff`` and the expression's
+    parameters (per atom or per case arrays); the energy is shifted by E(rc) as LAMMPS does."""
+    return WallStyle(
+        "lepton",
+        ("cutoff", *expr.params),
+        lambda r, p: expr.energy_force(r, {n: p[n] for n in expr.params if n in p}),
+        shifted_fn=lambda r, p: expr.shifted_energy(r, {n: p[n] for n in expr.params if n in p}, p["cutoff"]),
+    )

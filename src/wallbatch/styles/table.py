@@ -27,7 +27,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wallbatch.styles.flat import WallStyle
+
 __all__ = [
+    "TableWallStyle",
+    "table_style",
     "TableError",
     "TableData",
     "read_table",
@@ -305,3 +309,23 @@ def tabulate(energy_force, lo: float, hi: float, n: int) -> tuple[np.ndarray, np
     r[-1] = hi
     e, f = energy_force(r)
     return r, np.asarray(e, dtype=np.float64), np.asarray(f, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class TableWallStyle(WallStyle):
+    """A face's table as a WallStyle; an atom nearer than the table's first r is refused."""
+
+    lo: float = 0.0
+
+    def too_close(self, p) -> float:  # r <= this  <=>  r < lo
+        return float(np.nextafter(self.lo, -np.inf))
+
+
+def table_style(table: WallTable) -> TableWallStyle:
+    """One face's resampled table as a WallStyle (p holds the face's ``cutoff``): E(r) -
+    E_lin(rc) and F(r) by the table's interpolation."""
+
+    def shifted(r, p):
+        return table.lookup(r)[0] - table.lookup(p["cutoff"], "linear")[0]
+
+    return TableWallStyle("table", ("cutoff",), lambda r, p: table.lookup(r), shifted_fn=shifted, lo=table.lo)
