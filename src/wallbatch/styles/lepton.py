@@ -477,38 +477,40 @@ def _ipow(x, n: int):
     return 1.0 / result if n < 0 else result
 
 
-@functools.cache
-def _libm() -> dict[str, Callable]:
-    """C-library versions of the transcendental functions as NumPy ufuncs (numba.vectorize)."""
-    from numba import vectorize  # noqa: PLC0415 - compiled on first use only
+_LIBM_SOURCES: dict[str, tuple[int, Callable]] = {
+    "exp": (1, lambda x: math.exp(x)),
+    "log": (1, lambda x: math.log(x) if x > 0 else (-math.inf if x == 0 else math.nan)),
+    "sin": (1, lambda x: math.sin(x)),
+    "cos": (1, lambda x: math.cos(x)),
+    "tan": (1, lambda x: math.tan(x)),
+    "asin": (1, lambda x: math.asin(x) if abs(x) <= 1.0 else math.nan),
+    "acos": (1, lambda x: math.acos(x) if abs(x) <= 1.0 else math.nan),
+    "atan": (1, lambda x: math.atan(x)),
+    "sinh": (1, lambda x: math.sinh(x)),
+    "cosh": (1, lambda x: math.cosh(x)),
+    "tanh": (1, lambda x: math.tanh(x)),
+    "erf": (1, lambda x: math.erf(x)),
+    "erfc": (1, lambda x: math.erfc(x)),
+    "atan2": (2, lambda y, x: math.atan2(y, x)),
+    "pow": (2, lambda x, y: x**y),
+}
 
-    one = ["float64(float64)"]
-    two = ["float64(float64, float64)"]
-    return {
-        "exp": vectorize(one)(lambda x: math.exp(x)),
-        "log": vectorize(one)(lambda x: math.log(x) if x > 0 else (-math.inf if x == 0 else math.nan)),
-        "sin": vectorize(one)(lambda x: math.sin(x)),
-        "cos": vectorize(one)(lambda x: math.cos(x)),
-        "tan": vectorize(one)(lambda x: math.tan(x)),
-        "asin": vectorize(one)(lambda x: math.asin(x) if abs(x) <= 1.0 else math.nan),
-        "acos": vectorize(one)(lambda x: math.acos(x) if abs(x) <= 1.0 else math.nan),
-        "atan": vectorize(one)(lambda x: math.atan(x)),
-        "sinh": vectorize(one)(lambda x: math.sinh(x)),
-        "cosh": vectorize(one)(lambda x: math.cosh(x)),
-        "tanh": vectorize(one)(lambda x: math.tanh(x)),
-        "erf": vectorize(one)(lambda x: math.erf(x)),
-        "erfc": vectorize(one)(lambda x: math.erfc(x)),
-        "atan2": vectorize(two)(lambda y, x: math.atan2(y, x)),
-        "pow": vectorize(two)(lambda x, y: x**y),
-    }
+
+@functools.cache
+def _ufunc(name: str) -> Callable:
+    """The C-library function ``name`` as a NumPy ufunc (numba.vectorize), compiled on first use."""
+    from numba import vectorize  # noqa: PLC0415 - heavy optional import, compiled on first use only
+
+    nargs, fn = _LIBM_SOURCES[name]
+    return vectorize(["float64(float64)" if nargs == 1 else "float64(float64, float64)"])(fn)
 
 
 def _pow() -> Callable:
-    return _libm()["pow"]
+    return _ufunc("pow")
 
 
 def _lib(name: str) -> Callable:
-    return lambda *a: _libm()[name](*a)
+    return lambda *a: _ufunc(name)(*a)
 
 
 _ARITH: dict[str, Callable] = {
@@ -524,10 +526,10 @@ _FUNC_EVAL: dict[str, Callable] = {
     "log": _lib("log"),
     "sin": _lib("sin"),
     "cos": _lib("cos"),
-    "sec": lambda x: 1.0 / _libm()["cos"](x),
-    "csc": lambda x: 1.0 / _libm()["sin"](x),
+    "sec": lambda x: 1.0 / _ufunc("cos")(x),
+    "csc": lambda x: 1.0 / _ufunc("sin")(x),
     "tan": _lib("tan"),
-    "cot": lambda x: 1.0 / _libm()["tan"](x),
+    "cot": lambda x: 1.0 / _ufunc("tan")(x),
     "asin": _lib("asin"),
     "acos": _lib("acos"),
     "atan": _lib("atan"),
@@ -634,56 +636,77 @@ class LeptonExpression:
         defs = "".join(f"; {n}={float(p[n])!r}" for n in self.params)
         return f"{to_lepton(self.energy)}{defs}"
 
-    def check(self, cutoff: float, params: Mapping[str, float], samples: int = 64) -> None:
-        """Refuse an expression that is not finite at the cut-off or divides by zero for some
-        r = rc k/samples, k = 1..samples (exact binary fractions of rc hit the usual poles)."""
+    def check(self, cutoff: float, params: Mapping[str, float], samples: int = 4096) -> None:
+        """Refuse an expression that is not finite at the cut-off, or whose energy or force
+        divides by zero for some r in (0, rc]: a denominator that is 0 at, or changes sign
+        between, two of the points r = rc k/samples, k = 1..samples (the pole is then located by
+        bisection)."""
         p = {**self.defaults, **params}
         missing = [n for n in self.params if n not in p]
         if missing:
             raise LeptonError(f"parameter(s) {', '.join(map(repr, missing))} have no value")
         rs = cutoff * np.arange(1, samples + 1, dtype=np.float64) / samples
-        e, f = self.energy_force(rs, p)
-        if not (np.isfinite(e[-1]) and np.isfinite(f[-1])):
-            raise LeptonError(
-                f"the expression is not finite at the cut-off r = {cutoff!r} (E = {e[-1]}, F = {f[-1]})"
-            )
+        e, f = self.energy_force(np.float64(cutoff), p)
+        if not (np.isfinite(e) and np.isfinite(f)):
+            raise LeptonError(f"the expression is not finite at the cut-off r = {cutoff!r} (E = {e}, F = {f})")
         for tree, what in ((self.energy, "energy"), (self.force, "force")):
             bad = _division_by_zero(tree, rs, p)
             if bad is not None:
                 raise LeptonError(f"division by zero in the {what} at r = {bad!r}")
 
 
-def _division_by_zero(node: Node, rs: np.ndarray, params: Mapping[str, float]) -> float | None:
-    """The first r where a denominator (/, recip, negative integer power) of the tree is 0."""
-    found: list[float] = []
+def _denominators(node: Node) -> list[Node]:
+    """Subtrees that are divided by: right of /, base of a negative integer power, recip's
+    argument, and cos/sin/tan for sec/csc/cot."""
+    out: list[Node] = []
 
     def walk(n: Node) -> None:
-        den: Node | None = None
         if isinstance(n, Binary):
             walk(n.left)
             walk(n.right)
             if n.op == "/":
-                den = n.right
+                out.append(n.right)
             elif n.op == "^" and (_int_exponent(n.right) or 0) < 0:
-                den = n.left
+                out.append(n.left)
         elif isinstance(n, Unary):
             walk(n.operand)
         elif isinstance(n, Call):
             for a in n.args:
                 walk(a)
-            if n.func in ("recip", "cot", "sec", "csc"):
-                den = n.args[0]
-        if den is not None:
-            with np.errstate(all="ignore"):
-                v = np.broadcast_to(evaluate(den, rs, params), rs.shape)
-            zero = np.flatnonzero(v == 0.0) if isinstance(n, Binary) or n.func == "recip" else None  # type: ignore[union-attr]
-            if zero is None:  # sec/csc/cot: the denominator is cos/sin/tan of the argument
-                value = evaluate(n, rs, params)
-                zero = np.flatnonzero(~np.isfinite(np.broadcast_to(value, rs.shape)))
-            if zero.size:
-                found.append(float(rs[zero[0]]))
+            if n.func == "recip":
+                out.append(n.args[0])
+            elif n.func in ("sec", "csc", "cot"):
+                out.append(Call({"sec": "cos", "csc": "sin", "cot": "tan"}[n.func], n.args))
 
     walk(node)
+    return out
+
+
+def _division_by_zero(node: Node, rs: np.ndarray, params: Mapping[str, float]) -> float | None:
+    """The smallest r of the grid ``rs`` where a denominator of the tree is 0, or the root
+    (bisected, 12 digits) of one that changes sign between neighbouring points; None if none."""
+    found: list[float] = []
+    for den in _denominators(node):
+        v = np.broadcast_to(evaluate(den, rs, params), rs.shape)
+        zero = np.flatnonzero(v == 0.0)
+        if zero.size:
+            found.append(float(rs[zero[0]]))
+            continue
+        ok = np.isfinite(v[:-1]) & np.isfinite(v[1:])
+        change = np.flatnonzero(ok & (np.sign(v[:-1]) != np.sign(v[1:])))
+        if change.size:
+            a, b = float(rs[change[0]]), float(rs[change[0] + 1])
+            va = float(evaluate(den, a, params))
+            for _ in range(80):
+                m = 0.5 * (a + b)
+                vm = float(evaluate(den, m, params))
+                if vm == 0.0 or m in (a, b):
+                    break
+                if np.sign(vm) == np.sign(va):
+                    a, va = m, vm
+                else:
+                    b = m
+            found.append(float(f"{0.5 * (a + b):.12g}"))
     return min(found) if found else None
 
 
