@@ -248,3 +248,39 @@ def test_lammps_wall_table_slit_trajectories(tmp_path, tabstyle):
                 f"zlo: {{coord: EDGE, file: {tab.name}, keyword: LJ93, cutoff: 2.5}}, "
                 f"zhi: {{coord: EDGE, file: {tab.name}, keyword: HARM, cutoff: 2.0}}}}\n")
     _validate(write(tmp_path, text))
+
+
+# ------------------------------------------------------------------------------ wallbatch table
+
+
+def test_cli_table_of_an_expression_matches_the_expression_wall(tmp_path):
+    """`wallbatch table EXPR` writes E, F and FP = dF/dr (exact); a spline table of it reproduces
+    the expression wall to the spline's accuracy, and a built-in style tabulates too."""
+    from typer.testing import CliRunner  # noqa: PLC0415
+
+    from wallbatch.cli import app  # noqa: PLC0415
+    from wallbatch.styles.lepton import compile_expression  # noqa: PLC0415
+    from wallbatch.styles.table import WallTable, read_table  # noqa: PLC0415
+
+    out = tmp_path / "m.table"
+    expr = "D0*(exp(-2*alpha*(r-r0))-2*exp(-alpha*(r-r0)))"
+    runner = CliRunner()
+    res = runner.invoke(app, ["table", expr, "-p", "D0=2", "-p", "alpha=1.5", "-p", "r0=1.2", "--lo", "0.2",
+                              "--hi", "3.0", "-n", "800", "-k", "MORSE", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(app, ["table", "lj93", "-p", "epsilon=1", "-p", "sigma=1", "-p", "cutoff=2.5",
+                              "--lo", "0.5", "--hi", "3.0", "-k", "LJ", "-o", str(out), "--append"])
+    assert res.exit_code == 0, res.output
+    d = read_table(out, "MORSE")
+    a, al = 1.5, 1.5 * (d.r - 1.2)
+    assert d.fplo == pytest.approx(2 * a * 2.0 * (-2 * a * np.exp(-2 * al) + a * np.exp(-al))[0], rel=1e-12)
+    t = WallTable.build(d, "spline", 800)
+    e0 = compile_expression(expr, ("D0", "alpha", "r0"))
+    rs = np.linspace(0.3, 2.9, 777)
+    e, f = t.lookup(rs)
+    e_ref, f_ref = e0.energy_force(rs, {"D0": 2.0, "alpha": 1.5, "r0": 1.2})
+    assert np.max(np.abs(e - e_ref)) < 1e-8 and np.max(np.abs(f - f_ref)) < 1e-7
+    lj = read_table(out, "LJ")
+    np.testing.assert_array_equal(lj.e, lj93(lj.r, LJ)[0])
+    bad = runner.invoke(app, ["table", "colloid", "--lo", "1", "--hi", "2", "-o", str(out)])
+    assert bad.exit_code == 2 and "depends on the particle radius" in bad.output

@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wallbatch.styles.flat import WallStyle
+from wallbatch.styles.flat import STYLES, WallStyle
+from wallbatch.styles.lepton import LeptonError, compile_expression, derivative, evaluate, simplify
 
 __all__ = [
     "TableWallStyle",
@@ -40,6 +41,8 @@ __all__ = [
     "spline_coefficients",
     "spline_eval",
     "tabulate",
+    "table_source",
+    "write_source_table",
 ]
 
 
@@ -329,3 +332,44 @@ def table_style(table: WallTable) -> TableWallStyle:
         return table.lookup(r)[0] - table.lookup(p["cutoff"], "linear")[0]
 
     return TableWallStyle("table", ("cutoff",), lambda r, p: table.lookup(r), shifted_fn=shifted, lo=table.lo)
+
+
+def table_source(source: str, params: dict[str, float]):
+    """(energy_force(r) -> (E, F), dF/dr(r) or None) for a built-in flat style name (lj93, lj126,
+    lj1043, harmonic, morse; its LAMMPS parameters in ``params``) or a wall/lepton expression of r
+    (its parameters in ``params``; dF/dr is the symbolic second derivative)."""
+    if source in STYLES:
+        style = STYLES[source]
+        if style.needs_radius:
+            raise TableError(f"style {source} depends on the particle radius: it cannot be one table")
+        need = [k for k in style.params if k not in params and not (source == "harmonic" and k == "sigma")]
+        if need:
+            raise TableError(f"style {source} needs {', '.join(need)} (give --param name=value)")
+        unknown = sorted(set(params) - set(style.params))
+        if unknown:
+            raise TableError(f"style {source} takes {', '.join(style.params)}, not {', '.join(unknown)}")
+        p = {k: float(v) for k, v in params.items()}
+        return (lambda r: style.energy_force(r, p)), None
+    try:
+        expr = compile_expression(source, tuple(params))
+    except LeptonError as exc:
+        raise TableError(f"{source!r} is neither a wall style ({', '.join(sorted(STYLES))}) nor a valid expression: "
+                         f"{exc}") from None
+    p = {k: float(v) for k, v in params.items()}
+    dfdr = simplify(derivative(expr.force))
+    return (lambda r: expr.energy_force(r, p)), (lambda r: evaluate(dfdr, r, {**expr.defaults, **p}))
+
+
+def write_source_table(path, source: str, params: dict[str, float], lo: float, hi: float, n: int,
+                       keyword: str, append: bool = False) -> None:
+    """Tabulate a style or expression on n equally spaced points of [lo, hi] into a LAMMPS table
+    section (with FP from the exact dF/dr for an expression)."""
+    energy_force, dfdr = table_source(source, params)
+    r, e, f = tabulate(energy_force, lo, hi, n)
+    if not (np.all(np.isfinite(e)) and np.all(np.isfinite(f))):
+        bad = r[~(np.isfinite(e) & np.isfinite(f))][0]
+        raise TableError(f"{source!r} is not finite at r = {bad!r}: choose a larger lo")
+    fp = None if dfdr is None else (float(dfdr(np.float64(lo))), float(dfdr(np.float64(hi))))
+    text = ", ".join(f"{k}={v!r}" for k, v in params.items())
+    write_table(path, keyword, r, e, f, fp=fp, append=append,
+                comment=f"wallbatch table: {source}{' with ' + text if text else ''}, {n} points on [{lo!r}, {hi!r}]")
