@@ -137,3 +137,35 @@ def test_export_writes_the_fix_line():
     exp = export_case(cfg, build_case(cfg))
     assert "w all wall/reflect/stochastic ccl 9 zlo EDGE 1.5 0.2 0.0 0.0 0.3 0.8 0.6 units box" in exp.script
     assert any("wall/reflect/stochastic random numbers" in d for d in exp.decisions)
+
+
+@pytest.mark.lammps
+@pytest.mark.slow
+def test_lammps_thermal_slit_statistics(tmp_path):
+    """The exported scene in LAMMPS (its own random numbers, 4 seeds) and wallbatch (4 replicas):
+    the time-averaged temperature between walls at T_lo and T_hi agrees within 4 standard errors
+    (over replicas), and both are near sqrt(T_lo T_hi)."""
+    from lammps_oracle import lammps_available  # noqa: PLC0415
+
+    if not lammps_available():
+        pytest.skip("LAMMPS Python module not usable")
+    from wallbatch.lammps.validate import run_lammps  # noqa: PLC0415
+
+    means = {"wallbatch": [], "lammps": []}
+    for k in range(4):
+        walls = (f"  hot: {{style: reflect/stochastic, rstyle: diffusive, seed: {101 + k}, units: box,\n"
+                 f"        zlo: {{coord: EDGE, temp: {T_LO}}}, zhi: {{coord: EDGE, temp: {T_HI}}}}}\n")
+        cfg = load_config_text(scene(walls, count=300, steps=12000, thermo=200, seed=31 + k, height=2.0,
+                                     outputs="[step, temp]"))
+        case = build_case(cfg)
+        res = run_cases([case])[0]
+        assert res.status == "ok", res.error
+        ref = run_lammps(export_case(cfg, case, data_dir=tmp_path / f"r{k}"), tmp_path / f"r{k}")
+        keep = slice(len(res.data["temp"]) // 2, None)  # the second half: equilibrated
+        means["wallbatch"].append(res.data["temp"][keep].mean())
+        means["lammps"].append(ref["temp"][keep].mean())
+    w, lmp = np.array(means["wallbatch"]), np.array(means["lammps"])
+    se = math.sqrt(w.var(ddof=1) / w.size + lmp.var(ddof=1) / lmp.size)
+    assert abs(w.mean() - lmp.mean()) < 4 * se, (w, lmp)
+    for m in (w.mean(), lmp.mean()):
+        assert abs(m - math.sqrt(T_LO * T_HI)) < 0.05, (w, lmp)
