@@ -796,7 +796,8 @@ def validate(*args: str):
 # shipped configs that `validate` must pass with --steps 200 (every feature but wall/flow)
 EXPORTABLE = {"colloid-slit", "dt-reset-rescue", "harmonic-confinement", "lj1043-graphite", "lj126-piston",
               "lj93-slit", "morse-metal", "quickstart", "reflect-piston", "reflect-swiggle",
-              "ellipsoids-ees-slit", "colloid-cavity", "cylinder-obstacle", "lj-liquid-slit",
+              "ellipsoids-ees-slit", "colloid-cavity", "cylinder-obstacle", "lj-liquid-slit", "lj-adsorption-nvt",
+              "lj-slit-profiles",
               "lepton-slit", "table-slit"}
 FLOW = {"flow-seed"}  # exported, but compared with LAMMPS only statistically (tests/test_flow.py)
 THERMAL = {"thermal-walls"}  # wall/reflect/stochastic: statistically only (tests/test_stochastic.py)

@@ -344,12 +344,12 @@ def test_quirks_page_names_real_tests_and_every_section_13_quirk():
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
-    text = (root / "docs" / "quirks.md").read_text()
+    text = (root / "docs" / "deviations.md").read_text()
     refs = set(re.findall(r"`(tests/[\w/]+\.py)::(\w+)`", text))
     assert len(refs) > 50
     missing = [f"{f}::{name}" for f, name in sorted(refs)
                if not (root / f).exists() or f"def {name}(" not in (root / f).read_text()]
     assert not missing, missing
-    section = text.split("## physics.md §13")[1].split("## ")[0]
+    section = text.split("## Quirk by quirk")[1].split("## ")[0]
     numbers = [int(m) for m in re.findall(r"^\| (\d+) \|", section, flags=re.MULTILINE)]
     assert numbers == list(range(1, 27))

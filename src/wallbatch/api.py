@@ -111,7 +111,10 @@ class CheckReport:
 
 def kernels(case: Case) -> list[str]:
     """The fixes a case runs, in LAMMPS's words, in the order the engine applies them."""
-    names = ["nve/asphere" if case.shape is not None else "nve"]
+    if case.fixes is None:
+        names = ["nve/asphere" if case.shape is not None else "nve"]
+    else:  # fixes: integrators and thermostats (enforce2d acts after the forces; listed here too)
+        names = [f"{f.style} {f.fix_id}" for f in case.fixes]
     names += [f"wall/reflect {w.fix_id}" for w in case.reflect_walls]
     if case.pair is not None:
         names.append("pair lj/cut")

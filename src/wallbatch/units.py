@@ -40,20 +40,30 @@ UNIT_SYSTEMS: dict[str, UnitSystem] = {
     ),
 }
 
-# basis atoms per cubic unit cell (V_prim = 1 for sc, bcc, fcc)
-LATTICE_BASIS = {"sc": 1, "bcc": 2, "fcc": 4}
+# basis atoms per unit cell (V_prim = 1 for sc, bcc, fcc, sq, sq2; the area sqrt(3) for hex)
+LATTICE_BASIS = {"sc": 1, "bcc": 2, "fcc": 4, "sq": 1, "sq2": 2, "hex": 2}
+LATTICES_2D = ("sq", "sq2", "hex")
+# unit-cell edges in units of the lattice constant a (hex: a2 = (0, sqrt(3), 0))
+LATTICE_CELL = {"hex": (1.0, 3.0 ** 0.5, 1.0)}
 
 # unit-cell basis positions in lattice units, for `create: {lattice: ...}`
 LATTICE_POSITIONS = {
     "sc": [(0.0, 0.0, 0.0)],
     "bcc": [(0.0, 0.0, 0.0), (0.5, 0.5, 0.5)],
     "fcc": [(0.0, 0.0, 0.0), (0.5, 0.5, 0.0), (0.5, 0.0, 0.5), (0.0, 0.5, 0.5)],
+    "sq": [(0.0, 0.0, 0.0)],
+    "sq2": [(0.0, 0.0, 0.0), (0.5, 0.5, 0.0)],
+    "hex": [(0.0, 0.0, 0.0), (0.5, 0.5, 0.0)],
 }
 
 
 def lattice_constant(style: str, scale: float, units: str) -> float:
     """Lattice constant a [distance]: in lj units `scale` is the reduced density rho*, so
-    a = (n_basis / rho*)^(1/3); in other units `scale` is a itself."""
+    a = (n_basis / rho*)^(1/3) in 3-D and (n_basis / (V_prim rho*))^(1/2) for the 2-D lattices
+    sq, sq2, hex (V_prim = sqrt(3) for hex); in other units `scale` is a itself."""
     if units == "lj":
+        if style in LATTICES_2D:
+            area = 3.0 ** 0.5 if style == "hex" else 1.0
+            return (LATTICE_BASIS[style] / (area * scale)) ** 0.5
         return (LATTICE_BASIS[style] / scale) ** (1.0 / 3.0)
     return float(scale)

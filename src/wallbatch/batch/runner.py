@@ -53,7 +53,9 @@ def _layout(case: Case) -> tuple:
     return (case.steps, case.run_time, case.thermo, case.thermo_is_time, case.outputs,
             tuple((w.fix_id, tuple(f.label for f in w.faces)) for w in case.soft_walls),
             tuple((w.fix_id, tuple(f.label for f in w.faces)) for w in case.reflect_walls),
-            case.units.name)
+            case.units.name,
+            tuple((p.name, p.axis, p.lo, p.delta, p.nbins, p.every, p.repeat, p.freq, p.quantities)
+                  for p in case.profiles), case.average_start)
 
 
 def check_layout(plan: SweepPlan, cases: list[Case | None]) -> None:

@@ -1,4 +1,4 @@
-"""The config language (shared/spec/config.md): YAML loading with line numbers, Pydantic models,
+"""The config language (docs/reference/config.md): YAML loading with line numbers, Pydantic models,
 and the cross-field checks. The models are the single source of truth for a scene; the engine
 never sees raw YAML.
 
@@ -25,13 +25,14 @@ from pydantic import (
     model_validator,
 )
 
+from wallbatch.config.profiles import Averages, Profile, check_profiles
 from wallbatch.config.source import FACES, POSITIONAL, ConfigError, SourceMap, load_yaml
 
 SOFT_STYLES = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "ees")
 REGION_POTENTIALS = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse")
 THERMO_KEYWORDS = (
     "step", "time", "dt", "temp", "ke", "pe", "etot", "press", "atoms", "erot",
-    "reflect_count", "reflect_impulse", "flow_crossings",
+    "reflect_count", "reflect_impulse", "flow_crossings", "ecouple", "econserve",
 )
 VAR_RE = re.compile(r"^v_[A-Za-z_][A-Za-z0-9_]*$")
 NAME_RE = r"^[A-Za-z_][A-Za-z0-9_\-]*$"
@@ -78,6 +79,8 @@ def _bound(v: Any) -> float | None:
 
 from pydantic import BeforeValidator  # noqa: E402
 
+from wallbatch.config.ensemble import EnsembleFix, check_ensemble, drop_fix_tag
+from wallbatch.config.ensemble import expand_fix_lines as expand_ensemble_lines
 from wallbatch.config.fixline import FixLineError, parse_fix_line
 from wallbatch.expr import VariableError, Variables
 from wallbatch.styles.lepton import LeptonError, compile_expression
@@ -117,7 +120,7 @@ class Box(Model):
 class Lattice(Model):
     """`lattice STYLE SCALE`: in lj units scale is the reduced density, otherwise the lattice constant."""
 
-    style: Literal["sc", "bcc", "fcc"]
+    style: Literal["sc", "bcc", "fcc", "sq", "sq2", "hex"]  # sq, sq2, hex: 2-D (dimension: 2)
     scale: PositiveFloat
 
 
@@ -447,7 +450,7 @@ class StochasticWall(_FaceWall):
 
 
 class FlowWall(Model):
-    """fix wall/flow (physics.md §8)."""
+    """fix wall/flow (docs/physics.md §8)."""
 
     style: Literal["flow"]
     group: str = "all"
@@ -512,7 +515,7 @@ class Minimize(Model):
 
 
 class DtReset(Model):
-    """fix dt/reset (physics.md §9)."""
+    """fix dt/reset (docs/physics.md §9)."""
 
     every: PositiveInt
     group: str = "all"
@@ -559,10 +562,12 @@ class Dump(Model):
 class Output(Model):
     thermo: list[Literal[THERMO_KEYWORDS]] = ["step", "time", "dt", "temp", "ke", "pe", "etot"]  # type: ignore[valid-type]
     dump: Dump | None = None
+    profiles: dict[str, Profile] = {}  # name -> binned axis (config/profiles.py)
+    averages: Averages | None = None
 
 
 class Config(Model):
-    """One scene (shared/spec/config.md)."""
+    """One scene (docs/reference/config.md)."""
 
     name: str = "wallbatch"
     units: Literal["lj", "real", "metal"] = "lj"
@@ -577,10 +582,13 @@ class Config(Model):
     walls: dict[str, Wall] = {}
     dt_reset: DtReset | None = None
     minimize: Minimize | None = None
+    dimension: Literal[2, 3] = 3
+    fixes: dict[str, EnsembleFix] | None = None  # integrators and thermostats; None: nve on all
     run: Run
     output: Output = Output()
     sweep: dict[str, Any] | None = None
     _base_dir: Path = PrivateAttr(default=Path("."))  # folder that relative `file:` paths start from
+    _srcmap: Any = PrivateAttr(default=None)  # where each value stands, for errors found when building
 
 
 
@@ -613,6 +621,9 @@ def validate_data(data: Any, srcmap: SourceMap, base: Path | None = None) -> Con
     """Validate loaded YAML data into a Config, then run the cross-field checks (relative table
     files of wall/table start from `base`)."""
     data = _expand_fix_lines(data, srcmap)
+    data, problems = expand_ensemble_lines(data, srcmap)
+    if problems:
+        raise ConfigError(problems)
     try:
         cfg = Config.model_validate(data)
     except ValidationError as exc:
@@ -623,11 +634,12 @@ def validate_data(data: Any, srcmap: SourceMap, base: Path | None = None) -> Con
             if err["type"] == "extra_forbidden" and err["loc"][-1] == "fld":
                 msg = "fld (lubrication models, fix wall ... fld yes) is not supported: remove it"
             elif err["type"] == "extra_forbidden":
-                msg = "unknown key (misspelled? see shared/spec/config.md for the valid keys)"
-            problems.append(srcmap.format(tuple(err["loc"]), msg))
+                msg = "unknown key (misspelled? see docs/reference/config.md for the valid keys)"
+            problems.append(srcmap.format(drop_fix_tag(tuple(err["loc"])), msg))
         raise ConfigError(problems) from None
     if base is not None:
         cfg._base_dir = base
+    cfg._srcmap = srcmap
     problems = [srcmap.format(path, msg) for path, msg in check_scene(cfg)]
     if problems:
         raise ConfigError(problems)
@@ -765,6 +777,8 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
             add(("output", "thermo"), f"{key} needs {what} in the scene")
     if "erot" in cfg.output.thermo and not shape_groups and not file_groups:
         add(("output", "thermo"), "erot is the rotational energy of ellipsoids: no group has a shape")
+    problems.extend(check_ensemble(cfg))  # fixes: and dimension:
+    problems += check_profiles(cfg, groups)
     return problems
 
 

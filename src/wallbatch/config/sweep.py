@@ -1,4 +1,4 @@
-"""Sweeps (shared/spec/config.md "Sweeps"): expand one scene into a labelled grid of cases.
+"""Sweeps (docs/reference/config.md "Sweeps"): expand one scene into a labelled grid of cases.
 
 `product` entries are full-grid dimensions, a `zip` moves several parameters together on one
 dimension, `replicas` adds independent random streams. Paths address the validated model, so a
@@ -86,7 +86,7 @@ def expand_values(values: Any) -> list:
 RESERVED = frozenset({
     "time", "dt", "temp", "ke", "pe", "etot", "press", "atoms", "erot", "step", "sample", "fix", "face",
     "face_fix", "face_name", "wall_energy", "wall_force", "reflect_count", "reflect_impulse", "flow_crossings",
-    "region_force", "rfix", "spatial", "status", "error", "seconds", "dump_path",
+    "region_force", "rfix", "spatial", "ecouple", "econserve", "status", "error", "seconds", "dump_path",
 })
 
 

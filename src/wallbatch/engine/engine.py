@@ -6,12 +6,13 @@ structure runs as one set of array operations; a single case is a batch of one. 
 chunk of steps later without touching the rest.
 
 One step n (counter first):
-  1. initial_integrate   v += dt/2 ftm2v f/m ; x += dt v          (fix nve)
+  1. initial_integrate   fix nvt chain half step; v += dt/2 ftm2v f/m ; x += dt v (integrated atoms)
   2. post_integrate      wall/reflect
   3. periodic wrap, lost-atom check
-  4. force clear, post_force: soft walls (energies only on sample steps)
-  5. final_integrate     v += dt/2 ftm2v f/m
-  6. end_of_step         dt/reset when n % every == 0
+  4. force clear, post_force: soft walls (energies only on sample steps), langevin, enforce2d
+  5. final_integrate     v += dt/2 ftm2v f/m; fix nvt chain half step
+  6. end_of_step         temp/berendsen, temp/rescale, langevin tally (engine/ensemble.py), wall/flow,
+                         dt/reset when n % every == 0
 A case that fails (atom behind a wall, lost, NaN, a bad variable value) leaves the batch with its
 message; the others go on untouched.
 """
@@ -24,9 +25,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from wallbatch.engine.compiled import attach_fast_path
+from wallbatch.engine.ensemble import Ensemble
 from wallbatch.engine.flow import FlowKernel
 from wallbatch.engine.minimize import minimize
 from wallbatch.engine.pair import PairLJCut
+from wallbatch.engine.profiles import ProfileSampler
 from wallbatch.engine.state import BatchState
 from wallbatch.engine.walls import build_kernels, build_region_kernels
 from wallbatch.geometry.quaternion import richardson, rotational_energy
@@ -82,7 +85,11 @@ class Engine:
         self.ees: list = [w for w in self.soft if w.style.name == "ees"]  # wall/ees (ellipsoids)
         self.region_walls: list = build_region_kernels(cases)  # wall/region and wall/region/ees
         self.min_info: dict[int, dict[str, np.ndarray]] = {}  # case -> minimization results
-        self.fast = attach_fast_path(self)  # compiled chunks of steps (fast.py), or None
+        # fixes: integrator groups, thermostats, 2-D (None: fix nve on all atoms, 3-D)
+        self.ensemble = Ensemble(cases, self.state) if Ensemble.needed(c0) else None
+        # compiled chunks of steps, or None; scenes with fixes: beyond nve on all run on NumPy
+        self.fast = attach_fast_path(self) if self.ensemble is None else None
+        self.profiles = ProfileSampler(cases) if c0.profiles else None  # output.profiles
 
     # -- the step ----------------------------------------------------------------------------
 
@@ -91,8 +98,11 @@ class Engine:
         With ellipsoids, fix nve/asphere (physics.md §11.2): also L += dt/2 ftm2v torque, then the
         Richardson quaternion step over dt."""
         s = self.state
-        s.v += dtfm * s.f
-        s.x += dt[:, None, None] * s.v
+        if self.ensemble is not None:
+            self.ensemble.initial_integrate(s, dt, dtfm)
+        else:
+            s.v += dtfm * s.f
+            s.x += dt[:, None, None] * s.v
         if s.quat is not None:
             s.angmom += ((0.5 * s.units.ftm2v) * dt)[:, None, None] * s.torque
             s.quat = richardson(s.quat, s.angmom, s.inertia, (0.5 * dt)[:, None])
@@ -100,7 +110,10 @@ class Engine:
     def final_integrate(self, dtfm: np.ndarray, dt: np.ndarray) -> None:
         """fix nve (and nve/asphere), second half: v += dtfm f; L += dt/2 ftm2v torque."""
         s = self.state
-        s.v += dtfm * s.f
+        if self.ensemble is not None:
+            self.ensemble.final_integrate(s, dtfm)
+        else:
+            s.v += dtfm * s.f
         if s.quat is not None:
             s.angmom += ((0.5 * s.units.ftm2v) * dt)[:, None, None] * s.torque
 
@@ -195,8 +208,12 @@ class Engine:
             w.apply(s, dt)
         self.wrap()
         out = self.compute_forces(outputs)
+        if self.ensemble is not None:
+            self.ensemble.post_force(s, active)  # langevin, enforce2d
         self.check_lost()
         self.final_integrate(dtfm, dt)
+        if self.ensemble is not None:
+            self.ensemble.end_of_step(s, active)  # temp/berendsen, temp/rescale, langevin tally
         self.end_of_step()
         if self.dt_reset is not None:
             due = s.step % self.dt_reset.every == 0
@@ -220,7 +237,8 @@ class Engine:
         n = s.x.shape[1]
         mv2 = np.einsum("cn,cn->c", s.mass, np.einsum("cni,cni->cn", s.v, s.v))
         ke = 0.5 * u.mvv2e * mv2  # translational
-        dof = 3 * n - 3
+        dim = self.cases[0].dimension
+        dof = dim * n - dim  # compute temp: the centre of mass's dof removed
         rec: dict[str, np.ndarray] = {
             "step": s.step.astype(float), "time": s.time, "dt": s.dt.copy(),
             "temp": 2.0 * ke / (dof * u.boltz) if dof > 0 else np.zeros(s.ncases),
@@ -248,11 +266,14 @@ class Engine:
         if self.flow:
             rec["flow_crossings"] = sum(w.take_crossings() for w in self.flow)
         if VIRIAL in out:  # LAMMPS compute pressure: (sum m v^2 + W) / (3 V), translational ke
-            volume = float(np.prod(s.box_hi - s.box_lo))
-            rec["press"] = (u.mvv2e * mv2 + out[VIRIAL][0]) / (3.0 * volume) * u.nktv2p
+            volume = float(np.prod((s.box_hi - s.box_lo)[:dim]))  # 2-D: the area
+            rec["press"] = (u.mvv2e * mv2 + out[VIRIAL][0]) / (dim * volume) * u.nktv2p
         rec["ke"] = ke
         rec["pe"] = pe
         rec["etot"] = pe + ke
+        # thermostats' exchanged energy (LAMMPS ecouple) and etot + ecouple (econserve)
+        rec["ecouple"] = self.ensemble.ecouple(s.ncases) if self.ensemble is not None else np.zeros(s.ncases)
+        rec["econserve"] = rec["etot"] + rec["ecouple"]
         self.samples.append(rec)
         self.sample_rows.append(s.rows.copy())
 
@@ -269,6 +290,8 @@ class Engine:
             w.take(keep)
         if self.pair is not None:
             self.pair.take(keep)
+        if self.ensemble is not None:
+            self.ensemble.take(keep)
         if self.dt_reset is not None:
             for name in ("dtr_xmax", "dtr_emax", "dtr_tmin", "dtr_tmax"):
                 setattr(self, name, getattr(self, name)[keep])
@@ -283,6 +306,8 @@ class Engine:
         for w in self.flow:
             w.setup(s.x)
         out = self.compute_forces(True)
+        if self.ensemble is not None:
+            self.ensemble.setup(s)  # langevin and enforce2d forces, chain masses
         if self.dt_reset is not None:
             s.set_dt(self.reset_dt())
         self.finish_step(out, sample=True)
@@ -380,14 +405,17 @@ class Engine:
             if c0.run_time is None:
                 samples = set(sample_instants(c0))
                 dumps = set(range(0, c0.steps + 1, c0.dump_every)) if c0.dump_every else set()
+                profile = set(self.profiles.instants) if self.profiles else set()  # never step 0
                 if 0 in dumps:
                     self.dump_frame()
                 done = 0
-                for target in sorted(samples | dumps)[1:]:
+                for target in sorted(samples | dumps | profile)[1:]:
                     self.advance(target - done, sample=target in samples)
                     done = target
                     if target in dumps and self.state.ncases:
                         self.dump_frame()
+                    if target in profile:
+                        self.profiles.sample(self.state)
             else:
                 for target in sample_instants(c0)[1:]:
                     self.advance_to_time(target)
@@ -426,6 +454,8 @@ class Engine:
             else:
                 results.append(CaseResult("ok", "", seconds, {k: v[c] for k, v in stacked.items()}, frames[c]))
             results[-1].data.update(self.min_info.get(c, {}))
+            if self.profiles is not None:
+                results[-1].data.update(self.profiles.case_data(c, failed=c in self.errors))
         return results
 
 

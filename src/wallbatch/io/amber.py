@@ -1,4 +1,4 @@
-"""Per-atom trajectories in the AMBER NetCDF convention, version 1.0 (shared/spec/outputs.md,
+"""Per-atom trajectories in the AMBER NetCDF convention, version 1.0 (docs/reference/outputs.md,
 "Per-atom trajectories").
 
 One file per case, NetCDF-3 64-bit offset (as MDAnalysis requires), readable by MDAnalysis

@@ -1,4 +1,4 @@
-"""Results as a labelled xarray Dataset, written to NetCDF-4 (shared/spec/outputs.md).
+"""Results as a labelled xarray Dataset, written to NetCDF-4 (docs/reference/outputs.md).
 
 Dimensions: one per sweep entry (in declared order), `sample`, `fix`, `face`. A run without a
 sweep has no sweep dimensions. A failed case keeps its grid place with NaN outputs.
@@ -17,12 +17,15 @@ import xarray as xr
 from wallbatch.version import __version__
 from wallbatch.config.sweep import SweepDim
 from wallbatch.engine.engine import CaseResult, sample_instants
+from wallbatch.io.averages import add_averages, profile_variables
 from wallbatch.scene.case import Case
 
 LONG_NAMES = {
     "time": "elapsed simulated time",
     "dt": "timestep in force",
-    "temp": "translational temperature (3N-3 degrees of freedom)",
+    "temp": "translational temperature (d N - d degrees of freedom, d = dimension)",
+    "ecouple": "energy the thermostats took from the atoms, cumulative (LAMMPS ecouple)",
+    "econserve": "etot + ecouple: conserved up to integration error (LAMMPS econserve)",
     "ke": "kinetic energy",
     "pe": "potential energy (pair + walls with energy: true)",
     "etot": "total energy ke + pe",
@@ -55,7 +58,8 @@ def _units(case: Case) -> dict[str, str]:
     return {"time": u.time, "dt": u.time, "temp": u.temperature, "ke": u.energy, "pe": u.energy,
             "etot": u.energy, "wall_energy": u.energy, "wall_force": u.force, "atoms": "1",
             "reflect_count": "1", "reflect_impulse": impulse, "step": "1", "erot": u.energy,
-            "press": u.pressure, "region_force": u.force, "flow_crossings": "1"}
+            "press": u.pressure, "region_force": u.force, "flow_crossings": "1",
+            "ecouple": u.energy, "econserve": u.energy}
 
 
 def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
@@ -71,11 +75,13 @@ def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
     if c0.run_time is None:
         instants = np.asarray(sample_instants(c0), dtype=np.int64)
         coords: dict = {"step": ("sample", instants)}
-        per_sample = ["time", "dt", "temp", "ke", "pe", "etot", "atoms", "erot", "press", "flow_crossings"]
+        per_sample = ["time", "dt", "temp", "ke", "pe", "etot", "atoms", "erot", "press", "flow_crossings", "ecouple",
+                      "econserve"]
     else:
         instants = np.asarray(sample_instants(c0), dtype=float)
         coords = {"time": ("sample", instants)}
-        per_sample = ["step", "dt", "temp", "ke", "pe", "etot", "atoms", "erot", "press", "flow_crossings"]
+        per_sample = ["step", "dt", "temp", "ke", "pe", "etot", "atoms", "erot", "press", "flow_crossings", "ecouple",
+                      "econserve"]
     nsamp = len(instants)
     fixes = list(c0.fix_order)
     rfixes = [w.fix_id for w in c0.region_walls]
@@ -138,6 +144,9 @@ def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
     data_vars["seconds"] = (sweep_dims, np.asarray([r.seconds for r in results], float).reshape(shape))
     if dump_paths is not None:
         data_vars["dump_path"] = (sweep_dims, np.asarray(dump_paths, dtype=object).reshape(shape))
+    pvars, pcoords = profile_variables(results, c0, shape, sweep_dims)  # output.profiles
+    data_vars.update(pvars)
+    coords.update(pcoords)
     ds = xr.Dataset(data_vars, coords=coords)
     for name in ds.variables:
         if name in units:
@@ -173,6 +182,7 @@ def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
         "wallbatch_version": __version__,
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
     })
+    add_averages(ds, c0)  # <var>_mean/_sem/_sem_converged, wall_pressure_*
     return ds
 
 

@@ -1,6 +1,6 @@
 """Reading results back: a text summary, quick plots and the config's JSON schema.
 
-Works on the results layout of shared/spec/outputs.md, whether the Dataset comes from
+Works on the results layout of docs/reference/outputs.md, whether the Dataset comes from
 `runner.run_plan` or from `xarray.open_dataset(results.nc)`. Importing this module registers the
 `ds.wallbatch` accessor (`.summary()`, `.sweep_dims`, `.ok`), so results stay a plain Dataset.
 matplotlib is imported only by `plot`.
@@ -16,7 +16,9 @@ import numpy as np
 import xarray as xr
 
 # Dimensions that belong to one case's outputs; every other dimension is a sweep dimension.
-CASE_DIMS = ("sample", "fix", "face", "spatial", "rfix")
+CASE_DIMS = ("sample", "fix", "face", "spatial", "rfix", "window")
+AVG_SUFFIXES = ("_mean", "_sem", "_sem_converged")
+SHOWN_MEANS = 8  # cases listed in the summary's time averages
 SAMPLE_AXES = ("sample", "step", "time")
 TEXT_VARS = ("status", "error")
 KINDS = ("auto", "line", "heatmap")
@@ -30,7 +32,24 @@ def sweep_dims(ds: xr.Dataset) -> list[str]:
     """Sweep dimension names in declared order (the order of `status`, then any others)."""
     order = list(ds["status"].dims) if "status" in ds else []
     order += [d for d in ds.dims if d not in order]
-    return [str(d) for d in order if d not in CASE_DIMS]
+    return [str(d) for d in order if d not in CASE_DIMS and not _is_bin_dim(ds, str(d))]
+
+
+def _is_bin_dim(ds: xr.Dataset, dim: str) -> bool:
+    """A profile's bin dimension `<name>_bin` (its variables also run over `window`)."""
+    return dim.endswith("_bin") and any(dim in v.dims and ("window" in v.dims or name.endswith(AVG_SUFFIXES))
+                                        for name, v in ds.data_vars.items() if str(name).startswith("profile_"))
+
+
+def _pm(mean: float, sem: float, converged: bool = True) -> str:
+    """`mean ± sem` with sem to 2 significant digits and mean to the same decimal place; a `*`
+    marks an error bar whose block averaging found no plateau (a lower bound)."""
+    if not np.isfinite(mean):
+        return "nan"
+    if not np.isfinite(sem) or sem <= 0:
+        return f"{mean:.6g} ± {_fmt(sem)}" + ("" if converged else "*")
+    digits = max(0, 1 - int(np.floor(np.log10(sem))))
+    return f"{mean:.{digits}f} ± {sem:.{digits}f}" + ("" if converged else "*")
 
 
 def ok_mask(ds: xr.Dataset) -> xr.DataArray:
@@ -110,9 +129,15 @@ def summary(ds: xr.Dataset, errors: int = 5, slowest: int = 5) -> str:
                     unit = f" [{units}]" if units and units != "1" else ""
                     line += f"  {c}: {_fmt(vals.min())} .. {_fmt(vals.max())}{unit}" if vals.size else ""
                     break
+        elif d == "window" and "window_step" in ds.coords:
+            line += f"  profile windows ending at step {_values(ds['window_step'].values, 6)}"
         elif d in ds.coords:
             line += f"  {_values(ds[d].values)}"
         lines.append(line)
+    for d in ds.dims:
+        if _is_bin_dim(ds, str(d)):
+            c = ds[d].values
+            lines.append(f"  {str(d):<{width}}  {ds.sizes[d]:>5}  bin centres {_fmt(c.min())} .. {_fmt(c.max())}")
 
     total = int(ok.size)
     n_ok = int(ok.sum())
@@ -139,7 +164,7 @@ def summary(ds: xr.Dataset, errors: int = 5, slowest: int = 5) -> str:
     lines += ["", "Variables (over ok cases):"]
     rows = []
     for name, da in ds.data_vars.items():
-        if _is_text(da):
+        if _is_text(da) or (str(name).endswith(AVG_SUFFIXES) and not str(name).startswith("profile_")):
             continue
         vals = np.asarray(da.where(ok).values if set(ok.dims) <= set(da.dims) else da.values, float)
         finite = vals[np.isfinite(vals)]
@@ -149,6 +174,7 @@ def summary(ds: xr.Dataset, errors: int = 5, slowest: int = 5) -> str:
     if rows:
         w = [max(len(r[i]) for r in rows) for i in range(3)]
         lines += [f"  {r[0]:<{w[0]}}  {r[1]:<{w[1]}}  {r[2]:<{w[2]}}  {r[3]}" for r in rows]
+    lines += _averages_section(ds, sdims, ok)
 
     if "seconds" in ds:
         sec = ds["seconds"]
@@ -161,6 +187,45 @@ def summary(ds: xr.Dataset, errors: int = 5, slowest: int = 5) -> str:
             status = str(ds["status"].values[idx]) if "status" in ds else ""
             lines.append(f"  {_fmt(flat[i]):>10} s  {_case_label(coords)}" + (f"  ({status})" if status else ""))
     return "\n".join(lines) + "\n"
+
+
+def _averages_section(ds: xr.Dataset, sdims: list[str], ok: xr.DataArray) -> list[str]:
+    """Means with their block-averaged standard errors, per case (the first SHOWN_MEANS ok
+    cases); profiles are left to `ds.wallbatch.profile` and `wallbatch plot`."""
+    names = [str(n)[:-5] for n in ds.data_vars if str(n).endswith("_mean") and not str(n).startswith("profile_")
+             and f"{str(n)[:-5]}_sem" in ds]
+    if not names:
+        return []
+    where = ds[f"{names[0]}_mean"].attrs.get("comment", "")
+    where = f" over {where}" if where else ""
+    lines = ["", f"Time averages{where} (± standard error from block averaging; * = no plateau, a lower bound):"]
+    cases = [idx for idx in np.ndindex(*ok.shape) if bool(ok.values[idx])] if ok.ndim else [()]
+    for idx in cases[:SHOWN_MEANS]:
+        coords = {d: ds[d].values[i] if d in ds.coords else i for d, i in zip(ok.dims, idx)}
+        if sdims:
+            lines.append(f"  {_case_label(coords)}")
+        pick = dict(zip(ok.dims, idx))
+        for name in names:
+            m = ds[f"{name}_mean"].isel({k: v for k, v in pick.items() if k in ds[f"{name}_mean"].dims})
+            e = ds[f"{name}_sem"].isel({k: v for k, v in pick.items() if k in ds[f"{name}_sem"].dims})
+            c = (ds[f"{name}_sem_converged"].isel({k: v for k, v in pick.items()
+                                                    if k in ds[f"{name}_sem_converged"].dims})
+                 if f"{name}_sem_converged" in ds else xr.ones_like(m, dtype=bool))
+            units = ds[f"{name}_mean"].attrs.get("units", "")
+            unit = f" [{units}]" if units and units != "1" else ""
+            if m.ndim == 0:
+                text = _pm(float(m), float(e), bool(c))
+            else:
+                entry = m.dims[0] if m.ndim == 1 else None
+                parts = []
+                for j in np.ndindex(*m.shape):
+                    label = "/".join(_fmt(ds[d].values[k]) if d in ds.coords else str(k) for d, k in zip(m.dims, j))
+                    parts.append(f"{label} {_pm(float(m.values[j]), float(e.values[j]), bool(c.values[j]))}")
+                text = "   ".join(parts) if entry else "; ".join(parts)
+            lines.append(f"    {name:<16}{unit:<12} {text}")
+    if len(cases) > SHOWN_MEANS:
+        lines.append(f"  ... and {len(cases) - SHOWN_MEANS} more case(s): ds.wallbatch.mean(NAME) gives them all")
+    return lines
 
 
 @xr.register_dataset_accessor("wallbatch")
@@ -183,6 +248,29 @@ class WallbatchAccessor:
 
     def plot(self, var: str, out: str | Path, **kwargs: Any):
         return plot(self._ds, var, out, **kwargs)
+
+    def profile(self, name: str, quantity: str) -> xr.DataArray:
+        """The windows of profile `name`'s `quantity` (`density/number`, `temp`, ...): the
+        DataArray `profile_<name>_<quantity>` (sweep..., window, <name>_bin)."""
+        var = f"profile_{name}_{quantity.replace('/', '_')}"
+        if var not in self._ds:
+            have = sorted(str(v) for v in self._ds.data_vars if str(v).startswith("profile_")
+                          and not str(v).endswith(AVG_SUFFIXES))
+            raise KeyError(f"no profile {name!r} with quantity {quantity!r} ({var}); profiles here: "
+                           f"{', '.join(have) or 'none (add output.profiles to the config)'}")
+        return self._ds[var]
+
+    def mean(self, var: str) -> xr.Dataset:
+        """Time average of `var` (a thermo/wall output, `wall_pressure`, or a profile variable):
+        a Dataset with `mean`, `sem` (block-averaged standard error) and `converged`."""
+        base = var[:-5] if var.endswith("_mean") else var
+        if f"{base}_mean" not in self._ds:
+            have = sorted(str(v)[:-5] for v in self._ds.data_vars if str(v).endswith("_mean"))
+            raise KeyError(f"no time average of {var!r}; averaged here: {', '.join(have) or 'none'}")
+        out = xr.Dataset({"mean": self._ds[f"{base}_mean"], "sem": self._ds[f"{base}_sem"]})
+        if f"{base}_sem_converged" in self._ds:
+            out["converged"] = self._ds[f"{base}_sem_converged"]
+        return out
 
 
 # ----------------------------------------------------------------------------- selection
@@ -315,6 +403,9 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
     if var not in ds.data_vars or var not in plottable:
         raise ValueError(f"unknown variable {var!r}; plottable variables: {', '.join(plottable)}")
     sdims = sweep_dims(ds)
+    if x is None and "sample" not in ds[var].dims and var.endswith("_mean") and sdims:
+        bins = [d for d in ds[var].dims if _is_bin_dim(ds, str(d))]
+        x = None if bins else next((d for d in sdims if d in ds[var].dims), None)  # a mean against the sweep
     if x is not None and x not in SAMPLE_AXES and x not in sdims:
         raise ValueError(f"x={x}: give one of {', '.join(list(SAMPLE_AXES) + sdims)}")
     if hue is not None and hue not in ds.dims:
@@ -336,7 +427,11 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
 
-    if x is None or x in SAMPLE_AXES:
+    bins = [str(d) for d in da.dims if _is_bin_dim(ds, str(d))]
+    if bins and (x is None or x == bins[0]):
+        _profile_lines(ax, sub, var, da, bins[0], hue)
+        ax.set_title(title or (f"{var}" + (f"  ({suffix})" if suffix else "")))
+    elif x is None or x in SAMPLE_AXES:
         if kind == "heatmap":
             raise ValueError("kind='heatmap' needs x and hue to be two sweep dimensions")
         if "sample" not in da.dims and "sample" in ds[var].dims:
@@ -373,7 +468,11 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
             _heatmap(ax, fig, sub, mean.transpose(hue, x), x, hue, _label(da, what))
         else:
             xdata = sub[x] if x in sub.coords else xr.DataArray(np.arange(sub.sizes[x]), dims=[x])
-            _lines(ax, sub, mean, xdata, rest, hue, style="o-")
+            err = None
+            if var.endswith("_mean") and f"{var[:-5]}_sem" in sub:  # error bars: the block-averaged sem
+                err = sub[f"{var[:-5]}_sem"].where(ok_mask(sub)) if "status" in sub else sub[f"{var[:-5]}_sem"]
+                what += " (± standard error)"
+            _lines(ax, sub, mean, xdata, rest, hue, style="o-", err=err)
             ax.set_xlabel(_label(sub[x] if x in sub.coords else None, x))
             ax.set_ylabel(_label(da, what))
         ax.set_title(title or (what + (f"  ({suffix})" if suffix else "")))
@@ -384,10 +483,30 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
     return (out, fig) if return_figure else out
 
 
+def _profile_lines(ax, ds: xr.Dataset, var: str, da: xr.DataArray, bdim: str, hue: str | None) -> None:
+    """A profile against its bin centres: the window mean with its standard error as error bars
+    (from `<var>_mean`/`_sem`; a windows variable without them is averaged over its windows)."""
+    base = var[:-5] if var.endswith("_mean") else var
+    ok = ok_mask(ds) if "status" in ds else None
+    if f"{base}_mean" in ds and f"{base}_sem" in ds:
+        mean, err = ds[f"{base}_mean"], ds[f"{base}_sem"]
+        if ok is not None:
+            mean, err = mean.where(ok), err.where(ok)
+        what = f"{base} (window mean ± standard error)"
+    else:
+        mean = da.mean("window", skipna=True) if "window" in da.dims else da
+        err, what = None, f"{base} (window mean)"
+    mean.attrs = ds[base].attrs if base in ds else da.attrs
+    rest = [str(d) for d in mean.dims if d != bdim]
+    _lines(ax, ds, mean, ds[bdim], rest, hue, style="o-", err=err)
+    ax.set_xlabel(_label(ds[bdim], bdim))
+    ax.set_ylabel(_label(mean, what))
+
+
 def _lines(ax, ds: xr.Dataset, da: xr.DataArray, xdata: xr.DataArray, rest: list[str],
-           hue: str | None, style: str) -> None:
+           hue: str | None, style: str, err: xr.DataArray | None = None) -> None:
     """One line per combination of the `rest` dims of `da` along the remaining axis (the sample or
-    sweep dim that `xdata` runs along); colour by `hue`."""
+    sweep dim that `xdata` runs along); colour by `hue`; `err` (same dims as `da`) draws error bars."""
     along = [d for d in da.dims if d not in rest]
     numeric_x = np.asarray(xdata.values).dtype.kind in "iuf"
     colors = _colors(da.sizes[hue]) if hue else []
@@ -409,7 +528,11 @@ def _lines(ax, ds: xr.Dataset, da: xr.DataArray, xdata: xr.DataArray, rest: list
                 kw["alpha"] = 0.8
         elif len(combos) > 1:
             kw["label"] = _case_label({d: _coord_value(ds, d, combo[d]) for d in rest})
-        ax.plot(xv, y, style, markersize=4, **kw)
+        if err is not None:
+            e = np.asarray(err.isel(combo).transpose(*along).values, float)
+            ax.errorbar(xv, y, yerr=e, fmt=style, markersize=4, capsize=2, **kw)
+        else:
+            ax.plot(xv, y, style, markersize=4, **kw)
     if not numeric_x:
         ax.set_xticks(range(xdata.size), [_fmt(v) for v in np.asarray(xdata.values)], rotation=30)
     n_labels = len(seen_hue) if hue else (len(combos) if len(combos) > 1 else 0)

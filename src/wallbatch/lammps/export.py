@@ -1,12 +1,12 @@
-"""`wallbatch export-lammps`: one case as a LAMMPS input script and data file (docs/validate.md).
+"""`wallbatch export-lammps`: one case as a LAMMPS input script and data file (docs/howto/validate.md).
 
 The export reproduces the case exactly: the data file holds the case's initial positions,
 velocities, masses and radii as shortest round-trip floats (`repr`), every value is in box units
 (lattice values are converted; variable wall coordinates in lattice units get a scaled helper
 variable), walls keep their config order, `fix dt/reset` comes after every wall (wallbatch's step-0
 ordering), and `thermo_style custom` lists the outputs wallbatch samples with `thermo_modify norm
-no`. A comment block at the top lists every row of the decisions table (shared/spec/physics.md,
-docs/physics.md) the case touches.
+no`. A comment block at the top lists every row of the decisions table (docs/deviations.md;
+physics in docs/physics.md) the case touches.
 
 Adding a feature is one small function and one registry line:
   * a wall style: a writer in `WALL_WRITERS` (config style name -> writer(fid, wall, spec, s));
@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from wallbatch.version import __version__
+from wallbatch.config.ensemble import to_ensemble_line
 from wallbatch.config.fixline import to_fix_line
 from wallbatch.config.models import Config, config_from_dict
 from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict, set_path
@@ -104,7 +105,7 @@ class LammpsExport:
 
 # ----------------------------------------------------------------------------- decisions table
 
-# The rows of the decisions table (shared/spec/physics.md) that today's features can touch.
+# The rows of the decisions table (docs/deviations.md) that today's features can touch.
 DECISIONS: dict[str, str] = {
     "lj1043": "wall/lj1043 atom on or behind the wall: wallbatch stops the case with an error, like every other "
               "style; LAMMPS silently skips the atom (and includes one exactly at the cut-off with E = 0, F != 0). "
@@ -127,7 +128,7 @@ DECISIONS: dict[str, str] = {
             "same plane",
     "region_colloid": "wall/region with colloid: wallbatch uses the fix wall/colloid physics on the region surface "
                       "(energy and force consistent); LAMMPS's wall/region colloid flips the force and the sign of "
-                      "the energy's log term and subtracts an LJ93-style constant (physics.md quirk #1). This script "
+                      "the energy's log term and subtracts an LJ93-style constant (docs/deviations.md, quirk #1). This script "
                       "runs LAMMPS's own physics, so trajectories differ once a particle feels the wall; written with "
                       "epsilon -> -epsilon, LAMMPS's flipped force is exactly fix wall/colloid's (energies still "
                       "differ): `wallbatch validate` compares that variant",
@@ -287,7 +288,11 @@ def lammps_ready(cfg: Config, steps: int | None = None) -> tuple[Config, list[st
         thermo = max(1, round(thermo.time / dt))
         notes.append(f"sampling every {run.thermo.time} time units converted to every {thermo} steps "
                      f"(interval / timestep {dt!r})")
-    return _with(cfg, {"run": {"steps": int(steps), "thermo": int(thermo)}}), notes
+    changes: dict[str, Any] = {"run": {"steps": int(steps), "thermo": int(thermo)}}
+    if cfg.output.profiles or cfg.output.averages is not None:  # their windows/start need the full run
+        changes["output.profiles"], changes["output.averages"] = {}, None
+        notes.append("output.profiles and output.averages left out (not exported; the run length changed)")
+    return _with(cfg, changes), notes
 
 
 def lab_frame(cfg: Config) -> tuple[Config, list[str]]:
@@ -411,7 +416,7 @@ def _soft_wall(fid: str, wall: Any, spec: SoftWallSpec, s: _Script) -> None:
                 const = s.case.variables.constant_value(v)
                 if const is None:
                     raise ExportError(f"walls.{fid}.{face.name}.alpha: LAMMPS ignores a variable alpha (alpha = 0, "
-                                      f"physics.md decisions table) and v_{v} changes during the run: cannot export")
+                                      f"docs/deviations.md, decisions table) and v_{v} changes during the run: cannot export")
                 s.decide("morse_alpha", DECISIONS["morse_alpha"] + f" ({face.label}: v_{v} = {_num(const)})")
                 v = const
             values[key] = f"v_{v}" if isinstance(v, str) else float(v)
@@ -494,7 +499,7 @@ def _region_wall(fid: str, wall: Any, spec: RegionWallSpec, s: _Script) -> None:
         if s.force_matched:
             words["epsilon"] = _num(-float(words["epsilon"]))
             why = ("wall/region colloid written with -epsilon: LAMMPS's flipped force equals fix wall/colloid's, "
-                   "its energy is a different formula (decisions table, physics.md quirk #1)")
+                   "its energy is a different formula (decisions table, docs/deviations.md quirk #1)")
             s.expected[f"wall_energy[{fid}]"] = why
             if spec.energy:
                 s.expected.update({"pe": why, "etot": why})
@@ -779,7 +784,8 @@ def _variables(s: _Script) -> None:
 
 
 THERMO_KEYWORDS = {"step": "step", "time": "time", "dt": "dt", "temp": "temp", "ke": "ke", "pe": "pe",
-                   "etot": "etotal", "atoms": "atoms", "press": "press"}
+                   "etot": "etotal", "atoms": "atoms", "press": "press", "ecouple": "ecouple",
+                   "econserve": "econserve"}
 
 
 def _minimize(s: _Script) -> list[str]:
@@ -839,10 +845,17 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
             s.notes.append(f"group {g!r} written as {s.groups[g]!r} (LAMMPS IDs: letters, digits, underscores)")
     atoms = ATOM_WRITERS[_atom_style(case)](case, taken | set(case.variables.names()))
     integrate = []
-    for fid, group, style in atoms.integrate:
+    for fid, group, style in atoms.integrate if cfg.fixes is None else ():
         lid = _lammps_id(fid, s.fix_ids | set(cfg.walls))
         s.fix_ids.add(lid)
         integrate.append(f"fix             {lid} {group} {style}")
+    enforce2d = []  # after every force fix, so it zeroes their z forces
+    for fid, fix in (cfg.fixes or {}).items():  # integrators and thermostats, as written (config order)
+        line = to_ensemble_line(s.fix_id(fid), fix.model_copy(update={"group": s.group(fix.group)}))
+        s.fix_ids.add(line.split()[1])
+        (enforce2d if fix.style == "enforce2d" else integrate).append(_pad(line))
+    if cfg.dimension == 2 and not enforce2d:
+        enforce2d.append(_pad(f"fix {s.fix_id('wb_enforce2d')} all enforce2d"))
 
     # decisions that depend on the whole case
     if cfg.units == "lj":
@@ -860,7 +873,7 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
         _dt_reset(s)
     if case.natoms < 2:
         why = ("one atom: LAMMPS's thermo ke comes from the temperature, 0 with 3N-3 = 0 degrees of freedom; "
-               "wallbatch reports 1/2 m v^2 (docs/physics.md)")
+               "wallbatch reports 1/2 m v^2 (docs/physics.md §14.1)")
         s.notes.append(why)
         s.expected.update({"ke": why, "etot": why})
     if cfg.lattice is not None:
@@ -891,8 +904,8 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
     lines = [f"# LAMMPS input written by {title}",
              f"# Run it next to {data_name}:  lmp -in {script_name}",
              "#",
-             "# Where wallbatch decides differently from LAMMPS (decisions table: shared/spec/physics.md,",
-             "# docs/physics.md), as far as this case is concerned:"]
+             "# Where wallbatch decides differently from LAMMPS (decisions table: docs/deviations.md,",
+             "# physics: docs/physics.md), as far as this case is concerned:"]
     s.decisions = {k: s.decisions[k] for k in [*DECISIONS, *s.decisions] if k in s.decisions}  # table order
     lines += _bullets(list(s.decisions.values()) or ["(none)"])
     lines += ["#", "# Export notes:"]
@@ -906,7 +919,7 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
         s.notes.insert(0, f"validate's variant: wall/region colloid fix(es) {', '.join(s.region_colloid)} written "
                           f"with -epsilon (LAMMPS's flipped force is then exactly wallbatch's)")
     lines += _bullets([exact, *s.notes])
-    lines += ["", f"units           {cfg.units}", "dimension       3",
+    lines += ["", f"units           {cfg.units}", f"dimension       {cfg.dimension}",
               "boundary        " + " ".join("p" if p else "f" for p in case.periodic),
               f"atom_style      {atoms.style}", "atom_modify     map yes"]
     if cfg.lattice is not None:
@@ -920,7 +933,7 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
     for vname, text in s.variables.items():
         lines.append(f'variable        {vname} equal "{text}"')
     lines += ["", f"timestep        {_num(case.dt)}", "neigh_modify    every 1 delay 0 check no", *integrate]
-    lines += [_pad(f) for f in s.fixes]
+    lines += [_pad(f) for f in s.fixes] + enforce2d
     lines += atoms.extra
     lines += ["", "thermo_style    custom step " + " ".join(c.keyword for c in columns if c.source == "thermo"),
               'thermo_modify   norm no format float "%.17g"',

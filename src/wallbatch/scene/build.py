@@ -26,17 +26,19 @@ from wallbatch.scene.case import (
     MinSettings,
     PairSpec,
     CustomWallSpec,
+    ProfileSpec,
     ReflectSpec,
     StochasticSpec,
     RegionWallSpec,
     SoftWallSpec,
     Value,
 )
+from wallbatch.scene.ensemble import build_fixes
 from wallbatch.styles.ees import EES_STYLE
 from wallbatch.styles.flat import STYLES
 from wallbatch.styles.lepton import compile_expression, lepton_style
 from wallbatch.styles.table import TableError, WallTable, read_table, table_style
-from wallbatch.units import LATTICE_POSITIONS, UNIT_SYSTEMS, UnitSystem
+from wallbatch.units import LATTICE_CELL, LATTICE_POSITIONS, LATTICES_2D, UNIT_SYSTEMS, UnitSystem
 
 
 def _fail(path: str, msg: str) -> CaseError:
@@ -100,9 +102,12 @@ def _lattice_positions(cfg: Config, region: str | None) -> np.ndarray:
     lo = np.asarray(cfg.box.lo, float)
     hi = np.asarray(cfg.box.hi, float)
     basis = np.asarray(LATTICE_POSITIONS[cfg.lattice.style])
-    ranges = [np.arange(np.floor(lo[d] / a) - 1, np.ceil(hi[d] / a) + 1) for d in range(3)]
+    cell = a * np.asarray(LATTICE_CELL.get(cfg.lattice.style, (1.0, 1.0, 1.0)))  # hex: (a, sqrt(3) a, a)
+    ranges = [np.arange(np.floor(lo[d] / cell[d]) - 1, np.ceil(hi[d] / cell[d]) + 1) for d in range(3)]
+    if cfg.lattice.style in LATTICES_2D:
+        ranges[2] = np.zeros(1)  # 2-D lattices: one plane at z = 0, as LAMMPS
     cells = np.stack(np.meshgrid(*ranges, indexing="ij"), axis=-1).reshape(-1, 3)
-    pts = ((cells[:, None, :] + basis[None, :, :]) * a).reshape(-1, 3)
+    pts = ((cells[:, None, :] + basis[None, :, :]) * cell).reshape(-1, 3)
     pts = pts[np.all((pts >= lo) & (pts < hi), axis=1)]
     if region is not None:
         pts = pts[_region_contains(cfg, region, pts)]
@@ -119,14 +124,16 @@ def _per_atom(value: Any, n: int, width: int, path: str) -> np.ndarray:
 
 
 def _thermal_velocities(n: int, mass: np.ndarray, temperature: float, u: UnitSystem,
-                        rng: np.random.Generator) -> np.ndarray:
-    """Gaussian velocities with zero net momentum, scaled to exactly `temperature` over 3n - 3
-    degrees of freedom (LAMMPS `velocity create T seed dist gaussian mom yes`)."""
+                        rng: np.random.Generator, dimension: int = 3) -> np.ndarray:
+    """Gaussian velocities with zero net momentum, scaled to exactly `temperature` over d n - d
+    degrees of freedom (LAMMPS `velocity create T seed dist gaussian mom yes`); in 2-D vz = 0."""
     if n < 2 or temperature == 0.0:
         return np.zeros((n, 3))
     v = rng.standard_normal((n, 3)) * np.sqrt(u.boltz * temperature / u.mvv2e / mass)[:, None]
+    if dimension == 2:
+        v[:, 2] = 0.0
     v -= (mass[:, None] * v).sum(axis=0) / mass.sum()
-    t_now = (u.mvv2e * mass[:, None] * v * v).sum() / ((3 * n - 3) * u.boltz)
+    t_now = (u.mvv2e * mass[:, None] * v * v).sum() / ((dimension * n - dimension) * u.boltz)
     return v * np.sqrt(temperature / t_now)
 
 
@@ -180,7 +187,7 @@ def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]
         elif g.velocity.values is not None:
             v = _per_atom(g.velocity.values, n, 3, f"{path}.velocity.values")
         else:
-            v = _thermal_velocities(n, mass, g.velocity.temperature, u, rng)
+            v = _thermal_velocities(n, mass, g.velocity.temperature, u, rng, cfg.dimension)
         xs.append(x)
         vs.append(v)
         ms.append(mass)
@@ -341,6 +348,8 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
         shape=atoms.get("shape"), quat=atoms.get("quat"), angmom=atoms.get("angmom"),
         pair=_pair_spec(cfg), region_walls=tuple(regional), flow_walls=tuple(flows),
         flow_seeds=tuple(flow_seeds), fix_order=tuple(fix_order), minimize=_min_settings(cfg, dt),
+        fixes=build_fixes(cfg, mask, seed_key), dimension=cfg.dimension,
+        profiles=_profiles(cfg, mask), average_start=_average_start(cfg),
     )
 
 
@@ -386,6 +395,32 @@ def _stochastic_spec(cfg: Config, fid: str, wall: Any, group: np.ndarray, seed: 
                   "ax": acc[0], "ay": acc[1], "az": acc[2]}
         faces.append(Face(face.label, face.name, face.dim, face.side, face.coord, face.scale, params))
     return StochasticSpec(fid, group, f"stochastic/{wall.rstyle}", tuple(faces), seed)
+
+
+def _profiles(cfg: Config, mask: Any) -> tuple[ProfileSpec, ...]:
+    """output.profiles in box units; with `delta`, ceil(L / delta) bins (the last one may reach past
+    the box, as LAMMPS bin/1d); with `bins`, delta = L / bins."""
+    out = []
+    for name, p in cfg.output.profiles.items():
+        axis = "xyz".index(p.axis)
+        lo, hi = float(cfg.box.lo[axis]), float(cfg.box.hi[axis])
+        if p.bins is not None:
+            nbins, delta = int(p.bins), (hi - lo) / p.bins
+        else:
+            delta = float(p.delta)
+            nbins = int((hi - lo) / delta)
+            if lo + nbins * delta < hi:
+                nbins += 1
+        out.append(ProfileSpec(name, axis, lo, delta, max(nbins, 1), p.every, p.repeat, p.freq,
+                               tuple(p.quantities), mask(p.group)))
+    return tuple(out)
+
+
+def _average_start(cfg: Config) -> float:
+    av = cfg.output.averages
+    if av is None:
+        return 0.0
+    return float(av.time if av.time is not None else (av.start or 0))
 
 
 def _pair_spec(cfg: Config) -> PairSpec | None:

@@ -121,6 +121,33 @@ class RegionWallSpec:
 
 
 @dataclass(frozen=True)
+class ProfileSpec:
+    """output.profiles entry, resolved (LAMMPS compute chunk/atom bin/1d + fix ave/chunk, norm
+    all): `nbins` bins of width `delta` [distance] along `axis` (0, 1, 2) from `lo` (the box's
+    lower bound); samples every `every` steps, `repeat` of them per window, a window closing at
+    every multiple of `freq` (step 0 opens none)."""
+
+    name: str
+    axis: int
+    lo: float
+    delta: float
+    nbins: int
+    every: int
+    repeat: int
+    freq: int
+    quantities: tuple[str, ...]
+    group: np.ndarray  # (N,) bool
+
+    def window_steps(self, steps: int) -> list[int]:
+        """The step at which each window's average is taken: freq, 2 freq, ... <= steps."""
+        return list(range(self.freq, steps + 1, self.freq))
+
+    def sample_steps(self, steps: int) -> list[int]:
+        """Every step that contributes to some window."""
+        return [w - k * self.every for w in self.window_steps(steps) for k in range(self.repeat - 1, -1, -1)]
+
+
+@dataclass(frozen=True)
 class Case:
     """One runnable scene: the engine's input."""
 
@@ -159,6 +186,11 @@ class Case:
     flow_seeds: tuple[tuple[int, ...], ...] = ()  # random stream key per flow wall
     fix_order: tuple[str, ...] = ()  # fixes with a global scalar (soft, ees, region), config order
     minimize: Any = None  # minimize.MinSettings, or None
+    # integrators and thermostats (scene.ensemble.EnsembleFixSpec, config order); None: fix nve on all
+    fixes: tuple | None = None
+    dimension: int = 3  # 2: enforce2d, temperatures over 2 dof per atom
+    profiles: tuple[ProfileSpec, ...] = ()  # output.profiles
+    average_start: float = 0.0  # output.averages: first step (time for a time-based run) averaged
 
     @property
     def natoms(self) -> int:
@@ -241,6 +273,9 @@ def structure_key(case: Case) -> tuple:
               for w in case.region_walls),
         tuple((w.fix_id, w.group.tobytes(), w.axis, w.walls.tobytes(), w.rule) for w in case.flow_walls),
         None if case.minimize is None else case.minimize.style,
+        None if case.fixes is None else tuple(f.structure() for f in case.fixes), case.dimension,
+        tuple((p.name, p.axis, p.lo, p.delta, p.nbins, p.every, p.repeat, p.freq, p.quantities, p.group.tobytes())
+              for p in case.profiles),
     )
 
 

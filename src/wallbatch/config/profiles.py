@@ -1,0 +1,101 @@
+"""Config models of `output.profiles` (LAMMPS compute chunk/atom bin/1d + fix ave/chunk) and
+`output.averages` (where time averages start), and their cross-field checks.
+
+    output:
+      profiles:
+        across: {axis: z, bins: 50, every: 10, repeat: 100, freq: 1000,
+                 quantities: [density/number, temp], group: fluid}
+      averages: {start: 2000}          # steps; or {time: 10.0} for a run to a simulated time
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, NonNegativeInt
+
+PROFILE_QUANTITIES = ("density/number", "density/mass", "temp", "vx", "vy", "vz")
+
+
+class Profile(BaseModel):
+    """One binned axis, sampled every `every` steps, `repeat` samples averaged into one window
+    ending at every multiple of `freq` (LAMMPS Nevery Nrepeat Nfreq). Give `bins` (equal bins
+    over the box, LAMMPS `bin/1d ... units reduced`) or `delta` (bin width in box distance units,
+    LAMMPS `bin/1d lower delta units box`); bins start at the box's lower bound."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    axis: Literal["x", "y", "z"]
+    bins: int | None = None
+    delta: float | None = None
+    every: int
+    repeat: int
+    freq: int
+    quantities: Annotated[list[Literal[PROFILE_QUANTITIES]], Field(min_length=1)]  # type: ignore[valid-type]
+    group: str = "all"
+
+
+class Averages(BaseModel):
+    """Samples before `start` (a step, inclusive) or `time` (simulated time, inclusive) are left
+    out of every `_mean` / `_sem`. Default: all samples."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    start: NonNegativeInt | None = None
+    time: NonNegativeFloat | None = None
+
+
+def check_profiles(cfg: Any, groups: list[str]) -> list[tuple[tuple, str]]:
+    """(path, message) per problem of output.profiles / output.averages (LAMMPS's own checks of
+    fix ave/chunk, plus what a run must have for a window or an average to exist)."""
+    problems: list[tuple[tuple, str]] = []
+    add = lambda path, msg: problems.append((path, msg))  # noqa: E731
+    steps = cfg.run.steps
+    for name, p in cfg.output.profiles.items():
+        at = ("output", "profiles", name)
+        if not name.replace("_", "a").replace("-", "a").isalnum() or not (name[0].isalpha() or name[0] == "_"):
+            add(at, f"profile name '{name}' must be a word (letters, digits, _): it names output variables")
+        if (p.bins is None) == (p.delta is None):
+            add(at, "give exactly one of bins (number of equal bins) or delta (bin width, box units)")
+        if p.bins is not None and p.bins < 1:
+            add(at + ("bins",), f"bins must be >= 1, got {p.bins}")
+        if p.delta is not None and not p.delta > 0:
+            add(at + ("delta",), f"delta (bin width) must be > 0, got {p.delta}")
+        for key in ("every", "repeat", "freq"):
+            if getattr(p, key) < 1:
+                add(at + (key,), f"{key} must be >= 1 (LAMMPS: Illegal fix ave/chunk command)")
+        if p.every >= 1 and p.repeat >= 1 and p.freq >= 1:
+            if p.freq % p.every != 0:
+                add(at + ("freq",), f"freq ({p.freq}) must be a multiple of every ({p.every}), as LAMMPS Nfreq "
+                    f"and Nevery (LAMMPS: Illegal fix ave/chunk nfreq value)")
+            elif p.repeat * p.every > p.freq:
+                add(at + ("repeat",), f"repeat * every ({p.repeat} * {p.every} = {p.repeat * p.every}) must not "
+                    f"exceed freq ({p.freq}): the samples of one window would overlap the previous one")
+            if steps is not None and p.freq > steps:
+                add(at + ("freq",), f"freq ({p.freq}) is longer than the run ({steps} steps): no window would "
+                    f"close; the first window ends at step freq")
+        if cfg.dimension == 2 and p.axis == "z":
+            add(at + ("axis",), "a 2-d simulation (dimension: 2) has no z profile: use x or y")
+        if p.group not in groups:
+            add(at + ("group",), f"unknown group '{p.group}' (groups: {', '.join(groups)})")
+        if cfg.run.time is not None:
+            add(at, "profiles count steps (every/repeat/freq): they need a step-based run (run: {steps: N})")
+    av = cfg.output.averages
+    if av is not None:
+        if av.start is not None and av.time is not None:
+            add(("output", "averages"), "give start (a step) or time (a simulated time), not both")
+        elif av.start is not None:
+            if cfg.run.time is not None:
+                add(("output", "averages", "start"), "a run to a simulated time averages from a time: write "
+                    "averages: {time: T}")
+            elif steps is not None and av.start > steps:
+                add(("output", "averages", "start"), f"start ({av.start}) is past the end of the run ({steps} "
+                    f"steps): no sample would be averaged")
+        elif av.time is not None:
+            if cfg.run.time is None:
+                add(("output", "averages", "time"), "a step-based run averages from a step: write "
+                    "averages: {start: STEP}")
+            elif av.time > cfg.run.time:
+                add(("output", "averages", "time"), f"time ({av.time:g}) is past the end of the run "
+                    f"({cfg.run.time:g}): no sample would be averaged")
+    return problems

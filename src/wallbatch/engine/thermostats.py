@@ -1,0 +1,239 @@
+"""Thermostat kernels: pure, vectorised functions over a batch of C cases of N atoms.
+
+Velocities are (C, N, 3), masses (C, N), group masks (N,) bool (the group is the same in every
+case of a batch); every physical parameter (target temperature, damping time, window, ...) is a
+per-case array (C,), so a temperature x damp sweep runs as one batch. Nothing here keeps hidden
+state: the Nose-Hoover chain variables live in an `NHChain` the caller owns.
+
+Units: temperatures in the unit system's temperature unit, times in its time unit; `boltz`,
+`mvv2e`, `ftm2v` are the LAMMPS conversion constants (units.py).
+
+What each LAMMPS fix does and where in the step (velocity Verlet):
+  fix nvt            initial_integrate: chain half step + velocity scaling, then v += dt/2 f/m, x += dt v;
+                     final_integrate:   v += dt/2 f/m, group temperature, chain half step + scaling.
+  fix langevin       post_force (and at setup): f += -m v / (damp ftm2v) + random force.
+  fix temp/berendsen end_of_step, every step: v *= sqrt(1 + dt/damp (T_target/T - 1)).
+  fix temp/rescale   end_of_step, every `every` steps: if |T - T_target| > window,
+                     v *= sqrt(T_new / T) with T_new = T - fraction (T - T_target).
+Temperatures of a fix are those of its group with dof = dim * N_group - dim (compute temp).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# ----------------------------------------------------------------------------- temperature
+
+
+def group_dof(count: int, dimension: int = 3) -> int:
+    """Degrees of freedom of LAMMPS `compute temp` on a group of `count` atoms: dim N - dim (the
+    centre-of-mass motion, `extra_dof` = dimension by default)."""
+    return dimension * count - dimension
+
+
+def kinetic_sum(v: np.ndarray, mass: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """sum_i m_i |v_i|^2 over the group atoms (mass * velocity^2 units), shape (C,)."""
+    mv2 = mass * np.einsum("cni,cni->cn", v, v)
+    if mask is not None and not mask.all():
+        mv2 = np.where(mask, mv2, 0.0)
+    return mv2.sum(axis=1)
+
+
+def temperature(v: np.ndarray, mass: np.ndarray, mask: np.ndarray | None, dof: float, mvv2e: float,
+                boltz: float) -> np.ndarray:
+    """Kinetic temperature (C,) of the group: T = mvv2e sum m v^2 / (dof kB); 0 when dof <= 0."""
+    if dof <= 0:
+        return np.zeros(v.shape[0])
+    return kinetic_sum(v, mass, mask) * (mvv2e / (dof * boltz))
+
+
+def ramp(t_start: np.ndarray, t_stop: np.ndarray, step: np.ndarray, begin: int, end: int) -> np.ndarray:
+    """Target temperature at `step` of a run from `begin` to `end`: linear from Tstart to Tstop
+    (LAMMPS: delta = (step - begin) / (end - begin), 0 when the run has no steps)."""
+    delta = np.asarray(step - begin, float)
+    if end != begin:
+        delta = delta / (end - begin)
+    else:
+        delta = np.zeros_like(delta)
+    return t_start + delta * (t_stop - t_start)
+
+
+def scale_group(v: np.ndarray, factor: np.ndarray, mask: np.ndarray | None) -> None:
+    """v *= factor (C,) for the group atoms, in place."""
+    f = factor[:, None, None]
+    if mask is None or mask.all():
+        v *= f
+    else:
+        v[:, mask] *= f
+
+
+# ----------------------------------------------------------------------------- Nose-Hoover chain
+
+
+@dataclass
+class NHChain:
+    """State of C Nose-Hoover chains of length M (LAMMPS fix nvt temp, Martyna-Tuckerman-Klein).
+
+    eta (C, M): thermostat positions [1]; eta_dot (C, M+1): their velocities [1/time], with a
+    trailing zero column (the chain's end); eta_dotdot (C, M); eta_mass (C, M) [energy time^2];
+    t_current (C,): the group temperature the chain last saw, carried between the half steps
+    and updated by the scaling (LAMMPS does not recompute it at initial_integrate).
+    """
+
+    eta: np.ndarray
+    eta_dot: np.ndarray
+    eta_dotdot: np.ndarray
+    eta_mass: np.ndarray
+    t_current: np.ndarray
+    t_target: np.ndarray
+    t_freq: np.ndarray  # 1 / damp (C,)
+    dof: float
+    boltz: float
+    tloop: int = 1
+    drag: np.ndarray | float = 0.0
+
+    @classmethod
+    def start(cls, ncases: int, tchain: int, damp: np.ndarray, dof: float, boltz: float,
+              tloop: int = 1, drag: np.ndarray | float = 0.0) -> NHChain:
+        """A chain at rest (eta = eta_dot = 0), as at `fix nvt` creation."""
+        z = np.zeros((ncases, tchain))
+        return cls(z.copy(), np.zeros((ncases, tchain + 1)), z.copy(), z.copy(), np.zeros(ncases),
+                   np.zeros(ncases), 1.0 / np.asarray(damp, float), float(dof), float(boltz), int(tloop),
+                   drag)
+
+    def take(self, keep: np.ndarray) -> None:
+        """Keep only the rows `keep` (failed cases leave the batch)."""
+        for name in ("eta", "eta_dot", "eta_dotdot", "eta_mass", "t_current", "t_target", "t_freq"):
+            setattr(self, name, getattr(self, name)[keep])
+        if isinstance(self.drag, np.ndarray):
+            self.drag = self.drag[keep]
+
+    @property
+    def ke_target(self) -> np.ndarray:
+        return self.dof * self.boltz * self.t_target
+
+    def _masses(self) -> None:
+        """Q_0 = dof kB T / w^2, Q_k = kB T / w^2 (k >= 1), w = 1/damp."""
+        w2 = self.t_freq * self.t_freq
+        self.eta_mass[:, 0] = self.dof * self.boltz * self.t_target / w2
+        self.eta_mass[:, 1:] = (self.boltz * self.t_target / w2)[:, None]
+
+    def setup(self, t_current: np.ndarray, t_target: np.ndarray) -> None:
+        """At the start of a run: current temperature, target, masses and the forces on chain
+        members 1..M-1 (member 0's is computed at each half step)."""
+        self.t_current = np.array(t_current, float)
+        self.t_target = np.array(t_target, float)
+        self._masses()
+        kt = self.boltz * self.t_target
+        for k in range(1, self.eta.shape[1]):
+            self.eta_dotdot[:, k] = (self.eta_mass[:, k - 1] * self.eta_dot[:, k - 1] ** 2 - kt) / self.eta_mass[:, k]
+
+    def half_step(self, dt: np.ndarray, t_target: np.ndarray) -> np.ndarray:
+        """Advance the chain by dt/2 (Trotter splitting, `tloop` sub-steps) and return the factor
+        (C,) that scales the group velocities; t_current is updated for that scaling. The caller
+        scales v (see scale_group); the factor is the product over the sub-steps."""
+        self.t_target = np.array(t_target, float)
+        self._masses()
+        M = self.eta.shape[1]
+        ed, edd, Q = self.eta_dot, self.eta_dotdot, self.eta_mass
+        kt = self.boltz * self.t_target
+        ke_target = self.dof * kt
+        nc = 1.0 / self.tloop
+        dt4, dt8, dthalf = 0.25 * dt, 0.125 * dt, 0.5 * dt
+        drag = 1.0 - dt * self.t_freq * self.drag / self.tloop
+        with np.errstate(divide="ignore", invalid="ignore"):
+            edd[:, 0] = np.where(Q[:, 0] > 0, (self.dof * self.boltz * self.t_current - ke_target) / Q[:, 0], 0.0)
+        total = np.ones_like(self.t_current)
+        for _ in range(self.tloop):
+            for k in range(M - 1, 0, -1):  # from the chain's end down to member 1
+                e = np.exp(-nc * dt8 * ed[:, k + 1])
+                ed[:, k] = (ed[:, k] * e + edd[:, k] * nc * dt4) * drag * e
+            e = np.exp(-nc * dt8 * ed[:, 1])
+            ed[:, 0] = (ed[:, 0] * e + edd[:, 0] * nc * dt4) * drag * e
+            factor = np.exp(-nc * dthalf * ed[:, 0])
+            total = total * factor
+            self.t_current = self.t_current * factor * factor
+            with np.errstate(divide="ignore", invalid="ignore"):
+                edd[:, 0] = np.where(Q[:, 0] > 0,
+                                     (self.dof * self.boltz * self.t_current - ke_target) / Q[:, 0], 0.0)
+            self.eta += (nc * dthalf)[:, None] * ed[:, :M]
+            ed[:, 0] = (ed[:, 0] * e + edd[:, 0] * nc * dt4) * e
+            for k in range(1, M):  # back up the chain
+                e = np.exp(-nc * dt8 * ed[:, k + 1])
+                edd[:, k] = (Q[:, k - 1] * ed[:, k - 1] ** 2 - kt) / Q[:, k]
+                ed[:, k] = (ed[:, k] * e + edd[:, k] * nc * dt4) * e
+        return total
+
+    def energy(self) -> np.ndarray:
+        """Energy of the chain (C,), LAMMPS fix nvt's scalar (its `ecouple` share):
+        dof kB T eta_0 + Q_0 eta_dot_0^2 / 2 + sum_{k>=1} (kB T eta_k + Q_k eta_dot_k^2 / 2)."""
+        M = self.eta.shape[1]
+        kt = self.boltz * self.t_target
+        ed = self.eta_dot[:, :M]
+        e = self.ke_target * self.eta[:, 0] + 0.5 * self.eta_mass[:, 0] * ed[:, 0] ** 2
+        for k in range(1, M):
+            e = e + kt * self.eta[:, k] + 0.5 * self.eta_mass[:, k] * ed[:, k] ** 2
+        return e
+
+
+# ----------------------------------------------------------------------------- velocity rescaling
+
+
+def berendsen_factor(t_current: np.ndarray, t_target: np.ndarray, dt: np.ndarray, damp: np.ndarray,
+                     dof: float, boltz: float) -> tuple[np.ndarray, np.ndarray]:
+    """fix temp/berendsen: lambda = sqrt(1 + dt/damp (T_target/T - 1)) from the group's current
+    temperature T, and the energy it removes, (1 - lambda^2) T dof kB / 2 (C,). Rows with T = 0
+    get lambda = 1 (the caller refuses them: LAMMPS errors)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = np.sqrt(1.0 + dt / damp * (t_target / t_current - 1.0))
+    lam = np.where(t_current > 0, lam, 1.0)
+    removed = t_current * (1.0 - lam * lam) * (0.5 * boltz * dof)
+    return lam, removed
+
+
+def rescale_factor(t_current: np.ndarray, t_target: np.ndarray, window: np.ndarray, fraction: np.ndarray,
+                   dof: float, boltz: float) -> tuple[np.ndarray, np.ndarray]:
+    """fix temp/rescale: outside the window |T - T_target| > window, move T by `fraction` of the
+    way to the target, T_new = T - fraction (T - T_target), by v *= sqrt(T_new / T). Returns the
+    factor (1 inside the window) and the energy removed, (T - T_new) dof kB / 2 (C,)."""
+    outside = np.abs(t_current - t_target) > window
+    t_new = t_current - fraction * (t_current - t_target)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        factor = np.where(outside & (t_current > 0), np.sqrt(t_new / t_current), 1.0)
+    removed = np.where(outside & (t_current > 0), (t_current - t_new) * (0.5 * boltz * dof), 0.0)
+    return factor, removed
+
+
+# ----------------------------------------------------------------------------- Langevin
+
+
+def langevin_force(v: np.ndarray, mass: np.ndarray, mask: np.ndarray | None, t_target: np.ndarray,
+                   damp: np.ndarray, dt: np.ndarray, uniform: np.ndarray, ftm2v: float, mvv2e: float,
+                   boltz: float, zero: bool = False) -> np.ndarray:
+    """fix langevin's force (C, N, 3) on the group (zero elsewhere): drag -m v / (damp ftm2v) plus
+    a random force sqrt(24 kB T m / (damp dt mvv2e)) / ftm2v (u - 1/2), u uniform in [0, 1)
+    (`uniform`, (C, N, 3)); variance 2 kB T m / (damp dt) per component, the fluctuation-dissipation
+    value for a force held over one step. With `zero`, the random forces of the group sum to zero
+    (their mean over the group atoms is removed), so the thermostat conserves the momentum."""
+    damp = np.asarray(damp, float)[:, None]
+    g1 = -mass / damp / ftm2v  # (C, N)
+    g2 = np.sqrt(mass) * (np.sqrt(24.0 * boltz / damp / np.asarray(dt, float)[:, None] / mvv2e) / ftm2v)
+    g2 = g2 * np.sqrt(np.asarray(t_target, float))[:, None]
+    fran = g2[:, :, None] * (uniform - 0.5)
+    sel = np.ones(v.shape[1], bool) if mask is None else mask
+    if zero:
+        count = int(sel.sum())
+        if count:
+            mean = np.where(sel[None, :, None], fran, 0.0).sum(axis=1) / count
+            fran = fran - mean[:, None, :]
+    force = g1[:, :, None] * v + fran
+    if not sel.all():
+        force = np.where(sel[None, :, None], force, 0.0)
+    return force
+
+
+def langevin_power(force: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Power the Langevin force puts into the group, sum_i F_i . v_i (C,) [energy/time]."""
+    return np.einsum("cni,cni->c", force, v)

@@ -1,0 +1,310 @@
+"""output.profiles / output.averages: config errors with file:line:col and field, binning, the
+sample schedule, bit-identical batching, Boltzmann profile between harmonic walls (chi-square),
+wall pressure of an ideal gas (soft and reflect walls), NetCDF round trip."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+from scipy import stats as sps
+
+from wallbatch.api import load, run
+from wallbatch.batch.runner import build_cases, run_config
+from wallbatch.config.models import config_from_dict, load_config_text
+from wallbatch.config.source import ConfigError
+from wallbatch.engine.engine import Engine, run_cases
+from wallbatch.engine.profiles import bin_index, bin_sums
+from wallbatch.io.netcdf import write_netcdf
+from wallbatch.scene.build import build_case
+
+FILE = "p.yaml"
+BASE = """\
+box: {lo: [0, 0, 0], hi: [10, 10, 10], boundary: [p, p, f]}
+atoms:
+  - group: fluid
+    create: {positions: [[5, 5, 5], [5, 5, 6]]}
+    mass: 1.0
+walls:
+  w: {style: harmonic, units: box, zlo: [-1.0, 10.0, 1.0, 2.0], zhi: [11.0, 10.0, 1.0, 2.0]}
+run: {steps: 1000, thermo: 10}
+output:
+"""
+GOOD = "  profiles:\n    across: {axis: z, bins: 10, every: 10, repeat: 5, freq: 100, quantities: [temp]}\n"
+
+
+def error(text: str) -> str:
+    with pytest.raises(ConfigError) as info:
+        load_config_text(text, FILE)
+    assert len(info.value.problems) == 1, info.value.problems
+    return info.value.problems[0]
+
+
+def line_of(text: str, needle: str) -> int:
+    return [i + 1 for i, ln in enumerate(text.splitlines()) if needle in ln][0]
+
+
+@pytest.mark.parametrize("prof,needle,field,words", [
+    ("{axis: z, bins: 10, every: 30, repeat: 2, freq: 100, quantities: [temp]}", "freq: 100",
+     "output.profiles.across.freq", "multiple of every"),
+    ("{axis: z, bins: 10, every: 10, repeat: 11, freq: 100, quantities: [temp]}", "repeat: 11",
+     "output.profiles.across.repeat", "must not exceed freq"),
+    ("{axis: z, bins: 0, every: 10, repeat: 5, freq: 100, quantities: [temp]}", "bins: 0",
+     "output.profiles.across.bins", "bins must be >= 1"),
+    ("{axis: z, bins: 10, every: 10, repeat: 5, freq: 100, quantities: [temp, pressure]}", "quantities",
+     "output.profiles.across.quantities.1", "density/number"),
+    ("{axis: z, bins: 10, every: 10, repeat: 5, freq: 2000, quantities: [temp]}", "freq: 2000",
+     "output.profiles.across.freq", "longer than the run"),
+    ("{axis: z, bins: 10, every: 10, repeat: 5, freq: 100, quantities: [temp], group: gas}", "group: gas",
+     "output.profiles.across.group", "unknown group 'gas'"),
+])
+def test_bad_profiles_name_file_line_and_field(prof, needle, field, words):
+    text = BASE + "  profiles:\n    across: " + prof + "\n"
+    msg = error(text)
+    assert msg.startswith(f"{FILE}:{line_of(text, needle)}:"), msg
+    assert field in msg and words in msg, msg
+
+
+def test_averages_start_past_the_end():
+    text = BASE + GOOD + "  averages: {start: 1001}\n"
+    msg = error(text)
+    assert msg.startswith(f"{FILE}:{line_of(text, 'averages')}:") and "output.averages.start" in msg, msg
+    assert "past the end of the run (1000 steps)" in msg
+    load_config_text(BASE + GOOD + "  averages: {start: 1000}\n", FILE)  # inclusive: the last sample
+
+
+def test_bins_and_delta_exclusive_and_time_runs():
+    msg = error(BASE + "  profiles:\n    across: {axis: z, bins: 10, delta: 0.5, every: 10, repeat: 5, freq: 100, "
+                       "quantities: [temp]}\n")
+    assert "output.profiles.across" in msg and "exactly one of bins" in msg
+    msg = error(BASE + "  averages: {time: 3.0}\n")
+    assert "output.averages.time" in msg and "start: STEP" in msg
+
+
+def test_delta_bins_as_lammps_and_schedule():
+    cfg = load_config_text(BASE + "  profiles:\n    across: {axis: z, delta: 0.3, every: 10, repeat: 3, freq: 100, "
+                                  "quantities: [temp]}\n", FILE)
+    p = build_case(cfg).profiles[0]
+    assert p.nbins == 34 and p.delta == 0.3 and p.lo == 0.0  # ceil(10 / 0.3), last bin reaches past the box
+    assert p.window_steps(1000) == list(range(100, 1001, 100))
+    assert p.sample_steps(250) == [80, 90, 100, 180, 190, 200]
+
+
+def test_bin_index_and_sums_per_case():
+    coord = np.array([[0.0, 0.99, 1.0, 9.99, -0.5, 12.0], [0.5, 0.5, 2.5, 2.5, 2.5, 3.1]])
+    b = bin_index(coord, np.array([0.0, 0.5]), np.array([1.0, 1.0]), 10)
+    assert b.tolist() == [[0, 0, 1, 9, 0, 9], [0, 0, 2, 2, 2, 2]]
+    w = np.arange(12.0).reshape(2, 6)
+    rows = np.array([2, 0])  # live cases 2 and 0 of 3
+    counts = bin_sums(b, rows, 10, 3)
+    sums = bin_sums(b, rows, 10, 3, w)
+    assert counts[1].sum() == 0 and counts[2].tolist()[:2] == [3, 1] and counts[0][2] == 4 and counts[0].sum() == 6
+    assert sums[2][0] == 0 + 1 + 4 and sums[0][2] == 8 + 9 + 10 + 11
+
+
+def ideal_gas(n: int, steps: int, walls: dict, profile: dict | None, sweep: dict | None = None,
+              thermo: int = 10, start: int = 0, seed: int = 1) -> dict:
+    cfg = {
+        "seed": seed,
+        "box": {"lo": [0, 0, 0], "hi": [8, 8, 10], "boundary": ["p", "p", "f"]},
+        "regions": {"slab": {"style": "block", "lo": [0, 0, 3], "hi": [8, 8, 7], "units": "box"}},
+        "atoms": [{"group": "gas", "create": {"random": {"count": n, "region": "slab"}}, "mass": 1.0,
+                   "velocity": {"temperature": 1.0}}],
+        "walls": walls, "timestep": 0.005,
+        "run": {"steps": steps, "thermo": thermo},
+        "output": {"averages": {"start": start}},
+    }
+    if profile:
+        cfg["output"]["profiles"] = {"across": profile}
+    if sweep:
+        cfg["sweep"] = sweep
+    return cfg
+
+
+HARMONIC = {"w": {"style": "harmonic", "units": "box", "zlo": [-1.0, 2.0, 1.0, 4.0], "zhi": [11.0, 2.0, 1.0, 4.0]}}
+
+
+def harmonic_u(z: np.ndarray, k: float = 2.0) -> np.ndarray:
+    """U(z) of the two harmonic walls: k (r - rc)^2 for r < rc, r = z + 1 (lo) and 11 - z (hi), rc = 4."""
+    lo = np.clip(4.0 - (z + 1.0), 0, None)
+    hi = np.clip(4.0 - (11.0 - z), 0, None)
+    return k * (lo ** 2 + hi ** 2)
+
+
+def boltzmann_positions(n: int, seed: int) -> list[list[float]]:
+    """n positions in the 8 x 8 x 10 box with z drawn from exp(-U(z)/T), T = 1 (rejection)."""
+    rng = np.random.default_rng(seed)
+    z = np.empty(0)
+    while z.size < n:
+        cand = rng.uniform(0.0, 10.0, 4 * n)
+        z = np.concatenate([z, cand[rng.uniform(size=cand.size) < np.exp(-harmonic_u(cand))]])
+    return np.column_stack([rng.uniform(0, 8, n), rng.uniform(0, 8, n), z[:n]]).tolist()
+
+
+@pytest.mark.slow
+def test_boltzmann_profile_between_harmonic_walls_chi_square():
+    """Ideal gas started from the canonical distribution (z from exp(-U/T), Maxwell velocities at
+    T = 1): Hamiltonian dynamics keeps it canonical, so every window's density profile is
+    rho(z) = N exp(-U(z)/T) / (A int exp(-U/T) dz) in expectation. An ideal gas without a
+    thermostat never forgets its atoms' energies (each atom's motion is periodic), so the error
+    bars come from independent replicas (positions and velocities drawn anew), not from the time
+    series. Chi-square over the bins; the same data against a flat profile and against the profile
+    at T = 1.3 must fail."""
+    n, reps = 1000, 16
+    prof = {"axis": "z", "bins": 20, "every": 20, "repeat": 10, "freq": 200, "quantities": ["density/number"]}
+    profiles = []
+    for r in range(reps):
+        cfg = ideal_gas(n, 4000, HARMONIC, prof, thermo=200, seed=100 + r)
+        cfg["atoms"][0]["create"] = {"positions": boltzmann_positions(n, 2026 + r)}
+        ds = run(cfg)
+        assert ds.status.item() == "ok"
+        profiles.append(ds["profile_across_density_number_mean"].values)
+    profiles = np.array(profiles)
+    mean = profiles.mean(axis=0)
+    err = profiles.std(axis=0, ddof=1) / np.sqrt(reps)
+
+    def expected(temp: float) -> np.ndarray:
+        fine = np.linspace(0, 10, 200001)
+        w = np.exp(-harmonic_u(fine) / temp)
+        cum = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(fine))])
+        edges = np.interp(np.linspace(0, 10, 21), fine, cum)
+        return n * np.diff(edges) / cum[-1] / (64.0 * 0.5)
+
+    expect = expected(1.0)
+    ok = expect > 0.02 * expect.max()  # bins the gas reaches
+    chi2 = float((((mean[ok] - expect[ok]) / err[ok]) ** 2).sum())
+    dof = int(ok.sum())
+    print(f"chi2 = {chi2:.1f} for {dof} bins")
+    assert sps.chi2.sf(chi2, dof) > 1e-3, (chi2, dof)
+    for wrong in (np.full_like(expect, n / 640.0), expected(1.3)):
+        assert sps.chi2.sf(float((((mean[ok] - wrong[ok]) / err[ok]) ** 2).sum()), dof) < 1e-6
+
+
+def test_wall_pressure_soft_equals_mid_density_times_t():
+    """Ideal gas between harmonic walls: the mean force per area on each wall is rho_mid k T
+    (hydrostatic balance, P = rho kT in the flat middle), and lo/hi have the same sign."""
+    prof = {"axis": "z", "bins": 10, "every": 10, "repeat": 10, "freq": 100, "quantities": ["density/number", "temp"]}
+    ds = run_config(config_from_dict(ideal_gas(500, 3000, HARMONIC, prof, thermo=5, start=500)))
+    assert ds.status.item() == "ok"
+    p = ds["wall_pressure_mean"].values
+    s = ds["wall_pressure_sem"].values
+    assert (p > 0).all()
+    mid = ds["profile_across_density_number_mean"].sel(across_bin=slice(3.5, 6.5)).mean().item()
+    temp = ds["temp_mean"].item()
+    assert abs(p.mean() - mid * temp) < 0.1 * mid * temp
+    assert (s > 0).all() and (s < 0.2 * p).all()
+    # the same numbers by hand from wall_force
+    f = ds["wall_force"].sel(sample=ds.step >= 500)
+    by_hand = np.array([-f.isel(face=0).mean().item(), f.isel(face=1).mean().item()]) / 64.0
+    np.testing.assert_allclose(p, by_hand, rtol=1e-12)
+
+
+def test_wall_pressure_reflect_is_nkt_over_v():
+    """Ideal gas in a box closed by reflect walls: kinetic energy is constant, so the mean
+    impulse pressure on each face is N k T / V (T with 3N dof, no momentum constraint)."""
+    walls = {"m": {"style": "reflect", "units": "box", "zlo": "EDGE", "zhi": "EDGE"}}
+    cfg = ideal_gas(400, 4000, walls, None, thermo=20, start=0)
+    cfg["output"]["thermo"] = ["step", "time", "dt", "temp", "ke", "reflect_impulse"]
+    ds = run_config(config_from_dict(cfg))
+    assert ds.status.item() == "ok"
+    ke = ds["ke"].isel(sample=0).item()
+    expect = 2.0 * ke / 3.0 / 640.0  # N kT / V with kT = 2 KE / (3N)
+    p, s = ds["wall_pressure_mean"].values, ds["wall_pressure_sem"].values
+    assert np.all(np.abs(p - expect) < 4 * s + 0.02 * expect), (p, s, expect)
+    assert ds["wall_pressure_sem_converged"].values.all()
+    # the mean is the total impulse over the total time
+    imp = ds["reflect_impulse"].isel(sample=slice(1, None))
+    total = float(ds["time"].isel(sample=-1))
+    np.testing.assert_allclose(p, np.array([-imp.isel(face=0).sum(), imp.isel(face=1).sum()]) / total / 64.0,
+                               rtol=1e-12)
+
+
+def test_batching_is_bit_identical_and_netcdf_round_trip(tmp_path):
+    prof = {"axis": "z", "bins": 10, "every": 5, "repeat": 4, "freq": 20, "quantities": ["density/number", "vx"]}
+    cfg = ideal_gas(100, 100, HARMONIC, prof, sweep={"product": {"k": {"path": "walls.w.zlo.epsilon",
+                                                                       "values": [2.0, 3.0, 4.0]}}})
+    cases, errors = build_cases(load(cfg))
+    assert not errors
+    together = run_cases(cases)
+    alone = run_cases([cases[1]])[0]
+    for name in ("profile_across_density_number", "profile_across_vx"):
+        assert together[1].data[name].shape == (5, 10)
+        np.testing.assert_array_equal(together[1].data[name], alone.data[name])
+    ds = run(cfg)
+    path = tmp_path / "r.nc"
+    write_netcdf(ds, path)
+    back = xr.open_dataset(path)
+    assert back["profile_across_vx_sem_converged"].dtype == bool
+    assert back["profile_across_vx"].dims == ("k", "window", "across_bin")
+    assert back["across_bin"].attrs["units"] == "1" and list(back["window_step"].values) == [20, 40, 60, 80, 100]
+    np.testing.assert_array_equal(back["wall_pressure_sem"].values, ds["wall_pressure_sem"].values)
+    assert back["temp_mean"].dims == ("k",) and back["wall_force_mean"].dims == ("k", "face")
+
+
+def test_engine_holds_cases_x_windows_x_bins_floats():
+    """The engine stores exactly one float64 per case, window and bin per quantity, plus one
+    running sum per case and bin per accumulated sum (the memory benchmark's numbers)."""
+    prof = {"axis": "z", "bins": 7, "every": 5, "repeat": 2, "freq": 10, "quantities": ["density/number", "vz"]}
+    cfg = ideal_gas(30, 60, HARMONIC, prof, sweep={"product": {"k": {"path": "walls.w.zlo.epsilon",
+                                                                     "values": [2.0, 3.0, 4.0, 5.0]}}})
+    cases, _ = build_cases(load(cfg))
+    eng = Engine(cases)
+    eng.run()
+    store = eng.profiles.out[0]
+    assert {q: a.shape for q, a in store.items()} == {"density/number": (4, 6, 7), "vz": (4, 6, 7)}
+    assert sum(a.nbytes for a in store.values()) == 2 * 4 * 6 * 7 * 8
+    assert sorted(eng.profiles.sums[0]) == ["count", "vz"]
+
+
+def test_failed_case_profiles_and_means_are_nan():
+    """A case that fails mid-run keeps its grid place: NaN windows, NaN means, converged false;
+    the other case is untouched (same numbers as run alone)."""
+    prof = {"axis": "z", "bins": 10, "every": 5, "repeat": 2, "freq": 10, "quantities": ["density/number"]}
+    walls = {"w": {"style": "harmonic", "units": "box", "zlo": [-1.0, 2.0, 1.0, 4.0], "zhi": ["v_top", 2.0, 1.0, 4.0]}}
+    cfg = ideal_gas(50, 100, walls, prof, sweep={"product": {"top": {"path": "variables.top",
+                                                                     "values": ["11.0", "11.0 - ramp(0, 10.5)"]}}})
+    cfg["variables"] = {"top": "11.0"}
+    ds = run(cfg)
+    assert list(ds.status.values) == ["ok", "failed"], ds.error.values
+    bad = ds.isel(top=1)
+    assert np.isnan(bad["profile_across_density_number"]).all()
+    assert np.isnan(bad["profile_across_density_number_mean"]).all()
+    assert not bad["profile_across_density_number_sem_converged"].any()
+    assert np.isnan(bad["wall_pressure_mean"]).all() and np.isnan(bad["temp_sem"])
+    good = ds.isel(top=0)
+    assert np.isfinite(good["profile_across_density_number"]).all()
+    np.testing.assert_allclose((good["profile_across_density_number"] * 64 * 1.0).sum("across_bin"), 50, rtol=1e-12)
+
+
+def test_two_d_profiles_per_area_and_two_dof():
+    """dimension: 2 (LAMMPS adof = 2, bin 'volume' = box area * delta / L): with one bin and
+    samples on the thermo steps, the profile temperature is the thermo temperature (2N - 2 dof)
+    times (N - 1) / N, and density * area = N."""
+    n = 40
+    rng = np.random.default_rng(4)
+    pos = np.column_stack([rng.uniform(0, 8, n), rng.uniform(2, 6, n), np.zeros(n)]).tolist()
+    cfg = {
+        "dimension": 2,
+        "box": {"lo": [0, 0, -0.5], "hi": [8, 8, 0.5], "boundary": ["p", "f", "p"]},
+        "atoms": [{"group": "gas", "create": {"positions": pos}, "mass": 1.0, "velocity": {"temperature": 1.0}}],
+        "walls": {"w": {"style": "harmonic", "units": "box", "ylo": [-1.0, 2.0, 1.0, 4.0],
+                        "yhi": [9.0, 2.0, 1.0, 4.0]}},
+        "fixes": {"nve": {"style": "nve"}, "e2d": {"style": "enforce2d"}},
+        "timestep": 0.005, "run": {"steps": 200, "thermo": 10},
+        "output": {"profiles": {"one": {"axis": "y", "bins": 1, "every": 10, "repeat": 5, "freq": 50,
+                                        "quantities": ["density/number", "temp"]},
+                                "many": {"axis": "x", "delta": 0.5, "every": 10, "repeat": 5, "freq": 50,
+                                         "quantities": ["density/number"]}}},
+    }
+    ds = run(cfg)
+    assert ds.status.item() == "ok", ds.error.item()
+    np.testing.assert_allclose(ds["profile_one_density_number"].values[:, 0] * 64.0, n, rtol=1e-12)
+    np.testing.assert_allclose((ds["profile_many_density_number"] * 8 * 0.5).sum("many_bin"), n, rtol=1e-12)
+    temp = ds["temp"].values
+    steps = ds["step"].values
+    for k, w in enumerate(ds["window_step"].values):
+        picked = temp[(steps > w - 50) & (steps <= w)]
+        assert picked.size == 5
+        assert ds["profile_one_temp"].values[k, 0] == pytest.approx(picked.mean() * (n - 1) / n, rel=1e-12)
+    with pytest.raises(ConfigError, match="output.profiles.one.axis: a 2-d simulation"):
+        config_from_dict({**cfg, "output": {"profiles": {"one": {**cfg["output"]["profiles"]["one"], "axis": "z"}}}})
