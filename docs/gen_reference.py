@@ -165,7 +165,8 @@ KEYS: dict[str, Key] = {
     "walls.ID.axis": Key("flow: the flow axis (periodic).", "", "`wall/flow AXIS`"),
     "walls.ID.vflow": Key("flow: flow velocity (> 0).", "velocity", "`VFLOW`"),
     "walls.ID.temperature": Key("flow: temperature of the redrawn velocities.", "temperature", "`T`"),
-    "walls.ID.seed": Key("flow: the wall's seed, combined with the master seed and the case coordinates.",
+    "walls.ID.seed": Key("flow, reflect/stochastic: the wall's seed, combined with the master seed and the case "
+                         "coordinates.",
                          "", "`SEED`"),
     "walls.ID.coords": Key("flow: wall positions along the axis, strictly increasing, inside the box.",
                            "distance", "`N w1 ... wN`"),
@@ -185,6 +186,28 @@ KEYS: dict[str, Key] = {
     "walls.ID.r0": Key("region with morse: equilibrium distance.", "distance", "`r0`", NUM_OR_VAR),
     "walls.ID.cutoff": Key("region, region/ees: cut-off distance from the surface (box units).", "distance",
                            "`CUTOFF`"),
+    "walls.ID.FACE.expression": Key("lepton: the wall energy E(r) as a Lepton expression of r, the distance "
+                                    "from the wall; `;` definitions allowed; F = -dE/dr exactly; shifted to 0 "
+                                    "at the cut-off.", "energy", "`wall/lepton FACE COORD EXPRESSION CUTOFF`"),
+    "walls.ID.FACE.params": Key("lepton: named numbers used by the expression (sweepable; written as `; "
+                                "name=value` definitions for LAMMPS); `cutoff` is reserved.", "",
+                                "`; name=value`"),
+    "walls.ID.FACE.file": Key("table: a LAMMPS table file, relative to the config file.", "",
+                              "`wall/table ... FILE`"),
+    "walls.ID.FACE.keyword": Key("table: the section of the file.", "", "`KEYWORD`"),
+    "walls.ID.tabstyle": Key("table: `linear` or `spline` interpolation, as LAMMPS.", "",
+                             "`wall/table linear|spline`"),
+    "walls.ID.N": Key("table: points of the interpolation table (the file is resampled onto them).", "",
+                      "`wall/table TABSTYLE N`"),
+    "walls.ID.rstyle": Key("reflect/stochastic: `diffusive`, `maxwell` (one accommodation coefficient) or "
+                           "`ccl` (Cercignani-Lampis, three).", "", "`wall/reflect/stochastic RSTYLE`"),
+    "walls.ID.FACE.temp": Key("reflect/stochastic: wall temperature of the reflected velocities.", "temperature",
+                              "`TEMP`"),
+    "walls.ID.FACE.vel": Key("reflect/stochastic: wall velocity [vx, vy, vz], in the wall's plane.", "velocity",
+                             "`VX VY VZ`"),
+    "walls.ID.FACE.accom": Key("reflect/stochastic: accommodation, one number (maxwell: the diffusive "
+                               "fraction) or [ax, ay, az] (ccl: tangential velocity and normal energy "
+                               "accommodation), each in [0, 1]; none for diffusive.", "", "`ACCOM...`"),
     "dimension": Key("2 or 3 (default). 2-D as LAMMPS: z periodic and thin, no z walls, z velocities and "
                      "forces zeroed (enforce2d), 2 degrees of freedom per atom; lattices sq, sq2, hex.", "",
                      "`dimension 2`"),

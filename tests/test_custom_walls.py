@@ -284,3 +284,17 @@ def test_cli_table_of_an_expression_matches_the_expression_wall(tmp_path):
     np.testing.assert_array_equal(lj.e, lj93(lj.r, LJ)[0])
     bad = runner.invoke(app, ["table", "colloid", "--lo", "1", "--hi", "2", "-o", str(out)])
     assert bad.exit_code == 2 and "depends on the particle radius" in bad.output
+
+
+def test_linear_expression_wall_constant_force_runs():
+    """A wall E = g r (a constant force g towards the wall: gravity above a reflecting floor) runs
+    (LAMMPS aborts on it, see test_lepton.py); every atom feels exactly -g, and etot changes only
+    by the reflections' O(g d) mirror steps."""
+    text = slit("w: {style: lepton, units: box, energy: true, zlo: {coord: EDGE, cutoff: 6.0, expression: 'g*r', "
+                "params: {g: 0.5}}}\nfloor: {style: reflect, units: box, zlo: EDGE, zhi: EDGE}\n", steps=400)
+    cfg = load_config_text(text)
+    res = run_one(cfg)
+    etot = res.data["etot"]
+    assert np.max(np.abs(etot - etot[0])) < 2e-3 * abs(etot[0])
+    # every atom is within the cut-off: the wall's vector is N g (side -1 times F = -g)
+    np.testing.assert_allclose(res.data["wall_force"][:, 0], 200 * 0.5, rtol=1e-14)

@@ -258,3 +258,39 @@ def test_lammps_wall_lepton_energy_force(text, cutoff, face):
     np.testing.assert_allclose(out["f"][:, dim], sign * f, rtol=1e-12, atol=1e-12 * np.max(np.abs(f)))
     assert out["energy"] == pytest.approx(e.sum(), rel=1e-12, abs=1e-12 * np.max(np.abs(e)))
     assert out["vector"][0] == pytest.approx(sign * f.sum(), rel=1e-12, abs=1e-12 * np.max(np.abs(f)))
+
+
+@pytest.mark.lammps
+@requires_lammps
+def test_lammps_definition_order_quirk():
+    """LAMMPS (Lepton) reads definitions last to first: in 'b*r^2; a=6; b=a+1' the a of b's
+    definition is not the a defined before it, and LAMMPS evaluates b = 1 (a = 0) silently;
+    wallbatch refuses the expression."""
+    from lammps_walls import probe_wall  # noqa: PLC0415
+
+    r = np.array([1.5])
+    out = probe_wall('wall/lepton zlo -5.0 "b*r^2; a=6; b=a+1" 4.0 units box', r)
+    assert out["energy"] == pytest.approx(1.0 * (1.5**2 - 4.0**2), rel=1e-14)  # b = 1, not 7
+    with pytest.raises(LeptonError, match="defined before it"):
+        compile_expression("b*r^2; a=6; b=a+1")
+
+
+@pytest.mark.lammps
+@requires_lammps
+def test_lammps_aborts_on_an_expression_whose_derivative_lacks_r():
+    """LAMMPS terminates the process (uncaught Lepton exception) for a linear wall k*r; wallbatch
+    runs it (F = -k). Run in a subprocess: the abort would take pytest with it."""
+    import subprocess  # noqa: PLC0415
+    import sys  # noqa: PLC0415
+
+    code = (
+        "import sys, numpy as np; sys.path.insert(0, 'tests'); from lammps_walls import probe_wall; "
+        "probe_wall('wall/lepton zlo -5.0 \"3.0*r\" 4.0 units box', np.array([1.5]))"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+                          cwd=str(__import__("pathlib").Path(__file__).resolve().parents[1]))
+    assert proc.returncode != 0
+    assert "Unknown variable 'r'" in proc.stderr
+    e, f = compile_expression("3.0*r").energy_force(np.array([1.5, 2.0]), {})
+    np.testing.assert_array_equal(e, [4.5, 6.0])
+    np.testing.assert_array_equal(f, [-3.0, -3.0])  # a constant force, one value per atom

@@ -561,7 +561,10 @@ def evaluate(node: Node, r, params: Mapping[str, np.ndarray | float]) -> np.ndar
     """
     r = np.asarray(r, dtype=np.float64)
     with np.errstate(all="ignore"):
-        return np.asarray(_eval(node, r, params), dtype=np.float64)
+        out = np.asarray(_eval(node, r, params), dtype=np.float64)
+    if out.shape != r.shape:  # a tree without r (a constant force): one value per r all the same
+        out = np.array(np.broadcast_to(out, np.broadcast_shapes(out.shape, r.shape)))
+    return out
 
 
 def _eval(node: Node, r: np.ndarray, params: Mapping[str, np.ndarray | float]):
