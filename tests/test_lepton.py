@@ -294,3 +294,17 @@ def test_lammps_aborts_on_an_expression_whose_derivative_lacks_r():
     e, f = compile_expression("3.0*r").energy_force(np.array([1.5, 2.0]), {})
     np.testing.assert_array_equal(e, [4.5, 6.0])
     np.testing.assert_array_equal(f, [-3.0, -3.0])  # a constant force, one value per atom
+
+
+@pytest.mark.parametrize("text,params", [e for e in EXPRESSIONS if len(e[1]) <= 3])
+def test_positional_kernels_bit_identical(text, params):
+    """The compiled-wall-style signature force(r, p0, p1, p2, rc, radius) and energy(...)."""
+    from wallbatch.styles.lepton import positional_kernels  # noqa: PLC0415
+
+    expr = compile_expression(text, params)
+    force, energy = positional_kernels(expr)
+    args = [params[n] for n in expr.params] + [0.0] * (3 - len(expr.params))
+    rs = np.random.default_rng(3).uniform(0.3, 3.0, 200)
+    e, f = expr.energy_force(rs, params)
+    np.testing.assert_array_equal([force(x, *args, 2.5, 0.0) for x in rs], f)
+    np.testing.assert_array_equal([energy(x, *args, 2.5, 0.0) for x in rs], e)

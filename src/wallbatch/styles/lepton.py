@@ -52,6 +52,7 @@ __all__ = [
     "numba_kernel",
     "kernel_source",
     "lepton_style",
+    "positional_kernels",
 ]
 
 
@@ -747,9 +748,11 @@ def _compile(text: str, supplied: tuple[str, ...]) -> LeptonExpression:
 # Code generation: a numba-jittable scalar kernel from the trees
 
 
-def _codegen(trees: Iterable[Node], params: tuple[str, ...]) -> str:
-    """Python source of ``kernel(r, p) -> (E, F)`` for scalar r and a parameter array p; one
-    statement per node, in the evaluation order of :func:`evaluate`."""
+def _codegen(trees: Iterable[Node], params: tuple[str, ...], positional: bool = False) -> str:
+    """Python source of ``kernel(r, p) -> (E, F)`` for scalar r and a parameter array p (or, with
+    ``positional``, ``kernel(r, p0, p1, p2, rc, radius)`` returning the one tree's value, the
+    signature of a compiled wall-style force); one statement per node, in the evaluation order of
+    :func:`evaluate`."""
     lines: list[str] = []
     index = {n: i for i, n in enumerate(params)}
     counter = [0]
@@ -764,7 +767,9 @@ def _codegen(trees: Iterable[Node], params: tuple[str, ...]) -> str:
         if isinstance(n, Num):
             return tmp(f"{n.value!r}") if math.isfinite(n.value) else tmp(f"float({str(n.value)!r})")
         if isinstance(n, VarRef):
-            return "r" if n.name == R else tmp(f"p[{index[n.name]}]")
+            if n.name == R:
+                return "r"
+            return f"p{index[n.name]}" if positional else tmp(f"p[{index[n.name]}]")
         if isinstance(n, Unary):
             return tmp(f"-{gen(n.operand)}")
         if isinstance(n, Binary):
@@ -782,7 +787,12 @@ def _codegen(trees: Iterable[Node], params: tuple[str, ...]) -> str:
         return tmp(_CALL_SRC[n.func].format(*args))  # type: ignore[union-attr]
 
     outs = [gen(t) for t in trees]
-    body = "\n".join(lines)
+    body = "\n".join(lines) or "    pass"
+    if positional:
+        extra = ", ".join(f"p{i}" for i in range(len(params), POSITIONAL_PARAMS))
+        head = "def kernel(r, " + ", ".join([f"p{i}" for i in range(len(params))] + ([extra] if extra else [])
+                                         + ["rc", "radius"]) + "):"
+        return f"{head}\n{body}\n    return {outs[0]}\n"
     return f"def kernel(r, p):\n{body}\n    return {', '.join(outs)}\n"
 
 
@@ -857,6 +867,29 @@ def _helpers() -> dict[str, Callable]:
         return x**y
 
     return {"_div": _div, "_sqrt": _sqrt, "_log": _log, "_pow": _pow, "math": math, "np": np}
+
+
+POSITIONAL_PARAMS = 3  # parameters a compiled wall-style force takes (p0, p1, p2)
+
+
+def positional_kernels(expr: LeptonExpression) -> tuple[Callable, Callable] | None:
+    """numba-jitted ``force(r, p0, p1, p2, rc, radius)`` and ``energy(...)`` (unshifted) of an
+    expression with at most 3 parameters (in ``expr.params`` order), the signature of a compiled
+    wall style; None with more parameters. Bit-identical to :meth:`LeptonExpression.energy_force`;
+    cached per generated source."""
+    if len(expr.params) > POSITIONAL_PARAMS:
+        return None
+    return tuple(_jit_positional(_codegen((tree,), expr.params, positional=True))  # type: ignore[return-value]
+                 for tree in (expr.force, expr.energy))
+
+
+@functools.lru_cache(maxsize=256)
+def _jit_positional(source: str) -> Callable:
+    from numba import njit  # noqa: PLC0415 - heavy optional import, compiled on first use only
+
+    namespace = dict(_helpers())
+    exec(compile(source, "<wall/lepton kernel>", "exec"), namespace)  # noqa: S102 - our own codegen
+    return njit(nogil=True, error_model="numpy", inline="always")(namespace["kernel"])
 
 
 def kernel_source(expr: LeptonExpression) -> str:
