@@ -12,8 +12,8 @@ import pytest
 import yaml
 
 from wallbatch.config.models import (
+    WALL_MODELS,
     Config,
-    MorseWall,
     ReflectWall,
     SoftWall,
     config_from_dict,
@@ -21,6 +21,8 @@ from wallbatch.config.models import (
     load_config_text,
 )
 from wallbatch.config.source import ConfigError, load_yaml
+
+MorseWall = WALL_MODELS["morse"]
 
 FILE = "cfg.yaml"
 

@@ -18,8 +18,22 @@ from wallbatch.config.sweep import load_plan
 from wallbatch.engine.engine import run_cases
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import structure_key
-from wallbatch.styles.flat import harmonic, lj93
+from wallbatch.styles import STYLES
 from wallbatch.styles.table import tabulate, write_table
+
+
+def _builtin(name: str):
+    """A registry style as energy_force(r, p) -> (E, F) on a parameter mapping."""
+    def energy_force(r, p):
+        return STYLES[name].energy_force(r, p)
+
+    energy_force.__name__ = name
+    return energy_force
+
+
+harmonic = _builtin("harmonic")
+lj93 = _builtin("lj93")
+
 
 LJ = {"epsilon": 1.0, "sigma": 1.0}
 

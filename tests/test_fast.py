@@ -99,14 +99,15 @@ STYLE_PARAMS = {
 
 @pytest.mark.parametrize("style", sorted(STYLE_PARAMS))
 def test_compiled_forces_match_potentials(style):
-    """fast._force is potentials.py's F(r) written for scalars: same value to 1e-14 over the range."""
+    """The compiled force is the registry's own F(r), jit-compiled: same value to 1e-14 over the range."""
     p = STYLE_PARAMS[style]
     lo = p.get("radius", 0.0) + 0.05
     r = np.linspace(lo, p["cutoff"], 257)
     want = STYLES[style].energy_force(r, {k: np.full_like(r, v) for k, v in p.items()})[1]
     keys = ("D0", "alpha", "r0") if style == "morse" else ("epsilon", "sigma", "sigma")
-    got = np.array([fast._force(fast.STYLE_IDS[style], float(ri), p[keys[0]], p[keys[1]], p[keys[2]],
-                                p["cutoff"], p.get("radius", 0.0)) for ri in r])
+    force = fast.FORCES[fast.STYLE_IDS[style]]  # the registry's own function, compiled
+    got = np.array([force(float(ri), p[keys[0]], p[keys[1]], p[keys[2]], p["cutoff"], p.get("radius", 0.0))
+                    for ri in r])
     np.testing.assert_allclose(got, want, rtol=RTOL, atol=RTOL * np.abs(want).max())
 
 

@@ -10,7 +10,7 @@ import pytest
 
 from lammps_oracle import requires_lammps
 from wallbatch.expr import Binary, Call, Num, Unary, VarRef
-from wallbatch.styles.flat import harmonic, lj93, lj126, lj1043, morse
+from wallbatch.styles import STYLES
 from wallbatch.styles.lepton import (
     LeptonError,
     compile_expression,
@@ -22,6 +22,22 @@ from wallbatch.styles.lepton import (
     simplify,
     to_lepton,
 )
+
+
+def _builtin(name: str):
+    """A registry style as energy_force(r, p) -> (E, F) on a parameter mapping."""
+    def energy_force(r, p):
+        return STYLES[name].energy_force(r, p)
+
+    energy_force.__name__ = name
+    return energy_force
+
+
+harmonic = _builtin("harmonic")
+lj93 = _builtin("lj93")
+lj126 = _builtin("lj126")
+lj1043 = _builtin("lj1043")
+morse = _builtin("morse")
 
 # ------------------------------------------------------------------------------ grammar
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from lammps_oracle import requires_lammps
-from wallbatch.styles.flat import harmonic, lj93
+from wallbatch.styles import STYLES
 from wallbatch.styles.table import (
     TableError,
     WallTable,
@@ -16,6 +16,19 @@ from wallbatch.styles.table import (
     tabulate,
     write_table,
 )
+
+
+def _builtin(name: str):
+    """A registry style as energy_force(r, p) -> (E, F) on a parameter mapping."""
+    def energy_force(r, p):
+        return STYLES[name].energy_force(r, p)
+
+    energy_force.__name__ = name
+    return energy_force
+
+
+harmonic = _builtin("harmonic")
+lj93 = _builtin("lj93")
 
 LJ = {"epsilon": 1.0, "sigma": 1.0}
 

@@ -131,12 +131,13 @@ def plot(results: Path = typer.Argument(..., help="results NetCDF written by wal
 
 @app.command()
 def schema() -> None:
-    """Print the config's JSON schema (for editor completion of YAML files)."""
+    """Print the JSON schema of configs and sweep files (for editor completion of YAML files:
+    save it and start a YAML file with `# yaml-language-server: $schema=wallbatch.schema.json`)."""
     import json
 
-    from wallbatch.config.schema import config_json_schema
+    from wallbatch.config.schema import json_schema
 
-    typer.echo(json.dumps(config_json_schema(), indent=2))
+    typer.echo(json.dumps(json_schema(), indent=2))
 
 
 @app.command()

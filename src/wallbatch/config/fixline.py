@@ -17,15 +17,16 @@ model validators, which check hand-written mappings the same way.
 Supported styles and the dicts they give (keys only when they appear in the line; numbers as
 ``float``, ``EDGE`` and ``v_name`` kept as strings):
 
-* ``wall/lj93|lj126|lj1043|colloid|harmonic|morse|ees`` ->
-  ``{"style": "lj93", "group": "all", "zlo": {"coord", "epsilon", "sigma", "cutoff"}, ...,
-  "units": "box", "pbc": True}``; morse faces have ``coord D0 alpha r0 cutoff``.
+* ``wall/STYLE`` for every style of the registry (wallbatch.styles.STYLES) ->
+  ``{"style": STYLE, "group": "all", "zlo": {"coord", <the style's parameters>}, ...,
+  "units": "box", "pbc": True}``; a face's words are the style's ``positional`` order
+  (e.g. ``coord epsilon sigma cutoff``).
   ``fld no`` is accepted and dropped, ``fld yes`` is refused.
 * ``wall/reflect`` -> ``{"style": "reflect", "group", "xlo": "EDGE", "xhi": 10.0, "units"}``.
 * ``wall/flow AXIS VFLOW T SEED N w1..wN [units lattice|box]`` ->
   ``{"style": "flow", "group", "axis", "vflow", "temperature", "seed" (int), "coords", "units"}``.
-* ``wall/region regionID STYLE eps sigma rc`` (``morse D0 alpha r0 rc``) ->
-  ``{"style": "region", "group", "region", "potential", "epsilon", "sigma", "cutoff"}``.
+* ``wall/region regionID STYLE args`` (the style's parameters, for the styles with ``region``) ->
+  ``{"style": "region", "group", "region", "potential", <the style's parameters>}``.
 * ``wall/region/ees regionID eps sigma rc`` ->
   ``{"style": "region/ees", "group", "region", "epsilon", "sigma", "cutoff"}``.
 
@@ -42,6 +43,8 @@ import shlex
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from wallbatch.styles import STYLES, region_styles
+
 __all__ = [
     "FixLineError",
     "parse_fix_line",
@@ -54,8 +57,8 @@ __all__ = [
 ]
 
 FACES: tuple[str, ...] = ("xlo", "xhi", "ylo", "yhi", "zlo", "zhi")
-FLAT_STYLES: tuple[str, ...] = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse", "ees")
-REGION_POTENTIALS: tuple[str, ...] = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse")
+FLAT_STYLES: tuple[str, ...] = tuple(STYLES)
+REGION_POTENTIALS: tuple[str, ...] = region_styles()
 SUPPORTED_STYLES: tuple[str, ...] = tuple(f"wall/{s}" for s in FLAT_STYLES) + (
     "wall/reflect",
     "wall/flow",
@@ -66,10 +69,6 @@ SUPPORTED_STYLES: tuple[str, ...] = tuple(f"wall/{s}" for s in FLAT_STYLES) + (
     "wall/table",
 )
 
-_LJ_FIELDS = ("coord", "epsilon", "sigma", "cutoff")
-_MORSE_FIELDS = ("coord", "D0", "alpha", "r0", "cutoff")
-# Face fields that may be an equal-style variable (coord may also be EDGE).
-_VARIABLE_FIELDS = frozenset({"epsilon", "sigma", "D0", "alpha", "r0"})
 _FLAT_KEYWORDS = ("units", "pbc", "fld")
 _REFLECT_KEYWORDS = ("units",)
 # Mapping keys with no word in the LAMMPS fix line (fix_modify settings, wallbatch options).
@@ -83,7 +82,17 @@ _ID_RE = re.compile(r"[A-Za-z0-9_]+\Z")
 
 def face_fields(style: str) -> tuple[str, ...]:
     """Field names of one face of a flat wall of ``style``, in LAMMPS argument order."""
-    return _MORSE_FIELDS if style == "morse" else _LJ_FIELDS
+    return STYLES[style].positional
+
+
+def _variable_field(style: str, field: str) -> bool:
+    """True if the face field may be an equal-style variable v_name (coord may also be EDGE)."""
+    return field != "coord" and STYLES[style].param(field).variable
+
+
+def _short(name: str) -> str:
+    """A parameter's name in usage lines (LAMMPS's manual writes eps and rc)."""
+    return {"epsilon": "eps", "cutoff": "rc"}.get(name, name)
 
 
 class FixLineError(ValueError):
@@ -298,7 +307,7 @@ def _parse_flat(w: _Words, style: str, group: str) -> dict:
                 what = f"{word} {field}"
                 if field == "coord":
                     face[field] = w.coord(j, what)
-                elif field in _VARIABLE_FIELDS:
+                elif _variable_field(style, field):
                     face[field] = w.number_or_variable(j, what)
                 else:
                     face[field] = w.number(j, what)
@@ -459,16 +468,13 @@ def _parse_region(w: _Words, group: str) -> dict:
         )
     potential = w[5]
     if potential not in REGION_POTENTIALS:
-        extra = " (for ellipsoids use fix wall/region/ees)" if potential == "ees" else ""
+        extra = " (for ellipsoids use fix wall/region/ees)" if potential in STYLES and STYLES[potential].needs_shape \
+            else ""
         raise w.error(
             5, f"unknown wall/region style{extra}; supported: {', '.join(REGION_POTENTIALS)}"
         )
-    if potential == "morse":
-        fields: tuple[str, ...] = ("D0", "alpha", "r0", "cutoff")
-        usage = "wall/region regionID morse D0 alpha r0 rc"
-    else:
-        fields = ("epsilon", "sigma", "cutoff")
-        usage = f"wall/region regionID {potential} eps sigma rc"
+    fields: tuple[str, ...] = STYLES[potential].params
+    usage = f"wall/region regionID {potential} {' '.join(_short(f) for f in fields)}"
     out: dict[str, Any] = {"style": "region", "group": group, "region": region, "potential": potential}
     out.update(_region_params(w, 6, fields, usage))
     return out
@@ -548,15 +554,18 @@ def _face_words(style: str, face: str, value: Any, where: str) -> list[str]:
         values = dict(value)
     elif isinstance(value, Sequence) and not isinstance(value, str):
         items = list(value)
-        if style == "harmonic" and len(items) == 3:  # coord epsilon cutoff: sigma left out
-            items = [items[0], items[1], None, items[2]]
+        optional = [k for k, f in enumerate(fields) if f != "coord" and not STYLES[style].param(f).required]
+        if len(items) == len(fields) - len(optional):  # the optional fields left out (e.g. harmonic's sigma)
+            for k in optional:
+                items.insert(k, None)
         if len(items) != len(fields):
             raise ValueError(f"{where}.{face}: expected {len(fields)} values {list(fields)}, got {len(items)}")
         values = dict(zip(fields, items))
     else:
         raise ValueError(f"{where}.{face}: expected a mapping or a list, got {value!r}")
-    if style == "harmonic" and values.get("sigma") is None:
-        values["sigma"] = 1.0  # harmonic ignores sigma, but LAMMPS wants a word there
+    for p in STYLES[style].parameters:
+        if values.get(p.name) is None and p.placeholder is not None:
+            values[p.name] = p.placeholder  # ignored by the style, but LAMMPS wants a word there
     words = [face]
     for field in fields:
         if values.get(field) is None:
@@ -566,7 +575,7 @@ def _face_words(style: str, face: str, value: Any, where: str) -> list[str]:
                 values[field],
                 f"{where}.{face}.{field}",
                 edge=field == "coord",
-                variable=field == "coord" or field in _VARIABLE_FIELDS,
+                variable=field == "coord" or _variable_field(style, field),
             )
         )
     return words
@@ -651,16 +660,16 @@ def to_fix_line(fix_id: str, wall: Any) -> str:
     elif style in ("region", "region/ees"):
         if style == "region":
             potential = _choice(wall.get("potential"), REGION_POTENTIALS, f"{where}.potential")
+            params = STYLES[potential].parameters
+            fields: tuple[str, ...] = STYLES[potential].params
         else:
-            potential = "ees"
-        if potential == "morse":
-            fields: tuple[str, ...] = ("D0", "alpha", "r0", "cutoff")
-        else:
+            params = ()
             fields = ("epsilon", "sigma", "cutoff")
         _reject_unknown(wall, {"style", "group", "region", "potential", *fields}, where)
         values = dict(wall)
-        if potential == "harmonic" and "sigma" not in values:
-            values["sigma"] = 1.0  # ignored by harmonic
+        for p in params:
+            if p.name not in values and p.placeholder is not None:
+                values[p.name] = p.placeholder  # ignored by the style; LAMMPS still reads a word
         words += [f"wall/{style}", _check_word(wall.get("region"), f"{where}.region")]
         if style == "region":
             words.append(potential)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, ClassVar, Literal, Union
 
 from pydantic import (
     BaseModel,
@@ -21,15 +21,17 @@ from pydantic import (
     PositiveInt,
     PrivateAttr,
     ValidationError,
+    create_model,
     field_validator,
     model_validator,
 )
 
 from wallbatch.config.profiles import Averages, Profile, check_profiles
-from wallbatch.config.source import FACES, POSITIONAL, ConfigError, SourceMap, load_yaml
+from wallbatch.config.source import FACES, ConfigError, SourceMap, load_yaml
+from wallbatch.styles import STYLES, WallStyle, region_styles
+from wallbatch.styles import Param as StyleParam
 
-SOFT_STYLES = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "ees")
-REGION_POTENTIALS = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse")
+REGION_POTENTIALS = region_styles()
 THERMO_KEYWORDS = (
     "step", "time", "dt", "temp", "ke", "pe", "etot", "press", "atoms", "erot",
     "reflect_count", "reflect_impulse", "flow_crossings", "ecouple", "econserve",
@@ -77,7 +79,7 @@ def _bound(v: Any) -> float | None:
     return float(v)
 
 
-from pydantic import BeforeValidator  # noqa: E402
+from pydantic import BeforeValidator, WithJsonSchema  # noqa: E402
 
 from wallbatch.config.ensemble import EnsembleFix, check_ensemble, drop_fix_tag
 from wallbatch.config.ensemble import expand_fix_lines as expand_ensemble_lines
@@ -87,8 +89,14 @@ from wallbatch.styles.lepton import LeptonError, compile_expression
 from wallbatch.styles.table import TableError, read_table
 from wallbatch.units import lattice_constant
 
-Coord = Annotated[Union[float, str], BeforeValidator(_coord)]
-Param = Annotated[Union[float, str], BeforeValidator(_param)]
+# what the loader accepts, for the JSON schema: a number, or a string that is a number, v_name (or EDGE)
+_NUMBER_TEXT = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+COORD_SCHEMA = {"anyOf": [{"type": "number"}, {"type": "string", "pattern": (
+    rf"^\s*(?:EDGE|v_[A-Za-z_][A-Za-z0-9_]*|{_NUMBER_TEXT})\s*$")}]}
+PARAM_SCHEMA = {"anyOf": [{"type": "number"}, {"type": "string", "pattern": (
+    rf"^\s*(?:v_[A-Za-z_][A-Za-z0-9_]*|{_NUMBER_TEXT})\s*$")}]}
+Coord = Annotated[Union[float, str], BeforeValidator(_coord), WithJsonSchema(COORD_SCHEMA)]
+Param = Annotated[Union[float, str], BeforeValidator(_param), WithJsonSchema(PARAM_SCHEMA)]
 Bound = Annotated[Union[float, None], BeforeValidator(_bound)]
 Vec3 = tuple[float, float, float]
 
@@ -224,25 +232,6 @@ class Region(Model):
 # ----------------------------------------------------------------------------- walls
 
 
-class SoftFace(Model):
-    """One face of a flat soft wall: position and `epsilon sigma cutoff` (LAMMPS order)."""
-
-    coord: Coord
-    epsilon: Param
-    sigma: Param | None = None
-    cutoff: PositiveFloat
-
-
-class MorseFace(Model):
-    """One face of wall/morse: position and `D0 alpha r0 cutoff`."""
-
-    coord: Coord
-    D0: Param
-    alpha: Param
-    r0: Param
-    cutoff: PositiveFloat
-
-
 class ReflectFace(Model):
     coord: Coord
 
@@ -295,46 +284,73 @@ class _FaceWall(Model):
 
 
 class SoftWall(_FaceWall):
-    """fix wall/lj93 | lj126 | lj1043 | colloid | harmonic | ees."""
+    """Base of the flat soft wall models, one per registered style (`WALL_MODELS`), generated from
+    the style registry: faces take `coord` and the style's parameters in LAMMPS order, as a
+    mapping or positionally."""
 
-    style: Literal["lj93", "lj126", "lj1043", "colloid", "harmonic", "ees"]
-    xlo: SoftFace | None = None
-    xhi: SoftFace | None = None
-    ylo: SoftFace | None = None
-    yhi: SoftFace | None = None
-    zlo: SoftFace | None = None
-    zhi: SoftFace | None = None
+    _style: ClassVar[WallStyle]
 
     @model_validator(mode="before")
     @classmethod
     def _positional(cls, data: Any) -> Any:
-        return _faces_from_positional(data, POSITIONAL[4])
+        return _faces_from_positional(data, cls._style.positional)
 
-    @model_validator(mode="after")
-    def _sigma(self) -> "SoftWall":
-        if self.style != "harmonic":
-            for f in FACES:
-                face = getattr(self, f)
-                if face is not None and face.sigma is None:
-                    raise ValueError(f"{f}: sigma is required for style {self.style} (only harmonic may leave it out)")
+
+def _param_type(p: StyleParam) -> Any:
+    """The Pydantic type of one style parameter: a number or v_name (`variable`), else a number
+    (> 0 when `positive`; lower bounds of numbers are checked in check_scene)."""
+    if p.variable:
+        return Param
+    return PositiveFloat if p.positive else float
+
+
+def _optional_elsewhere(name: str) -> list[str]:
+    """Styles that may leave parameter `name` out."""
+    return [s.name for s in STYLES.values() if any(q.name == name and not q.required for q in s.parameters)]
+
+
+def _face_model(style: WallStyle) -> type[Model]:
+    """The face model of a style: coord and its parameters. A required parameter that another
+    style may leave out is checked here, with a message naming the styles that may."""
+    fields: dict[str, Any] = {"coord": (Coord, Field(description="wall position: a number, EDGE or v_name"))}
+    late: list[str] = []
+    for p in style.parameters:
+        desc = f"{p.doc} [{p.unit}]" + (" (may be v_name)" if p.variable else "")
+        if p.required and not _optional_elsewhere(p.name):
+            fields[p.name] = (_param_type(p), Field(description=desc))
+        else:
+            fields[p.name] = (_param_type(p) | None, Field(default=None, description=desc))
+            if p.required:
+                late.append(p.name)
+
+    def _required(self: Any) -> Any:
+        for name in late:
+            if getattr(self, name) is None:
+                others = _optional_elsewhere(name)
+                raise ValueError(f"{name} is required for style {style.name} (only {', '.join(others)} may leave "
+                                 f"it out)")
         return self
 
+    validators = {"_required": model_validator(mode="after")(_required)} if late else {}
+    return create_model(f"{style.name.capitalize()}Face", __base__=Model, __validators__=validators,
+                        __doc__=f"One face of wall/{style.name}: `{' '.join(style.positional)}` (LAMMPS order).",
+                        **fields)
 
-class MorseWall(_FaceWall):
-    """fix wall/morse: faces take `coord D0 alpha r0 cutoff`."""
 
-    style: Literal["morse"]
-    xlo: MorseFace | None = None
-    xhi: MorseFace | None = None
-    ylo: MorseFace | None = None
-    yhi: MorseFace | None = None
-    zlo: MorseFace | None = None
-    zhi: MorseFace | None = None
+def _wall_model(style: WallStyle) -> type[SoftWall]:
+    """The wall model of a style: `style`, the faces, and the common keys of _FaceWall."""
+    face = _face_model(style)
+    model = create_model(
+        f"{style.name.capitalize()}Wall", __base__=SoftWall,
+        __doc__=f"fix {style.lammps}: {style.doc}",
+        style=(Literal[style.name], Field(description=f"fix {style.lammps}")),  # type: ignore[valid-type]
+        **{f: (face | None, Field(default=None, description=f"the {f} wall")) for f in FACES})
+    model._style = style
+    return model
 
-    @model_validator(mode="before")
-    @classmethod
-    def _positional(cls, data: Any) -> Any:
-        return _faces_from_positional(data, POSITIONAL[5])
+
+# one model per registered wall style with per-face parameters
+WALL_MODELS: dict[str, type[SoftWall]] = {name: _wall_model(style) for name, style in STYLES.items()}
 
 
 class ReflectWall(_FaceWall):
@@ -463,21 +479,11 @@ class FlowWall(Model):
     rule: Literal["exact", "lammps"] = "exact"
 
 
-class RegionWall(Model):
-    """fix wall/region with a soft potential."""
-
+class _RegionWallHead(Model):
     style: Literal["region"]
     group: str = "all"
     region: str
-    potential: Literal["lj93", "lj126", "lj1043", "colloid", "harmonic", "morse"]
-    epsilon: Param | None = None
-    sigma: Param | None = None
-    D0: Param | None = None
-    alpha: Param | None = None
-    r0: Param | None = None
-    cutoff: PositiveFloat
-    energy: bool = False
-    virial: bool = False
+    potential: Literal[REGION_POTENTIALS]  # type: ignore[valid-type]
 
 
 class RegionEESWall(Model):
@@ -492,9 +498,19 @@ class RegionEESWall(Model):
     energy: bool = False
 
 
+# the region wall takes the parameters of every region-capable style (checked per potential in
+# _check_region_wall)
+REGION_PARAMS: tuple[str, ...] = tuple(dict.fromkeys(
+    p.name for n in REGION_POTENTIALS for p in STYLES[n].parameters if p.name != "cutoff"))
+RegionWall = create_model(
+    "RegionWall", __base__=_RegionWallHead, __doc__="fix wall/region with a soft potential (a flat wall style).",
+    **{k: (Param | None, Field(default=None, description=f"{k} of the potential (as its flat wall style)"))
+       for k in REGION_PARAMS},
+    cutoff=(PositiveFloat, ...), energy=(bool, False), virial=(bool, False))
+
 Wall = Annotated[
-    Union[SoftWall, MorseWall, ReflectWall, StochasticWall, LeptonWall, TableWall, FlowWall, RegionWall,
-          RegionEESWall],
+    Union[(*WALL_MODELS.values(), ReflectWall, StochasticWall, LeptonWall, TableWall, FlowWall, RegionWall,
+           RegionEESWall)],  # type: ignore[valid-type]
     Field(discriminator="style"),
 ]
 
@@ -731,12 +747,13 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
         if wall.style in NOT_YET:
             add(("walls", fid, "style"), f"not supported yet: {NOT_YET[wall.style]}")
             continue
-        if wall.style in ("colloid", "ees", "region", "region/ees"):
-            needs_radius = wall.style == "colloid" or getattr(wall, "potential", None) == "colloid"
-            if needs_radius and (bad := members_without(wall.group, radius_groups)):
+        entry = wall_style_entry(wall)
+        if entry is not None or wall.style == "region/ees":
+            if entry is not None and entry.needs_radius and (bad := members_without(wall.group, radius_groups)):
                 add(("walls", fid, "group"), f"{_fix_name(wall)} requires extended particles: give group(s) "
                     f"{', '.join(bad)} a radius > 0")
-            if wall.style in ("ees", "region/ees") and (bad := members_without(wall.group, shape_groups)):
+            needs_shape = wall.style == "region/ees" or (entry is not None and entry.needs_shape)
+            if needs_shape and (bad := members_without(wall.group, shape_groups)):
                 add(("walls", fid, "group"), f"{_fix_name(wall)} requires ellipsoids (LAMMPS: requires extended "
                     f"particles): give group(s) {', '.join(bad)} a shape [a, b, c], or set this wall's group")
         if wall.style in ("region", "region/ees"):
@@ -757,8 +774,7 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
                     f"{face[0]} 'f', or set pbc: true on this wall")
             for key, value in spec.model_dump().items():
                 check_var(("walls", fid, face, key), value)
-                if key in ("epsilon", "sigma", "D0", "r0") and isinstance(value, float) and value < 0:
-                    add(("walls", fid, face, key), f"{key} must be >= 0")
+                _check_min(entry, key, value, ("walls", fid, face, key), add)
     if cfg.dt_reset is not None:
         if cfg.dt_reset.group not in groups:
             add(("dt_reset", "group"), f"unknown group '{cfg.dt_reset.group}'")
@@ -786,25 +802,49 @@ def _fix_name(wall: Any) -> str:
     return f"wall/{wall.style}" if wall.style != "region" else f"wall/region {wall.potential}"
 
 
+def wall_style_entry(wall: Any) -> WallStyle | None:
+    """The registry entry of a wall model: its style, or a region wall's potential (None for
+    reflect, flow and region/ees)."""
+    if wall.style == "region":
+        return STYLES[wall.potential]
+    return STYLES.get(wall.style)
+
+
+def _check_min(entry: WallStyle | None, key: str, value: Any, path: tuple, add: Any) -> None:
+    """A number below the parameter's lower bound (LAMMPS refuses it when the fix is created)."""
+    if entry is None or key not in entry.params:
+        return
+    p = entry.param(key)
+    if p.min is not None and isinstance(value, float) and value < p.min:
+        add(path, f"{key} must be >= {p.min:g}")
+    elif p.positive and isinstance(value, float) and not value > 0:
+        add(path, f"{key} must be > 0")
+
+
 def _check_region_wall(cfg: "Config", fid: str, wall: Any, add: Any, check_var: Any) -> None:
     """wall/region and wall/region/ees: the region exists, the potential's parameters are given."""
     if wall.region not in cfg.regions:
         add(("walls", fid, "region"), f"unknown region '{wall.region}' (LAMMPS: Region {wall.region} for fix "
             f"wall/{wall.style} does not exist): define it under regions:")
-    if wall.style == "region":
-        need = {"morse": ("D0", "alpha", "r0"), "harmonic": ("epsilon",)}.get(wall.potential, ("epsilon", "sigma"))
-        extra = [k for k in ("epsilon", "sigma", "D0", "alpha", "r0")
-                 if getattr(wall, k) is not None and k not in need and not (k == "sigma" and wall.potential == "harmonic")]
+    entry = wall_style_entry(wall)
+    if entry is not None:
+        takes = entry.args_names
+        need = tuple(p.name for p in entry.parameters if p.required and p.name != "cutoff")
         for k in need:
             if getattr(wall, k) is None:
                 add(("walls", fid, k), f"potential {wall.potential} needs {k} ({', '.join(need)}, cutoff)")
-        for k in extra:
-            add(("walls", fid, k), f"potential {wall.potential} does not take {k} (it takes {', '.join(need)}, cutoff)")
-    for k in ("epsilon", "sigma", "D0", "alpha", "r0"):
+        for k in REGION_PARAMS:
+            if getattr(wall, k) is not None and k not in takes:
+                add(("walls", fid, k), f"potential {wall.potential} does not take {k} (it takes {', '.join(need)}, "
+                    f"cutoff)")
+    for k in REGION_PARAMS if wall.style == "region" else ("epsilon", "sigma"):
         value = getattr(wall, k, None)
         check_var(("walls", fid, k), value)
-        if k != "alpha" and isinstance(value, float) and value < 0:
-            add(("walls", fid, k), f"{k} must be >= 0")
+        if wall.style == "region/ees":
+            if isinstance(value, float) and value < 0:
+                add(("walls", fid, k), f"{k} must be >= 0")
+        else:
+            _check_min(entry, k, value, ("walls", fid, k), add)
 
 
 def _check_custom_wall(cfg: "Config", fid: str, wall: Any, add: Any) -> None:

@@ -9,10 +9,21 @@ from typing import Any
 
 import yaml
 
+from wallbatch.styles import STYLES
+
 FACES = ("xlo", "xhi", "ylo", "yhi", "zlo", "zhi")
-WALL_TAGS = ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse", "ees", "reflect", "flow", "region",
-             "region/ees", "reflect/stochastic", "lepton", "table")
-POSITIONAL = {4: ("coord", "epsilon", "sigma", "cutoff"), 5: ("coord", "D0", "alpha", "r0", "cutoff")}
+# wall styles without per-face potential parameters (their models live in config.models)
+OTHER_WALLS = ("reflect", "flow", "region", "region/ees", "reflect/stochastic", "lepton", "table")
+WALL_TAGS = tuple(STYLES) + OTHER_WALLS  # the `style:` values (the discriminator tags of the wall models)
+
+
+def positional_index(field: str, length: int) -> int | None:
+    """Where `field` stands in a face written positionally with `length` values (any registered
+    style's `[coord, ...]` order of that length), or None."""
+    for style in STYLES.values():
+        if len(style.positional) == length and field in style.positional:
+            return style.positional.index(field)
+    return None
 
 
 # ----------------------------------------------------------------------------- errors
@@ -52,8 +63,8 @@ class SourceMap:
                 node = node[part]
                 path.append(part)
                 shown.append(part)
-            elif isinstance(node, list) and part in POSITIONAL.get(len(node), ()):
-                i = POSITIONAL[len(node)].index(part)  # a field of a face written positionally
+            elif isinstance(node, list) and isinstance(part, str) and positional_index(part, len(node)) is not None:
+                i = positional_index(part, len(node))  # a field of a face written positionally
                 node = node[i]
                 path.append(i)
                 shown.append(part)

@@ -20,8 +20,16 @@ The kernel computes forces only: on the last step of a sampled chunk the outputs
 forces, virial) come from the NumPy `Engine.compute_forces` at the final positions, where the
 NumPy loop computes them too.
 
-Eligibility is a whitelist: soft flat walls (lj93, lj126, lj1043, colloid, harmonic, morse),
-wall/reflect, dt/reset and equal-style variables (their per-step values are computed in NumPy
+The force of each soft face is the registry's own function (wallbatch.styles: `WallStyle.force`,
+plain arithmetic on floats or arrays) compiled by numba; the dispatch from a face's style number
+to its function is generated from the registry (`_dispatch_source`), so a newly registered style
+with `compiled=True` runs here without further code. fix dt/reset's per-atom dt is
+wallbatch.engine.dt_reset.dt_candidate, the function the NumPy engine calls.
+
+The engine hands over an explicit `ChunkPlan` (its kernels with their style entries and per-face
+values, dt/reset parameters, callbacks for the NumPy outputs and steps, and what else the scene
+has); this module reads nothing else of the engine. Eligibility is a whitelist: soft flat walls
+of compiled styles, wall/reflect, dt/reset and equal-style variables (their per-step values are computed in NumPy
 before the chunk, vectorised over steps; not when the step's dt can change inside the chunk).
 Anything else (pair forces, flow, ees, region walls, ellipsoids) runs in NumPy. A chunk that
 meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a variable error or a
@@ -33,32 +41,37 @@ cold compile takes ~15 s once, a cached load ~0.5 s per process.
 
 from __future__ import annotations
 
+import hashlib
+import inspect
 import math
 import os
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from wallbatch.engine import dt_reset as _dtr
+from wallbatch.engine.dt_reset import BIG, dt_candidate
 from wallbatch.engine.state import BatchState
 from wallbatch.engine.walls import ReflectKernel, SoftWallKernel
 from wallbatch.expr import VariableError
+from wallbatch.scene.case import DtResetSpec
+from wallbatch.styles import STYLES, WallStyle
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
+    from numba.extending import overload
 except Exception:  # noqa: BLE001 - any import failure means "no compiled path"
     njit = None
 
-Engine = Any  # the wallbatch.engine.engine.Engine this path is attached to (not imported: it imports us)
-
-STYLE_IDS = {"lj93": 0, "lj126": 1, "lj1043": 2, "colloid": 3, "harmonic": 4, "morse": 5}
-BIG = 1.0e20  # dt/reset's "no limit" (engine.BIG)
+# the styles the kernel runs, numbered in registry order (sf_meta's style column)
+COMPILED_STYLES: tuple[WallStyle, ...] = tuple(s for s in STYLES.values() if s.compiled)
+STYLE_IDS: dict[str, int] = {s.name: i for i, s in enumerate(COMPILED_STYLES)}
 BLOCK = 256  # atoms per block: a block's buffers stay in L1 cache over a window of steps
 WINDOW = 64  # steps per speculative window under dt/reset
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
 
-_SQRT2 = math.sqrt(2.0)  # == np.sqrt(2.0): both correctly rounded
-_TWO_PI = 2.0 * math.pi
-_LJ1043_SHIFT = 0.61 / _SQRT2
 
 
 def enabled() -> bool:
@@ -67,14 +80,42 @@ def enabled() -> bool:
 
 
 # ----------------------------------------------------------------------------- compiled kernels
-# The force formulas below are the ones of potentials.py written out for scalars, with the same
-# operations in the same order (tests/test_fast.py checks them against potentials.py: keep them in
-# step when a style's F(r) changes there).
+
+
+def _dispatch_source(styles: tuple[WallStyle, ...]) -> str:
+    """Python source of `_soft_face(style, ...)`: one branch per compiled style, each a literal
+    call of the generic face loop with that style's force function and radius flag, so every style
+    gets its own loop with its force inlined."""
+    lines = ["def _soft_face(style, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1):"]
+    for i, st in enumerate(styles):
+        lines.append(f"    {'if' if i == 0 else 'elif'} style == {i}:  # {st.name}")
+        lines.append(f"        return _face(_FORCE_{i}, {bool(st.needs_radius)}, X, F, RAD, groups, g, d, side, "
+                     "coord, p0, p1, p2, cut, u0, u1)")
+    lines.append("    return 0")
+    return "\n".join(lines) + "\n"
+
+
+def _fingerprint(styles: tuple[WallStyle, ...]) -> int:
+    """A number that changes with the compiled styles and the source of every function compiled
+    from outside this file (forces, dt_candidate): part of the on-disk cache key of `_run_chunk`
+    (numba keys a cached function by its own file only)."""
+    h = hashlib.sha256()
+    for st in styles:
+        h.update(f"{st.name}:{st.needs_radius}:".encode())
+        h.update(inspect.getsource(st.force).encode())
+    h.update(inspect.getsource(dt_candidate).encode())
+    return int(h.hexdigest()[:15], 16)
+
 
 if njit is not None:
     # error_model="numpy": x/0 gives inf/nan as in NumPy (no zero-division checks, so loops vectorise)
     jit = njit(cache=True, nogil=True, error_model="numpy")
     inline = njit(cache=True, nogil=True, error_model="numpy", inline="always")  # inlined in numba IR
+
+    @overload(_dtr.select)
+    def _select_scalar(cond, a, b):  # noqa: ANN001, ANN202
+        """dt_reset.select for scalars: a if cond else b (np.where's value, without an array)."""
+        return lambda cond, a, b: a if cond else b
 
     @inline
     def _nmin(a: float, b: float) -> float:
@@ -94,86 +135,33 @@ if njit is not None:
             return b
         return a if a >= b else b
 
-    @jit
-    def _force(style, r, p0, p1, p2, cut, rad):
-        """F = -dE/dr of one style at distance r (potentials.py): p = (epsilon, sigma, -) or
-        (D0, alpha, r0); rad is the particle radius (colloid)."""
-        if style == 0:  # lj93
-            sr = p1 / r
-            sr3 = sr * sr * sr
-            sr9 = sr3 * sr3 * sr3
-            return p0 * (1.2 * sr9 - 3.0 * sr3) / r
-        if style == 1:  # lj126
-            sr = p1 / r
-            sr2 = sr * sr
-            sr6 = sr2 * sr2 * sr2
-            sr12 = sr6 * sr6
-            return p0 * (48.0 * sr12 - 24.0 * sr6) / r
-        if style == 2:  # lj1043
-            sr = p1 / r
-            sr2 = sr * sr
-            sr4 = sr2 * sr2
-            sr10 = sr4 * sr4 * sr2
-            rs = r + _LJ1043_SHIFT * p1
-            ss = p1 / rs
-            ss3 = ss * ss * ss
-            return _TWO_PI * p0 * (4.0 * (sr10 - sr4) / r - _SQRT2 * ss3 / rs)
-        if style == 3:  # colloid: r = centre distance, x = R/r, d = D/r, dp = 1 - x^2
-            x = rad / r
-            d = (r - rad) / r
-            dp = d * (1.0 + x)
-            y = x * x
-            u = p1 / r / dp
-            u2 = u * u
-            u6 = u2 * u2 * u2
-            v = x / dp
-            poly = ((y + 27.0) * y + 63.0) * y + 21.0
-            return p0 * (x * v * v / r) * ((4.0 / 315.0) * u6 * poly - 2.0 / 3.0)
-        if style == 4:  # harmonic
-            return 2.0 * p0 * (cut - r)
-        # morse
-        x = -p1 * (r - p2)
-        return 2.0 * p1 * p0 * math.exp(x) * math.expm1(x)
+    # the registry's force functions, compiled as they are (the same function objects)
+    FORCES = tuple(njit(nogil=True, error_model="numpy")(st.force) for st in COMPILED_STYLES)
+    _dt_candidate = njit(nogil=True, error_model="numpy", inline="always")(dt_candidate)
 
     @inline
-    def _dt_candidate(v0, v1, v2, f0, f1, f2, m, ftm2v, mvv2e, xmax, emax):
-        """fix dt/reset's largest dt for one atom (engine.Engine.reset_dt, per atom)."""
-        vsq = v0 * v0 + v1 * v1 + v2 * v2
-        fsq = f0 * f0 + f1 * f1 + f2 * f2
-        dtv = xmax / math.sqrt(vsq) if vsq > 0 else BIG
-        dtf = math.sqrt(2.0 * xmax / (ftm2v * math.sqrt(fsq) / m)) if fsq > 0 else BIG
-        dt = _nmin(dtv, dtf)
-        if emax > 0 and vsq * fsq > 0:
-            dte = emax / math.sqrt(fsq * vsq) / math.sqrt(ftm2v * mvv2e)
-            dt = _nmin(dt, dte)
-        k = (0.5 * ftm2v) * (dt * dt / m)
-        d0 = dt * v0 + k * f0
-        d1 = dt * v1 + k * f1
-        d2 = dt * v2 + k * f2
-        dr = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if dr > xmax:
-            dt = dt * xmax / dr
-        return dt
-
-    @inline
-    def _face(style, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1):
+    def _face(force, use_radius, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1):
         """One soft face over atoms u0..u1-1 (walls.SoftWallKernel.apply): r = distance into the
         allowed region; where r < rc (and the atom is in the group), F[d] -= side F(r). Returns the
-        number of atoms on or behind the wall (r <= 0, colloid: r <= radius). `style` is a literal
-        at every call, so each style gets its own loop."""
+        number of atoms on or behind the wall (r <= 0; with use_radius: r <= radius). `force` and
+        `use_radius` are literals at every call (_soft_face), so each style gets its own loop."""
         sidef = float(side)
         sign = -sidef  # r = (x - coord) * sign: x - coord (lo face) or coord - x (hi face), exactly
         nbad = 0
         for i in range(u0, u1):
             r = (X[d, i] - coord) * sign
-            rad = RAD[i] if style == 3 else 0.0
+            rad = RAD[i] if use_radius else 0.0
             near = (r < cut) & (groups[g, i] != 0)
             nbad += near & (r <= rad)
             fi = F[d, i]
             if near:
-                fi = fi - sidef * _force(style, r, p0, p1, p2, cut, rad)
+                fi = fi - sidef * force(r, p0, p1, p2, cut, rad)
             F[d, i] = fi
         return nbad
+
+    _namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}": f for i, f in enumerate(FORCES)}}
+    exec(compile(_dispatch_source(COMPILED_STYLES), "<wallbatch soft-face dispatch>", "exec"), _namespace)
+    _soft_face = njit(nogil=True, error_model="numpy", inline="always")(_namespace["_soft_face"])
 
     @inline
     def _block_step(c, u0, u1, si, row, dtc, due, X, V, F, M, RAD, DTFM, CAND, groups, box,
@@ -223,18 +211,7 @@ if njit is not None:
             g, d, side = sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2]
             coord, cut = sf_val[c, si, k, 0], sf_val[c, si, k, 4]
             p0, p1, p2 = sf_val[c, si, k, 1], sf_val[c, si, k, 2], sf_val[c, si, k, 3]
-            if style == 0:
-                nbad += _face(0, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
-            elif style == 1:
-                nbad += _face(1, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
-            elif style == 2:
-                nbad += _face(2, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
-            elif style == 3:
-                nbad += _face(3, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
-            elif style == 4:
-                nbad += _face(4, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
-            else:
-                nbad += _face(5, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+            nbad += _soft_face(style, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
         if nbad:
             return 1, 0.0
         nlost = 0
@@ -301,215 +278,229 @@ if njit is not None:
             new = _nmin(new, par[3])
         return new
 
-    @jit
-    def _run_chunk(nsteps, time_mode, target, tol, x, v, f, mass, radius, dt, atime, atimestep,
-                   step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
-                   stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo):
-        """Advance every case by nsteps steps (or, with time_mode, to the time `target` as
-        Engine.advance_to_time does), reading x, v, f and writing xo, vo, fo. Returns 0, or the
-        nonzero status of the first trouble met (1: an atom on/behind a soft wall, 2: a lost atom,
-        3: a non-finite value, 4: a case with nothing to do); the caller then falls back to NumPy.
+    def _make_run_chunk(fingerprint: int) -> Any:
+        """The chunk kernel; `fingerprint` (see _fingerprint) joins its on-disk cache key."""
 
-        Per case, the atoms are copied into structure-of-arrays buffers (X, V, F: (3, N)), and
-        steps run in windows: every step of the window on one block of BLOCK atoms (it stays in
-        L1 cache), then the next block. Without dt/reset a window is the whole chunk. With dt/reset
-        a window of WINDOW steps runs at the current dt and keeps each step's smallest candidate;
-        if one of them would change dt, the window is undone and run step by step (all blocks per
-        step) up to that step, then windows resume. Time-based runs go step by step."""
-        ncase, natom = x.shape[0], x.shape[1]
-        nrf = rf_meta.shape[0]
-        hf = 0.5 * ftm2v
-        vary = 1 if (sf_val.shape[1] > 1 or rf_val.shape[1] > 1) else 0
-        nblock = (natom + BLOCK - 1) // BLOCK
-        box = np.empty((3, 3))
-        for d in range(3):
-            box[0, d] = lo[d]
-            box[1, d] = hi[d]
-            box[2, d] = 1.0 if periodic[d] != 0 else 0.0
-        X = np.empty((3, natom))
-        V = np.empty((3, natom))
-        F = np.empty((3, natom))
-        M = np.empty(natom)
-        RAD = np.empty(natom)
-        DTFM = np.empty(natom)
-        CAND = np.empty(natom)
-        speculate = dtr_every > 0 and not time_mode
-        XS = np.empty((3, natom if speculate else 0))  # window start, to undo a window
-        VS = np.empty((3, natom if speculate else 0))
-        FS = np.empty((3, natom if speculate else 0))
-        nrow = max(1, nsteps if dtr_every == 0 else min(WINDOW, nsteps))
-        vw = np.zeros((nrow, nrf))  # wall velocities (frame wall) per step of a window
-        rstat = np.zeros((nrow, nrf, 2))  # reflections and impulse per step and face
-        low = np.empty(nrow)  # smallest dt/reset candidate per step of a window
-        for c in range(ncase):
-            for a in range(natom):
-                for d in range(3):
-                    X[d, a] = x[c, a, d]
-                    V[d, a] = v[c, a, d]
-                    F[d, a] = f[c, a, d]
-                M[a] = mass[c, a]
-                RAD[a] = radius[c, a]
-            done = 0  # steps done for this case
-            stepwise = 0  # steps to run one at a time before the next window
-            backoff = 0
-            while True:
-                base = 0.0
-                sdt = 0.0
-                landing = False
-                if time_mode:
-                    now = atime[c] + (step[c] - atimestep[c]) * dt[c]
-                    if not now < target - tol:
-                        if done == 0:
-                            return 4
-                        break
-                elif done == nsteps:
-                    break
-                # a window of nwin steps at one dt, block by block; or one step (time-based runs, and
-                # dt/reset while dt changes), which is a window of one step followed by its dt update
-                window = not time_mode and (dtr_every == 0 or stepwise == 0)
-                nwin = 1
-                if window:
-                    nwin = nsteps - done if dtr_every == 0 else min(WINDOW, nsteps - done)
-                if time_mode:
-                    base = dt[c]
-                    rem = target - now
-                    sdt = _nmin(base, rem)
-                    landing = base >= rem - tol
-                    if sdt != dt[c]:
-                        atime[c] = now
-                        atimestep[c] = step[c]
-                        dt[c] = sdt
-                dtc = dt[c]
-                hdt = hf * dtc
+        @jit
+        def _run_chunk(nsteps, time_mode, target, tol, x, v, f, mass, radius, dt, atime, atimestep,
+                       step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
+                       stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo):
+            """Advance every case by nsteps steps (or, with time_mode, to the time `target` as
+            Engine.advance_to_time does), reading x, v, f and writing xo, vo, fo. Returns 0, or the
+            nonzero status of the first trouble met (1: an atom on/behind a soft wall, 2: a lost atom,
+            3: a non-finite value, 4: a case with nothing to do); the caller then falls back to NumPy.
+
+            Per case, the atoms are copied into structure-of-arrays buffers (X, V, F: (3, N)), and
+            steps run in windows: every step of the window on one block of BLOCK atoms (it stays in
+            L1 cache), then the next block. Without dt/reset a window is the whole chunk. With dt/reset
+            a window of WINDOW steps runs at the current dt and keeps each step's smallest candidate;
+            if one of them would change dt, the window is undone and run step by step (all blocks per
+            step) up to that step, then windows resume. Time-based runs go step by step."""
+            if nsteps == -fingerprint:  # never: ties the on-disk cache to the styles (see _fingerprint)
+                return 5
+            ncase, natom = x.shape[0], x.shape[1]
+            nrf = rf_meta.shape[0]
+            hf = 0.5 * ftm2v
+            vary = 1 if (sf_val.shape[1] > 1 or rf_val.shape[1] > 1) else 0
+            nblock = (natom + BLOCK - 1) // BLOCK
+            box = np.empty((3, 3))
+            for d in range(3):
+                box[0, d] = lo[d]
+                box[1, d] = hi[d]
+                box[2, d] = 1.0 if periodic[d] != 0 else 0.0
+            X = np.empty((3, natom))
+            V = np.empty((3, natom))
+            F = np.empty((3, natom))
+            M = np.empty(natom)
+            RAD = np.empty(natom)
+            DTFM = np.empty(natom)
+            CAND = np.empty(natom)
+            speculate = dtr_every > 0 and not time_mode
+            XS = np.empty((3, natom if speculate else 0))  # window start, to undo a window
+            VS = np.empty((3, natom if speculate else 0))
+            FS = np.empty((3, natom if speculate else 0))
+            nrow = max(1, nsteps if dtr_every == 0 else min(WINDOW, nsteps))
+            vw = np.zeros((nrow, nrf))  # wall velocities (frame wall) per step of a window
+            rstat = np.zeros((nrow, nrf, 2))  # reflections and impulse per step and face
+            low = np.empty(nrow)  # smallest dt/reset candidate per step of a window
+            for c in range(ncase):
                 for a in range(natom):
-                    DTFM[a] = hdt / M[a]
-                if window and speculate:
-                    XS[:] = X
-                    VS[:] = V
-                    FS[:] = F
-                for s in range(nwin):
-                    low[s] = np.inf
-                    for k in range(nrf):
-                        prev = rf_prev[c, k] if s == 0 else rf_val[c, (done + s - 1) * vary, k]
-                        vw[s, k] = (rf_val[c, (done + s) * vary, k] - prev) / dtc if dtc > 0 else 0.0
-                        rstat[s, k, 0] = 0.0
-                        rstat[s, k, 1] = 0.0
-                for b in range(nblock):
-                    u0 = np.uint64(b * BLOCK)  # unsigned: no negative-index wraparound, loops vectorise
-                    u1 = np.uint64(min(b * BLOCK + BLOCK, natom))
-                    for s in range(nwin):
-                        due = dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
-                        st, m = _block_step(c, u0, u1, (done + s) * vary, s, dtc, due, X, V, F, M, RAD, DTFM,
-                                            CAND, groups, box, sf_meta, sf_val, rf_meta, rf_val,
-                                            vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par)
-                        if st != 0:
-                            return st
-                        if due:
-                            low[s] = _nmin(low[s], m)
-                if window and speculate:
-                    first = -1
-                    for s in range(nwin):
-                        if (step[c] + s + 1) % dtr_every == 0 and _clamp(low[s], natom, dtr_par[c]) != dtc:
-                            first = s
+                    for d in range(3):
+                        X[d, a] = x[c, a, d]
+                        V[d, a] = v[c, a, d]
+                        F[d, a] = f[c, a, d]
+                    M[a] = mass[c, a]
+                    RAD[a] = radius[c, a]
+                done = 0  # steps done for this case
+                stepwise = 0  # steps to run one at a time before the next window
+                backoff = 0
+                while True:
+                    base = 0.0
+                    sdt = 0.0
+                    landing = False
+                    if time_mode:
+                        now = atime[c] + (step[c] - atimestep[c]) * dt[c]
+                        if not now < target - tol:
+                            if done == 0:
+                                return 4
                             break
-                    if first >= 0:  # dt changes after step `first`: undo, go step by step up to there
-                        X[:] = XS
-                        V[:] = VS
-                        F[:] = FS
-                        stepwise = first + 1 + backoff
-                        backoff = min(2 * backoff + 8, 4096)
-                        continue
-                    backoff = 0
-                step[c] += nwin
-                for s in range(nwin):
-                    for k in range(nrf):
-                        rf_stat[c, k, 0] += rstat[s, k, 0]
-                        rf_stat[c, k, 1] += rstat[s, k, 1]
-                for k in range(nrf):
-                    rf_prev[c, k] = rf_val[c, (done + nwin - 1) * vary, k]
-                done += nwin
-                if window:
-                    continue
-                if dtr_every > 0 and step[c] % dtr_every == 0:  # fix dt/reset (end_of_step)
-                    new = _clamp(low[0], natom, dtr_par[c])
-                    if new != dt[c]:
-                        atime[c] = atime[c] + (step[c] - atimestep[c]) * dt[c]
-                        atimestep[c] = step[c]
-                        dt[c] = new
-                if stepwise > 0:
-                    stepwise -= 1
-                if time_mode:
-                    new_base = dt[c] if dt[c] != sdt else base
-                    now = atime[c] + (step[c] - atimestep[c]) * dt[c]
-                    atime[c] = target if landing else now
-                    atimestep[c] = step[c]
-                    dt[c] = new_base
-                    if landing:
+                    elif done == nsteps:
                         break
-            if not math.isfinite(dt[c]):
-                return 3
-            for a in range(natom):
-                for d in range(3):
-                    if not (math.isfinite(X[d, a]) and math.isfinite(V[d, a])):
-                        return 3
-                    xo[c, a, d] = X[d, a]
-                    vo[c, a, d] = V[d, a]
-                    fo[c, a, d] = F[d, a]
-        return 0
+                    # a window of nwin steps at one dt, block by block; or one step (time-based runs, and
+                    # dt/reset while dt changes), which is a window of one step followed by its dt update
+                    window = not time_mode and (dtr_every == 0 or stepwise == 0)
+                    nwin = 1
+                    if window:
+                        nwin = nsteps - done if dtr_every == 0 else min(WINDOW, nsteps - done)
+                    if time_mode:
+                        base = dt[c]
+                        rem = target - now
+                        sdt = _nmin(base, rem)
+                        landing = base >= rem - tol
+                        if sdt != dt[c]:
+                            atime[c] = now
+                            atimestep[c] = step[c]
+                            dt[c] = sdt
+                    dtc = dt[c]
+                    hdt = hf * dtc
+                    for a in range(natom):
+                        DTFM[a] = hdt / M[a]
+                    if window and speculate:
+                        XS[:] = X
+                        VS[:] = V
+                        FS[:] = F
+                    for s in range(nwin):
+                        low[s] = np.inf
+                        for k in range(nrf):
+                            prev = rf_prev[c, k] if s == 0 else rf_val[c, (done + s - 1) * vary, k]
+                            vw[s, k] = (rf_val[c, (done + s) * vary, k] - prev) / dtc if dtc > 0 else 0.0
+                            rstat[s, k, 0] = 0.0
+                            rstat[s, k, 1] = 0.0
+                    for b in range(nblock):
+                        u0 = np.uint64(b * BLOCK)  # unsigned: no negative-index wraparound, loops vectorise
+                        u1 = np.uint64(min(b * BLOCK + BLOCK, natom))
+                        for s in range(nwin):
+                            due = dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
+                            st, m = _block_step(c, u0, u1, (done + s) * vary, s, dtc, due, X, V, F, M, RAD, DTFM,
+                                                CAND, groups, box, sf_meta, sf_val, rf_meta, rf_val,
+                                                vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par)
+                            if st != 0:
+                                return st
+                            if due:
+                                low[s] = _nmin(low[s], m)
+                    if window and speculate:
+                        first = -1
+                        for s in range(nwin):
+                            if (step[c] + s + 1) % dtr_every == 0 and _clamp(low[s], natom, dtr_par[c]) != dtc:
+                                first = s
+                                break
+                        if first >= 0:  # dt changes after step `first`: undo, go step by step up to there
+                            X[:] = XS
+                            V[:] = VS
+                            F[:] = FS
+                            stepwise = first + 1 + backoff
+                            backoff = min(2 * backoff + 8, 4096)
+                            continue
+                        backoff = 0
+                    step[c] += nwin
+                    for s in range(nwin):
+                        for k in range(nrf):
+                            rf_stat[c, k, 0] += rstat[s, k, 0]
+                            rf_stat[c, k, 1] += rstat[s, k, 1]
+                    for k in range(nrf):
+                        rf_prev[c, k] = rf_val[c, (done + nwin - 1) * vary, k]
+                    done += nwin
+                    if window:
+                        continue
+                    if dtr_every > 0 and step[c] % dtr_every == 0:  # fix dt/reset (end_of_step)
+                        new = _clamp(low[0], natom, dtr_par[c])
+                        if new != dt[c]:
+                            atime[c] = atime[c] + (step[c] - atimestep[c]) * dt[c]
+                            atimestep[c] = step[c]
+                            dt[c] = new
+                    if stepwise > 0:
+                        stepwise -= 1
+                    if time_mode:
+                        new_base = dt[c] if dt[c] != sdt else base
+                        now = atime[c] + (step[c] - atimestep[c]) * dt[c]
+                        atime[c] = target if landing else now
+                        atimestep[c] = step[c]
+                        dt[c] = new_base
+                        if landing:
+                            break
+                if not math.isfinite(dt[c]):
+                    return 3
+                for a in range(natom):
+                    for d in range(3):
+                        if not (math.isfinite(X[d, a]) and math.isfinite(V[d, a])):
+                            return 3
+                        xo[c, a, d] = X[d, a]
+                        vo[c, a, d] = V[d, a]
+                        fo[c, a, d] = F[d, a]
+            return 0
+        return _run_chunk
+
+    _run_chunk = _make_run_chunk(_fingerprint(COMPILED_STYLES))
 
 
 # ----------------------------------------------------------------------------- the Python side
 
 
-def _eligible(engine: "Engine") -> bool:
-    """Whitelist: flat soft walls of known styles, wall/reflect, dt/reset, variables; nothing else."""
-    for name in ("pair", "quat"):
-        obj = engine if name == "pair" else engine.state
-        if getattr(obj, name, None) is not None:
-            return False
-    for name in ("flow", "ees", "region_walls"):
-        if getattr(engine, name, None):
-            return False
-    if engine.state.angmom is not None or engine.state.torque is not None:
+@dataclass
+class ChunkPlan:
+    """What the compiled path runs, built by the engine for each chunk (Engine.compiled_plan).
+
+    * ``state``: the batch (positions, velocities, forces, masses, radii, steps, time, variables);
+    * ``soft``: flat soft wall kernels, each with its registry entry (``kernel.style``), group
+      and per-face values (``kernel.faces``: coord and parameters, (C,) arrays or variable names);
+    * ``reflect``: wall/reflect kernels (faces, frame, previous positions, statistics);
+    * ``dt_reset`` and ``dt_reset_params`` (C, 4): xmax, emax, tmin, tmax (NaN: no bound);
+    * ``others``: what else the scene has (pair, flow, region walls, ellipsoids): the compiled
+      path runs only plans where this is empty;
+    * ``compute_outputs()``: the NumPy forces and outputs at the current positions,
+      ``finish_step(out, sample)``: drop failed cases and sample, ``advance_numpy(n, sample)``: the
+      NumPy loop (for the rest of a split chunk).
+    """
+
+    state: BatchState
+    soft: tuple[SoftWallKernel, ...]
+    reflect: tuple[ReflectKernel, ...]
+    dt_reset: DtResetSpec | None
+    dt_reset_params: np.ndarray | None
+    others: tuple[str, ...]
+    compute_outputs: Callable[[], dict]
+    finish_step: Callable[[dict, bool], None]
+    advance_numpy: Callable[[int, bool], None]
+
+
+def eligible(plan: ChunkPlan) -> bool:
+    """Whitelist: flat soft walls of compiled styles, wall/reflect (lab or wall frame), dt/reset,
+    variables; nothing else in the scene."""
+    if plan.others:
         return False
-    if any(type(w) is not SoftWallKernel or w.style.name not in STYLE_IDS for w in engine.soft):
+    if any(type(w) is not SoftWallKernel or STYLE_IDS.get(w.style.name) is None
+           or COMPILED_STYLES[STYLE_IDS[w.style.name]] is not w.style for w in plan.soft):
         return False
-    if any(type(w) is not ReflectKernel or w.frame not in ("lab", "wall") for w in engine.reflect):
-        return False
-    return True
-
-
-class _StepContext:
-    """What BatchState.context reads, with a leading step axis: (S, C) step and time arrays."""
-
-    def __init__(self, state: Any, steps: np.ndarray):
-        self.ctx = None
-        self.step = steps
-        self.atime, self.atimestep, self.dt = state.atime, state.atimestep, state.dt
-        self.run_time, self.end_step, self.ncases = state.run_time, state.end_step, state.ncases
-        self.elapsed_is_time = state.elapsed_is_time
-        self.box_lo, self.box_hi, self.x, self.var_values = state.box_lo, state.box_hi, state.x, state.var_values
-
-    @property
-    def time(self) -> np.ndarray:
-        return self.atime + (self.step - self.atimestep) * self.dt
+    return all(type(w) is ReflectKernel and w.frame in ("lab", "wall") for w in plan.reflect)
 
 
 class FastPath:
-    """The compiled path attached to one Engine (see module docstring)."""
+    """The compiled path of one Engine (see module docstring): `plan_source()` gives the plan of
+    the next chunk."""
 
-    def __init__(self, engine: "Engine"):
-        self.engine = engine
+    def __init__(self, plan_source: Callable[[], ChunkPlan]):
+        self.plan_source = plan_source
         self.compiled_chunks = 0  # chunks run compiled (tests and benchmarks read these)
         self.fallbacks = 0  # chunks handed back to NumPy
         self._spare: tuple[np.ndarray, ...] = ()  # output buffers for x, v, f (swapped with the state's)
 
     # -- packing ---------------------------------------------------------------------------
 
-    def _values(self, nsteps: int, varying: bool) -> tuple[np.ndarray, np.ndarray] | None:
+    @staticmethod
+    def _values(plan: ChunkPlan, nsteps: int, varying: bool) -> tuple[np.ndarray, np.ndarray] | None:
         """Per-step wall values: soft (C, S', F, 5) = coord, p0, p1, p2, cutoff and reflect
         coords (C, S', R); S' = nsteps when a value varies with time, else 1. None: fall back."""
-        eng, s = self.engine, self.engine.state
+        s = plan.state
         C = s.ncases
         nval = nsteps if varying else 1
         cache: dict[str, np.ndarray] = {}
@@ -519,32 +510,31 @@ class FastPath:
             nonlocal ctx
             if name not in cache:
                 if ctx is None:
-                    steps = s.step[None, :] + np.arange(1, nval + 1, dtype=np.int64)[:, None]
-                    ctx = BatchState.context(_StepContext(s, steps))
+                    ctx = s.context(s.step[None, :] + np.arange(1, nval + 1, dtype=np.int64)[:, None])
                 cache[name] = np.broadcast_to(np.asarray(s.variables.evaluate(name, ctx), float), (nval, C))
             return cache[name]
 
         def value(v: Any) -> np.ndarray:
             return np.broadcast_to(v, (nval, C)) if isinstance(v, np.ndarray) else var(v)
 
-        soft_faces = [(w, face) for w in eng.soft for face in w.faces]
+        soft_faces = [(w, face) for w in plan.soft for face in w.faces]
         sf = np.zeros((C, nval, len(soft_faces), 5))
-        rf = np.zeros((C, nval, sum(len(w.faces) for w in eng.reflect)))
+        rf = np.zeros((C, nval, sum(len(w.faces) for w in plan.reflect)))
         with np.errstate(all="ignore"):
             try:
                 for k, (w, face) in enumerate(soft_faces):
                     coord = face.coord if isinstance(face.coord, np.ndarray) else var(face.coord) * face.scale
                     sf[:, :, k, 0] = np.broadcast_to(coord, (nval, C)).T
-                    names = ("D0", "alpha", "r0") if w.style.name == "morse" else ("epsilon", "sigma")
-                    for j, key in enumerate(names):
+                    for j, key in enumerate(w.style.args_names):
                         if key in face.params:
                             val = value(face.params[key])
-                            if isinstance(face.params[key], str) and key != "alpha" and np.any(val < 0):
+                            low = w.style.param(key).min
+                            if isinstance(face.params[key], str) and low is not None and np.any(val < low):
                                 return None  # the NumPy path fails these cases with its message
                             sf[:, :, k, 1 + j] = val.T
                     sf[:, :, k, 4] = value(face.params["cutoff"]).T
                 k = 0
-                for w in eng.reflect:
+                for w in plan.reflect:
                     for face in w.faces:
                         coord = face.coord if isinstance(face.coord, np.ndarray) else var(face.coord) * face.scale
                         rf[:, :, k] = np.broadcast_to(coord, (nval, C)).T
@@ -553,11 +543,11 @@ class FastPath:
                 return None
         return sf, rf
 
-    def _uses_time(self) -> bool:
-        eng = self.engine
-        names = [v for w in list(eng.soft) + list(eng.reflect) for face in w.faces
+    @staticmethod
+    def _uses_time(plan: ChunkPlan) -> bool:
+        names = [v for w in list(plan.soft) + list(plan.reflect) for face in w.faces
                  for v in [face.coord, *face.params.values()] if isinstance(v, str)]
-        return any(eng.state.variables.depends_on_time(n) for n in names)
+        return any(plan.state.variables.depends_on_time(n) for n in names)
 
     # -- the chunk -------------------------------------------------------------------------
 
@@ -570,27 +560,31 @@ class FastPath:
         return self._chunk(0, True, target)
 
     def _chunk(self, nsteps: int, sample: bool, target: float | None) -> bool:
-        eng, s = self.engine, self.engine.state
-        if s.ncases == 0 or s.failed or not enabled() or not _eligible(eng):
+        plan = self.plan_source()
+        s = plan.state
+        if s.ncases == 0 or s.failed or not enabled() or not eligible(plan):
             return False
         time_mode = target is not None
         if not time_mode and nsteps <= 0:
             return False
-        varying = self._uses_time()
-        if varying and (eng.dt_reset is not None or time_mode):
+        varying = self._uses_time(plan)
+        if varying and (plan.dt_reset is not None or time_mode):
             return False  # per-step values depend on a dt that changes inside the chunk
         if varying and not time_mode:
-            per_step = 5 * max(1, sum(len(w.faces) for w in eng.soft + eng.reflect)) * s.ncases
+            per_step = 5 * max(1, sum(len(w.faces) for w in plan.soft + plan.reflect)) * s.ncases
             most = max(1, VALUE_BUDGET // per_step)
             if nsteps > most:  # split a long chunk: the values of fewer steps at a time
                 done = 0
                 while done < nsteps:
                     n = min(most, nsteps - done)
                     if not self._chunk(n, sample and done + n == nsteps, None):
-                        return done > 0 and self._numpy_rest(nsteps - done, sample)
+                        if done == 0:
+                            return False
+                        self.plan_source().advance_numpy(nsteps - done, sample)  # the rest in NumPy
+                        return True
                     done += n
                 return True
-        values = self._values(nsteps if varying else 1, varying)
+        values = self._values(plan, nsteps if varying else 1, varying)
         if values is None:
             self.fallbacks += 1
             return False
@@ -599,7 +593,7 @@ class FastPath:
             if not getattr(s, name).flags.c_contiguous:
                 setattr(s, name, np.ascontiguousarray(getattr(s, name)))
 
-        soft_faces = [(w, face) for w in eng.soft for face in w.faces]
+        soft_faces = [(w, face) for w in plan.soft for face in w.faces]
         groups: list[np.ndarray] = [np.ones(s.x.shape[1], np.uint8)]
 
         def group(kernel_group: np.ndarray, all_atoms: bool) -> int:
@@ -612,23 +606,22 @@ class FastPath:
         sf_meta = np.array([[STYLE_IDS[w.style.name], face.dim, face.side, group(w.group, w.all_atoms)]
                             for w, face in soft_faces], np.int64).reshape(-1, 4)
         rf_meta = np.array([[face.dim, face.side, 1 if w.frame == "wall" else 0, group(w.group, w.all_atoms)]
-                            for w in eng.reflect for face in w.faces], np.int64).reshape(-1, 4)
-        stats = bool(eng.reflect) and eng.reflect[0].stats
+                            for w in plan.reflect for face in w.faces], np.int64).reshape(-1, 4)
+        stats = bool(plan.reflect) and plan.reflect[0].stats
         C = s.ncases
-        dtr = eng.dt_reset
+        dtr = plan.dt_reset
         if dtr is not None:
             dtr_group = group(dtr.group, bool(dtr.group.all()))
-            dtr_par = np.ascontiguousarray(np.stack([eng.dtr_xmax, eng.dtr_emax, eng.dtr_tmin, eng.dtr_tmax], axis=1),
-                                           dtype=float)
+            dtr_par = np.ascontiguousarray(plan.dt_reset_params, dtype=float)
         else:
             dtr_group, dtr_par = 0, np.zeros((C, 4))
         groups_arr = np.stack(groups)
-        rf_prev = np.ascontiguousarray(np.stack([p for w in eng.reflect for p in w.previous], axis=1),
-                                       dtype=float) if eng.reflect else np.zeros((C, 0))
+        rf_prev = np.ascontiguousarray(np.stack([p for w in plan.reflect for p in w.previous], axis=1),
+                                       dtype=float) if plan.reflect else np.zeros((C, 0))
         rf_prev = np.broadcast_to(rf_prev, (C, rf_prev.shape[1])).copy()
         if stats:
             rf_stat = np.stack([np.stack([w.count[:, k], w.impulse[:, k]], axis=1)
-                                for w in eng.reflect for k in range(len(w.faces))], axis=1)
+                                for w in plan.reflect for k in range(len(w.faces))], axis=1)
         else:
             rf_stat = np.zeros((C, rf_meta.shape[0], 2))
         periodic = np.zeros(3, np.int64)
@@ -657,7 +650,7 @@ class FastPath:
         self._spare = (s.x, s.v, s.f)
         s.x, s.v, s.f = xo, vo, fo
         k = 0
-        for w in eng.reflect:
+        for w in plan.reflect:
             for j, face in enumerate(w.faces):
                 # as ReflectKernel.apply: a constant wall keeps its coord array, a variable one a copy
                 w.previous[j] = face.coord if isinstance(face.coord, np.ndarray) else rf_prev[:, k].copy()
@@ -670,26 +663,16 @@ class FastPath:
             # the outputs of the last step, by the NumPy code itself: it computed them at these very
             # positions (the final half-kick moves only v); the compiled forces are kept
             forces = s.f.copy()
-            out = eng.compute_forces(True)
+            out = plan.compute_outputs()
             s.f[...] = forces
             s.ctx = None
             s.var_step = {}
-        eng.finish_step(out, sample)
-        return True
-
-    def _numpy_rest(self, nsteps: int, sample: bool) -> bool:
-        """The NumPy loop (Engine.advance without this path) for the rest of a split chunk."""
-        eng = self.engine
-        eng.fast = None
-        try:
-            eng.advance(nsteps, sample)
-        finally:
-            eng.fast = self
+        plan.finish_step(out, sample)
         return True
 
 
-def attach_fast_path(engine: "Engine") -> FastPath | None:
-    """The compiled path for this engine's scene, or None (NumPy path)."""
-    if not enabled() or not _eligible(engine):
+def attach_fast_path(plan_source: Callable[[], ChunkPlan]) -> FastPath | None:
+    """The compiled path for the engine whose plans `plan_source` gives, or None (NumPy path)."""
+    if not enabled() or not eligible(plan_source()):
         return None
-    return FastPath(engine)
+    return FastPath(plan_source)

@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from wallbatch.engine.compiled import attach_fast_path
+from wallbatch.engine.compiled import ChunkPlan, attach_fast_path
+from wallbatch.engine.dt_reset import dt_candidate
 from wallbatch.engine.ensemble import Ensemble
 from wallbatch.engine.flow import FlowKernel
 from wallbatch.engine.minimize import minimize
@@ -82,14 +83,29 @@ class Engine:
             for i in range(len(c0.flow_walls)):
                 rngs = [np.random.default_rng(np.random.SeedSequence(list(c.flow_seeds[i]))) for c in cases]
                 self.flow.append(FlowKernel([c.flow_walls[i] for c in cases], rngs, c0.box_lo, c0.box_hi, c0.units))
-        self.ees: list = [w for w in self.soft if w.style.name == "ees"]  # wall/ees (ellipsoids)
+        self.ees: list = [w for w in self.soft if w.style.needs_shape]  # wall/ees (ellipsoids)
         self.region_walls: list = build_region_kernels(cases)  # wall/region and wall/region/ees
         self.min_info: dict[int, dict[str, np.ndarray]] = {}  # case -> minimization results
         # fixes: integrator groups, thermostats, 2-D (None: fix nve on all atoms, 3-D)
         self.ensemble = Ensemble(cases, self.state) if Ensemble.needed(c0) else None
-        # compiled chunks of steps, or None; scenes with fixes: beyond nve on all run on NumPy
-        self.fast = attach_fast_path(self) if self.ensemble is None else None
         self.profiles = ProfileSampler(cases) if c0.profiles else None  # output.profiles
+        # compiled chunks of steps, or None; scenes with fixes: beyond nve on all run on NumPy
+        self.fast = attach_fast_path(self.compiled_plan)
+
+    def compiled_plan(self) -> ChunkPlan:
+        """What the compiled path would run now: the flat walls, reflect walls and dt/reset with
+        their per-case arrays, the NumPy steps it hands back to, and what else the scene has."""
+        s = self.state
+        others = tuple(name for name, present in (
+            ("pair", self.pair is not None), ("flow", bool(self.flow)), ("region walls", bool(self.region_walls)),
+            ("ellipsoids", s.quat is not None or s.angmom is not None or s.torque is not None),
+            ("fixes", self.ensemble is not None)) if present)
+        dtr = None
+        if self.dt_reset is not None:
+            dtr = np.stack([self.dtr_xmax, self.dtr_emax, self.dtr_tmin, self.dtr_tmax], axis=1)
+        return ChunkPlan(state=s, soft=tuple(self.soft), reflect=tuple(self.reflect), dt_reset=self.dt_reset,
+                         dt_reset_params=dtr, others=others, compute_outputs=lambda: self.compute_forces(True),
+                         finish_step=self.finish_step, advance_numpy=self.advance_numpy)
 
     # -- the step ----------------------------------------------------------------------------
 
@@ -176,20 +192,10 @@ class Engine:
     def reset_dt(self) -> np.ndarray:
         """fix dt/reset (physics.md §9): the largest dt (C,) that moves no group atom more than xmax."""
         s, u, spec = self.state, self.state.units, self.dt_reset
-        v, f, m = s.v, s.f, s.mass
-        vsq = np.einsum("cni,cni->cn", v, v)
-        fsq = np.einsum("cni,cni->cn", f, f)
-        xmax = self.dtr_xmax[:, None]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            dtv = np.where(vsq > 0, xmax / np.sqrt(vsq), BIG)
-            dtf = np.where(fsq > 0, np.sqrt(2.0 * xmax / (u.ftm2v * np.sqrt(fsq) / m)), BIG)
-            dt = np.minimum(dtv, dtf)
-            emax = self.dtr_emax[:, None]
-            dte = emax / np.sqrt(fsq * vsq) / np.sqrt(u.ftm2v * u.mvv2e)
-            dt = np.where((emax > 0) & (vsq * fsq > 0), np.minimum(dt, dte), dt)
-            disp = dt[:, :, None] * v + (0.5 * u.ftm2v) * (dt * dt / m)[:, :, None] * f
-            dr = np.sqrt(np.einsum("cni,cni->cn", disp, disp))
-            dt = np.where(dr > xmax, dt * xmax / dr, dt)
+        v, f = s.v, s.f
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            dt = dt_candidate(v[..., 0], v[..., 1], v[..., 2], f[..., 0], f[..., 1], f[..., 2], s.mass,
+                              float(u.ftm2v), float(u.mvv2e), self.dtr_xmax[:, None], self.dtr_emax[:, None])
         if not spec.group.all():
             dt = np.where(spec.group, dt, np.inf)
         new = np.minimum(dt.min(axis=1), BIG) if dt.shape[1] else np.full(s.ncases, BIG)
@@ -327,6 +333,10 @@ class Engine:
         """Advance every live case by nsteps steps, then sample (outputs computed on the last step)."""
         if self.fast is not None and self.fast.advance(nsteps, sample):
             return
+        self.advance_numpy(nsteps, sample)
+
+    def advance_numpy(self, nsteps: int, sample: bool = True) -> None:
+        """Engine.advance in NumPy, step by step."""
         for i in range(nsteps):
             if self.state.ncases == 0:
                 return

@@ -8,8 +8,9 @@ import numpy as np
 from wallbatch.engine.state import BatchState, Stacked, stack_values
 from wallbatch.geometry.regions import LAMMPS_EES_MESSAGE, LAMMPS_MESSAGE, RegionGeom
 from wallbatch.scene.case import RegionWallSpec
-from wallbatch.styles.ees import ees_energy_force_torque, ees_torque, sigma_n
-from wallbatch.styles.flat import Params, WallStyle, colloid, shifted_energy_force
+from wallbatch.styles.ees import EES, ees_energy_force_torque, ees_torque, sigma_n
+from wallbatch.styles.base import Params, WallStyle, shifted_energy_force
+from wallbatch.styles.flat import colloid
 
 # ----------------------------------------------------------------------------- the kernel
 
@@ -55,9 +56,11 @@ class RegionWallKernel:
         for k, v in self.params.items():
             val = state.variable(v) if isinstance(v, str) else v
             p[k] = np.broadcast_to(np.asarray(val, float), (C,))
-            if isinstance(v, str) and k in ("epsilon", "sigma", "D0", "r0") and np.any(bad := p[k] < 0):
-                state.fail(np.nonzero(bad)[0], lambda c, k=k, val=p[k]: (
-                    f"walls.{self.fix_id}: variable {k} evaluated to {val[c]:g} < 0: "
+            entry = self.style if self.style is not None else EES  # wall/region/ees: the ees parameters
+            low = entry.param(k).min if k in entry.params else None
+            if isinstance(v, str) and low is not None and np.any(bad := p[k] < low):
+                state.fail(np.nonzero(bad)[0], lambda c, k=k, val=p[k], low=low: (
+                    f"walls.{self.fix_id}: variable {k} evaluated to {val[c]:g} < {low:g}: "
                     f"Variable evaluation in fix wall gave bad value"))
         return p
 
@@ -87,7 +90,7 @@ class RegionWallKernel:
         if outputs:
             e, f = shifted_energy_force(self.style, r, pa)
         else:
-            f = self.style.energy_force(r, pa)[1]
+            f = self.style.force(r, *self.style.args(pa))
         fvec = (f / r)[:, None] * delta
         if state.f.flags.c_contiguous:  # an atom may have several contacts: unbuffered add
             np.add.at(state.f.reshape(-1, 3), ci * N + ai, fvec)

@@ -78,20 +78,26 @@ class BatchState:
 
     # -- variables -------------------------------------------------------------------------
 
-    def context(self) -> EvalContext:
-        """What variables see at the current step (built once per step, see `variable`)."""
-        if self.ctx is not None:
+    def context(self, steps: np.ndarray | None = None) -> EvalContext:
+        """What variables see at the current step (built once per step, see `variable`), or, with
+        `steps` (an (S, C) array of later steps at the current dt), at each of those steps (the
+        compiled path's per-step wall values; not cached)."""
+        if steps is None and self.ctx is not None:
             return self.ctx
-        steps_done = self.step.astype(float)
+        step = self.step if steps is None else steps
+        time = self.atime + (step - self.atimestep) * self.dt
+        steps_done = step.astype(float)
         if self.run_time is not None:
-            ramp = self.time / self.run_time
+            ramp = time / self.run_time
         else:
             ramp = steps_done / self.end_step if self.end_step > 0 else np.zeros(self.ncases)
-        elapsed = self.time if self.elapsed_is_time else steps_done * self.dt
-        self.ctx = EvalContext(step=self.step, begin_step=0, end_step=self.end_step, dt=self.dt, time=self.time,
-                           elapsed_time=elapsed, ramp_fraction=ramp, box_lo=tuple(self.box_lo),
-                           box_hi=tuple(self.box_hi), atoms=self.x.shape[1], values=self.var_values)
-        return self.ctx
+        elapsed = time if self.elapsed_is_time else steps_done * self.dt
+        ctx = EvalContext(step=step, begin_step=0, end_step=self.end_step, dt=self.dt, time=time,
+                          elapsed_time=elapsed, ramp_fraction=ramp, box_lo=tuple(self.box_lo),
+                          box_hi=tuple(self.box_hi), atoms=self.x.shape[1], values=self.var_values)
+        if steps is None:
+            self.ctx = ctx
+        return ctx
 
     def variable(self, name: str) -> np.ndarray:
         """Value (C,) of an equal-style variable at the current step; constants are evaluated once."""

@@ -15,7 +15,7 @@ from wallbatch.engine.state import BatchState, FaceValues
 from wallbatch.engine.stochastic import StochasticKernel
 from wallbatch.scene.case import Case, CustomWallSpec, ReflectSpec, SoftWallSpec, StochasticSpec
 from wallbatch.styles.ees import ees_energy_force_torque, ees_torque, sigma_n
-from wallbatch.styles.flat import WallStyle
+from wallbatch.styles.base import WallStyle
 
 
 class SoftWallKernel:
@@ -57,7 +57,7 @@ class SoftWallKernel:
                 ok = ~bad
                 ci, ai, r = ci[ok], ai[ok], r[ok]
                 pa = {key: val[ok] for key, val in pa.items()}
-            e, f = self.style.energy_force(r, pa)
+            f = self.style.force(r, *self.style.args(pa))
             state.f[ci, ai, face.dim] -= face.side * f
             if outputs:
                 e_shifted = self.style.shifted_energy(r, pa)  # E(r) - E(rc) without cancellation
@@ -74,11 +74,12 @@ class SoftWallKernel:
         or r0 below 0 fails its case (LAMMPS: Variable evaluation in fix wall gave bad value)."""
         coord = face.position(state)
         p = {key: face.param(key, state) for key in face.params}
-        for key in ("epsilon", "sigma", "D0", "r0"):  # variables only: constants are checked up front
-            if isinstance(face.params.get(key), str) and np.any(bad := p[key] < 0):
+        for prm in self.style.parameters:  # variables only: constants are checked up front
+            key, low = prm.name, prm.min
+            if low is not None and isinstance(face.params.get(key), str) and np.any(bad := p[key] < low):
                 state.fail(np.nonzero(bad)[0],
                            lambda c: f"walls.{self.fix_id} {face.name}: variable {key} evaluated to "
-                           f"{p[key][c]:g} < 0: Variable evaluation in fix wall gave bad value")
+                           f"{p[key][c]:g} < {low:g}: Variable evaluation in fix wall gave bad value")
         pos = state.x[:, :, face.dim]
         delta = pos - coord[:, None] if face.side < 0 else coord[:, None] - pos
         near = delta < p["cutoff"][:, None]
@@ -89,7 +90,7 @@ class SoftWallKernel:
 
     def _fail_inside(self, state: "BatchState", ci: np.ndarray, ai: np.ndarray, r: np.ndarray,
                      face: str) -> None:
-        what = ("its surface touches or crosses the wall" if self.style.needs_radius or self.style.name == "ees"
+        what = ("its surface touches or crosses the wall" if self.style.needs_radius or self.style.needs_shape
                 else "it is on or behind the wall")
         first: dict[int, tuple[int, float]] = {}
         for c, a, d in zip(ci.tolist(), ai.tolist(), r.tolist()):
@@ -245,7 +246,7 @@ def build_kernels(cases: list[Case], outputs: tuple[str, ...]) -> tuple[list[Sof
     def kind(spec: SoftWallSpec) -> type:
         if isinstance(spec, CustomWallSpec):
             return CustomWallKernel
-        return EESWallKernel if spec.style.name == "ees" else SoftWallKernel
+        return EESWallKernel if spec.style.needs_shape else SoftWallKernel
 
     soft = [kind(cases[0].soft_walls[i])([c.soft_walls[i] for c in cases]) for i in range(len(cases[0].soft_walls))]
     stats = "reflect_count" in outputs or "reflect_impulse" in outputs

@@ -9,9 +9,10 @@ no`. A comment block at the top lists every row of the decisions table (docs/dev
 physics in docs/physics.md) the case touches.
 
 Adding a feature is one small function and one registry line:
-  * a wall style: a writer in `WALL_WRITERS` (config style name -> writer(fid, wall, spec, s));
-    today lj93 lj126 lj1043 colloid harmonic morse ees (fix wall/STYLE), reflect, region
-    (fix wall/region), region/ees (fix wall/region/ees) and flow (fix wall/flow);
+  * a wall style: every style of the registry (wallbatch.styles.STYLES) is written by
+    `_soft_wall` from its entry (fix wall/STYLE, its parameters, its decisions-table rows);
+    other walls have a writer in `WALL_WRITERS` (config style name -> writer(fid, wall, spec, s)):
+    reflect, region (fix wall/region), region/ees (fix wall/region/ees) and flow (fix wall/flow);
   * a pair style: a writer in `PAIR_WRITERS` (lj/cut);
   * an atom kind: a writer in `ATOM_WRITERS` (chosen by `_atom_style`: atomic, sphere, ellipsoid);
   * `minimize:` is written by `_minimize` (min_style, min_modify dmax, minimize, then
@@ -40,6 +41,7 @@ from wallbatch.expr import Binary, Call, Keyword, Node, Num, Unary, to_lammps
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import Case, ReflectSpec, RegionWallSpec, SoftWallSpec
 from wallbatch.styles.lepton import compile_expression
+from wallbatch.styles import STYLES
 from wallbatch.units import UNIT_SYSTEMS
 
 __all__ = [
@@ -107,11 +109,6 @@ class LammpsExport:
 
 # The rows of the decisions table (docs/deviations.md) that today's features can touch.
 DECISIONS: dict[str, str] = {
-    "lj1043": "wall/lj1043 atom on or behind the wall: wallbatch stops the case with an error, like every other "
-              "style; LAMMPS silently skips the atom (and includes one exactly at the cut-off with E = 0, F != 0). "
-              "A run that reaches such a state differs: wallbatch fails, LAMMPS goes on",
-    "morse_alpha": "wall/morse alpha as a variable: LAMMPS ignores a variable alpha (alpha = 0, no force); the "
-                   "variable is constant here, so its value is written as a number",
     "dt_reset_order": "dt/reset at step 0: wallbatch computes the step-0 dt after all forces; fix dt/reset is "
                       "therefore defined after every wall fix",
     "wiggle_dt_reset": "vdisplace, swiggle, cwiggle with dt_reset: LAMMPS refuses them with fix dt/reset; wallbatch "
@@ -159,6 +156,12 @@ DECISIONS: dict[str, str] = {
                        "with `search direction is not downhill` (same state; `wallbatch validate` reports the "
                        "stopping criterion as expected then)",
 }
+
+# the wall styles' own rows: STYLE (a style's decision), STYLE_PARAM (a parameter LAMMPS takes as a
+# number only)
+DECISIONS.update({s.name: s.decision for s in STYLES.values() if s.decision})
+DECISIONS.update({f"{s.name}_{p.name}": p.lammps_variable_note for s in STYLES.values() for p in s.parameters
+                  if p.lammps_variable_note})
 
 # source "min" columns: wallbatch result -> where the LAMMPS value comes from (validate.run_lammps):
 # "Minimization stats" of the log (energy_before: 15 digits, as LAMMPS prints it) or the
@@ -409,20 +412,22 @@ def _soft_wall(fid: str, wall: Any, spec: SoftWallSpec, s: _Script) -> None:
     mapping: dict[str, Any] = {"style": wall.style, "group": s.group(wall.group), "units": "box"}
     if wall.pbc:
         mapping["pbc"] = True
+    style = spec.style
     for face in spec.faces:
         values: dict[str, Any] = {"coord": _coord_word(face, written[face.name].coord, s)}
         for key, v in face.params.items():
-            if isinstance(v, str) and key == "alpha":
+            note = style.param(key).lammps_variable_note
+            if isinstance(v, str) and note:
                 const = s.case.variables.constant_value(v)
                 if const is None:
-                    raise ExportError(f"walls.{fid}.{face.name}.alpha: LAMMPS ignores a variable alpha (alpha = 0, "
+                    raise ExportError(f"walls.{fid}.{face.name}.{key}: LAMMPS ignores a variable {key} ({key} = 0, "
                                       f"docs/deviations.md, decisions table) and v_{v} changes during the run: cannot export")
-                s.decide("morse_alpha", DECISIONS["morse_alpha"] + f" ({face.label}: v_{v} = {_num(const)})")
+                s.decide(f"{style.name}_{key}", note + f" ({face.label}: v_{v} = {_num(const)})")
                 v = const
             values[key] = f"v_{v}" if isinstance(v, str) else float(v)
         mapping[face.name] = values
-    if wall.style == "lj1043":
-        s.decide("lj1043")
+    if style.decision:
+        s.decide(style.name, style.decision)
     s.fixes.append(to_fix_line(lid, mapping))
     if spec.energy:
         s.fixes.append(f"fix_modify {lid} energy yes")
@@ -488,12 +493,13 @@ def _region_wall(fid: str, wall: Any, spec: RegionWallSpec, s: _Script) -> None:
     else:
         name = spec.potential.name
         head = f"wall/region {rid} {name}"
-        keys = ("D0", "alpha", "r0", "cutoff") if name == "morse" else ("epsilon", "sigma", "cutoff")
+        keys = spec.potential.params
     params = dict(spec.params)
-    if "sigma" in keys and "sigma" not in params:
-        params["sigma"] = 1.0  # harmonic ignores it; LAMMPS still reads three numbers
+    for p in spec.potential.parameters if spec.potential is not None else ():
+        if p.name not in params and p.placeholder is not None:
+            params[p.name] = p.placeholder  # ignored by the style; LAMMPS still reads a number there
     words = {k: s.number(params[k], f"{what}.{k}") for k in keys}
-    if spec.kind == "region" and spec.potential.name == "colloid":
+    if spec.kind == "region" and spec.potential.region_quirk:
         s.decide("region_colloid")
         s.region_colloid.append(fid)
         if s.force_matched:
@@ -593,7 +599,7 @@ WALL_WRITERS: dict[str, WallWriter] = {
     "reflect/stochastic": _stochastic_wall,
     "lepton": _custom_wall,
     "table": _custom_wall,
-    **{style: _soft_wall for style in ("lj93", "lj126", "lj1043", "colloid", "harmonic", "morse", "ees")},
+    **{style: _soft_wall for style in STYLES},
     "reflect": _reflect_wall,
     "region": _region_wall,
     "region/ees": _region_wall,

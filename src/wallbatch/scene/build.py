@@ -34,8 +34,7 @@ from wallbatch.scene.case import (
     Value,
 )
 from wallbatch.scene.ensemble import build_fixes
-from wallbatch.styles.ees import EES_STYLE
-from wallbatch.styles.flat import STYLES
+from wallbatch.styles import STYLES
 from wallbatch.styles.lepton import compile_expression, lepton_style
 from wallbatch.styles.table import TableError, WallTable, read_table, table_style
 from wallbatch.units import LATTICE_CELL, LATTICE_POSITIONS, LATTICES_2D, UNIT_SYSTEMS, UnitSystem
@@ -297,11 +296,13 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
             flow_seeds.append((cfg.seed, *seed_key, wall.seed, len(flows)))
             continue
         group = mask(wall.group)
-        if wall.style in ("colloid", "ees", "region", "region/ees"):
-            colloid = wall.style == "colloid" or getattr(wall, "potential", None) == "colloid"
-            if colloid and np.any(atoms["radius"][group] <= 0):
-                raise CaseError(f"walls.{fid}: wall/{wall.style} colloid requires extended particles (radius > 0)")
-            if wall.style in ("ees", "region/ees") and ("shape" not in atoms or np.any(atoms["shape"][group] <= 0)):
+        entry = STYLES[wall.potential] if wall.style == "region" else STYLES.get(wall.style)
+        if entry is not None or wall.style == "region/ees":
+            if entry is not None and entry.needs_radius and np.any(atoms["radius"][group] <= 0):
+                raise CaseError(f"walls.{fid}: wall/{wall.style} {entry.name} requires extended particles "
+                                f"(radius > 0)")
+            needs_shape = wall.style == "region/ees" or entry.needs_shape
+            if needs_shape and ("shape" not in atoms or np.any(atoms["shape"][group] <= 0)):
                 raise CaseError(f"walls.{fid}: wall/{wall.style} requires extended particles: every atom of group "
                                 f"{wall.group} needs a shape (ellipsoid semi-axes)")
         fix_order.append(fid)
@@ -312,15 +313,15 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
             region = cfg.regions[wall.region]
             spacing = None if region.units == "box" else lattice_spacing(cfg)
             potential = STYLES[wall.potential] if wall.style == "region" else None
-            keys = ("epsilon", "sigma", "D0", "alpha", "r0", "cutoff")
+            keys = potential.params if potential is not None else ("epsilon", "sigma", "cutoff")
             params = {k: _value(getattr(wall, k)) for k in keys if getattr(wall, k, None) is not None}
             regional.append(RegionWallSpec(fid, wall.style, wall.region, RegionGeom.from_config(region, spacing),
                                            potential, group, wall.energy, params,
                                            getattr(wall, "virial", False)))
         else:
-            style = EES_STYLE if wall.style == "ees" else STYLES[wall.style]
+            style = STYLES[wall.style]
             soft.append(SoftWallSpec(fid, style, group, wall.energy, _faces(cfg, fid, wall, style.params),
-                                     wall.virial and wall.style != "ees"))  # wall/ees has no virial
+                                     wall.virial and style.virial))  # e.g. wall/ees has no virial
     dtr = None
     if cfg.dt_reset is not None:
         d = cfg.dt_reset

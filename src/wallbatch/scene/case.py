@@ -4,16 +4,50 @@ decides which cases may share a batch.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from wallbatch.expr import Variables
-from wallbatch.styles.flat import WallStyle
+from wallbatch.styles.base import WallStyle
 from wallbatch.units import UnitSystem
 
 Value = float | str  # a number, or the name of an equal-style variable (without v_)
+
+
+# ----------------------------------------------------------------------------- structure key rules
+
+
+def per_case(**kwargs: Any) -> Any:
+    """A dataclass field whose value may differ between the cases of one batch: it stays out of
+    `structure_key` (the engine holds it per case)."""
+    return field(metadata={"per_case": True}, **kwargs)
+
+
+def keyed(key: Callable[[Any], Any], owner: bool = False, **kwargs: Any) -> Any:
+    """A dataclass field that joins `structure_key` as key(value) (key(the whole object) with
+    `owner`): only the part that must be equal across a batch (e.g. a variable's name but not a
+    number)."""
+    return field(metadata={"key": key, "owner": owner}, **kwargs)
+
+
+def _value_key(v: Any) -> Any:
+    """A number or a variable name: variables must match, numbers may differ per case."""
+    return v if isinstance(v, str) else "#"
+
+
+def _params_key(params: dict[str, Any]) -> tuple:
+    return tuple((k, _value_key(v)) for k, v in sorted(params.items()))
+
+
+def _name_key(obj: Any) -> Any:
+    """A registry entry (wall style) by its name."""
+    return None if obj is None else obj.name
+
+
 
 
 class MinimizeWarning(UserWarning):
@@ -33,9 +67,9 @@ class Face:
     name: str
     dim: int
     side: int
-    coord: Value
+    coord: Value = keyed(_value_key)
     scale: float
-    params: dict[str, Value]  # epsilon, sigma, cutoff, D0, alpha, r0 (box units; variables by name)
+    params: dict[str, Value] = keyed(_params_key)  # the style's parameters (box units; variables by name)
 
 
 @dataclass(frozen=True)
@@ -43,7 +77,7 @@ class SoftWallSpec:
     """fix wall/<style>: soft flat walls."""
 
     fix_id: str
-    style: WallStyle
+    style: WallStyle = keyed(_name_key)
     group: np.ndarray  # (N,) bool
     energy: bool
     faces: tuple[Face, ...]
@@ -56,7 +90,7 @@ class CustomWallSpec(SoftWallSpec):
     table); `signature` (per face: expression text, or table file, keyword, tabstyle, N) decides
     which cases may share a batch."""
 
-    face_styles: tuple[WallStyle, ...] = ()
+    face_styles: tuple[WallStyle, ...] = keyed(lambda styles: tuple(_name_key(s) for s in styles), default=())
     signature: tuple = ()
 
 
@@ -75,7 +109,7 @@ class StochasticSpec(ReflectSpec):
     """fix wall/reflect/stochastic: `frame` is "stochastic/<rstyle>" (diffusive, maxwell, ccl);
     face params temp, vx, vy, vz, ax, ay, az; `seed` keys the case's random stream of this wall."""
 
-    seed: tuple[int, ...] = ()
+    seed: tuple[int, ...] = per_case(default=())
 
     @property
     def rstyle(self) -> str:
@@ -88,19 +122,19 @@ class DtResetSpec:
 
     every: int
     group: np.ndarray
-    tmin: float | None
-    tmax: float | None
-    xmax: float
-    emax: float | None
+    tmin: float | None = per_case()
+    tmax: float | None = per_case()
+    xmax: float = per_case()
+    emax: float | None = per_case()
 
 
 @dataclass(frozen=True)
 class PairSpec:
     """pair_style lj/cut with one atom type (physics.md §12); `skin` is the neighbor skin."""
 
-    epsilon: float
-    sigma: float
-    cutoff: float
+    epsilon: float = per_case()
+    sigma: float = per_case()
+    cutoff: float = per_case()
     shift: bool
     skin: float
 
@@ -113,10 +147,10 @@ class RegionWallSpec:
     kind: str  # "region" | "region/ees"
     region_name: str
     region: Any  # regions.RegionGeom, box units
-    potential: WallStyle | None
+    potential: WallStyle | None = keyed(_name_key)
     group: np.ndarray
     energy: bool
-    params: dict[str, Value]  # epsilon, sigma, cutoff, D0, alpha, r0 (box units; variables by name)
+    params: dict[str, Value] = keyed(_params_key)  # the potential's parameters (box units; variables by name)
     virial: bool = False
 
 
@@ -151,20 +185,21 @@ class ProfileSpec:
 class Case:
     """One runnable scene: the engine's input."""
 
-    name: str
-    units: UnitSystem
+    name: str = per_case()
+    units: UnitSystem = keyed(_name_key)
     box_lo: np.ndarray  # (3,)
     box_hi: np.ndarray
     periodic: np.ndarray  # (3,) bool
-    x: np.ndarray  # (N, 3)
-    v: np.ndarray  # (N, 3)
-    mass: np.ndarray  # (N,)
-    radius: np.ndarray  # (N,)
+    x: np.ndarray = per_case()  # (N, 3)
+    v: np.ndarray = per_case()  # (N, 3)
+    mass: np.ndarray = per_case()  # (N,)
+    radius: np.ndarray = per_case()  # (N,)
     atom_group: np.ndarray  # (N,) index into group_names (creation group)
     group_names: tuple[str, ...]
-    dt: float
-    variables: Variables
-    variable_text: tuple[tuple[str, str], ...]
+    dt: float = per_case()
+    variables: Variables = per_case()  # joins the key through variable_text
+    # (name, text): the texts must match, except numeric constants (a value per case)
+    variable_text: tuple[tuple[str, str], ...] = keyed(lambda case: _variable_texts(case), owner=True)
     soft_walls: tuple[SoftWallSpec, ...]
     reflect_walls: tuple[ReflectSpec, ...]
     dt_reset: DtResetSpec | None
@@ -177,20 +212,21 @@ class Case:
     dump_fields: tuple[str, ...] = ()
     # ellipsoids (None when no atom has a shape): semi-axes (N,3) (0 for point atoms), unit
     # quaternions (N,4) (w, x, y, z), space-frame angular momentum (N,3)
-    shape: np.ndarray | None = None
-    quat: np.ndarray | None = None
-    angmom: np.ndarray | None = None
+    shape: np.ndarray | None = keyed(lambda v: v is not None, default=None)
+    quat: np.ndarray | None = per_case(default=None)
+    angmom: np.ndarray | None = per_case(default=None)
     pair: PairSpec | None = None
     region_walls: tuple[RegionWallSpec, ...] = ()
-    flow_walls: tuple = ()  # flow.FlowSpec per wall/flow fix
-    flow_seeds: tuple[tuple[int, ...], ...] = ()  # random stream key per flow wall
+    flow_walls: tuple = ()  # FlowSpec per wall/flow fix
+    flow_seeds: tuple[tuple[int, ...], ...] = per_case(default=())  # random stream key per flow wall
     fix_order: tuple[str, ...] = ()  # fixes with a global scalar (soft, ees, region), config order
-    minimize: Any = None  # minimize.MinSettings, or None
+    minimize: Any = None  # MinSettings, or None
     # integrators and thermostats (scene.ensemble.EnsembleFixSpec, config order); None: fix nve on all
-    fixes: tuple | None = None
+    fixes: tuple | None = keyed(lambda v: None if v is None else tuple(f.structure() for f in v), default=None)
     dimension: int = 3  # 2: enforce2d, temperatures over 2 dof per atom
     profiles: tuple[ProfileSpec, ...] = ()  # output.profiles
-    average_start: float = 0.0  # output.averages: first step (time for a time-based run) averaged
+    # output.averages: first step (time for a time-based run) averaged
+    average_start: float = per_case(default=0.0)
 
     @property
     def natoms(self) -> int:
@@ -207,8 +243,8 @@ class FlowSpec:
     fix_id: str
     group: np.ndarray  # (N,) bool
     axis: int  # 0, 1, 2
-    vflow: float
-    temperature: float
+    vflow: float = per_case()
+    temperature: float = per_case()
     walls: np.ndarray  # (K,)
     rule: str = "exact"  # "exact" | "lammps"
 
@@ -225,14 +261,14 @@ class MinSettings:
     (energies divided by N inside the algorithm).
     """
 
-    etol: float
-    ftol: float
-    maxiter: int
-    maxeval: int
+    etol: float = per_case()
+    ftol: float = per_case()
+    maxiter: int = per_case()
+    maxeval: int = per_case()
     style: str = "cg"
-    dmax: float = 0.1
-    timestep: float | None = None
-    norm: bool = False
+    dmax: float = per_case(default=0.1)
+    timestep: float | None = per_case(default=None)
+    norm: bool = per_case(default=False)
 
     def __post_init__(self) -> None:
         if self.style not in ("cg", "fire"):
@@ -249,33 +285,49 @@ class MinSettings:
 
 
 
-def structure_key(case: Case) -> tuple:
-    """Cases with equal keys can share a batch: same atoms, groups, fixes, variables, schedule."""
-    def faces(spec):
-        return tuple((f.name, f.scale, tuple(sorted(f.params)),
-                      f.coord if isinstance(f.coord, str) else "#",
-                      tuple(v if isinstance(v, str) else "#" for v in f.params.values())) for f in spec.faces)
+def key_of(value: Any) -> Any:
+    """The structure-key form of a value: arrays by dtype, shape and bytes; dataclasses field by
+    field (see `_fields_key`); tuples, lists and dicts elementwise; plain scalars as they are."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return (type(value).__name__, _fields_key(value))
+    if isinstance(value, np.ndarray):
+        return (value.dtype.str, value.shape, value.tobytes())
+    if isinstance(value, (tuple, list)):
+        return tuple(key_of(v) for v in value)
+    if isinstance(value, dict):
+        return tuple((k, key_of(v)) for k, v in value.items())
+    if value is None or isinstance(value, (bool, int, float, str, np.generic)):
+        return value
+    raise TypeError(f"structure_key: no rule for a {type(value).__name__}: declare its field per_case() or "
+                    f"keyed(...) in wallbatch.scene.case")
 
-    variables = tuple((k, "#" if case.variables.constant_value(k) is not None else text)
-                      for k, text in case.variable_text)  # numeric constants may differ per case
-    return (
-        case.units.name, case.natoms, case.atom_group.tobytes(), tuple(case.periodic),
-        tuple(case.box_lo), tuple(case.box_hi), variables,
-        tuple((w.fix_id, w.style.name, w.group.tobytes(), w.energy, faces(w), getattr(w, "signature", ()))
-              for w in case.soft_walls),
-        tuple((w.fix_id, w.frame, w.group.tobytes(), faces(w)) for w in case.reflect_walls),
-        None if case.dt_reset is None else (case.dt_reset.every, case.dt_reset.group.tobytes()),
-        case.steps, case.run_time, case.thermo, case.thermo_is_time, case.outputs, case.dump_every,
-        case.dump_fields, case.fix_order, case.shape is not None,
-        None if case.pair is None else (case.pair.shift, case.pair.skin),  # parameters may differ per case
-        tuple((w.fix_id, w.kind, w.region, None if w.potential is None else w.potential.name, w.group.tobytes(),
-               w.energy, tuple((k, v if isinstance(v, str) else "#") for k, v in sorted(w.params.items())))
-              for w in case.region_walls),
-        tuple((w.fix_id, w.group.tobytes(), w.axis, w.walls.tobytes(), w.rule) for w in case.flow_walls),
-        None if case.minimize is None else case.minimize.style,
-        None if case.fixes is None else tuple(f.structure() for f in case.fixes), case.dimension,
-        tuple((p.name, p.axis, p.lo, p.delta, p.nbins, p.every, p.repeat, p.freq, p.quantities, p.group.tobytes())
-              for p in case.profiles),
-    )
+
+def _fields_key(obj: Any) -> tuple:
+    """(field name, key) for every field of a dataclass that is not declared per_case(); a field
+    declared keyed(f) joins as f(value)."""
+    out = []
+    for f in dataclasses.fields(obj):
+        if f.metadata.get("per_case"):
+            continue
+        value = getattr(obj, f.name)
+        rule = f.metadata.get("key")
+        if rule is None:
+            out.append((f.name, key_of(value)))
+        else:
+            out.append((f.name, rule(obj) if f.metadata.get("owner") else rule(value)))
+    return tuple(out)
+
+
+def _variable_texts(case: Case) -> tuple:
+    """Variables join by text, except numeric constants, whose values may differ per case."""
+    return tuple((k, "#" if case.variables.constant_value(k) is not None else text) for k, text in case.variable_text)
+
+
+def structure_key(case: Case) -> tuple:
+    """Cases with equal keys can share a batch: same atoms, groups, fixes, variables, schedule.
+
+    Derived from the dataclass declarations: every field of the Case (and of its specs, field by
+    field) joins the key unless declared per_case(); keyed(f) fields join as f(value)."""
+    return _fields_key(case)
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from wallbatch.geometry.quaternion import _to_body, _to_space, rotation_matrix
-from wallbatch.styles.flat import WallStyle
+from wallbatch.styles.base import Param, WallStyle, cutoff_param
 
 # --------------------------------------------------------------------------------------------
 # wall/ees (§4.7, §6)
@@ -119,12 +119,12 @@ def ees_energy_force_torque(r, sn, epsilon, sigma) -> tuple[np.ndarray, np.ndarr
     return energy.reshape(out_shape), force.reshape(out_shape), torque.reshape(out_shape)
 
 
-def _no_closed_form(r, p):  # noqa: ANN001, ANN202
-    raise TypeError("wall/ees needs orientations: its kernel calls ellipsoid.ees_energy_force_torque")
-
-
-# wall/ees on flat faces: its energy needs the ellipsoid's orientation, so no (r, p) function;
-# its energy is not shifted at the cut-off (LAMMPS, physics.md §4.7)
-EES_STYLE = WallStyle("ees", ("epsilon", "sigma", "cutoff"), _no_closed_form, shifted=False)
-
-
+# wall/ees on flat faces: its energy needs the ellipsoid's orientation, so no (r, p) function (the
+# kernel calls ees_energy_force_torque); its energy is not shifted at the cut-off (LAMMPS, §4.7)
+EES = WallStyle(
+    "ees",
+    (Param("epsilon", "energy/distance^3", min=0.0, doc="effective Hamaker constant"),
+     Param("sigma", "distance", min=0.0, doc="length scale sigma"),
+     cutoff_param()),
+    shifted=False, needs_shape=True, region=False, compiled=False, virial=False,
+    doc="ellipsoid against a flat wall (Babadi-Ejtehadi); needs atoms with a shape")

@@ -1,17 +1,19 @@
 """Flat-wall potential styles as pure functions on arrays (physics.md §4.1-4.6).
 
-Every style is a function ``energy_force(r, p) -> (E, F)``:
+Every style is one registry entry (`WallStyle`, at the end of this module) with three functions
+of the same positional arguments ``(r, p0, p1, p2, rc, radius)``:
 
 * ``r`` [length] is the distance from the wall into the allowed region (``delta`` of §3.2),
-  ``r > 0``; for ``colloid`` it is the distance of the particle *centre*.
-* ``p`` maps parameter names (``epsilon``, ``sigma``, ``cutoff``, ``radius``, ``D0``, ``alpha``,
-  ``r0``) to floats or arrays. Everything broadcasts: ``r`` may be ``(C, N)`` with per-case
-  parameters ``(C, 1)`` and a per-atom ``radius`` ``(C, N)``.
-* ``E`` [energy] is the *unshifted* energy, ``F = -dE/dr`` [force] the scalar wall force with
-  ``F > 0`` repulsive. The engine applies ``f[dim] += -side * F`` and ``vec += side * F``
-  (§3.2).
+  ``r > 0``; for colloid it is the distance of the particle *centre*.
+* ``p0, p1, p2`` are the style's parameters in LAMMPS order (epsilon, sigma; or D0, alpha, r0),
+  ``rc`` the cut-off, ``radius`` the particle radius. Everything broadcasts: ``r`` may be
+  ``(C, N)`` with per-case parameters ``(C, 1)`` and a per-atom ``radius`` ``(C, N)``; the
+  force functions are plain arithmetic and are jit-compiled as they are for scalars.
+* ``<style>_energy`` [energy] is the *unshifted* energy, ``<style>_force = -dE/dr`` [force] the
+  scalar wall force with ``F > 0`` repulsive. The engine applies ``f[dim] += -side * F`` and
+  ``vec += side * F`` (§3.2).
 
-Each style also has ``<style>_shifted(r, p) -> E(r) - E(rc)`` (``WallStyle.shifted_energy``),
+Each style also has ``<style>_shifted -> E(r) - E(rc)`` (``WallStyle.shifted_energy``),
 written so that the difference never cancels: as r -> rc it is a factor (rc - r), formed from
 the exact difference of the inputs, times a sum of positive terms (LJ: a^n - b^n = (a - b) sum
 a^k b^(n-1-k); Morse: expm1; colloid: the same for its two terms, plus the atanh addition theorem
@@ -28,59 +30,88 @@ test (:meth:`WallStyle.too_close`) belong to the engine (§3.3).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
-
 import numpy as np
 
-Params = Mapping[str, np.ndarray | float]
-EnergyForce = Callable[[np.ndarray, Params], tuple[np.ndarray, np.ndarray]]
-ShiftedEnergy = Callable[[np.ndarray, Params], np.ndarray]
+from wallbatch.styles.base import Param, Params, WallStyle, cutoff_param, shifted_energy_force
+
+__all__ = ["STYLES", "WallStyle", "Param", "Params", "shifted_energy_force", "colloid"]
 
 _SQRT2 = np.sqrt(2.0)
 _TWO_PI = 2.0 * np.pi
 _LJ1043_SHIFT = 0.61 / _SQRT2  # s' = (0.61 / sqrt 2) sigma, §4.3
 
 
-def lj93(r, p: Params) -> tuple[np.ndarray, np.ndarray]:
-    """9-3 wall (§4.1). [energy], [force]
+# ---- lj93 (§4.1): E = eps [ (2/15) (sigma/r)^9 - (sigma/r)^3 ], F = eps [ (6/5) sigma^9/r^10 - 3 sigma^3/r^4 ]
 
-    E = eps [ (2/15) (sigma/r)^9 - (sigma/r)^3 ]
-    F = eps [ (6/5) sigma^9 / r^10 - 3 sigma^3 / r^4 ]
-    """
-    eps = p["epsilon"]
-    sr = p["sigma"] / r
+
+def lj93_energy(r, eps, sigma, p2, rc, radius):
+    sr = sigma / r
     sr3 = sr * sr * sr
     sr9 = sr3 * sr3 * sr3
-    energy = eps * ((2.0 / 15.0) * sr9 - sr3)
-    force = eps * (1.2 * sr9 - 3.0 * sr3) / r
-    return energy, force
+    return eps * ((2.0 / 15.0) * sr9 - sr3)
 
 
-def lj126(r, p: Params) -> tuple[np.ndarray, np.ndarray]:
-    """12-6 wall (§4.2). [energy], [force]
+def lj93_force(r, eps, sigma, p2, rc, radius):
+    sr = sigma / r
+    sr3 = sr * sr * sr
+    sr9 = sr3 * sr3 * sr3
+    return eps * (1.2 * sr9 - 3.0 * sr3) / r
 
-    E = 4 eps [ (sigma/r)^12 - (sigma/r)^6 ]
-    F = (4 eps / r) [ 12 (sigma/r)^12 - 6 (sigma/r)^6 ]
+
+def lj93_shifted(r, eps, sigma, p2, rc, radius):
+    """E(r) - E(rc) of lj93 (§4.1). [energy]
+
+    With s = sigma/r, c = sigma/rc and s - c = s (rc - r)/rc:
+    s^3 - c^3 = (s - c)(s^2 + s c + c^2),  s^9 - c^9 = (s^3 - c^3)(s^6 + s^3 c^3 + c^6),
+    E(r) - E(rc) = eps (s^3 - c^3) [ (2/15)(s^6 + s^3 c^3 + c^6) - 1 ].
     """
-    eps = p["epsilon"]
-    sr = p["sigma"] / r
+    s = sigma / r
+    c = sigma / rc
+    d3 = s * ((rc - r) / rc) * (s * s + s * c + c * c)
+    s3 = s * s * s
+    c3 = c * c * c
+    return eps * d3 * ((2.0 / 15.0) * (s3 * s3 + s3 * c3 + c3 * c3) - 1.0)
+
+
+# ---- lj126 (§4.2): E = 4 eps [ (sigma/r)^12 - (sigma/r)^6 ], F = (4 eps / r) [ 12 (sigma/r)^12 - 6 (sigma/r)^6 ]
+
+
+def lj126_energy(r, eps, sigma, p2, rc, radius):
+    sr = sigma / r
     sr2 = sr * sr
     sr6 = sr2 * sr2 * sr2
     sr12 = sr6 * sr6
-    energy = 4.0 * eps * (sr12 - sr6)
-    force = eps * (48.0 * sr12 - 24.0 * sr6) / r
-    return energy, force
+    return 4.0 * eps * (sr12 - sr6)
 
 
-def lj1043(r, p: Params) -> tuple[np.ndarray, np.ndarray]:
-    """Magda 10-4-3 wall (§4.3), with s' = (0.61/sqrt 2) sigma. [energy], [force]
+def lj126_force(r, eps, sigma, p2, rc, radius):
+    sr = sigma / r
+    sr2 = sr * sr
+    sr6 = sr2 * sr2 * sr2
+    sr12 = sr6 * sr6
+    return eps * (48.0 * sr12 - 24.0 * sr6) / r
 
-    E = 2 pi eps [ (2/5) (sigma/r)^10 - (sigma/r)^4 - sqrt2 sigma^3 / (3 (r + s')^3) ]
-    F = 2 pi eps [ 4 sigma^10 / r^11 - 4 sigma^4 / r^5 - sqrt2 sigma^3 / (r + s')^4 ]
+
+def lj126_shifted(r, eps, sigma, p2, rc, radius):
+    """E(r) - E(rc) of lj126 (§4.2). [energy]
+
+    s^6 - c^6 = (s - c)(s^2 + s c + c^2)(s^3 + c^3), s^12 - c^12 = (s^6 - c^6)(s^6 + c^6):
+    E(r) - E(rc) = 4 eps (s^6 - c^6) (s^6 + c^6 - 1).
     """
-    eps = p["epsilon"]
-    sigma = p["sigma"]
+    s = sigma / r
+    c = sigma / rc
+    s3 = s * s * s
+    c3 = c * c * c
+    d6 = s * ((rc - r) / rc) * (s * s + s * c + c * c) * (s3 + c3)
+    return 4.0 * eps * d6 * (s3 * s3 + c3 * c3 - 1.0)
+
+
+# ---- lj1043 (§4.3), Magda 10-4-3 with s' = (0.61/sqrt 2) sigma:
+#   E = 2 pi eps [ (2/5) (sigma/r)^10 - (sigma/r)^4 - sqrt2 sigma^3 / (3 (r + s')^3) ]
+#   F = 2 pi eps [ 4 sigma^10 / r^11 - 4 sigma^4 / r^5 - sqrt2 sigma^3 / (r + s')^4 ]
+
+
+def lj1043_energy(r, eps, sigma, p2, rc, radius):
     sr = sigma / r
     sr2 = sr * sr
     sr4 = sr2 * sr2
@@ -88,38 +119,89 @@ def lj1043(r, p: Params) -> tuple[np.ndarray, np.ndarray]:
     rs = r + _LJ1043_SHIFT * sigma
     ss = sigma / rs
     ss3 = ss * ss * ss
-    energy = _TWO_PI * eps * (0.4 * sr10 - sr4 - (_SQRT2 / 3.0) * ss3)
-    force = _TWO_PI * eps * (4.0 * (sr10 - sr4) / r - _SQRT2 * ss3 / rs)
-    return energy, force
+    return _TWO_PI * eps * (0.4 * sr10 - sr4 - (_SQRT2 / 3.0) * ss3)
 
 
-def harmonic(r, p: Params) -> tuple[np.ndarray, np.ndarray]:
-    """Repulsive spring resting at the cut-off (§4.4); epsilon is K [energy/length^2].
+def lj1043_force(r, eps, sigma, p2, rc, radius):
+    sr = sigma / r
+    sr2 = sr * sr
+    sr4 = sr2 * sr2
+    sr10 = sr4 * sr4 * sr2
+    rs = r + _LJ1043_SHIFT * sigma
+    ss = sigma / rs
+    ss3 = ss * ss * ss
+    return _TWO_PI * eps * (4.0 * (sr10 - sr4) / r - _SQRT2 * ss3 / rs)
 
-    E = eps (r - rc)^2          (already 0 at rc)
-    F = 2 eps (rc - r)          (>= 0 for r <= rc)
+
+def lj1043_shifted(r, eps, sigma, p2, rc, radius):
+    """E(r) - E(rc) of lj1043 (§4.3). [energy]
+
+    s^4 - c^4 = (s - c)(s + c)(s^2 + c^2), s^10 - c^10 = (s - c)(s^4 + s^3 c + ... + c^4)(s^5 + c^5),
+    and with w = sigma/(r + s'), w_c = sigma/(rc + s'), w - w_c = w (rc - r)/(rc + s'):
+    w^3 - w_c^3 = (w - w_c)(w^2 + w w_c + w_c^2);
+    E(r) - E(rc) = 2 pi eps [ (2/5)(s^10 - c^10) - (s^4 - c^4) - (sqrt2/3)(w^3 - w_c^3) ].
     """
-    eps = p["epsilon"]
-    dr = p["cutoff"] - r
-    return eps * dr * dr, 2.0 * eps * dr
+    h = rc - r
+    s = sigma / r
+    c = sigma / rc
+    ds = s * (h / rc)
+    s2, c2, sc = s * s, c * c, s * c
+    d4 = ds * (s + c) * (s2 + c2)
+    d10 = ds * (s2 * s2 + c2 * c2 + sc * (s2 + c2) + sc * sc) * (s2 * s2 * s + c2 * c2 * c)
+    shift = _LJ1043_SHIFT * sigma
+    w = sigma / (r + shift)
+    wc = sigma / (rc + shift)
+    dw3 = w * (h / (rc + shift)) * (w * w + w * wc + wc * wc)
+    return _TWO_PI * eps * (0.4 * d10 - d4 - (_SQRT2 / 3.0) * dw3)
 
 
-def morse(r, p: Params) -> tuple[np.ndarray, np.ndarray]:
-    """Morse wall (§4.5). [energy], [force]
+# ---- harmonic (§4.4): a repulsive spring resting at the cut-off, epsilon = K [energy/length^2]
+#   E = eps (r - rc)^2 (already 0 at rc), F = 2 eps (rc - r) (>= 0 for r <= rc)
 
-    E = D0 [ e^{-2 a (r - r0)} - 2 e^{-a (r - r0)} ]
-    F = 2 a D0 [ e^{-2 a (r - r0)} - e^{-a (r - r0)} ]
-    """
-    d0 = p["D0"]
-    alpha = p["alpha"]
-    x = -alpha * (r - p["r0"])
+
+def harmonic_energy(r, eps, sigma, p2, rc, radius):
+    dr = rc - r
+    return eps * dr * dr
+
+
+def harmonic_force(r, eps, sigma, p2, rc, radius):
+    return 2.0 * eps * (rc - r)
+
+
+# E(r) - E(rc) = E(r) exactly
+harmonic_shifted = harmonic_energy
+
+
+# ---- morse (§4.5): E = D0 [ e^{-2 a (r - r0)} - 2 e^{-a (r - r0)} ], F = 2 a D0 [ e^{-2 a (r - r0)} - e^{-a (r - r0)} ]
+
+
+def morse_energy(r, d0, alpha, r0, rc, radius):
+    x = -alpha * (r - r0)
     ex = np.exp(x)
     em1 = np.expm1(x)  # e^x - 1, exact near r0 where F -> 0 (em1 + 1 is not: x << 0)
-    energy = d0 * ex * (em1 - 1.0)
-    force = 2.0 * alpha * d0 * ex * em1
-    return energy, force
+    return d0 * ex * (em1 - 1.0)
 
 
+def morse_force(r, d0, alpha, r0, rc, radius):
+    x = -alpha * (r - r0)
+    return 2.0 * alpha * d0 * np.exp(x) * np.expm1(x)
+
+
+def morse_shifted(r, d0, alpha, r0, rc, radius):
+    """E(r) - E(rc) of morse (§4.5). [energy]
+
+    With e = exp(-a (r - r0)), e_c = exp(-a (rc - r0)):
+    E(r) - E(rc) = D0 (e - e_c)(e + e_c - 2) = D0 (e - e_c) [ expm1(-a(r-r0)) + expm1(-a(rc-r0)) ],
+    e - e_c = -e expm1(-a (rc - r)).
+    """
+    x = -alpha * (r - r0)
+    em1 = np.expm1(x)
+    emc1 = np.expm1(-alpha * (rc - r0))
+    diff = -np.exp(x) * np.expm1(-alpha * (rc - r))
+    return d0 * diff * (em1 + emc1)
+
+
+# ---- colloid (§4.6): a finite-size sphere against a flat wall
 # Colloid's attraction g(x) = 2x/(1 - x^2) - 2 atanh(x) = sum_k>=1 4k/(2k+1) x^(2k+1), x = R/r.
 # The closed form cancels (both terms ~ 2x while g ~ (4/3) x^3, error ~ 4 ulp/x^2): below x = 0.2
 # the series is used (12 terms: truncation < 3e-17 relative); above, the closed form loses
@@ -154,10 +236,10 @@ def _colloid_g(x: np.ndarray, d: np.ndarray, dp: np.ndarray) -> np.ndarray:
     return g
 
 
-def colloid(r, p: Params) -> tuple[np.ndarray, np.ndarray]:
-    """Finite-size sphere against a flat wall (§4.6). [energy], [force]
+def colloid_energy(r, eps, sigma, p2, rc, big_r):
+    """Finite-size sphere against a flat wall (§4.6). [energy]
 
-    r is the centre distance, R = p["radius"] (per atom), D = r - R the surface gap. §4.6 writes
+    r is the centre distance, R = radius (per atom), D = r - R the surface gap. §4.6 writes
 
     E = eps { sigma^6/7560 [ (6R - D)/D^7 + (D + 8R)/(D + 2R)^7 ]
               - (1/6) [ 2R(D+R) + D(D+2R) (ln D - ln(D+2R)) ] / [D(D+2R)] }
@@ -172,102 +254,34 @@ def colloid(r, p: Params) -> tuple[np.ndarray, np.ndarray]:
     with g(x) = 2x/(1 - x^2) - 2 atanh(x) = 2x/(1 - x^2) - log1p(2R/D), replaced by its series
     (4/3) x^3 + (8/5) x^5 + ... for x < 0.2 where the two terms cancel (far field).
     """
-    eps = p["epsilon"]
-    big_r = p["radius"]
     x = np.asarray(big_r / r, dtype=float)
     d = (r - big_r) / r  # D/r; r - R is exact near contact
     dp = d * (1.0 + x)  # 1 - x^2
     y = x * x
-    u = p["sigma"] / r / dp
+    u = sigma / r / dp
+    u2 = u * u
+    u6 = u2 * u2 * u2
+    g = _colloid_g(x, d, dp)
+    return eps * ((4.0 / 945.0) * u6 * x * y * ((3.0 * y + 14.0) * y + 7.0) / dp - g / 6.0)
+
+
+def colloid_force(r, eps, sigma, p2, rc, big_r):
+    """F = -dE/dr of colloid (see colloid_energy). [force]"""
+    x = big_r / r
+    d = (r - big_r) / r
+    dp = d * (1.0 + x)
+    y = x * x
+    u = sigma / r / dp
     u2 = u * u
     u6 = u2 * u2 * u2
     v = x / dp  # x^3/(1-x^2)^2 = x v^2: no intermediate (1-x^2)^2 to underflow
-    g = _colloid_g(x, d, dp)
-    energy = eps * ((4.0 / 945.0) * u6 * x * y * ((3.0 * y + 14.0) * y + 7.0) / dp - g / 6.0)
     poly = ((y + 27.0) * y + 63.0) * y + 21.0
-    force = eps * (x * v * v / r) * ((4.0 / 315.0) * u6 * poly - 2.0 / 3.0)
-    return energy, force
+    return eps * (x * v * v / r) * ((4.0 / 315.0) * u6 * poly - 2.0 / 3.0)
 
 
-# ---- shifted energies E(r) - E(rc), cancellation-free ----
-
-
-def lj93_shifted(r, p: Params) -> np.ndarray:
-    """E(r) - E(rc) of lj93 (§4.1). [energy]
-
-    With s = sigma/r, c = sigma/rc and s - c = s (rc - r)/rc:
-    s^3 - c^3 = (s - c)(s^2 + s c + c^2),  s^9 - c^9 = (s^3 - c^3)(s^6 + s^3 c^3 + c^6),
-    E(r) - E(rc) = eps (s^3 - c^3) [ (2/15)(s^6 + s^3 c^3 + c^6) - 1 ].
-    """
-    rc = p["cutoff"]
-    s = p["sigma"] / r
-    c = p["sigma"] / rc
-    d3 = s * ((rc - r) / rc) * (s * s + s * c + c * c)
-    s3 = s * s * s
-    c3 = c * c * c
-    return p["epsilon"] * d3 * ((2.0 / 15.0) * (s3 * s3 + s3 * c3 + c3 * c3) - 1.0)
-
-
-def lj126_shifted(r, p: Params) -> np.ndarray:
-    """E(r) - E(rc) of lj126 (§4.2). [energy]
-
-    s^6 - c^6 = (s - c)(s^2 + s c + c^2)(s^3 + c^3), s^12 - c^12 = (s^6 - c^6)(s^6 + c^6):
-    E(r) - E(rc) = 4 eps (s^6 - c^6) (s^6 + c^6 - 1).
-    """
-    rc = p["cutoff"]
-    s = p["sigma"] / r
-    c = p["sigma"] / rc
-    s3 = s * s * s
-    c3 = c * c * c
-    d6 = s * ((rc - r) / rc) * (s * s + s * c + c * c) * (s3 + c3)
-    return 4.0 * p["epsilon"] * d6 * (s3 * s3 + c3 * c3 - 1.0)
-
-
-def lj1043_shifted(r, p: Params) -> np.ndarray:
-    """E(r) - E(rc) of lj1043 (§4.3). [energy]
-
-    s^4 - c^4 = (s - c)(s + c)(s^2 + c^2), s^10 - c^10 = (s - c)(s^4 + s^3 c + ... + c^4)(s^5 + c^5),
-    and with w = sigma/(r + s'), w_c = sigma/(rc + s'), w - w_c = w (rc - r)/(rc + s'):
-    w^3 - w_c^3 = (w - w_c)(w^2 + w w_c + w_c^2);
-    E(r) - E(rc) = 2 pi eps [ (2/5)(s^10 - c^10) - (s^4 - c^4) - (sqrt2/3)(w^3 - w_c^3) ].
-    """
-    rc = p["cutoff"]
-    sigma = p["sigma"]
-    h = rc - r
-    s = sigma / r
-    c = sigma / rc
-    ds = s * (h / rc)
-    s2, c2, sc = s * s, c * c, s * c
-    d4 = ds * (s + c) * (s2 + c2)
-    d10 = ds * (s2 * s2 + c2 * c2 + sc * (s2 + c2) + sc * sc) * (s2 * s2 * s + c2 * c2 * c)
-    shift = _LJ1043_SHIFT * sigma
-    w = sigma / (r + shift)
-    wc = sigma / (rc + shift)
-    dw3 = w * (h / (rc + shift)) * (w * w + w * wc + wc * wc)
-    return _TWO_PI * p["epsilon"] * (0.4 * d10 - d4 - (_SQRT2 / 3.0) * dw3)
-
-
-def harmonic_shifted(r, p: Params) -> np.ndarray:
-    """E(r) - E(rc) = E(r) = eps (r - rc)^2 of harmonic (§4.4). [energy]"""
-    dr = p["cutoff"] - r
-    return p["epsilon"] * dr * dr
-
-
-def morse_shifted(r, p: Params) -> np.ndarray:
-    """E(r) - E(rc) of morse (§4.5). [energy]
-
-    With e = exp(-a (r - r0)), e_c = exp(-a (rc - r0)):
-    E(r) - E(rc) = D0 (e - e_c)(e + e_c - 2) = D0 (e - e_c) [ expm1(-a(r-r0)) + expm1(-a(rc-r0)) ],
-    e - e_c = -e expm1(-a (rc - r)).
-    """
-    alpha = p["alpha"]
-    rc = p["cutoff"]
-    r0 = p["r0"]
-    x = -alpha * (r - r0)
-    em1 = np.expm1(x)
-    emc1 = np.expm1(-alpha * (rc - r0))
-    diff = -np.exp(x) * np.expm1(-alpha * (rc - r))
-    return p["D0"] * diff * (em1 + emc1)
+def colloid(r, p: Params) -> tuple[np.ndarray, np.ndarray]:
+    """(E, F) of colloid from a parameter mapping (epsilon, sigma, radius). [energy], [force]"""
+    return COLLOID.energy_force(r, p)
 
 
 def _colloid_dg_series(x: np.ndarray, xc: np.ndarray, dx: np.ndarray) -> np.ndarray:
@@ -293,7 +307,7 @@ def _colloid_dg_closed(x: np.ndarray, xc: np.ndarray, dx: np.ndarray, dp: np.nda
     return 2.0 * dx * (1.0 + x * xc) / (dp * dpc) - 2.0 * np.arctanh(dx / one_m)
 
 
-def colloid_shifted(r, p: Params) -> np.ndarray:
+def colloid_shifted(r, eps, sigma, p2, rc, big_r):
     """E(r) - E(rc) of colloid (§4.6), the particle's own R in both terms. [energy]
 
     In units of rc (rho = r/rc, b = R/rc, s = sigma/rc, h = (r - rc)/rc; q = rho^2 - b^2 and
@@ -309,8 +323,6 @@ def colloid_shifted(r, p: Params) -> np.ndarray:
     with x - x_c = -x h and 1 - x x_c = D/r + x (rc - R)/rc; for x, x_c < 0.2 (far field) by
     the difference of the series (_colloid_dg_series).
     """
-    big_r = p["radius"]
-    rc = p["cutoff"]
     h = (r - rc) / rc
     rho = r / rc
     b = big_r / rc
@@ -329,7 +341,7 @@ def colloid_shifted(r, p: Params) -> np.ndarray:
         p7 = a * p7 + acn
     ac2 = ac * ac
     dphi = h * (big_a * (ac2 * ac2 * ac2 * ac) - n_rho * (rho + 1.0) * a * ac * p7)
-    s2 = (p["sigma"] / rc) ** 2
+    s2 = (sigma / rc) ** 2
     rep = (4.0 / 945.0) * s2 * s2 * s2 * b2 * b * dphi
 
     shape = np.broadcast_shapes(np.shape(r), np.shape(big_r), np.shape(rc))
@@ -344,63 +356,45 @@ def colloid_shifted(r, p: Params) -> np.ndarray:
         if small.any():  # only reached for ndim >= 1
             idx = np.nonzero(small)
             dg[idx] = _colloid_dg_series(x[idx], np.broadcast_to(b, x.shape)[idx], dx[idx])
-    return p["epsilon"] * (rep - dg / 6.0)
+    return eps * (rep - dg / 6.0)
 
 
-@dataclass(frozen=True)
-class WallStyle:
-    """One flat-wall style: its LAMMPS per-face argument names, its energy/force function and its
-    cancellation-free shifted energy E(r) - E(rc)."""
+# ----------------------------------------------------------------------------- registry entries
 
-    name: str
-    params: tuple[str, ...]  # per-face arguments after coord, in LAMMPS order
-    energy_force: EnergyForce
-    shifted: bool = True  # energy reported as E(r) - E(rc)
-    needs_radius: bool = False  # per-atom radius required (colloid)
-    shifted_fn: ShiftedEnergy | None = None  # E(r) - E(rc) computed stably; None: plain difference
+# Lennard-Jones-like parameters: epsilon (>= 0) and sigma (>= 0), either may be a variable.
+_EPS = Param("epsilon", "energy", min=0.0, doc="wall strength epsilon")
+_SIGMA = Param("sigma", "distance", min=0.0, doc="length scale sigma")
+_LJ = (_EPS, _SIGMA, cutoff_param())
 
-    def too_close(self, p: Params) -> np.ndarray | float:
-        """Threshold t: an atom within the cut-off with delta <= t is "on or inside" the wall (§3.3).
+LJ93 = WallStyle("lj93", _LJ, lj93_force, lj93_energy, lj93_shifted,
+                 doc="9-3 wall: E = eps [(2/15)(sigma/r)^9 - (sigma/r)^3]")
+LJ126 = WallStyle("lj126", _LJ, lj126_force, lj126_energy, lj126_shifted,
+                  doc="12-6 wall: E = 4 eps [(sigma/r)^12 - (sigma/r)^6]")
+LJ1043 = WallStyle(
+    "lj1043", _LJ, lj1043_force, lj1043_energy, lj1043_shifted,
+    doc="Magda 10-4-3 wall: E = 2 pi eps [(2/5)(sigma/r)^10 - (sigma/r)^4 - sqrt2 sigma^3/(3 (r + s')^3)]",
+    decision="wall/lj1043 atom on or behind the wall: wallbatch stops the case with an error, like every other "
+             "style; LAMMPS silently skips the atom (and includes one exactly at the cut-off with E = 0, F != 0). "
+             "A run that reaches such a state differs: wallbatch fails, LAMMPS goes on")
+COLLOID = WallStyle("colloid", _LJ, colloid_force, colloid_energy, colloid_shifted, needs_radius=True,
+                    region_quirk=True,
+                    doc="finite-size sphere (radius R) against a flat wall; r is the centre distance")
+HARMONIC = WallStyle(
+    "harmonic",
+    (Param("epsilon", "energy/distance^2", min=0.0, doc="spring constant K"),
+     Param("sigma", "distance", min=0.0, required=False, placeholder=1.0, doc="read and ignored (LAMMPS)"),
+     cutoff_param()),
+    harmonic_force, harmonic_energy, harmonic_shifted,
+    doc="repulsive spring resting at the cut-off: E = K (r - rc)^2")
+MORSE = WallStyle(
+    "morse",
+    (Param("D0", "energy", min=0.0, doc="well depth D0"),
+     Param("alpha", "1/distance", doc="stiffness alpha (a variable alpha is ignored by LAMMPS)",
+           lammps_variable_note="wall/morse alpha as a variable: LAMMPS ignores a variable alpha (alpha = 0, no "
+                                "force); the variable is constant here, so its value is written as a number"),
+     Param("r0", "distance", min=0.0, doc="position of the minimum r0"),
+     cutoff_param()),
+    morse_force, morse_energy, morse_shifted,
+    doc="Morse wall: E = D0 [exp(-2 a (r - r0)) - 2 exp(-a (r - r0))]")
 
-        0 for every style except colloid, where it is the particle radius.
-        """
-        return p["radius"] if self.needs_radius else 0.0
-
-    def shifted_energy(self, r, p: Params) -> np.ndarray:
-        """The reported energy: E(r) - E(rc), rc = p["cutoff"] (E(r) if ``shifted`` is False). [energy]
-
-        The offset uses the same (per-atom) parameters, e.g. colloid's own radius. Computed
-        without cancellation as r -> rc by ``shifted_fn`` when the style has one.
-        """
-        if not self.shifted:
-            return self.energy_force(r, p)[0]
-        if self.shifted_fn is not None:
-            return self.shifted_fn(r, p)
-        return self.energy_force(r, p)[0] - self.energy_force(p["cutoff"], p)[0]
-
-
-_LJ_ARGS = ("epsilon", "sigma", "cutoff")
-
-STYLES: dict[str, WallStyle] = {
-    s.name: s
-    for s in (
-        WallStyle("lj93", _LJ_ARGS, lj93, shifted_fn=lj93_shifted),
-        WallStyle("lj126", _LJ_ARGS, lj126, shifted_fn=lj126_shifted),
-        WallStyle("lj1043", _LJ_ARGS, lj1043, shifted_fn=lj1043_shifted),
-        WallStyle("colloid", _LJ_ARGS, colloid, needs_radius=True, shifted_fn=colloid_shifted),
-        WallStyle("harmonic", _LJ_ARGS, harmonic, shifted_fn=harmonic_shifted),  # sigma is read but ignored
-        WallStyle("morse", ("D0", "alpha", "r0", "cutoff"), morse, shifted_fn=morse_shifted),
-    )
-}
-
-
-def shifted_energy_force(style: WallStyle, r, p: Params) -> tuple[np.ndarray, np.ndarray]:
-    """(E(r) - E(rc), F(r)) for ``style``, rc = p["cutoff"]. [energy], [force]
-
-    See :meth:`WallStyle.shifted_energy`; for a style with ``shifted=False`` the energy is
-    returned unshifted.
-    """
-    energy, force = style.energy_force(r, p)
-    if style.shifted:
-        energy = style.shifted_energy(r, p)
-    return energy, force
+STYLES: dict[str, WallStyle] = {s.name: s for s in (LJ93, LJ126, LJ1043, COLLOID, HARMONIC, MORSE)}

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wallbatch.expr import Binary, Call, Node, Num, Unary, VarRef, VariableError
-from wallbatch.styles.flat import WallStyle
+from wallbatch.styles.base import Param, WallStyle, cutoff_param
 
 __all__ = [
     "LeptonError",
@@ -918,11 +918,26 @@ def numba_kernel(expr: LeptonExpression) -> Callable:
 
 
 def lepton_style(expr: LeptonExpression) -> WallStyle:
-    """One face's expression as a WallStyle: p holds the face's ``cutoff`` and the expression's
-    parameters (per atom or per case arrays); the energy is shifted by E(rc) as LAMMPS does."""
-    return WallStyle(
-        "lepton",
-        ("cutoff", *expr.params),
-        lambda r, p: expr.energy_force(r, {n: p[n] for n in expr.params if n in p}),
-        shifted_fn=lambda r, p: expr.shifted_energy(r, {n: p[n] for n in expr.params if n in p}, p["cutoff"]),
-    )
+    """One face's expression as a wall style: the parameters are the expression's names (numbers)
+    and the cut-off; force/energy take ``(r, *params, rc, radius)`` (the registry's positional
+    form); the energy is shifted by E(rc) as LAMMPS does. Not a registry entry: an expression wall
+    makes one per face (see wallbatch.engine.compiled for its compiled kernel)."""
+    names = expr.params
+
+    def values(a: tuple) -> dict:
+        return {**expr.defaults, **dict(zip(names, a))}
+
+    def force(r, *a):
+        return evaluate(expr.force, r, values(a))
+
+    def energy(r, *a):
+        return evaluate(expr.energy, r, values(a))
+
+    def shifted(r, *a):
+        p = values(a)
+        with np.errstate(all="ignore"):
+            return evaluate(expr.energy, r, p) - evaluate(expr.energy, np.asarray(a[-2], dtype=np.float64), p)
+
+    parameters = tuple(Param(n, "", variable=False, doc="a parameter of the expression") for n in names)
+    return WallStyle("lepton", parameters + (cutoff_param(),), force=force, energy=energy, shifted_fn=shifted,
+                     region=False, compiled=False, doc=f"wall/lepton {expr.text}")

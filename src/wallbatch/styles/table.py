@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wallbatch.styles.flat import STYLES, WallStyle
+from wallbatch.styles.base import WallStyle, cutoff_param
+from wallbatch.styles.flat import STYLES
 from wallbatch.styles.lepton import LeptonError, compile_expression, derivative, evaluate, simplify
 
 __all__ = [
@@ -316,7 +317,7 @@ def tabulate(energy_force, lo: float, hi: float, n: int) -> tuple[np.ndarray, np
 
 @dataclass(frozen=True)
 class TableWallStyle(WallStyle):
-    """A face's table as a WallStyle; an atom nearer than the table's first r is refused."""
+    """A face's table as a wall style; an atom nearer than the table's first r is refused."""
 
     lo: float = 0.0
 
@@ -325,13 +326,20 @@ class TableWallStyle(WallStyle):
 
 
 def table_style(table: WallTable) -> TableWallStyle:
-    """One face's resampled table as a WallStyle (p holds the face's ``cutoff``): E(r) -
-    E_lin(rc) and F(r) by the table's interpolation."""
+    """One face's resampled table as a wall style (its one parameter: the cut-off): E(r) -
+    E_lin(rc) and F(r) by the table's interpolation; functions of ``(r, p0, p1, p2, rc, radius)``."""
 
-    def shifted(r, p):
-        return table.lookup(r)[0] - table.lookup(p["cutoff"], "linear")[0]
+    def force(r, *a):
+        return table.lookup(r)[1]
 
-    return TableWallStyle("table", ("cutoff",), lambda r, p: table.lookup(r), shifted_fn=shifted, lo=table.lo)
+    def energy(r, *a):
+        return table.lookup(r)[0]
+
+    def shifted(r, *a):
+        return table.lookup(r)[0] - table.lookup(a[-2], "linear")[0]
+
+    return TableWallStyle("table", (cutoff_param(),), force=force, energy=energy, shifted_fn=shifted,
+                          region=False, compiled=False, doc="wall/table", lo=table.lo)
 
 
 def table_source(source: str, params: dict[str, float]):
@@ -342,7 +350,7 @@ def table_source(source: str, params: dict[str, float]):
         style = STYLES[source]
         if style.needs_radius:
             raise TableError(f"style {source} depends on the particle radius: it cannot be one table")
-        need = [k for k in style.params if k not in params and not (source == "harmonic" and k == "sigma")]
+        need = [k for k in style.params if k not in params and style.param(k).required]
         if need:
             raise TableError(f"style {source} needs {', '.join(need)} (give --param name=value)")
         unknown = sorted(set(params) - set(style.params))

@@ -1,0 +1,155 @@
+"""What a wall style is: its parameters (`Param`) and its registry entry (`WallStyle`).
+
+Everything else (the config face models and their positional form, the fix-line reader and
+writer, the LAMMPS export, the parameter checks, the compiled kernel dispatch and the per-style
+tests) is derived from these entries; see docs/developer.md, "Adding a wall style".
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+Params = Mapping[str, np.ndarray | float]
+# f(r, p0, p1, p2, rc, radius): plain arithmetic on floats or broadcastable arrays
+ScalarFn = Callable[..., np.ndarray]
+
+MAX_COMPILED_PARAMS = 3  # the compiled path carries p0, p1, p2 per face (besides coord and cutoff)
+
+
+@dataclass(frozen=True)
+class Param:
+    """One per-face argument of a wall style, in LAMMPS argument order.
+
+    ``unit`` is the unit kind (``energy``, ``distance``, ``energy/distance^2``, ``1/distance``,
+    ``energy/distance^3``), used by docs and exports. ``min`` is a lower bound (``value >= min``)
+    checked on numbers in the config and, for variables, each step (LAMMPS: "Variable evaluation
+    in fix wall gave bad value"); ``positive`` asks ``value > 0`` (the cutoff). ``variable``: an
+    equal-style variable ``v_name`` is accepted. ``required=False``: the config may leave it out
+    (LAMMPS still reads a word there: ``placeholder`` is written for it).
+    """
+
+    name: str
+    unit: str
+    min: float | None = None
+    positive: bool = False
+    variable: bool = True
+    required: bool = True
+    placeholder: float | None = None  # written for an omitted optional argument (LAMMPS reads a word)
+    doc: str = ""
+    lammps_variable_note: str | None = None  # LAMMPS does not use a variable here: the export's decision row
+
+
+def cutoff_param() -> Param:
+    """The last argument of every flat soft style: the cut-off distance rc > 0 (a number)."""
+    return Param("cutoff", "distance", positive=True, variable=False, doc="cut-off distance rc: no force beyond it")
+
+
+def _missing(*_: object) -> np.ndarray:
+    raise TypeError("this wall style has no closed form in r alone (see its kernel)")
+
+
+@dataclass(frozen=True)
+class WallStyle:
+    """One registry entry: a wall style and everything the rest of the code derives from it.
+
+    * ``name``: the config's ``style:`` value; ``lammps``: the LAMMPS fix style (``wall/NAME``).
+    * ``parameters``: per-face arguments after ``coord``, in LAMMPS order (the last is the cutoff).
+    * ``force(r, p0, p1, p2, rc, radius)`` [force], F = -dE/dr, F > 0 repulsive, and
+      ``energy(...)`` [energy] (unshifted): plain arithmetic on floats *and* arrays, with p0..p2
+      the non-cutoff parameters in order (0.0 where a style has fewer) and ``radius`` the
+      particle radius (styles that ``needs_radius``). ``force`` is jit-compiled as is by
+      wallbatch.engine.compiled, so it must not branch on arrays.
+    * ``shifted_fn(...)``: E(r) - E(rc) without cancellation as r -> rc (same arguments).
+    * ``shifted``: the reported energy is E(r) - E(rc) (False: E(r), e.g. wall/ees).
+    * ``needs_radius`` / ``needs_shape``: atoms need a radius > 0 / ellipsoid semi-axes.
+    * ``region``: usable as the potential of wall/region; ``compiled``: the numba path may run it.
+    * ``virial``: the fix has a virial contribution (fix_modify virial).
+    * ``decision``: a decisions-table row the LAMMPS export prints for a case using the style.
+    """
+
+    name: str
+    parameters: tuple[Param, ...]
+    force: ScalarFn = _missing
+    energy: ScalarFn = _missing
+    shifted_fn: ScalarFn | None = None
+    shifted: bool = True
+    needs_radius: bool = False
+    needs_shape: bool = False
+    region: bool = True
+    compiled: bool = True
+    virial: bool = True
+    decision: str | None = None
+    region_quirk: bool = False  # LAMMPS's wall/region with this potential differs (decision row region_NAME)
+    doc: str = ""
+    lammps: str = field(default="")
+
+    def __post_init__(self) -> None:
+        if not self.lammps:
+            object.__setattr__(self, "lammps", f"wall/{self.name}")
+        if len(self.args_names) > MAX_COMPILED_PARAMS:
+            object.__setattr__(self, "compiled", False)
+
+    # -- names ---------------------------------------------------------------------------------
+
+    @property
+    def params(self) -> tuple[str, ...]:
+        """Per-face argument names after coord, in LAMMPS order (cutoff last)."""
+        return tuple(p.name for p in self.parameters)
+
+    @property
+    def args_names(self) -> tuple[str, ...]:
+        """The parameters passed as p0, p1, p2 (all but the cutoff)."""
+        return tuple(p.name for p in self.parameters if p.name != "cutoff")
+
+    @property
+    def positional(self) -> tuple[str, ...]:
+        """The positional face form `[coord, ...]` of the config and of the fix line."""
+        return ("coord",) + self.params
+
+    def param(self, name: str) -> Param:
+        return next(p for p in self.parameters if p.name == name)
+
+    # -- evaluation on a parameter mapping (the NumPy engine, tests) ------------------------------
+
+    def args(self, p: Params) -> tuple:
+        """(p0, p1, p2, rc, radius) from a mapping of parameter names (missing optional ones: 0)."""
+        vals = [p.get(n, 0.0) for n in self.args_names]
+        vals += [0.0] * (MAX_COMPILED_PARAMS - len(vals))
+        return (*vals, p.get("cutoff", np.inf), p.get("radius", 0.0))
+
+    def energy_force(self, r, p: Params) -> tuple[np.ndarray, np.ndarray]:
+        """(E(r), F(r)) unshifted. [energy], [force]"""
+        a = self.args(p)
+        return self.energy(r, *a), self.force(r, *a)
+
+    def too_close(self, p: Params) -> np.ndarray | float:
+        """Threshold t: an atom within the cut-off with delta <= t is "on or inside" the wall.
+
+        0, or the particle radius for styles that need one (colloid).
+        """
+        return p["radius"] if self.needs_radius else 0.0
+
+    def shifted_energy(self, r, p: Params) -> np.ndarray:
+        """The reported energy: E(r) - E(rc), rc = p["cutoff"] (E(r) if ``shifted`` is False). [energy]
+
+        The offset uses the same (per-atom) parameters, e.g. colloid's own radius. Computed
+        without cancellation as r -> rc by ``shifted_fn`` when the style has one.
+        """
+        a = self.args(p)
+        if not self.shifted:
+            return self.energy(r, *a)
+        if self.shifted_fn is not None:
+            return self.shifted_fn(r, *a)
+        return self.energy(r, *a) - self.energy(a[3], *a)
+
+
+def shifted_energy_force(style: WallStyle, r, p: Params) -> tuple[np.ndarray, np.ndarray]:
+    """(E(r) - E(rc), F(r)) for ``style``, rc = p["cutoff"]. [energy], [force]
+
+    See :meth:`WallStyle.shifted_energy`; for a style with ``shifted=False`` the energy is
+    returned unshifted.
+    """
+    return style.shifted_energy(r, p), style.force(r, *style.args(p))
