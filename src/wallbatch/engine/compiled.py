@@ -41,10 +41,12 @@ cold compile takes ~15 s once, a cached load ~0.5 s per process.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import inspect
 import math
 import os
+import types
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -54,10 +56,11 @@ import numpy as np
 from wallbatch.engine import dt_reset as _dtr
 from wallbatch.engine.dt_reset import BIG, dt_candidate
 from wallbatch.engine.state import BatchState
-from wallbatch.engine.walls import ReflectKernel, SoftWallKernel
+from wallbatch.engine.walls import CustomWallKernel, ReflectKernel, SoftWallKernel
 from wallbatch.expr import VariableError
 from wallbatch.scene.case import DtResetSpec
 from wallbatch.styles import STYLES, WallStyle
+from wallbatch.styles.lepton import LeptonWallStyle, positional_kernels
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
@@ -442,6 +445,36 @@ if njit is not None:
 
     _run_chunk = _make_run_chunk(_fingerprint(COMPILED_STYLES))
 
+    def _relink(dispatcher: Any, **replace: Any) -> Any:
+        """The Python function of a jitted `dispatcher` with some of its globals replaced (the same
+        code, closure and defaults), ready to be jitted again."""
+        fn = dispatcher.py_func
+        namespace = dict(fn.__globals__)
+        namespace.update(replace)
+        out = types.FunctionType(fn.__code__, namespace, fn.__name__, fn.__defaults__, fn.__closure__)
+        out.__kwdefaults__ = fn.__kwdefaults__
+        return out
+
+    @functools.lru_cache(maxsize=32)
+    def _chunk_kernel(extra: tuple[Any, ...]) -> Any:
+        """The chunk kernel with the generated forces `extra` (wall/lepton expressions, jitted
+        force(r, p0, p1, p2, rc, radius)) as styles len(COMPILED_STYLES) + j: the registry's
+        dispatch with one more branch each, inlined like the built-in styles, and the block step and
+        chunk kernel re-linked to it. Compiled on first use in each process (no on-disk cache:
+        the expressions are not in a source file); the built-in styles keep `_run_chunk`."""
+        if not extra:
+            return _run_chunk
+        n = len(COMPILED_STYLES)
+        src = _dispatch_source(COMPILED_STYLES).replace("    return 0\n", "".join(
+            f"    elif style == {n + j}:  # wall/lepton\n        return _face(_EXTRA_{j}, False, X, F, RAD, groups, g, "
+            "d, side, coord, p0, p1, p2, cut, u0, u1)\n" for j in range(len(extra))) + "    return 0\n")
+        namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}": f for i, f in enumerate(FORCES)},
+                                     **{f"_EXTRA_{j}": f for j, f in enumerate(extra)}}
+        exec(compile(src, "<wallbatch soft-face dispatch + lepton>", "exec"), namespace)  # noqa: S102 - generated here
+        soft_face = njit(nogil=True, error_model="numpy", inline="always")(namespace["_soft_face"])
+        block_step = njit(nogil=True, error_model="numpy", inline="always")(_relink(_block_step, _soft_face=soft_face))
+        return njit(nogil=True, error_model="numpy")(_relink(_run_chunk, _block_step=block_step))
+
 
 # ----------------------------------------------------------------------------- the Python side
 
@@ -473,13 +506,49 @@ class ChunkPlan:
     advance_numpy: Callable[[int, bool], None]
 
 
+def _face_styles(w: SoftWallKernel) -> list[WallStyle]:
+    """The style of each face of a soft kernel (wall/lepton and wall/table: one per face)."""
+    return list(w.face_styles) if isinstance(w, CustomWallKernel) else [w.style] * len(w.faces)
+
+
+def _generated_force(style: WallStyle) -> Any | None:
+    """The jitted force of a wall/lepton face (at most 3 parameters), else None."""
+    if isinstance(style, LeptonWallStyle) and style.expression is not None:
+        kernels = positional_kernels(style.expression)
+        return None if kernels is None else kernels[0]
+    return None
+
+
+# wall/lepton kernels are compiled per expression in each process (~15-25 s, no on-disk cache):
+# WALLBATCH_LEPTON_COMPILED=always|never|auto (default auto: when the run has at least
+# LEPTON_MIN_ATOM_STEPS atom-steps over its cases, where the compile pays for itself)
+LEPTON_MIN_ATOM_STEPS = 2e8
+
+
+def lepton_compiled_wanted(state: BatchState) -> bool:
+    """Whether wall/lepton faces run on the compiled path for this batch (see above)."""
+    mode = os.environ.get("WALLBATCH_LEPTON_COMPILED", "auto").strip().lower()
+    if mode in ("always", "1", "yes"):
+        return True
+    if mode in ("never", "0", "no"):
+        return False
+    remaining = np.maximum(state.end_step - state.step, 0).sum()
+    return float(remaining) * state.x.shape[1] >= LEPTON_MIN_ATOM_STEPS
+
+
+def _compiled_style(style: WallStyle, state: BatchState) -> bool:
+    if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] is style:
+        return True
+    return _generated_force(style) is not None and lepton_compiled_wanted(state)
+
+
 def eligible(plan: ChunkPlan) -> bool:
     """Whitelist: flat soft walls of compiled styles, wall/reflect (lab or wall frame), dt/reset,
     variables; nothing else in the scene."""
     if plan.others:
         return False
-    if any(type(w) is not SoftWallKernel or STYLE_IDS.get(w.style.name) is None
-           or COMPILED_STYLES[STYLE_IDS[w.style.name]] is not w.style for w in plan.soft):
+    if any(type(w) not in (SoftWallKernel, CustomWallKernel) or
+           not all(_compiled_style(st, plan.state) for st in _face_styles(w)) for w in plan.soft):
         return False
     return all(type(w) is ReflectKernel and w.frame in ("lab", "wall") for w in plan.reflect)
 
@@ -517,18 +586,18 @@ class FastPath:
         def value(v: Any) -> np.ndarray:
             return np.broadcast_to(v, (nval, C)) if isinstance(v, np.ndarray) else var(v)
 
-        soft_faces = [(w, face) for w in plan.soft for face in w.faces]
+        soft_faces = [(st, face) for w in plan.soft for st, face in zip(_face_styles(w), w.faces)]
         sf = np.zeros((C, nval, len(soft_faces), 5))
         rf = np.zeros((C, nval, sum(len(w.faces) for w in plan.reflect)))
         with np.errstate(all="ignore"):
             try:
-                for k, (w, face) in enumerate(soft_faces):
+                for k, (style, face) in enumerate(soft_faces):
                     coord = face.coord if isinstance(face.coord, np.ndarray) else var(face.coord) * face.scale
                     sf[:, :, k, 0] = np.broadcast_to(coord, (nval, C)).T
-                    for j, key in enumerate(w.style.args_names):
+                    for j, key in enumerate(style.args_names):
                         if key in face.params:
                             val = value(face.params[key])
-                            low = w.style.param(key).min
+                            low = style.param(key).min
                             if isinstance(face.params[key], str) and low is not None and np.any(val < low):
                                 return None  # the NumPy path fails these cases with its message
                             sf[:, :, k, 1 + j] = val.T
@@ -593,7 +662,17 @@ class FastPath:
             if not getattr(s, name).flags.c_contiguous:
                 setattr(s, name, np.ascontiguousarray(getattr(s, name)))
 
-        soft_faces = [(w, face) for w in plan.soft for face in w.faces]
+        soft_faces = [(w, st, face) for w in plan.soft for st, face in zip(_face_styles(w), w.faces)]
+        extra: list[Any] = []  # generated forces (wall/lepton), numbered after the registry's styles
+
+        def style_id(style: WallStyle) -> int:
+            if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] is style:
+                return STYLE_IDS[style.name]
+            force = _generated_force(style)
+            if force not in extra:
+                extra.append(force)
+            return len(COMPILED_STYLES) + extra.index(force)
+
         groups: list[np.ndarray] = [np.ones(s.x.shape[1], np.uint8)]
 
         def group(kernel_group: np.ndarray, all_atoms: bool) -> int:
@@ -603,8 +682,8 @@ class FastPath:
             groups.append(kernel_group.astype(np.uint8))
             return len(groups) - 1
 
-        sf_meta = np.array([[STYLE_IDS[w.style.name], face.dim, face.side, group(w.group, w.all_atoms)]
-                            for w, face in soft_faces], np.int64).reshape(-1, 4)
+        sf_meta = np.array([[style_id(st), face.dim, face.side, group(w.group, w.all_atoms)]
+                            for w, st, face in soft_faces], np.int64).reshape(-1, 4)
         rf_meta = np.array([[face.dim, face.side, 1 if w.frame == "wall" else 0, group(w.group, w.all_atoms)]
                             for w in plan.reflect for face in w.faces], np.int64).reshape(-1, 4)
         stats = bool(plan.reflect) and plan.reflect[0].stats
@@ -631,7 +710,7 @@ class FastPath:
             self._spare = tuple(np.empty_like(s.x) for _ in range(3))
         xo, vo, fo = self._spare
         backup = {k: getattr(s, k).copy() for k in ("dt", "atime", "atimestep", "step")}
-        status = _run_chunk(
+        status = _chunk_kernel(tuple(extra))(
             int(nsteps), time_mode, float(target if time_mode else 0.0),
             float(1e-12 * max(1.0, abs(target))) if time_mode else 0.0,
             s.x, s.v, s.f, s.mass, s.radius, s.dt, s.atime, s.atimestep, s.step,

@@ -52,6 +52,7 @@ __all__ = [
     "numba_kernel",
     "kernel_source",
     "lepton_style",
+    "LeptonWallStyle",
     "positional_kernels",
 ]
 
@@ -939,5 +940,14 @@ def lepton_style(expr: LeptonExpression) -> WallStyle:
             return evaluate(expr.energy, r, p) - evaluate(expr.energy, np.asarray(a[-2], dtype=np.float64), p)
 
     parameters = tuple(Param(n, "", variable=False, doc="a parameter of the expression") for n in names)
-    return WallStyle("lepton", parameters + (cutoff_param(),), force=force, energy=energy, shifted_fn=shifted,
-                     region=False, compiled=False, doc=f"wall/lepton {expr.text}")
+    return LeptonWallStyle("lepton", parameters + (cutoff_param(),), force=force, energy=energy,
+                           shifted_fn=shifted, region=False, compiled=False, doc=f"wall/lepton {expr.text}",
+                           expression=expr)
+
+
+@dataclass(frozen=True)
+class LeptonWallStyle(WallStyle):
+    """A face's expression as a wall style; ``expression`` gives the compiled path its generated
+    kernel (:func:`positional_kernels`)."""
+
+    expression: LeptonExpression | None = None
