@@ -521,8 +521,9 @@ def _generated_force(style: WallStyle) -> Any | None:
 
 # wall/lepton kernels are compiled per expression in each process (~15-25 s, no on-disk cache):
 # WALLBATCH_LEPTON_COMPILED=always|never|auto (default auto: when the run has at least
-# LEPTON_MIN_ATOM_STEPS atom-steps over its cases, where the compile pays for itself)
-LEPTON_MIN_ATOM_STEPS = 2e8
+# LEPTON_MIN_ATOM_STEPS atom-steps over its cases: about where the ~20 s compile pays for itself
+# against the NumPy path, ~55 ns/atom-step slower; benchmarks/lepton.md)
+LEPTON_MIN_ATOM_STEPS = 5e8
 
 
 def lepton_compiled_wanted(state: BatchState) -> bool:
