@@ -304,7 +304,7 @@ def test_lammps_aborts_on_an_expression_whose_derivative_lacks_r():
         "probe_wall('wall/lepton zlo -5.0 \"3.0*r\" 4.0 units box', np.array([1.5]))"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
-                          cwd=str(__import__("pathlib").Path(__file__).resolve().parents[1]))
+                          cwd=str(__import__("pathlib").Path(__file__).resolve().parents[2]))
     assert proc.returncode != 0
     assert "Unknown variable 'r'" in proc.stderr
     e, f = compile_expression("3.0*r").energy_force(np.array([1.5, 2.0]), {})
