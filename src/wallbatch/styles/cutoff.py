@@ -36,14 +36,16 @@ WrappedFn = Callable[..., np.ndarray]  # f(r, p0, p1, p2, rc, radius, r_on)
 def switch(r, r_on, rc):
     """(S, dS/dr) of the quintic switch on [r_on, rc]: S = 1 below r_on, 0 at and beyond rc. [-], [1/distance]
 
-    S(x) = 1 - x^3 (10 - 15 x + 6 x^2), dS/dx = -30 x^2 (1 - x)^2, x = (r - r_on)/(rc - r_on) in [0, 1].
+    S = 1 - 10 x^3 + 15 x^4 - 6 x^5 = (1 - x)^3 (1 + 3 x + 6 x^2), dS/dr = -30 x^2 (1 - x)^2 / (rc - r_on),
+    with x = (r - r_on)/(rc - r_on) and 1 - x = (rc - r)/(rc - r_on) each formed from an exact
+    difference and clipped to [0, 1], so S keeps its relative accuracy as r -> rc (where the
+    smooth energy S (E(r) - E(rc)) goes to 0).
     """
     w = rc - r_on
     x = np.minimum(np.maximum((r - r_on) / w, 0.0), 1.0)
-    x2 = x * x
-    s = 1.0 - x2 * x * (10.0 + x * (6.0 * x - 15.0))
-    om = 1.0 - x
-    ds = -30.0 * x2 * om * om / w
+    om = np.minimum(np.maximum((rc - r) / w, 0.0), 1.0)
+    s = om * om * om * (1.0 + x * (3.0 + 6.0 * x))
+    ds = -30.0 * (x * x) * (om * om) / w
     return s, ds
 
 
