@@ -342,3 +342,33 @@ def test_export_refuses_a_non_shift_wall():
         with pytest.raises(ExportError, match=rf"walls\.w: cutoff_mode {mode} \(LAMMPS's wall fixes only shift"):
             check_exportable(cfg)
     check_exportable(config_from_dict(gas("shift")))
+
+
+@pytest.mark.lammps
+def test_lammps_shift_has_the_same_low_order(tmp_path):
+    """LAMMPS (whose walls are `shift`) on the same lj93 slit: its energy drift has wallbatch's
+    shift numbers (an ideal gas: no chaos, the runs agree to rounding) and the same order < 1.6,
+    which force-shift and smooth raise to ~2 (test_force_continuous_modes_restore_second_order)."""
+    from wallbatch.lammps import validate as validate_mod
+    from wallbatch.lammps.export import lab_frame, lammps_ready
+
+    dts = [0.008, 0.004, 0.002, 0.001]
+    ours, theirs = [], []
+    for i, dt in enumerate(dts):
+        d = gas("shift", steps=int(round(10.0 / dt)), thermo=int(round(1.0 / dt)))
+        d["timestep"] = dt
+        cfg, _ = lab_frame(lammps_ready(config_from_dict(d))[0])
+        case = build_case(cfg)
+        exp = validate_mod.export_case(cfg, case, data_dir=tmp_path / str(i))
+        (tmp_path / str(i)).mkdir(exist_ok=True)
+        ref = validate_mod.run_lammps(exp, tmp_path / str(i))
+        etot = next(c.keyword for c in exp.thermo_columns if c.key == "etot")
+        res = Engine([case]).run()[0]
+        t = res.data["time"]
+        ours.append(abs(np.polyfit(t, res.data["etot"], 1)[0]) / case.natoms)
+        assert "norm no" in exp.script  # extensive totals, as wallbatch
+        theirs.append(abs(np.polyfit(t, ref[etot], 1)[0]) / case.natoms)
+    order = lambda v: float(np.polyfit(np.log(dts), np.log(v), 1)[0])  # noqa: E731
+    print("drift wallbatch", ours, "LAMMPS", theirs, "orders", order(ours), order(theirs))
+    np.testing.assert_allclose(theirs, ours, rtol=1e-6)
+    assert order(theirs) < 1.6 and order(ours) < 1.6, (order(theirs), order(ours))
