@@ -60,6 +60,9 @@ from wallbatch.engine.walls import CustomWallKernel, ReflectKernel, SoftWallKern
 from wallbatch.expr import VariableError
 from wallbatch.scene.case import DtResetSpec
 from wallbatch.styles import STYLES, WallStyle
+from wallbatch.styles import cutoff as _cutoff
+from wallbatch.styles.cutoff import CUTOFF_MODES, FORCE_SHIFT, SHIFT, SMOOTH, cutoff_functions
+from wallbatch.styles.cutoff import supported as cutoff_supported
 from wallbatch.styles.lepton import LeptonWallStyle, positional_kernels
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
@@ -86,16 +89,27 @@ def enabled() -> bool:
 
 
 def _dispatch_source(styles: tuple[WallStyle, ...]) -> str:
-    """Python source of `_soft_face(style, ...)`: one branch per compiled style, each a literal
-    call of the generic face loop with that style's force function and radius flag, so every style
-    gets its own loop with its force inlined."""
-    lines = ["def _soft_face(style, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1):"]
+    """Python source of `_soft_face(style, mode, ...)`: one branch per compiled style and cut-off
+    mode (wallbatch.styles.cutoff), each a literal call of the generic face loop with that pair's
+    force function and radius flag, so every pair gets its own loop with its force inlined."""
+    lines = ["def _soft_face(style, mode, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, u0, u1):"]
+    first = True
     for i, st in enumerate(styles):
-        lines.append(f"    {'if' if i == 0 else 'elif'} style == {i}:  # {st.name}")
-        lines.append(f"        return _face(_FORCE_{i}, {bool(st.needs_radius)}, X, F, RAD, groups, g, d, side, "
-                     "coord, p0, p1, p2, cut, u0, u1)")
+        for m in _modes(st):
+            lines.append(f"    {'if' if first else 'elif'} style == {i} and mode == {m}:  # {st.name} "
+                         f"{CUTOFF_MODES[m]}")
+            lines.append(f"        return _face(_FORCE_{i}_{m}, {bool(st.needs_radius)}, X, F, RAD, groups, g, d, "
+                         "side, coord, p0, p1, p2, cut, ron, u0, u1)")
+            first = False
     lines.append("    return 0")
     return "\n".join(lines) + "\n"
+
+
+def _modes(st: WallStyle) -> tuple[int, ...]:
+    """The cut-off modes the compiled path runs for a style (smooth needs a compiled shifted_fn)."""
+    if not cutoff_supported(st):
+        return (SHIFT,)
+    return (SHIFT, FORCE_SHIFT, SMOOTH) if st.compiled_shifted else (SHIFT, FORCE_SHIFT)
 
 
 def _fingerprint(styles: tuple[WallStyle, ...]) -> int:
@@ -104,8 +118,11 @@ def _fingerprint(styles: tuple[WallStyle, ...]) -> int:
     (numba keys a cached function by its own file only)."""
     h = hashlib.sha256()
     for st in styles:
-        h.update(f"{st.name}:{st.needs_radius}:".encode())
+        h.update(f"{st.name}:{st.needs_radius}:{_modes(st)}:".encode())
         h.update(inspect.getsource(st.force).encode())
+        if len(_modes(st)) > 1:
+            h.update(inspect.getsource(st.shifted_fn).encode())
+    h.update(inspect.getsource(_cutoff).encode())
     h.update(inspect.getsource(dt_candidate).encode())
     return int(h.hexdigest()[:15], 16)
 
@@ -140,10 +157,18 @@ if njit is not None:
 
     # the registry's force functions, compiled as they are (the same function objects)
     FORCES = tuple(njit(nogil=True, error_model="numpy")(st.force) for st in COMPILED_STYLES)
+    # each style's force under each cut-off mode it runs: the closures of styles.cutoff around the
+    # compiled force (and, for force-shift and smooth, E(r) - E(rc)), compiled as they are
+    _SHIFTED = {i: njit(nogil=True, error_model="numpy")(st.shifted_fn) for i, st in enumerate(COMPILED_STYLES)
+                if len(_modes(st)) > 1}
+    _switch = njit(nogil=True, error_model="numpy")(_cutoff.switch)
+    MODE_FORCES = {(i, m): njit(nogil=True, error_model="numpy")(
+        cutoff_functions(FORCES[i], _SHIFTED.get(i, FORCES[i]), m, _switch)[0])
+        for i, st in enumerate(COMPILED_STYLES) for m in _modes(st)}
     _dt_candidate = njit(nogil=True, error_model="numpy", inline="always")(dt_candidate)
 
     @inline
-    def _face(force, use_radius, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1):
+    def _face(force, use_radius, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, u0, u1):
         """One soft face over atoms u0..u1-1 (walls.SoftWallKernel.apply): r = distance into the
         allowed region; where r < rc (and the atom is in the group), F[d] -= side F(r). Returns the
         number of atoms on or behind the wall (r <= 0; with use_radius: r <= radius). `force` and
@@ -158,11 +183,11 @@ if njit is not None:
             nbad += near & (r <= rad)
             fi = F[d, i]
             if near:
-                fi = fi - sidef * force(r, p0, p1, p2, cut, rad)
+                fi = fi - sidef * force(r, p0, p1, p2, cut, rad, ron)
             F[d, i] = fi
         return nbad
 
-    _namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}": f for i, f in enumerate(FORCES)}}
+    _namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}_{m}": f for (i, m), f in MODE_FORCES.items()}}
     exec(compile(_dispatch_source(COMPILED_STYLES), "<wallbatch soft-face dispatch>", "exec"), _namespace)
     _soft_face = njit(nogil=True, error_model="numpy", inline="always")(_namespace["_soft_face"])
 
@@ -212,9 +237,10 @@ if njit is not None:
         for k in range(sf_meta.shape[0]):  # soft walls (post_force), one loop per style
             style = sf_meta[k, 0]
             g, d, side = sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2]
-            coord, cut = sf_val[c, si, k, 0], sf_val[c, si, k, 4]
+            coord, cut, ron = sf_val[c, si, k, 0], sf_val[c, si, k, 4], sf_val[c, si, k, 5]
             p0, p1, p2 = sf_val[c, si, k, 1], sf_val[c, si, k, 2], sf_val[c, si, k, 3]
-            nbad += _soft_face(style, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+            nbad += _soft_face(style, sf_meta[k, 4], X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron,
+                               u0, u1)
         if nbad:
             return 1, 0.0
         nlost = 0
@@ -458,18 +484,21 @@ if njit is not None:
     @functools.lru_cache(maxsize=32)
     def _chunk_kernel(extra: tuple[Any, ...]) -> Any:
         """The chunk kernel with the generated forces `extra` (wall/lepton expressions, jitted
-        force(r, p0, p1, p2, rc, radius)) as styles len(COMPILED_STYLES) + j: the registry's
-        dispatch with one more branch each, inlined like the built-in styles, and the block step and
-        chunk kernel re-linked to it. Compiled on first use in each process (no on-disk cache:
-        the expressions are not in a source file); the built-in styles keep `_run_chunk`."""
+        force(r, p0, p1, p2, rc, radius), cut-off mode shift) as styles len(COMPILED_STYLES) + j:
+        the registry's dispatch with one more branch each, inlined like the built-in styles, and
+        the block step and chunk kernel re-linked to it. Compiled on first use in each process (no
+        on-disk cache: the expressions are not in a source file); the built-in styles keep
+        `_run_chunk`."""
         if not extra:
             return _run_chunk
         n = len(COMPILED_STYLES)
         src = _dispatch_source(COMPILED_STYLES).replace("    return 0\n", "".join(
-            f"    elif style == {n + j}:  # wall/lepton\n        return _face(_EXTRA_{j}, False, X, F, RAD, groups, g, "
-            "d, side, coord, p0, p1, p2, cut, u0, u1)\n" for j in range(len(extra))) + "    return 0\n")
-        namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}": f for i, f in enumerate(FORCES)},
-                                     **{f"_EXTRA_{j}": f for j, f in enumerate(extra)}}
+            f"    elif style == {n + j} and mode == {SHIFT}:  # wall/lepton\n        return _face(_EXTRA_{j}, False, "
+            "X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, u0, u1)\n" for j in range(len(extra)))
+            + "    return 0\n")
+        namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}_{m}": f for (i, m), f in MODE_FORCES.items()},
+                                     **{f"_EXTRA_{j}": njit(nogil=True, error_model="numpy")(
+                                         cutoff_functions(f, f, SHIFT, _switch)[0]) for j, f in enumerate(extra)}}
         exec(compile(src, "<wallbatch soft-face dispatch + lepton>", "exec"), namespace)  # noqa: S102 - generated here
         soft_face = njit(nogil=True, error_model="numpy", inline="always")(namespace["_soft_face"])
         block_step = njit(nogil=True, error_model="numpy", inline="always")(_relink(_block_step, _soft_face=soft_face))
@@ -537,10 +566,10 @@ def lepton_compiled_wanted(state: BatchState) -> bool:
     return float(remaining) * state.x.shape[1] >= LEPTON_MIN_ATOM_STEPS
 
 
-def _compiled_style(style: WallStyle, state: BatchState) -> bool:
+def _compiled_face(w: SoftWallKernel, style: WallStyle, state: BatchState) -> bool:
     if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] is style:
-        return True
-    return _generated_force(style) is not None and lepton_compiled_wanted(state)
+        return w.cutoff.mode_id in _modes(style)
+    return _generated_force(style) is not None and w.cutoff.mode_id == SHIFT and lepton_compiled_wanted(state)
 
 
 def eligible(plan: ChunkPlan) -> bool:
@@ -549,7 +578,7 @@ def eligible(plan: ChunkPlan) -> bool:
     if plan.others:
         return False
     if any(type(w) not in (SoftWallKernel, CustomWallKernel) or
-           not all(_compiled_style(st, plan.state) for st in _face_styles(w)) for w in plan.soft):
+           not all(_compiled_face(w, st, plan.state) for st in _face_styles(w)) for w in plan.soft):
         return False
     return all(type(w) is ReflectKernel and w.frame in ("lab", "wall") for w in plan.reflect)
 
@@ -568,7 +597,7 @@ class FastPath:
 
     @staticmethod
     def _values(plan: ChunkPlan, nsteps: int, varying: bool) -> tuple[np.ndarray, np.ndarray] | None:
-        """Per-step wall values: soft (C, S', F, 5) = coord, p0, p1, p2, cutoff and reflect
+        """Per-step wall values: soft (C, S', F, 6) = coord, p0, p1, p2, cutoff, switch_on and reflect
         coords (C, S', R); S' = nsteps when a value varies with time, else 1. None: fall back."""
         s = plan.state
         C = s.ncases
@@ -588,7 +617,7 @@ class FastPath:
             return np.broadcast_to(v, (nval, C)) if isinstance(v, np.ndarray) else var(v)
 
         soft_faces = [(st, face) for w in plan.soft for st, face in zip(_face_styles(w), w.faces)]
-        sf = np.zeros((C, nval, len(soft_faces), 5))
+        sf = np.zeros((C, nval, len(soft_faces), 6))
         rf = np.zeros((C, nval, sum(len(w.faces) for w in plan.reflect)))
         with np.errstate(all="ignore"):
             try:
@@ -603,6 +632,8 @@ class FastPath:
                                 return None  # the NumPy path fails these cases with its message
                             sf[:, :, k, 1 + j] = val.T
                     sf[:, :, k, 4] = value(face.params["cutoff"]).T
+                    if "switch_on" in face.params:  # cutoff_mode smooth
+                        sf[:, :, k, 5] = value(face.params["switch_on"]).T
                 k = 0
                 for w in plan.reflect:
                     for face in w.faces:
@@ -641,7 +672,7 @@ class FastPath:
         if varying and (plan.dt_reset is not None or time_mode):
             return False  # per-step values depend on a dt that changes inside the chunk
         if varying and not time_mode:
-            per_step = 5 * max(1, sum(len(w.faces) for w in plan.soft + plan.reflect)) * s.ncases
+            per_step = 6 * max(1, sum(len(w.faces) for w in plan.soft + plan.reflect)) * s.ncases
             most = max(1, VALUE_BUDGET // per_step)
             if nsteps > most:  # split a long chunk: the values of fewer steps at a time
                 done = 0
@@ -683,8 +714,8 @@ class FastPath:
             groups.append(kernel_group.astype(np.uint8))
             return len(groups) - 1
 
-        sf_meta = np.array([[style_id(st), face.dim, face.side, group(w.group, w.all_atoms)]
-                            for w, st, face in soft_faces], np.int64).reshape(-1, 4)
+        sf_meta = np.array([[style_id(st), face.dim, face.side, group(w.group, w.all_atoms),
+                             w.cutoff.mode_id] for w, st, face in soft_faces], np.int64).reshape(-1, 5)
         rf_meta = np.array([[face.dim, face.side, 1 if w.frame == "wall" else 0, group(w.group, w.all_atoms)]
                             for w in plan.reflect for face in w.faces], np.int64).reshape(-1, 4)
         stats = bool(plan.reflect) and plan.reflect[0].stats

@@ -16,6 +16,7 @@ from wallbatch.engine.stochastic import StochasticKernel
 from wallbatch.scene.case import Case, CustomWallSpec, ReflectSpec, SoftWallSpec, StochasticSpec
 from wallbatch.styles.ees import ees_energy_force_torque, ees_torque, sigma_n
 from wallbatch.styles.base import WallStyle
+from wallbatch.styles.cutoff import CutoffStyle
 
 
 class SoftWallKernel:
@@ -25,6 +26,7 @@ class SoftWallKernel:
         s0 = specs[0]
         self.fix_id: str = s0.fix_id
         self.style: WallStyle = s0.style
+        self.cutoff = CutoffStyle(s0.style, s0.cutoff_mode)  # the style under the wall's cut-off mode
         self.group: np.ndarray = s0.group
         self.all_atoms = bool(s0.group.all())
         self.energy_to_pe: bool = s0.energy
@@ -57,10 +59,10 @@ class SoftWallKernel:
                 ok = ~bad
                 ci, ai, r = ci[ok], ai[ok], r[ok]
                 pa = {key: val[ok] for key, val in pa.items()}
-            f = self.style.force(r, *self.style.args(pa))
+            f = self.cutoff.force(r, pa)
             state.f[ci, ai, face.dim] -= face.side * f
             if outputs:
-                e_shifted = self.style.shifted_energy(r, pa)  # E(r) - E(rc) without cancellation
+                e_shifted = self.cutoff.energy(r, pa)  # E(r) - E(rc) without cancellation (shift)
                 energy += np.bincount(ci, weights=e_shifted, minlength=C)
                 vector[:, k] = np.bincount(ci, weights=face.side * f, minlength=C)
                 if self.virial:  # +F r on the (dim, dim) component, lo and hi alike (physics.md §3.4)
@@ -140,16 +142,17 @@ class CustomWallKernel(SoftWallKernel):
     def __init__(self, specs: list[CustomWallSpec]):
         super().__init__(specs)
         self.face_styles = specs[0].face_styles
+        self.face_cutoffs = [CutoffStyle(st, specs[0].cutoff_mode) for st in self.face_styles]
 
     def apply(self, state: "BatchState", outputs: bool) -> tuple[np.ndarray, np.ndarray] | None:
-        faces, style = self.faces, self.style
+        faces, style, cutoff = self.faces, self.style, self.cutoff
         C = state.ncases
         energy = np.zeros(C) if outputs else None
         vector = np.zeros((C, len(faces))) if outputs else None
         virial = np.zeros(C) if outputs and self.virial else None
         try:
-            for k, (face, face_style) in enumerate(zip(faces, self.face_styles)):
-                self.faces, self.style = [face], face_style
+            for k, (face, face_style, face_cutoff) in enumerate(zip(faces, self.face_styles, self.face_cutoffs)):
+                self.faces, self.style, self.cutoff = [face], face_style, face_cutoff
                 res = super().apply(state, outputs)
                 if outputs:
                     energy += res[0]
@@ -157,7 +160,7 @@ class CustomWallKernel(SoftWallKernel):
                     if virial is not None:
                         virial += self.last_virial
         finally:
-            self.faces, self.style = faces, style
+            self.faces, self.style, self.cutoff = faces, style, cutoff
         if virial is not None:
             self.last_virial = virial
         return (energy, vector) if outputs else None
