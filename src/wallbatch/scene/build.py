@@ -427,8 +427,8 @@ def _custom_spec(cfg: Config, fid: str, wall: Any, group: np.ndarray) -> CustomW
             signature.append((str(path.resolve()), spec.keyword, wall.tabstyle, wall.N))
         styles.append(style)
         faces.append(Face(face.label, face.name, face.dim, face.side, face.coord, face.scale, params))
-    return CustomWallSpec(fid, styles[0], group, wall.energy, tuple(faces), wall.virial, tuple(styles),
-                          tuple(signature))
+    return CustomWallSpec(fid, styles[0], group, wall.energy, tuple(faces), virial=wall.virial,
+                          face_styles=tuple(styles), signature=tuple(signature))
 
 
 @functools.lru_cache(maxsize=64)
@@ -445,7 +445,7 @@ def _stochastic_spec(cfg: Config, fid: str, wall: Any, group: np.ndarray, seed: 
         params = {"temp": spec.temp, "vx": spec.vel[0], "vy": spec.vel[1], "vz": spec.vel[2],
                   "ax": acc[0], "ay": acc[1], "az": acc[2]}
         faces.append(Face(face.label, face.name, face.dim, face.side, face.coord, face.scale, params))
-    return StochasticSpec(fid, group, f"stochastic/{wall.rstyle}", tuple(faces), seed)
+    return StochasticSpec(fid, group, f"stochastic/{wall.rstyle}", tuple(faces), seed=seed)
 
 
 def _profiles(cfg: Config, mask: Any) -> tuple[ProfileSpec, ...]:
