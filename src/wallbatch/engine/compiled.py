@@ -551,8 +551,8 @@ def _generated_force(style: WallStyle) -> Any | None:
 # wall/lepton kernels are compiled per expression in each process (~15-25 s, no on-disk cache):
 # WALLBATCH_LEPTON_COMPILED=always|never|auto (default auto: when the run has at least
 # LEPTON_MIN_ATOM_STEPS atom-steps over its cases: about where the ~20 s compile pays for itself
-# against the NumPy path, ~55 ns/atom-step slower; benchmarks/lepton.md)
-LEPTON_MIN_ATOM_STEPS = 5e8
+# against the NumPy path, ~25 ns/atom-step slower; benchmarks/lepton.md)
+LEPTON_MIN_ATOM_STEPS = 1e9
 
 
 def lepton_compiled_wanted(state: BatchState) -> bool:
