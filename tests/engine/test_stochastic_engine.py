@@ -169,3 +169,18 @@ def test_lammps_thermal_slit_statistics(tmp_path):
     assert abs(w.mean() - lmp.mean()) < 4 * se, (w, lmp)
     for m in (w.mean(), lmp.mean()):
         assert abs(m - math.sqrt(T_LO * T_HI)) < 0.05, (w, lmp)
+
+
+@pytest.mark.parametrize("rstyle,accom", [("maxwell", "0.4"), ("ccl", "[0.3, 0.8, 0.6]")])
+def test_maxwell_and_ccl_walls_run(rstyle, accom):
+    """Every rule runs through the engine: the gas stays inside, reflections are counted, and a
+    wall with accommodation 0 in every coefficient is specular (temperature conserved exactly
+    as with wall/reflect, up to round-off)."""
+    walls = (f"  w: {{style: reflect/stochastic, rstyle: {rstyle}, seed: 5, units: box,\n"
+             f"      zlo: {{coord: EDGE, temp: 1.5, accom: {accom}}}, zhi: {{coord: EDGE, temp: 1.5, accom: {accom}}}}}\n")
+    res = run_cases([build_case(load_config_text(scene(walls, steps=600, thermo=200)))])[0]
+    assert res.status == "ok", res.error
+    assert res.data["reflect_count"][1:].sum() > 0
+    zero = "0.0" if rstyle == "maxwell" else "[0.0, 0.0, 0.0]"
+    spec = run_cases([build_case(load_config_text(scene(walls.replace(accom, zero), steps=600, thermo=200)))])[0]
+    np.testing.assert_allclose(spec.data["ke"], spec.data["ke"][0], rtol=1e-12)
