@@ -35,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import erfc, erfcx, expit
 
+from wallbatch.engine import flow_compiled
 from wallbatch.scene.case import FlowSpec
 from wallbatch.units import UnitSystem
 
@@ -178,8 +179,16 @@ def _draw(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray, np.
 def _velocities(u1: np.ndarray, u2: np.ndarray, g: np.ndarray, gamma: np.ndarray,
                 vflow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """§8.3 from given random numbers: side from u1 (backward if u1 > P+), speed from
-    T(ν)/T(0) = 1 - u2 (in (0, 1]), parallel components g/(γ√2) = N(0,1) sqrt(kT/m)."""
+    T(ν)/T(0) = 1 - u2 (in (0, 1]), parallel components g/(γ√2) = N(0,1) sqrt(kT/m).
+    Compiled (flow_compiled.velocities) unless WALLBATCH_NUMBA=0; this NumPy code is the reference."""
     gamma = np.broadcast_to(np.asarray(gamma, float), u1.shape)
+    if flow_compiled.enabled():  # the same arithmetic per redraw, compiled (flow_compiled.py)
+        v_axis, v_par = np.empty(u1.shape), np.empty((u1.size, 2))
+        flow_compiled.velocities(np.ascontiguousarray(u1, float), np.ascontiguousarray(u2, float),
+                                 np.ascontiguousarray(g, float), np.ascontiguousarray(gamma),
+                                 np.ascontiguousarray(np.broadcast_to(np.asarray(vflow, float), u1.shape)),
+                                 v_axis, v_par)
+        return v_axis, v_par
     delta = gamma * np.broadcast_to(np.asarray(vflow, float), u1.shape)
     side = np.where(u1 > positive_fraction(delta), -1.0, 1.0)
     nu = solve_flux_speed(side * delta, 1.0 - u2)
