@@ -64,9 +64,11 @@ def test_velocities_match_numpy(monkeypatch, vflow):
 def test_flow_scene_compiled_matches_numpy(monkeypatch):
     """An ideal gas of 400 atoms between three flow walls (rule exact), 400 steps: the compiled
     redraw gives the same crossings and the same sampled outputs (to 1e-12: a few ulp per redraw
-    carried along straight lines), and it really ran (calls counted)."""
+    carried along straight lines), and it really ran (redraws counted). The crossing detection
+    and pending-return logic (flow_compiled.detect) is also covered by every test of
+    tests/test_flow.py, which run the compiled path by default."""
     calls = []
-    real = flow_compiled.velocities
+    real = flow_compiled.apply
 
     def spy(*args):
         calls.append(args[0].size)
@@ -84,10 +86,55 @@ def test_flow_scene_compiled_matches_numpy(monkeypatch):
     monkeypatch.setenv("WALLBATCH_NUMBA", "0")
     ref = Engine([case]).run()[0]
     monkeypatch.setenv("WALLBATCH_NUMBA", "1")
-    monkeypatch.setattr(flow_compiled, "velocities", spy)
+    monkeypatch.setattr(flow_compiled, "apply", spy)
     got = Engine([case]).run()[0]
     assert sum(calls) > 200  # redraws went through the compiled solver
     assert ref.status == got.status == "ok"
     np.testing.assert_array_equal(got.data["flow_crossings"], ref.data["flow_crossings"])
     for key in ("ke", "temp"):
         np.testing.assert_allclose(got.data[key], ref.data[key], rtol=1e-12)
+
+
+def test_kernel_end_of_step_compiled_matches_numpy(monkeypatch):
+    """FlowKernel.end_of_step compiled (detect + apply) against the NumPy code on a batch of three
+    cases (rules exact and lammps, axes x and z, a group, per-atom masses) with forces turning
+    atoms round in front of walls (a harmonic pull to the box centre): same crossings per step,
+    same segments and pending returns, velocities within the solver tolerance."""
+    from wallbatch.scene.case import FlowSpec
+    from wallbatch.units import UNIT_SYSTEMS
+
+    n, L, dt = 80, 10.0, 0.02
+    grp = np.arange(n) % 5 != 0
+    specs = [FlowSpec("flow", np.ones(n, bool), 0, 0.4, 1.5, np.array([2.5, 5.0, 7.5]), "exact"),
+             FlowSpec("flow", grp, 2, 1.0, 0.5, np.array([4.0]), "lammps"),
+             FlowSpec("flow", np.ones(n, bool), 0, 2.0, 1.0, np.array([1.0, 9.0]), "exact")]
+    rng = np.random.default_rng(5)
+    x0 = rng.random((3, n, 3)) * L
+    v0 = rng.normal(0.3, 1.0, (3, n, 3))
+    mass = rng.choice([1.0, 2.0], (3, n))
+
+    def run(numba: str):
+        monkeypatch.setenv("WALLBATCH_NUMBA", numba)
+        k = flow.FlowKernel(specs, [np.random.default_rng(s) for s in (1, 2, 3)], np.zeros(3), np.full(3, L),
+                            UNIT_SYSTEMS["lj"])
+        x, v = x0.copy(), v0.copy()
+        k.setup(x)
+        history = []
+        for _ in range(400):
+            v -= dt * 0.8 * (x - L / 2) / mass[..., None]
+            x += dt * v
+            x[:] = np.mod(x, L)
+            k.end_of_step(x, v, mass)
+            history.append((k.take_crossings(), k.segments.copy(), k.pend.copy()))
+        return v, history
+
+    v_ref, h_ref = run("0")
+    v_got, h_got = run("1")
+    total = 0
+    for (c0, s0, p0), (c1, s1, p1) in zip(h_ref, h_got):
+        np.testing.assert_array_equal(c1, c0)
+        np.testing.assert_array_equal(s1, s0)
+        np.testing.assert_array_equal(p1, p0)
+        total += c0.sum()
+    assert total > 300 and any((p != 0).any() for _, _, p in h_ref)  # crossings and pending returns happened
+    np.testing.assert_allclose(v_got, v_ref, rtol=1e-11, atol=1e-11)

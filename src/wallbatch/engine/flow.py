@@ -369,6 +369,9 @@ class FlowKernel:
         """
         if self.phys is None:
             raise RuntimeError(f"walls.{self.fix_id}: FlowKernel.setup(x) must run before end_of_step")
+        if flow_compiled.enabled():
+            self._end_of_step_compiled(x, v, mass)
+            return
         C = self.ncases
         xa = self._axis_coord(x)
         p = self._segment(xa)
@@ -403,6 +406,28 @@ class FlowKernel:
             self.pend[ci, ai] = np.where(back, -direction, 0.0).astype(np.int8)
             self.crossings += counts
         self.phys = p
+        self.prev = xa
+
+    def _end_of_step_compiled(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray) -> None:
+        """end_of_step with the detection and the redraws compiled (flow_compiled.detect, apply);
+        the random numbers drawn here as in the NumPy code (per case, `_draw`, same order)."""
+        C, N = x.shape[0], x.shape[1]
+        seg = np.empty((C, N), np.intp)
+        xa = np.empty((C, N))
+        ci = np.empty(C * N, np.intp)
+        ai = np.empty(C * N, np.intp)
+        direction = np.empty(C * N)
+        n = flow_compiled.detect(x, v, self.group, self.axis, self.lo, self.length, self.walls, self.phys,
+                                 self.pend, self.prev, seg, xa, ci, ai, direction)
+        if n:
+            ci, ai, direction = ci[:n], ai[:n], direction[:n]
+            counts = np.bincount(ci, minlength=C)
+            parts = [_draw(self.rngs[c], int(counts[c])) for c in np.nonzero(counts)[0]]
+            u1, u2, g = (np.concatenate(z) for z in zip(*parts))
+            flow_compiled.apply(ci, ai, direction, u1, u2, g, self.kT, mass, self.vflow, self.axis, self.exact, v,
+                                self.pend)
+            self.crossings += counts
+        self.phys = seg
         self.prev = xa
 
     def take_crossings(self) -> np.ndarray:

@@ -147,3 +147,63 @@ if njit is not None:
             scale = gamma[i] * _SQRT2
             v_par[i, 0] = g[i, 0] / scale
             v_par[i, 1] = g[i, 1] / scale
+
+    @jit
+    def detect(x, v, group, axis, lo, length, walls, phys, pend, prev, seg, xa, ci, ai, direction) -> int:
+        """FlowKernel.end_of_step up to the draws, for every case: the wrapped axis coordinate xa
+        (C, N) and its segment seg (C, N); returned atoms get pend 0; the crossings go to ci, ai,
+        direction (case-major, ascending atom: the order of the draws). Returns their number."""
+        C, N = x.shape[0], x.shape[1]
+        n = 0
+        for c in range(C):
+            ax = axis[c]
+            for i in range(N):
+                xi = x[c, i, ax]
+                xa[c, i] = xi
+                xw = lo[c] + (xi - lo[c]) % length[c]
+                s = 0
+                for k in range(walls.shape[1]):
+                    s += xw >= walls[c, k]
+                seg[c, i] = s
+                if not group[c, i]:
+                    continue
+                moved = s != phys[c, i]
+                pe = float(pend[c, i])
+                if not moved and pe == 0.0:
+                    continue
+                va = v[c, i, ax]
+                dx = xi - prev[c, i]
+                dx -= length[c] * np.rint(dx / length[c])
+                d = np.sign(dx)
+                if d == 0.0:
+                    d = np.sign(va)
+                if d == 0.0:
+                    d = 1.0
+                returned = (pe != 0.0) & moved & (d == pe)
+                turned = (pe != 0.0) & (not moved) & (va * pe <= 0.0)
+                if returned:
+                    pend[c, i] = 0
+                if (moved & (not returned)) | turned:
+                    ci[n] = c
+                    ai[n] = i
+                    direction[n] = -pe if turned else d
+                    n += 1
+        return n
+
+    @jit
+    def apply(ci, ai, direction, u1, u2, g, kT, mass, vflow, axis, exact, v, pend) -> None:
+        """The redraws of the crossings ci, ai from the drawn u1, u2, g (flow._velocities per atom),
+        and pend after them (rule exact: -direction if the new velocity points back, else 0)."""
+        for k in range(ci.shape[0]):
+            c, a = ci[k], ai[k]
+            gamma = 1.0 / math.sqrt(2.0 * kT[c] / mass[c, a])
+            delta = gamma * vflow[c]
+            pplus = _expit(log_tail(0.0, delta) - log_tail(0.0, -delta), 0)
+            side = -1.0 if u1[k] > pplus else 1.0
+            v_axis = side * solve_flux_speed(side * delta, 1.0 - u2[k], 100) / gamma
+            ax = axis[c]
+            scale = gamma * _SQRT2
+            v[c, a, ax] = v_axis
+            v[c, a, (ax + 1) % 3] = g[k, 0] / scale
+            v[c, a, (ax + 2) % 3] = g[k, 1] / scale
+            pend[c, a] = -direction[k] if exact[c] and v_axis * direction[k] < 0.0 else 0.0
