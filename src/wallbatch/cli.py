@@ -191,6 +191,48 @@ def validate(config: Path = typer.Argument(..., help="scene or sweep YAML file")
         raise typer.Exit(1)
 
 
+@app.command("import-lammps")
+def import_lammps(script: Path = typer.Argument(..., help="LAMMPS input script (in.NAME)"),
+                  output: Path = typer.Option(None, "-o", "--output", help="config YAML to write (default: print it)"),
+                  var: list[str] = typer.Option(None, "--var", help="name=value: an index variable, as lmp -var "
+                                                "(repeatable)"),
+                  strict: bool = typer.Option(False, "--strict", help="exit 1 if any command could not be imported"),
+                  exact: bool = typer.Option(False, "--exact", help="run the setup in LAMMPS and start from its state "
+                                             "(a data file beside the config): LAMMPS's random numbers"),
+                  ) -> None:
+    """Turn a LAMMPS input script into an equivalent wallbatch config, commented with the original
+    lines; what cannot be imported is listed at its end (exit 1 under --strict)."""
+    from wallbatch.lammps.importer import LammpsImportError, import_lammps as do_import
+    from wallbatch.lammps.validate import LammpsMissing
+
+    variables = {}
+    for item in var or []:
+        key, eq, value = item.partition("=")
+        if not eq or not key.strip():
+            typer.echo(f"error: --var {item}: write name=value", err=True)
+            raise typer.Exit(2)
+        variables[key.strip()] = value.strip()
+    try:
+        result = do_import(script, output, variables, exact=exact)
+    except (LammpsImportError, LammpsMissing) as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from None
+    if output is None:
+        typer.echo(result.text, nl=False)
+    else:
+        output.write_text(result.text)
+        typer.echo(f"wrote {output}" + "".join(f" and {p}" for p in result.written), err=True)
+    for issue in result.unsupported:
+        typer.echo(f"not imported: {script}:{issue.line}: {issue.text} -> {issue.reason}", err=True)
+    for problem in result.problems:
+        typer.echo(f"invalid: {problem}", err=True)
+    if not result.complete:
+        typer.echo(f"{len(result.unsupported) + len(result.problems)} problem(s): the config differs from the "
+                   f"script (listed at its end)", err=True)
+        if strict:
+            raise typer.Exit(1)
+
+
 def _floats(text: str | None, option: str) -> list[float] | None:
     if not text:
         return None

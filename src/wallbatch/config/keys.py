@@ -60,8 +60,13 @@ KEYS: dict[str, Key] = {
     "atoms[].create.lattice.region": Key("Region to fill (default the box).", "", "`create_atoms 1 region R`"),
     "atoms[].create.positions": Key("Explicit positions, one [x, y, z] per atom.", "distance",
                                     "`create_atoms single`, a data file"),
-    "atoms[].create.file": Key("An `.npz` file (relative to the YAML file) with `x` (N, 3) and optionally "
-                               "`v`, `mass`, `radius`, `shape`, `quat` (N, 4), `angmom`.", "", "`read_data`"),
+    "atoms[].create.file": Key("A file relative to the YAML file: an `.npz` archive with `x` (N, 3) and "
+                               "optionally `v`, `mass`, `radius`, `shape`, `quat` (N, 4), `angmom`, or (any other "
+                               "name) a LAMMPS data file, atom_style atomic, sphere or ellipsoid (its diameters "
+                               "become semi-axes); see How-tos: Import a LAMMPS script.", "", "`read_data`"),
+    "atoms[].create.ids": Key("LAMMPS data files only: the atom IDs of this group, as ranges in quotes "
+                              "(`\"1:200 305\"`); default every atom of the file.", "",
+                              "`group ID id 1:200 305`"),
     "atoms[].mass": Key("Mass of every atom of the group (required unless the `.npz` gives masses).", "mass",
                         "`mass`"),
     "atoms[].radius": Key("Finite-size spheres (needed by wall/colloid).", "distance",

@@ -147,6 +147,15 @@ class Create(Model):
     lattice: LatticeCreate | None = None
     positions: list[Vec3] | None = None
     file: str | None = None
+    ids: str | None = None  # LAMMPS data files: the atom IDs of this group, e.g. "1:200 305"
+
+    @field_validator("ids", mode="before")
+    @classmethod
+    def _ids_text(cls, v: Any) -> Any:
+        if isinstance(v, int) and not isinstance(v, bool):  # YAML 1.1 reads 3:4 as the number 184
+            raise ValueError(f"write atom IDs as a quoted string, e.g. ids: \"1:200 305\" (unquoted, YAML reads "
+                             f"a range like 3:4 as a number; got {v})")
+        return v
 
     @model_validator(mode="after")
     def _one(self) -> "Create":
@@ -155,6 +164,10 @@ class Create(Model):
             raise ValueError(
                 f"give exactly one of random, lattice, positions, file (got {', '.join(given) or 'none'})"
             )
+        if self.ids is not None and (self.file is None or self.file.endswith(".npz")):
+            raise ValueError("ids selects atoms of a LAMMPS data file: use it with file: NAME.data")
+        if self.ids is not None and not re.fullmatch(r"\s*\d+([:*]\d+)?(\s+\d+([:*]\d+)?)*\s*", self.ids):
+            raise ValueError(f"ids: write LAMMPS atom ID ranges like '1:200 305', got {self.ids!r}")
         if self.positions is not None and len(self.positions) == 0:
             raise ValueError("positions is empty")
         return self

@@ -77,7 +77,7 @@ class Engine:
         if c0.pair is not None:
             self.pair = PairLJCut(np.array([c.pair.epsilon for c in cases]), np.array([c.pair.sigma for c in cases]),
                                   np.array([c.pair.cutoff for c in cases]), box_lo=c0.box_lo, box_hi=c0.box_hi,
-                                  periodic=c0.periodic, shift=c0.pair.shift, skin=c0.pair.skin)
+                                  periodic=self._pair_periodic(c0), shift=c0.pair.shift, skin=c0.pair.skin)
         self.flow: list = []  # flow.FlowKernel per wall/flow fix
         if c0.flow_walls:
             for i in range(len(c0.flow_walls)):
@@ -134,6 +134,15 @@ class Engine:
         if s.quat is not None:
             s.angmom += ((0.5 * s.units.ftm2v) * dt)[:, None, None] * s.torque
 
+    @staticmethod
+    def _pair_periodic(case) -> np.ndarray:
+        """Periodic dimensions for the pair's minimum image: in 2-D every atom has z = 0 and the
+        thin periodic z never wraps a pair, so z is left out (its length may be below 2 rc)."""
+        periodic = np.array(case.periodic, dtype=bool)
+        if case.dimension == 2:
+            periodic[2] = False
+        return periodic
+
     def wrap(self) -> None:
         """Wrap periodic dimensions every step (x -= L past hi, x += L below lo, as LAMMPS)."""
         s = self.state
@@ -156,7 +165,7 @@ class Engine:
                 for c, a in zip(ci.tolist(), ai.tolist()):
                     first.setdefault(c, a)
                 s.fail(np.array(sorted(first)), lambda c, d=d: (
-                    f"atom {first[c]} left the box through the fixed {'xyz'[d]} boundary at step "
+                    f"atom ID {first[c] + 1} left the box through the fixed {'xyz'[d]} boundary at step "
                     f"{int(s.step[c])} (LAMMPS: Lost atoms): put a wall on that face, or make it periodic"))
 
     def compute_forces(self, outputs: bool) -> dict[str, tuple[np.ndarray, ...]]:

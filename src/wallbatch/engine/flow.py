@@ -18,7 +18,7 @@ Rules (per case):
   crossed, the atom belongs to the segment it is heading into (the one it came from). Its
   return over that wall is not a crossing; if it turns round before getting back (forces) it
   re-enters the segment it sits in, which is a crossing. An ideal gas then has exactly the
-  shifted Maxwellian M(v - vflow) in every segment (tests/test_flow.py; LAMMPS's rule gives
+  shifted Maxwellian M(v - vflow) in every segment (tests/engine/test_flow.py; LAMMPS's rule gives
   a density ∝ Z± M(v - vflow) on each side of 0, <v_x> 0.728 instead of 0.4 for vflow 0.4, T 1.5).
 
 A crossing is a redraw; `take_crossings` returns their number per case since the last call.

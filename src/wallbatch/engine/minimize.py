@@ -1,7 +1,7 @@
 """Batched energy minimisation: LAMMPS ``minimize etol ftol maxiter maxeval`` (issue 8).
 
 Two styles, as LAMMPS 22Jul2025 runs them (re-derived from its documentation and behaviour,
-checked against the binary in ``tests/test_minimize.py``):
+checked against the binary in ``tests/engine/test_minimize.py``):
 
 * ``cg`` (LAMMPS's default ``min_style``): Polak-Ribiere conjugate gradients with the
   ``quadratic`` line search (LAMMPS's default ``min_modify line``);

@@ -95,7 +95,7 @@ class SoftWallKernel:
         for c, a, d in zip(ci.tolist(), ai.tolist(), r.tolist()):
             first.setdefault(c, (a, d))
         state.fail(np.array(sorted(first)), lambda c: (
-            f"walls.{self.fix_id} (wall/{self.style.name} {face}): atom {first[c][0]} at distance "
+            f"walls.{self.fix_id} (wall/{self.style.name} {face}): atom ID {first[c][0] + 1} at distance "
             f"{first[c][1]:.6g} from the wall at step {int(state.step[c])}: {what} "
             f"(LAMMPS: Particle on or inside fix wall surface)"))
 

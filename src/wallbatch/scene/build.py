@@ -15,6 +15,7 @@ from wallbatch.config.models import Config, TimeInterval, lattice_spacing
 from wallbatch.expr import Variables
 from wallbatch.geometry.quaternion import normalize, random_quaternions
 from wallbatch.geometry.regions import RegionGeom
+from wallbatch.scene.datafile import DataFileError, read_data_file, select_ids
 from wallbatch.scene.case import (
     Case,
     CaseError,
@@ -108,6 +109,43 @@ def _lattice_positions(cfg: Config, region: str | None) -> np.ndarray:
     return pts
 
 
+def _is_npz(file: Path) -> bool:
+    """A NumPy .npz archive (a zip file), as opposed to a LAMMPS data file (text)."""
+    if file.suffix == ".npz":
+        return True
+    try:
+        with open(file, "rb") as fh:
+            return fh.read(2) == b"PK"
+    except OSError:
+        return False
+
+
+def _data_file_atoms(cfg: Config, g: Any, file: Path, path: str) -> dict[str, np.ndarray]:
+    """A group's atoms from a LAMMPS data file (all of them, or the atom IDs of `create.ids`),
+    sorted by ID. The group's `mass` and `velocity` override the file's, as LAMMPS's `mass`,
+    `set ... mass` and `velocity` commands do after `read_data`."""
+    periodic = tuple(b == "p" for b in cfg.box.boundary)
+    try:
+        df = read_data_file(file, periodic=periodic)
+    except DataFileError as exc:
+        raise _fail(f"{path}.file", str(exc)) from None
+    select = None
+    if g.create.ids is not None:
+        select = select_ids(df.ids, g.create.ids)
+        if not select.any():
+            raise _fail(f"{path}.ids", f"no atom of {file} has an ID in {g.create.ids}")
+    data = df.arrays(select)
+    if g.mass is not None:
+        del data["mass"]
+    elif np.any(np.isnan(data["mass"])):
+        raise _fail(f"{path}.file", f"{file} gives no mass for atom type(s) "
+                    f"{sorted(set(df.types[select if select is not None else slice(None)][np.isnan(data['mass'])].tolist()))}"
+                    f" (no Masses line): give the group a mass")
+    if g.velocity is not None:
+        data.pop("v", None)
+    return data
+
+
 def _per_atom(value: Any, n: int, width: int, path: str) -> np.ndarray:
     arr = np.asarray(value, float)
     if arr.ndim == 1:
@@ -151,11 +189,14 @@ def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]
         else:
             file = Path(c.file)
             file = file if file.is_absolute() else cfg._base_dir / file
-            try:
-                with np.load(file) as npz:
-                    data = {k: np.asarray(npz[k], float) for k in npz.files}
-            except (OSError, ValueError) as exc:
-                raise _fail(f"{path}.create.file", f"cannot read {file}: {exc}") from None
+            if not _is_npz(file):  # a LAMMPS data file (any name: data.NAME, NAME.data, ...)
+                data = _data_file_atoms(cfg, g, file, f"{path}.create")
+            else:
+                try:
+                    with np.load(file) as npz:
+                        data = {k: np.asarray(npz[k], float) for k in npz.files}
+                except (OSError, ValueError) as exc:
+                    raise _fail(f"{path}.create.file", f"cannot read {file}: {exc}") from None
             if "x" not in data or data["x"].ndim != 2 or data["x"].shape[1] != 3:
                 raise _fail(f"{path}.create.file", f"{file} needs an array x of shape (N, 3)")
             x = data["x"]
@@ -196,7 +237,7 @@ def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]
     outside = np.nonzero(np.any((x < lo) | (x > hi), axis=1))[0]
     if len(outside):
         i = outside[0]
-        raise CaseError(f"atoms: atom {i} at {x[i].tolist()} is outside the box {lo.tolist()} - {hi.tolist()}")
+        raise CaseError(f"atoms: atom ID {i + 1} at {x[i].tolist()} is outside the box {lo.tolist()} - {hi.tolist()}")
     out = {"x": x, "v": np.concatenate(vs), "mass": np.concatenate(ms),
            "radius": np.concatenate(rs), "group": np.concatenate(gid)}
     shape = np.concatenate(shapes)
@@ -226,7 +267,8 @@ def _ellipsoid_state(g: Any, data: dict[str, np.ndarray], n: int, rng: np.random
         quat = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
     if not np.all(np.linalg.norm(quat, axis=1) > 0):
         raise _fail(f"{path}.orientation", "a quaternion of length 0 has no orientation")
-    quat = normalize(quat)
+    unit = np.abs(np.einsum("ij,ij->i", quat, quat) - 1.0) <= 2e-15  # already unit (e.g. a data file's)
+    quat = np.where(unit[:, None], quat, normalize(quat)) if "quat" in data else normalize(quat)
     if "angmom" in data:
         angmom = _per_atom(data["angmom"], n, 3, f"{path}.create.file")
     elif g.angmom is not None:

@@ -20,7 +20,7 @@ a^k b^(n-1-k); Morse: expm1; colloid: the same for its two terms, plus the atanh
 and a series in (R/r)^2 for the far field).
 
 Accuracy: relative error <= 1e-13 against a 50-digit evaluation of the closed forms for E, F and
-the shifted energy, wherever the value is not near one of its own roots (tests/test_stability.py
+the shifted energy, wherever the value is not near one of its own roots (tests/styles/test_stability.py
 defines this precisely); lengths enter only as ratios (sigma/r, R/r, (rc - r)/rc), so any length
 scale works as long as the result is representable.
 

@@ -16,7 +16,7 @@ from wallbatch.config.sweep import load_plan
 
 jsonschema = pytest.importorskip("jsonschema")
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = sorted(p for d in ("configs", "sweeps") for p in (ROOT / d).rglob("*.yaml"))
 
 

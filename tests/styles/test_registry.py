@@ -23,7 +23,7 @@ from wallbatch.scene.case import Case, structure_key
 from wallbatch.styles import STYLES, WallStyle
 from wallbatch.styles.base import MAX_COMPILED_PARAMS, _missing
 
-SRC = Path(__file__).resolve().parents[1] / "src"
+SRC = Path(__file__).resolve().parents[2] / "src"
 
 NAMES = sorted(STYLES)
 CLOSED = sorted(n for n, s in STYLES.items() if s.force is not _missing)  # E(r), F(r) in closed form
@@ -313,7 +313,7 @@ def test_structure_key_refuses_a_field_it_has_no_rule_for():
 @pytest.mark.parametrize("name", sorted(n for n, s in STYLES.items() if s.compiled))
 def test_compiled_engine_runs_every_compiled_style(name, monkeypatch):
     """A registered compiled style runs in the numba path (no fallback) and gives the NumPy
-    engine's samples (to 1e-14 of each output's scale, as tests/test_fast.py)."""
+    engine's samples (to 1e-14 of each output's scale, as tests/engine/test_compiled.py)."""
     fast = pytest.importorskip("wallbatch.engine.compiled")
     if fast.njit is None:
         pytest.skip("numba not importable")

@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 import pytest
+from factories import atoms, box_scene, run_one
 from lammps_oracle import (
     LammpsRunError,
     Scene,
@@ -23,7 +24,6 @@ from lammps_oracle import (
 
 from wallbatch.config.source import ConfigError
 from wallbatch.config.models import config_from_dict
-from wallbatch.engine.engine import run_cases
 from wallbatch.batch.runner import run_config
 from wallbatch.scene.build import build_case
 
@@ -37,17 +37,12 @@ EES_E_2_5 = -0.008385934463405598  # §15: ees xlo r 2.5, diam (2, 1, 1), 30 deg
 
 
 def scene(atoms: list[dict], walls: dict, *, boundary=("f", "p", "p"), steps: int = 0, **extra) -> dict:
-    d = {"units": "lj", "seed": 1, "box": {"lo": [0, 0, 0], "hi": [10, 10, 10], "boundary": list(boundary)},
-         "atoms": atoms, "walls": walls, "timestep": 0.005, "run": {"steps": steps, "thermo": 1}}
-    d.update(extra)
-    return d
+    return box_scene(atoms, walls, lo=(0, 0, 0), hi=(10, 10, 10), boundary=boundary, timestep=0.005, steps=steps,
+                     seed=1, **extra)
 
 
 def point(positions, velocities=None, mass=1.0, **extra) -> dict:
-    g = {"group": "a", "create": {"positions": [list(p) for p in positions]}, "mass": mass, **extra}
-    if velocities is not None:
-        g["velocity"] = {"values": [list(v) for v in velocities]}
-    return g
+    return atoms("a", positions, velocities, mass, **extra)
 
 
 def oracle(d: dict, fixes: list[str], outputs: list[str], variables: dict | None = None,
@@ -99,16 +94,15 @@ def test_morse_alpha_variable_is_evaluated():
 
 @requires_lammps
 def test_morse_alpha_variable_is_ignored_by_lammps():
-    """LAMMPS never evaluates a v_ alpha, even for a variable that does not exist (no error): alpha
-    stays unset, which is uninitialised memory (0 in most runs; CI runs saw E = -2.9e-6 and
-    -0.87), so the energy is not the evaluated one; the same wall with alpha 2.0 written as a
-    number gives the §15 values."""
+    """LAMMPS never evaluates a v_ alpha: a variable that does not exist gives no error. alpha
+    stays unset, which is uninitialised memory (0 in most runs; CI runs saw E = -2.9e-6, -0.87,
+    and once exactly the alpha of an earlier wall of the same process), so nothing is pinned
+    about that energy; the same wall with alpha 2.0 written as a number gives the §15 values."""
     d = scene([point([(1.3, 5, 5)])], {"w": {"style": "morse", "units": "box", "xlo": MORSE_ALPHA_VAR}},
               variables={"a": "1.0 + 1.0"})
     out = ["f_w", "f_w[1]"]
-    for alpha in ("v_a", "v_nothere"):
-        ref = oracle(d, [f"fix w all wall/morse xlo 0.0 1.5 {alpha} 1.1 3.0 units box"], out, {"a": "1.0 + 1.0"})
-        assert abs(ref["f_w"][0] - MORSE_E_1_3) > 1e-6 * abs(MORSE_E_1_3)
+    ref = oracle(d, ["fix w all wall/morse xlo 0.0 1.5 v_nothere 1.1 3.0 units box"], out, {"a": "1.0 + 1.0"})
+    assert len(ref["f_w"]) >= 1  # ran: the undefined variable was never evaluated
     ref = oracle(d, ["fix w all wall/morse xlo 0.0 1.5 2.0 1.1 3.0 units box"], out)
     assert ref["f_w"][0] == pytest.approx(MORSE_E_1_3, rel=1e-12)
     assert ref["f_w[1]"][0] == pytest.approx(MORSE_FW_1_3, rel=1e-8)
@@ -182,7 +176,7 @@ def test_region_ees_too_close_uses_the_true_sigma_n():
     ds = run_config(config_from_dict(_region_ees_scene(1.8, -45.0)[0]))
     assert ds.status.item() == "failed"
     msg = ds.error.item()
-    assert "walls.shell (wall/region/ees ball)" in msg and "atom 0" in msg and "step 0" in msg
+    assert "walls.shell (wall/region/ees ball)" in msg and "atom ID 1" in msg and "step 0" in msg
     assert "Particle on or inside surface of region used in fix wall/region/ees" in msg
     ds = run_config(config_from_dict(_region_ees_scene(1.0, 45.0)[0]))
     assert ds.status.item() == "ok", ds.error.item()
@@ -308,13 +302,13 @@ def test_colloid_larger_than_the_cutoff_is_skipped_in_both():
     d = scene([point([(1.8, 5, 5)], radius=2.0)],
               {"w": {"style": "colloid", "units": "box", "energy": True,
                      "xlo": {"coord": 0.0, "epsilon": 1.0, "sigma": 1.0, "cutoff": 1.5}}}, steps=3)
-    res = run_cases([build_case(config_from_dict(d))])[0]
+    res = run_one(d)
     assert res.status == "ok", res.error
     assert not np.any(res.data["wall_energy"]) and not np.any(res.data["wall_force"])
     ref = oracle(d, ["fix w all wall/colloid xlo 0.0 1.0 1.0 1.5 units box"], ["f_w", "f_w[1]"])
     assert not np.any(ref["f_w"]) and not np.any(ref["f_w[1]"])
     d["atoms"][0]["create"]["positions"] = [[1.4, 5, 5]]  # within rc: the contact error, in both
-    res = run_cases([build_case(config_from_dict(d))])[0]
+    res = run_one(d)
     assert res.status == "failed" and "Particle on or inside fix wall surface" in res.error
     with pytest.raises(LammpsRunError, match="Particle on or inside fix wall surface"):
         oracle(d, ["fix w all wall/colloid xlo 0.0 1.0 1.0 1.5 units box"], ["f_w"])
@@ -326,7 +320,7 @@ def test_colloid_larger_than_the_cutoff_is_skipped_in_both():
 def test_features_without_a_wallbatch_counterpart_are_refused():
     """Quirk #6 (region ellipsoid surfaces): wallbatch has block, sphere and cylinder regions only.
     Quirk #25 (wall/reflect with rigid bodies, a warning in LAMMPS): wallbatch has no rigid
-    bodies; a rigid fix line is refused. Quirk #15: `fld yes` is refused (tests/test_config.py)."""
+    bodies; a rigid fix line is refused. Quirk #15: `fld yes` is refused (tests/config/test_config.py)."""
     base = scene([point([(5, 5, 5)])], {})
     with pytest.raises(ConfigError, match="regions.e.style"):
         config_from_dict(dict(base, regions={"e": {"style": "ellipsoid", "center": [5, 5, 5], "units": "box"}}))
@@ -343,7 +337,7 @@ def test_quirks_page_names_real_tests_and_every_section_13_quirk():
     import re
     from pathlib import Path
 
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]
     text = (root / "docs" / "deviations.md").read_text()
     refs = set(re.findall(r"`(tests/[\w/]+\.py)::(\w+)`", text))
     assert len(refs) > 50

@@ -16,7 +16,7 @@ from wallbatch.io.netcdf import write_netcdf
 from wallbatch.batch.runner import run_plan
 from wallbatch.config.sweep import load_plan
 
-CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+CONFIGS = Path(__file__).resolve().parents[2] / "configs"
 PNG = b"\x89PNG\r\n\x1a\n"
 
 SWEEP = f"""\

@@ -428,6 +428,9 @@ def ideal_gas(rule: str, seed: int = 20) -> dict[str, np.ndarray]:
             "crossings": k.take_crossings()}
 
 
+SLOW_FIXTURES = ("gas",)  # 3-9 s: conftest.py marks every test that takes it `slow`
+
+
 @pytest.fixture(scope="module")
 def gas() -> dict[str, dict[str, np.ndarray]]:
     return {rule: ideal_gas(rule) for rule in ("exact", "lammps")}

@@ -17,7 +17,7 @@ every output must agree to 1e-9 relative (absolute floor FLOOR times the series'
 magnitude, for values that cross or sit at zero). Observed (22Jul2025): every series within
 ~2e-14 of its largest magnitude, except the lj1043 sphere-out wall of the lattice scene (6e-13 on
 region_force, 2e-13 on the final v): summation order and libm differences, far below 1e-9. (LAMMPS's
-closed-form ees torque alone loses ~4e-13 relative far from the wall: tests/test_ellipsoid.py.)
+closed-form ees torque alone loses ~4e-13 relative far from the wall: tests/styles/test_ellipsoid.py.)
 
 Output mapping: wallbatch `ke` = LAMMPS `ke` + `c_erotate/asphere` (wallbatch's ke includes the
 rotational energy); `etot` = `etotal` + erotate; `erot` = erotate/asphere; `temp`, `pe` as is;
@@ -39,6 +39,7 @@ from lammps_oracle import _load_lammps, requires_lammps
 from wallbatch.config.models import load_config_text
 from wallbatch.engine.engine import CaseResult, Engine, run_cases
 from wallbatch.engine.region_walls import lammps_region_colloid
+from wallbatch.lammps.log import last_thermo
 from wallbatch.scene.case import Case
 from wallbatch.scene.build import build_case
 
@@ -112,24 +113,6 @@ def _data_file(case: Case, style: str) -> tuple[str, list[str]]:
     return "\n".join(lines) + "\n", mass_cmds
 
 
-def _parse_thermo(log_text: str, columns: list[str]) -> np.ndarray:
-    """The rows of the (single) run's thermo table in a LAMMPS log."""
-    rows, in_table = [], False
-    for line in log_text.splitlines():
-        tokens = line.split()
-        if not in_table:
-            in_table = tokens[:1] == ["Step"] and len(tokens) == len(columns)
-            continue
-        if line.startswith("Loop time of"):
-            break
-        if len(tokens) == len(columns):
-            try:
-                rows.append([float(t) for t in tokens])
-            except ValueError:
-                continue
-    return np.array(rows, dtype=np.float64).reshape(-1, len(columns))
-
-
 def run_lammps_case(case: Case, commands: list[str], outputs: list[str], lattice: str | None = None,
                     steps: int | None = None) -> LammpsResult:
     """Run the case's atoms in LAMMPS with `commands` (regions, wall fixes, fix_modify lines, in
@@ -175,7 +158,7 @@ def run_lammps_case(case: Case, commands: list[str], outputs: list[str], lattice
         finally:
             lmp.close()
         with open(log_path, encoding="utf-8", errors="replace") as fh:
-            table = _parse_thermo(fh.read(), columns)
+            table = last_thermo(fh.read(), len(columns))
     expected = list(range(0, steps + 1, case.thermo))
     assert table[:, 0].tolist() == expected, f"LAMMPS thermo steps {table[:, 0].tolist()}"
     return LammpsResult({c: table[:, j].copy() for j, c in enumerate(columns)}, final)

@@ -14,10 +14,11 @@ import tempfile
 
 import numpy as np
 import pytest
-from lammps_oracle import _load_lammps, _parse_thermo, requires_lammps
+from lammps_oracle import _load_lammps, requires_lammps
 
 from wallbatch.batch.runner import run_config
 from wallbatch.config.models import config_from_dict
+from wallbatch.lammps.log import last_thermo
 
 pytestmark = [requires_lammps, pytest.mark.lammps]
 
@@ -51,7 +52,7 @@ def run_lammps_script(x, v, mass, head: list[str], fixes: list[str], steps: int,
         finally:
             lmp.close()
         with open(log, encoding="utf-8") as fh:
-            rows = np.array(_parse_thermo(fh.read(), len(columns) + 1))
+            rows = last_thermo(fh.read(), len(columns) + 1)
     return {c: rows[:, j + 1] for j, c in enumerate(columns)}
 
 
@@ -210,6 +211,39 @@ def test_2d_sq2_lattice_harmonic_walls_nvt_match_lammps():
     np.testing.assert_allclose(ds.temp.values[0], 1.2, rtol=1e-12)  # created at T over 2N - 2 dof
 
 
+def test_2d_lj_fluid_with_pair_forces_matches_lammps():
+    """dimension 2 with pair lj/cut: the thin periodic z (length 1 < 2 rc) does not limit the cut-off,
+    as in LAMMPS; an sq2 LJ fluid between harmonic walls agrees with LAMMPS at every sample."""
+    cfg = {
+        "units": "lj", "dimension": 2, "lattice": {"style": "sq2", "scale": 0.7},
+        "box": {"lo": [0, 0, -0.5], "hi": [12, 10, 0.5], "boundary": ["f", "p", "p"]},
+        "regions": {"inner": {"style": "block", "lo": [1.5, 0, -0.5], "hi": [10.5, 10, 0.5], "units": "box"}},
+        "atoms": [{"group": "gas", "mass": 1.0, "create": {"lattice": {"region": "inner"}},
+                   "velocity": {"temperature": 1.0}}],
+        "pair": {"style": "lj/cut", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
+        "timestep": 0.004,
+        "walls": {"w": {"fix": "fix w all wall/harmonic xlo EDGE 5.0 1.0 1.2 xhi EDGE 5.0 1.0 1.2 units box",
+                        "energy": True}},
+        "fixes": {"nv": "fix nv all nve", "e2": "fix e2 all enforce2d"},
+        "run": {"steps": 200, "thermo": 50},
+        "output": {"thermo": ["step", "temp", "ke", "pe", "etot"]},
+    }
+    conf = config_from_dict(cfg)
+    from wallbatch.scene.build import build_case
+
+    case = build_case(conf)
+    ds = run_config(conf)
+    head = ["units lj", "dimension 2", "atom_style atomic", "atom_modify map array", "boundary f p p",
+            "lattice sq2 0.7", "region box block 0 12 0 10 -0.5 0.5 units box", "create_box 1 box",
+            "pair_style lj/cut 2.5", "pair_coeff 1 1 1.0 1.0 2.5"]
+    ref = run_lammps_script(case.x, case.v, 1.0, head,
+                            ["timestep 0.004", cfg["walls"]["w"]["fix"], "fix_modify w energy yes",
+                             "fix nv all nve", "fix e2 all enforce2d"],
+                            200, 50, ["temp", "ke", "pe", "etotal"])
+    for k in ("temp", "ke", "pe", "etot"):
+        assert_close(k, ds[k].values, ref["etotal" if k == "etot" else k])
+
+
 # ----------------------------------------------------------------------------- export / validate
 
 
@@ -224,7 +258,7 @@ def test_example_exports_its_fix_lines_and_validates_against_lammps():
     from wallbatch.lammps.validate import validate_case
     from wallbatch.scene.build import build_case
 
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     plan = wallbatch.load(root / "sweeps/lj-adsorption-epsilon.yaml", sets=["run.steps=100", "run.thermo=20"])
     assert len(plan.cases) == 4
     assert len(wallbatch.check(plan).batches) == 1

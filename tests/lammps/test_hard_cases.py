@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from factories import run_one
 from lammps_oracle import LammpsRunError, Scene, requires_lammps, run_lammps
 from scipy import stats
 from scipy.optimize import brentq
@@ -34,7 +35,7 @@ from wallbatch.scene.case import Case
 from wallbatch.scene.build import build_case
 from wallbatch.config.sweep import config_to_dict, set_path
 
-HARD = Path(__file__).resolve().parent.parent / "configs" / "hard"
+HARD = Path(__file__).resolve().parents[2] / "configs" / "hard"
 RTOL = 1e-9
 FLOOR = 1e-12  # absolute floor, relative to the largest |value| of a series
 LAMMPS_WALL_ERROR = "Particle on or inside fix wall surface"
@@ -55,10 +56,6 @@ def variant(name: str, sets: dict | None = None, drop: tuple[str, ...] = ()) -> 
     for key in drop:
         data.pop(key)
     return config_from_dict(data, base=HARD)
-
-
-def run_one(cfg: Config) -> CaseResult:
-    return run_cases([build_case(cfg)])[0]
 
 
 def finite(res: CaseResult) -> bool:
@@ -365,7 +362,7 @@ def test_colloid_jumping_into_contact_fails_at_the_lammps_step():
     cfg = variant("colloid-contact", {"timestep": 0.15, "run.steps": 20, "run.thermo": 1})
     res = run_one(cfg)
     assert res.status == "failed"
-    for needle in ("walls.zwalls (wall/colloid zlo)", "atom 2", "at step 4:", "its surface touches or crosses",
+    for needle in ("walls.zwalls (wall/colloid zlo)", "atom ID 3", "at step 4:", "its surface touches or crosses",
                    LAMMPS_WALL_ERROR):
         assert needle in res.error, res.error
     distance = float(res.error.split("at distance ")[1].split()[0])
@@ -422,7 +419,7 @@ def test_atom_exactly_on_a_soft_wall_fails_at_setup(style):
     cfg = variant("on-wall", {"walls.floor.style": style})
     res = run_one(cfg)
     assert res.status == "failed"
-    for needle in (f"walls.floor (wall/{style} zlo)", "atom 1 at distance 0 ", "at step 0:",
+    for needle in (f"walls.floor (wall/{style} zlo)", "atom ID 2 at distance 0 ", "at step 0:",
                    "on or behind the wall", LAMMPS_WALL_ERROR):
         assert needle in res.error, res.error
 

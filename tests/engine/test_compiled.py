@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from factories import slab_gas
 
 from wallbatch.engine import compiled as fast
 from wallbatch.config.models import config_from_dict
@@ -31,17 +32,8 @@ RTOL = 1e-14
 def gas(walls, *, n=40, steps=300, thermo=50, dt=0.005, hi=(6.0, 6.0, 8.0), seed=5, temperature=1.5,
         output=None, **extra):
     """n atoms in a slab (x, y periodic, z fixed), no pair forces."""
-    d = {"units": "lj", "seed": seed,
-         "box": {"lo": [0, 0, 0], "hi": list(hi), "boundary": ["p", "p", "f"]},
-         "atoms": [{"group": "gas", "create": {"random": {"count": n, "region": "mid"}},
-                    "mass": 1.0, "velocity": {"temperature": temperature}}],
-         "regions": {"mid": {"style": "block", "lo": [0, 0, 1.6], "hi": [hi[0], hi[1], hi[2] - 1.6],
-                             "units": "box"}},
-         "walls": walls, "timestep": dt, "run": {"steps": steps, "thermo": thermo}}
-    if output:
-        d["output"] = {"thermo": output}
-    d.update(extra)
-    return d
+    return slab_gas(walls, n=n, hi=hi, margin=1.6, temperature=temperature, seed=seed, dt=dt, steps=steps,
+                    thermo=thermo, output=output, **extra)
 
 
 def face(coord, eps=1.0, sigma=1.0, rc=2.5):

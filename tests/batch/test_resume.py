@@ -129,6 +129,7 @@ def _start_and_kill(tmp_path: Path, sweep: Path, out: Path, deadline_s: float = 
         log.close()
 
 
+@pytest.mark.slow  # runs, kills and resumes `wallbatch run` in child processes: 1-8 s with the machine loaded
 def test_kill_then_resume_recomputes_only_the_missing_cases(tmp_path):
     out = tmp_path / "out.nc"
     parts = parts_dir(out)

@@ -7,7 +7,7 @@ the install hint when LAMMPS cannot be imported. LAMMPS-needing tests are skippe
 
 Every wallbatch run here takes the NumPy path (WALLBATCH_NUMBA=0, an autouse fixture): compiling
 the numba kernels from a cold cache takes about a minute of CPU, far beyond this file's budget,
-and tests/test_fast.py and the pair tests check that the compiled paths give the NumPy results.
+and tests/engine/test_compiled.py and the pair tests check that the compiled paths give the NumPy results.
 """
 
 from __future__ import annotations
@@ -37,6 +37,7 @@ from wallbatch.lammps.export import (
     select_case,
 )
 from wallbatch.config.sweep import load_plan
+from wallbatch.lammps.log import last_thermo
 
 runner = CliRunner()
 
@@ -45,7 +46,7 @@ runner = CliRunner()
 def _numpy_path(monkeypatch):
     monkeypatch.setenv("WALLBATCH_NUMBA", "0")
 
-CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+CONFIGS = Path(__file__).resolve().parents[2] / "configs"
 SPACING = (4.0 / 0.8442) ** (1.0 / 3.0)  # fcc 0.8442 in lj units: 1.6795961913825073
 
 # Four explicit atoms (exact data-file lines) and six random ones in a second group whose name
@@ -575,7 +576,7 @@ def test_flow_is_refused_by_validate_before_lammps(tmp_path, monkeypatch):
     result = validate(write(tmp_path, FLOW_SCENE.replace(", RULE", "")))
     assert result.exit_code == 2, result.output
     assert "walls.fl: wall/flow redraws velocities from random numbers" in result.output
-    assert "tests/test_flow.py" in result.output and "pip install" not in result.output
+    assert "tests/engine/test_flow.py" in result.output and "pip install" not in result.output
 
 
 def test_pair_and_press_script():
@@ -655,16 +656,16 @@ Loop time of 8.673e-06 on 1 procs for 10 steps with 2 atoms
 
 
 def test_log_parsers():
-    table = validate_mod._parse_thermo(MIN_LOG, 2)  # the run's table, not the minimizer's
+    table = last_thermo(MIN_LOG, 2)  # the run's table, not the minimizer's
     assert table.tolist() == [[0.0, -0.081622382197368323], [10.0, -0.081622382197381965]]
-    res = validate_mod._parse_minimize(MIN_LOG)
+    res = validate_mod._min_results(MIN_LOG)
     assert res["stop_reason"].tolist() == ["force tolerance"]
     assert (res["iterations"][0], res["evaluations"][0]) == (86.0, 87.0)
     assert res["energy_before"][0] == -0.0288614430174737
     assert (res["energy"][0], res["fnorm"][0]) == (-0.081622382197368323, 5.034062824216522e-11)
     assert res["fnorm:scale"][0] == 0.0082885234
     with pytest.raises(validate_mod.LammpsRunError, match="no minimization results"):
-        validate_mod._parse_minimize(MIN_LOG.split("Minimization stats")[0])
+        validate_mod._min_results(MIN_LOG.split("Minimization stats")[0])
 
 
 def test_compare_region_force_and_min_results():
@@ -766,7 +767,7 @@ def test_case_selection(tmp_path):
                      ("epsilon", "name=value")):
         with pytest.raises(ExportError, match=msg):
             select_case(plan, sel)
-    zipped = load_plan(Path(__file__).resolve().parents[1] / "sweeps" / "box-height-atoms-zip.yaml")
+    zipped = load_plan(Path(__file__).resolve().parents[2] / "sweeps" / "box-height-atoms-zip.yaml")
     assert select_case(zipped, "lz=16.0").coords == {"geometry": 1}  # a zip parameter names its dimension
     assert select_case(zipped, "geometry=2").coords == {"geometry": 2}
     exp = export_selected(plan, "epsilon=1.0,sigma=0.8")
@@ -798,7 +799,7 @@ EXPORTABLE = {"colloid-slit", "dt-reset-rescue", "harmonic-confinement", "lj1043
               "lj93-slit", "morse-metal", "quickstart", "reflect-piston", "reflect-swiggle",
               "ellipsoids-ees-slit", "colloid-cavity", "cylinder-obstacle", "lj-liquid-slit", "lj-adsorption-nvt",
               "lj-slit-profiles"}
-FLOW = {"flow-seed"}  # exported, but compared with LAMMPS only statistically (tests/test_flow.py)
+FLOW = {"flow-seed"}  # exported, but compared with LAMMPS only statistically (tests/engine/test_flow.py)
 
 
 @requires_lammps
@@ -813,7 +814,7 @@ def test_validate_shipped_configs(name):
     if any(w.style == "flow" for w in cfg.walls.values()):
         assert name in FLOW
         assert result.exit_code == 2, result.output
-        assert "cannot be compared sample by sample" in result.output and "tests/test_flow.py" in result.output
+        assert "cannot be compared sample by sample" in result.output and "tests/engine/test_flow.py" in result.output
         return
     assert name in EXPORTABLE
     assert result.exit_code == 0, result.output
@@ -827,7 +828,7 @@ def test_shipped_configs_are_listed():
     assert EXPORTABLE | FLOW == {p.stem for p in CONFIGS.glob("*.yaml")}
     for name in sorted(EXPORTABLE | FLOW):
         check_exportable(load_plan(CONFIGS / f"{name}.yaml").cases[0].config)
-    assert (CONFIGS.parent / "tests" / "test_flow.py").exists()  # where validate's refusal points
+    assert (CONFIGS.parent / validate_mod.FLOW_TESTS).exists()  # where validate's refusal points
 
 
 @requires_lammps

@@ -157,6 +157,9 @@ def gas_run(rule: str, folder: Path) -> dict[str, np.ndarray]:
     }
 
 
+SLOW_FIXTURES = ("gas", "lj_runs")  # 5-11 s each: conftest.py marks every test that takes one `slow`
+
+
 @pytest.fixture(scope="module")
 def gas(tmp_path_factory) -> dict[str, dict[str, np.ndarray]]:
     folder = tmp_path_factory.mktemp("gas")
@@ -367,6 +370,7 @@ def two_wall_scene(x, v, steps: int = 400, thermo: int = 50, thermo_keys=("step"
                  thermo_keys=thermo_keys)
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_flow_crossings_equals_redraws_per_sample_summed_over_walls():
     """Ideal gas (velocities change only at redraws), two flow walls on different axes, two
     replicas: flow_crossings of each sample equals the number of velocity changes made by the flow
@@ -424,7 +428,7 @@ def test_flow_seed_config_resolves_the_lammps_doc_line():
     """configs/flow-seed.yaml: the LAMMPS doc line `fix 1 all wall/flow x 0.4 1.5 593894 4 2.0 4.0 6.0
     8.0` in lattice units (sc, lj scale 1: spacing 1) resolves to walls at x = 2, 4, 6, 8, rule exact,
     and the stream key (master seed, sweep coordinates, wall seed, wall index)."""
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     case = build_case(load_config(root / "configs" / "flow-seed.yaml"), (5,))
     (spec,) = case.flow_walls
     assert (spec.fix_id, spec.axis, spec.vflow, spec.temperature, spec.rule) == ("1", 0, 0.4, 1.5, "exact")
@@ -463,6 +467,7 @@ def test_same_config_and_seed_is_bit_identical():
     assert a[0].data["flow_crossings"][1:].sum() > 50  # the walls did redraw
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_streams_differ_per_replica_master_seed_and_wall_seed():
     """The initial state is written out, so it is the same for every seed: a change of the
     replica (seed_key), the master seed or the wall's seed changes the redraws, and nothing else
@@ -480,6 +485,7 @@ def test_streams_differ_per_replica_master_seed_and_wall_seed():
         assert not np.array_equal(other.data["flow_crossings"], base.data["flow_crossings"]), name
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_case_in_a_batch_of_three_is_bit_identical_to_the_case_alone():
     """Three cases with vflow 0.2, 0.4, 0.8 (replicas 0, 1, 2) share one batch (flow parameters
     are per case); each is bit-identical to the same case run alone."""
@@ -495,6 +501,7 @@ def test_case_in_a_batch_of_three_is_bit_identical_to_the_case_alone():
     assert not np.array_equal(batch[0].frames["v"][-1], batch[2].frames["v"][-1])
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_two_flow_walls_in_one_scene_get_independent_streams():
     """Group a and its twin group b (same x and v, shifted along y) in an ideal gas, each with a
     flow wall of identical parameters and the same wall seed. Shared streams would keep the twins

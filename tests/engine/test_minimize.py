@@ -17,6 +17,7 @@ import pytest
 
 from lammps_oracle import _load_lammps, requires_lammps
 from wallbatch.engine.minimize import MinResult, minimize
+from wallbatch.lammps.log import minimize_stats
 from wallbatch.scene.case import MinSettings
 
 # ----------------------------------------------------------------------------- objectives
@@ -395,13 +396,8 @@ def lammps_minimize(x, style, walls, pair="pair_style zero 1.0\npair_coeff * *",
             lmp.close()
         with open(log, encoding="utf-8") as fh:
             text = fh.read()
-    stats = {}
-    for line in text.splitlines():
-        if "=" in line:
-            key, _, value = line.partition("=")
-            stats[key.strip()] = value.strip()
-    niter, neval = (int(v) for v in stats["Iterations, force evaluations"].split())
-    return xf, pe, stats["Stopping criterion"], niter, neval
+    stats = minimize_stats(text)[-1]
+    return xf, pe, stats.stop_reason, stats.iterations, stats.evaluations
 
 
 @requires_lammps

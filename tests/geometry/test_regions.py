@@ -609,8 +609,8 @@ def test_wrong_side_and_too_close_fail_only_their_case():
     m1, m2 = st.failed[1], st.failed[2]
     for m in (m1, m2):
         assert "walls.cage" in m and "box1" in m and "step 7" in m and LAMMPS_MESSAGE in m
-    assert "atom 2 " in m1 and "outside region box1" in m1 and "0.5 " in m1
-    assert "atom 1 " in m2 and "distance 0 " in m2
+    assert "atom ID 3 " in m1 and "outside region box1" in m1 and "0.5 " in m1
+    assert "atom ID 2 " in m2 and "distance 0 " in m2
     # case 0 is untouched by the others: same as alone
     e0, vec0, st0 = run_kernel(g, "lj93", [p], good[None])
     assert e[0] == e0[0] and np.array_equal(vec[0], vec0[0]) and np.array_equal(st.f[0], st0.f[0])
@@ -623,13 +623,13 @@ def test_side_out_on_surface_and_colloid_too_close():
     x = np.array([[[7.0, 5.0, 5.0], [9.0, 5.0, 5.0]], [[9.0, 5.0, 5.0], [5.0, 8.5, 5.0]]])
     _, _, st = run_kernel(g, "lj93", [p, p], x)
     assert list(st.failed) == [0]
-    assert "atom 0 " in st.failed[0] and "inside (or on the surface of) region R (side out)" in st.failed[0]
+    assert "atom ID 1 " in st.failed[0] and "inside (or on the surface of) region R (side out)" in st.failed[0]
     # colloid: r <= R is too close, r just above R is fine
     g = RegionGeom(**BLOCK)
     x = np.array([[[1.5, 5.0, 5.0]], [[1.50001, 5.0, 5.0]]])
     _, _, st = run_kernel(g, "colloid", [COLLOID] * 2, x, radius=0.5)
     assert list(st.failed) == [0]
-    assert "radius 0.5" in st.failed[0] and "atom 0 " in st.failed[0] and LAMMPS_MESSAGE in st.failed[0]
+    assert "radius 0.5" in st.failed[0] and "atom ID 1 " in st.failed[0] and LAMMPS_MESSAGE in st.failed[0]
     # zero radius: LAMMPS refuses the run
     _, _, st = run_kernel(g, "colloid", [COLLOID], np.array([[[2.0, 5.0, 5.0]]]), radius=0.0)
     assert "requires only extended particles" in st.failed[0]

@@ -20,16 +20,18 @@ import warnings
 import numpy as np
 import pytest
 import xarray as xr
+from factories import case_of
+from factories import run_ok as run_one  # asserts the case finished
 from lammps_oracle import _load_lammps, requires_lammps
 from typer.testing import CliRunner
 
 from wallbatch.cli import app
 from wallbatch.config.models import load_config_text
-from wallbatch.engine.engine import CaseResult, Engine, run_cases
+from wallbatch.engine.engine import Engine, run_cases
+from wallbatch.lammps.log import minimize_stats
 from wallbatch.scene.case import structure_key
 from wallbatch.batch.runner import run_config
 from wallbatch.scene.case import MinimizeWarning
-from wallbatch.scene.build import build_case
 from wallbatch.units import UNIT_SYSTEMS
 
 # ----------------------------------------------------------------------------- scenes
@@ -58,16 +60,6 @@ def scene_yaml(x, v, lo, hi, boundary: str, *, pair: str | None = None, walls: s
     out = f"output: {{thermo: {json.dumps(list(outputs))}"
     lines.append(out + (f", dump: {{every: {dump}, fields: [x, v]}}}}" if dump else "}"))
     return "\n".join(lines) + "\n" + extra
-
-
-def case_of(text: str):
-    return build_case(load_config_text(text))
-
-
-def run_one(text: str) -> CaseResult:
-    res = run_cases([case_of(text)])[0]
-    assert res.status == "ok", res.error
-    return res
 
 
 def lj93_walls(fid: str = "zw", eps: float = 1.0, sigma: float = 1.0, rc: float = 2.5, energy: bool = True,
@@ -165,10 +157,8 @@ def lammps_minimize(x, lo, hi, boundary, pair, fixes, style, args, timestep=0.00
             lmp.commands_string(f"min_style {style}\nminimize {args}")
             xf, pe = gather(lmp, "x", len(x)), lmp.get_thermo("pe")
         with open(log, encoding="utf-8") as fh:
-            stats = {k.strip(): val.strip() for k, _, val in
-                     (line.partition("=") for line in fh.read().splitlines() if "=" in line)}
-    counts = tuple(int(a) for a in stats["Iterations, force evaluations"].split())
-    return xf, pe, stats["Stopping criterion"], counts
+            stats = minimize_stats(fh.read())[-1]
+    return xf, pe, stats.stop_reason, (stats.iterations, stats.evaluations)
 
 
 # ============================================================================= 1. pair + press
@@ -261,6 +251,7 @@ def wca_scene(x, v, dt: float, steps: int, thermo: int, rc: float = 2.0 ** (1 / 
                       walls=lj93_walls(rc=0.4 ** (1 / 6) if rc < 2 else 2.5))
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_energy_fluctuation_is_second_order():
     """Velocity Verlet conserves a shadow energy H~ = H + dt^2 g(x, v) + O(dt^4), so over a fixed
     stretch of simulated time the sampled etot fluctuates about its mean by an amount O(dt^2): the
@@ -459,7 +450,7 @@ STOP_CASES = [  # (wall style, z0, params, energy, minimize) -> stop reason, (it
                          ids=[c[5].replace(" ", "-") for c in STOP_CASES])
 def test_stop_reasons_reachable_from_config(wall, z0, params, energy, minimize, reason, counts):
     """Every stopping criterion from a plain config (one atom at a wall; counts as LAMMPS's, see
-    tests/test_minimize.py; the atom at z = 3 is beyond the cut-off: zero force)."""
+    tests/engine/test_minimize.py; the atom at z = 3 is beyond the cut-off: zero force)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MinimizeWarning)
         d = run_one(one_atom_scene(wall, z0, params, minimize, energy=energy, steps=0)).data

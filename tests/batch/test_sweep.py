@@ -661,6 +661,7 @@ def test_jobs_2_process_pool_is_bit_identical(many):
 
 
 @pytest.mark.skipif(not HAVE_DISTRIBUTED, reason="dask.distributed is not installed")
+@pytest.mark.slow  # starts a dask.distributed cluster: 2-7 s
 def test_dask_executor_is_bit_identical(many):
     from distributed import LocalCluster
 

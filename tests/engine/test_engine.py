@@ -11,11 +11,13 @@ import math
 
 import numpy as np
 import pytest
+from factories import atoms, run_one, slab_gas
+from factories import box_scene as scene
+from factories import run_dataset as run
 
 from wallbatch.config.models import config_from_dict
 from wallbatch.engine.engine import Engine, run_cases
 from wallbatch.scene.case import structure_key
-from wallbatch.batch.runner import run_config
 from wallbatch.scene.build import build_case
 
 FCC_LJ_0_8442 = 1.6795961913825073  # physics.md §2.1 table
@@ -24,29 +26,6 @@ METAL_FTM2V = 9648.533823273016
 
 
 # ----------------------------------------------------------------------------- helpers
-
-
-def atoms(group, positions, velocities=None, mass=1.0):
-    g = {"group": group, "create": {"positions": [list(p) for p in positions]}, "mass": mass}
-    if velocities is not None:
-        g["velocity"] = {"values": [list(v) for v in velocities]}
-    return g
-
-
-def scene(atom_groups, walls=None, *, units="lj", lo=(0.0, 0.0, 0.0), hi=(10.0, 10.0, 10.0),
-          boundary=("f", "f", "f"), timestep=0.1, steps=1, thermo=1, **extra):
-    d = {"units": units, "seed": 11,
-         "box": {"lo": list(lo), "hi": list(hi), "boundary": list(boundary)},
-         "atoms": atom_groups, "walls": walls or {}, "timestep": timestep,
-         "run": {"steps": steps, "thermo": thermo}}
-    if timestep is None:
-        del d["timestep"]
-    d.update(extra)
-    return d
-
-
-def run(d):
-    return run_config(config_from_dict(d))
 
 
 def engine(d) -> Engine:
@@ -66,17 +45,8 @@ def lj_face(coord, eps=1.0, sigma=1.0, rc=2.5):
 
 def ideal_gas(walls, *, dt, total_time, seed=3, n=20, hi_z=6.0, thermo=1, output=None):
     """n atoms at temperature 1 in a slab (x, y periodic, z fixed), no pair forces."""
-    d = {"units": "lj", "seed": seed,
-         "box": {"lo": [0, 0, 0], "hi": [5, 5, hi_z], "boundary": ["p", "p", "f"]},
-         "atoms": [{"group": "gas", "create": {"random": {"count": n, "region": "mid"}},
-                    "mass": 1.0, "velocity": {"temperature": 1.0}}],
-         "regions": {"mid": {"style": "block", "lo": [0, 0, 1.5], "hi": [5, 5, hi_z - 1.5],
-                             "units": "box"}},
-         "walls": walls, "timestep": dt,
-         "run": {"steps": int(round(total_time / dt)), "thermo": thermo}}
-    if output:
-        d["output"] = {"thermo": output}
-    return d
+    return slab_gas(walls, n=n, hi=(5, 5, hi_z), margin=1.5, temperature=1.0, seed=seed, dt=dt,
+                    steps=int(round(total_time / dt)), thermo=thermo, output=output)
 
 
 # ----------------------------------------------------------------------------- energy conservation
@@ -100,6 +70,7 @@ def test_soft_walls_conserve_energy_to_second_order(style):
     assert 3.0 < drift[0] / drift[1] < 5.0
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_reflect_energy_error_is_first_order():
     # A harmonic zlo spring spanning the box pushes every atom against a reflecting zhi wall
     # (a "ball bouncing on a floor"). Between bounces velocity Verlet with this linear force has
@@ -527,18 +498,13 @@ def _piston(extra_wall_steps=60, rc=1.0):
                  steps=extra_wall_steps, thermo=10)
 
 
-def run_one(d):
-    """The engine's CaseResult of a single-case scene."""
-    return run_cases([build_case(config_from_dict(d))])[0]
-
-
 def test_atom_behind_wall_fails_the_case():
     res = run_one(_piston())
     assert res.status == "failed"
     msg = res.error
     assert "piston" in msg and "zlo" in msg
     assert "step 51" in msg
-    assert "atom 1" in msg
+    assert "atom ID 2" in msg
     assert "harmonic" in msg
     for name, values in res.data.items():
         assert np.isnan(values).all(), name
@@ -550,7 +516,7 @@ def test_atom_behind_wall_at_setup():
     ds = run(d)
     assert ds.status.item() == "failed"
     msg = ds.error.item()
-    assert "walls.w" in msg and "zlo" in msg and "step 0" in msg and "atom 1" in msg
+    assert "walls.w" in msg and "zlo" in msg and "step 0" in msg and "atom ID 2" in msg
     assert np.isnan(ds.ke.values).all() and ds.ke.shape == (6,)  # steps 0..5, thermo 1
 
 
@@ -565,7 +531,7 @@ def test_lost_atom_through_fixed_boundary():
     assert res.status == "failed"
     msg = res.error
     assert "lost" in msg.lower()
-    assert "atom 1" in msg and "step 5" in msg and "fixed z boundary" in msg
+    assert "atom ID 2" in msg and "step 5" in msg and "fixed z boundary" in msg
     for name, values in res.data.items():
         assert np.isnan(values).all(), name
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from factories import run_ok as run
 
 from wallbatch.config.models import load_config_text
 from wallbatch.engine.engine import run_cases
@@ -32,18 +33,13 @@ output: {{thermo: [step, time, dt, temp, ke, pe, etot, erot]}}
 """
 
 
-def run(text: str):
-    res = run_cases([build_case(load_config_text(text))])[0]
-    assert res.status == "ok", res.error
-    return res
-
-
 def drift(dt: float, shape: str = "[1.0, 0.4, 0.6]", orientation: str = "random") -> float:
     steps = int(round(1.5 / dt))
     d = run(SLIT.format(shape=shape, orientation=orientation, dt=dt, steps=steps)).data["etot"]
     return abs(d[-1] - d[0])
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_tumbling_ellipsoids_between_ees_walls_conserve_energy_to_second_order():
     """nve/asphere + wall/ees: translational + rotational + wall energy, error O(dt^2). The cut-off
     spans the slit, so no atom crosses it (the ees energy is not shifted)."""
@@ -105,7 +101,7 @@ def test_ees_atom_inside_the_wall_fails_the_case_with_the_lammps_meaning():
                         "create: {positions: [[4, 4, 0.45], [4, 4, 4]]}")
     res = run_cases([build_case(load_config_text(text))])[0]
     assert res.status == "failed"
-    assert "walls.slit (wall/ees zlo): atom 0" in res.error and "Particle on or inside fix wall surface" in res.error
+    assert "walls.slit (wall/ees zlo): atom ID 1 " in res.error and "Particle on or inside fix wall surface" in res.error
 
 
 def test_ees_wall_on_point_atoms_is_an_error():

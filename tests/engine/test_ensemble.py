@@ -315,6 +315,7 @@ def test_2d_lattice_in_3d_and_3d_lattice_in_2d_are_refused():
                           "walls": {"w": "fix w all wall/harmonic xlo 0.0 1.0 1.0 1.0"}})
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_time_based_run_with_dt_reset_batches_thermostats_bit_identically():
     """run: {time: ...} with dt_reset: cases take different timesteps, so in a batch some sit idle
     while the others land on the sample time. Idle cases draw no Langevin numbers and keep their

@@ -481,6 +481,7 @@ def _two_wall_start(seed, c, n, semi=None):
     return (x, v, q, ang), mass, semi
 
 
+@pytest.mark.slow  # 1-3 s: kept out of the fast subset's one-minute budget
 def test_two_ees_walls_conserve_energy_second_order():
     """fix nve/asphere between flat ees walls (xlo 0, xhi 6, ε 20, σ 1, no cut-off), 2 cases x 3
     ellipsoids, t = 2.5 (every atom reaches the repulsive region): the drift of

@@ -1,0 +1,104 @@
+"""Shared scene factories for the tests: config dicts of common scenes, and one way from a scene
+(dict, YAML text, path or validated Config) to a Case, a CaseResult or the results Dataset.
+
+Import them directly (`from factories import run_one, slab_gas`; conftest.py puts tests/ on
+sys.path) in module-level helpers and parametrisations, or take the conftest fixtures of the same
+names in a test's arguments. Lengths are in the scene's units (lj unless given).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import xarray as xr
+
+from wallbatch.batch.runner import run_config
+from wallbatch.config.models import (
+    Config,
+    config_from_dict,
+    load_config,
+    load_config_text,
+)
+from wallbatch.engine.engine import CaseResult, run_cases
+from wallbatch.scene.build import build_case
+from wallbatch.scene.case import Case
+
+__all__ = ["SceneLike", "atoms", "box_scene", "case_of", "config_of", "run_dataset", "run_ok", "run_one", "slab_gas"]
+
+SceneLike = dict | str | Path | Config  # a config dict, YAML text, a config file, or a validated Config
+
+
+def config_of(scene: SceneLike, filename: str = "<config>") -> Config:
+    """The validated Config of a scene: a dict (`config_from_dict`), YAML text
+    (`load_config_text`, errors naming `filename`), a path (`load_config`) or a Config as is."""
+    if isinstance(scene, Config):
+        return scene
+    if isinstance(scene, dict):
+        return config_from_dict(scene)
+    if isinstance(scene, Path):
+        return load_config(scene)
+    return load_config_text(scene, filename)
+
+
+def case_of(scene: SceneLike, seed_key: tuple[int, ...] = ()) -> Case:
+    """The scene's Case (random creation seeded by the master seed and `seed_key`)."""
+    return build_case(config_of(scene), seed_key)
+
+
+def run_one(scene: SceneLike) -> CaseResult:
+    """The engine's CaseResult of a single-case scene (`run_cases([build_case(cfg)])[0]`)."""
+    return run_cases([case_of(scene)])[0]
+
+
+def run_ok(scene: SceneLike) -> CaseResult:
+    """`run_one`, asserting the case finished (the message is the case's error otherwise)."""
+    res = run_one(scene)
+    assert res.status == "ok", res.error
+    return res
+
+
+def run_dataset(scene: SceneLike) -> xr.Dataset:
+    """The results Dataset of a single-case scene (`runner.run_config`), as `wallbatch run` writes it."""
+    return run_config(config_of(scene))
+
+
+def atoms(group: str, positions, velocities=None, mass: float = 1.0, **extra: Any) -> dict:
+    """One atom group created at explicit positions, with explicit velocities if given."""
+    g = {"group": group, "create": {"positions": [list(p) for p in positions]}, "mass": mass, **extra}
+    if velocities is not None:
+        g["velocity"] = {"values": [list(v) for v in velocities]}
+    return g
+
+
+def box_scene(atom_groups: list[dict], walls: dict | None = None, *, units: str = "lj", lo=(0.0, 0.0, 0.0),
+              hi=(10.0, 10.0, 10.0), boundary=("f", "f", "f"), timestep: float | None = 0.1, steps: int = 1,
+              thermo: int = 1, seed: int = 11, **extra: Any) -> dict:
+    """A config dict: atom groups and walls in a box (timestep None: the unit system's default);
+    `extra` top-level keys (variables, output, ...) are added last."""
+    d = {"units": units, "seed": seed,
+         "box": {"lo": list(lo), "hi": list(hi), "boundary": list(boundary)},
+         "atoms": atom_groups, "walls": walls or {}, "timestep": timestep,
+         "run": {"steps": steps, "thermo": thermo}}
+    if timestep is None:
+        del d["timestep"]
+    d.update(extra)
+    return d
+
+
+def slab_gas(walls: dict, *, n: int, hi, margin: float, temperature: float, seed: int, dt: float, steps: int,
+             thermo: int, output: list[str] | None = None, **extra: Any) -> dict:
+    """An ideal gas between walls: n atoms (mass 1, no pair forces) created at random in the slab
+    `margin` < z < hi_z - margin of a box (0, 0, 0)-`hi`, x and y periodic, z fixed, with velocities
+    at `temperature`; thermo keywords `output` if given, `extra` top-level keys last."""
+    d = {"units": "lj", "seed": seed,
+         "box": {"lo": [0, 0, 0], "hi": list(hi), "boundary": ["p", "p", "f"]},
+         "atoms": [{"group": "gas", "create": {"random": {"count": n, "region": "mid"}},
+                    "mass": 1.0, "velocity": {"temperature": temperature}}],
+         "regions": {"mid": {"style": "block", "lo": [0, 0, margin], "hi": [hi[0], hi[1], hi[2] - margin],
+                             "units": "box"}},
+         "walls": walls, "timestep": dt, "run": {"steps": steps, "thermo": thermo}}
+    if output:
+        d["output"] = {"thermo": output}
+    d.update(extra)
+    return d

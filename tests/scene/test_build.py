@@ -1,0 +1,102 @@
+"""wallbatch.scene.build through the shared factories (tests/factories.py): the Case of a config
+dict, YAML text or file is the same; explicit atoms arrive exactly; random creation fills its
+region uniformly; thermal velocities have zero momentum and exactly the asked temperature (LAMMPS
+`velocity create ... mom yes`: 3N - 3 degrees of freedom); the random stream depends on the
+master seed and the case's seed key only."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from factories import atoms, box_scene, case_of, config_of, slab_gas
+
+from wallbatch.units import UNIT_SYSTEMS
+
+WALLS = {"w": {"style": "lj93", "units": "box",
+               "zlo": {"coord": 0.0, "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
+               "zhi": {"coord": 8.0, "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5}}}
+
+
+def gas(n: int = 400, temperature: float = 1.5, seed: int = 7) -> dict:
+    return slab_gas(WALLS, n=n, hi=(6.0, 5.0, 8.0), margin=1.6, temperature=temperature, seed=seed, dt=0.005,
+                    steps=10, thermo=5)
+
+
+def test_explicit_atoms_arrive_bit_exactly_and_dt_defaults_to_the_unit_system():
+    x = [(1.0, 2.0, 3.0), (0.1 + 0.2, 9.999999999999998, 5e-324)]
+    v = [(0.3, -1e-17, 2.0), (-0.7, 0.0, 1.0 / 3.0)]
+    for units in ("lj", "real", "metal"):
+        case = case_of(box_scene([atoms("a", x, v, mass=2.5)], units=units, timestep=None))
+        assert case.x.tolist() == [list(p) for p in x] and case.v.tolist() == [list(p) for p in v]
+        assert case.mass.tolist() == [2.5, 2.5] and case.periodic.tolist() == [False] * 3
+        assert case.dt == {"lj": 0.005, "real": 1.0, "metal": 0.001}[units]  # LAMMPS's default timesteps
+
+
+def test_dict_yaml_text_file_and_config_give_the_same_case(tmp_path):
+    text = """\
+units: lj
+seed: 7
+box: {lo: [0, 0, 0], hi: [6.0, 5.0, 8.0], boundary: [p, p, f]}
+atoms:
+  - group: gas
+    create: {random: {count: 400, region: mid}}
+    mass: 1.0
+    velocity: {temperature: 1.5}
+regions:
+  mid: {style: block, lo: [0, 0, 1.6], hi: [6.0, 5.0, 6.4], units: box}
+walls:
+  w: {style: lj93, units: box, zlo: {coord: 0.0, epsilon: 1.0, sigma: 1.0, cutoff: 2.5},
+      zhi: {coord: 8.0, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}}
+timestep: 0.005
+run: {steps: 10, thermo: 5}
+"""
+    path = tmp_path / "gas.yaml"
+    path.write_text(text)
+    ref = case_of(gas())
+    for scene in (text, path, config_of(gas())):
+        case = case_of(scene)
+        assert np.array_equal(case.x, ref.x) and np.array_equal(case.v, ref.v)
+        assert np.array_equal(case.mass, ref.mass) and case.dt == ref.dt and case.steps == ref.steps
+
+
+@pytest.mark.parametrize("temperature", [0.5, 1.5])
+def test_thermal_velocities_have_zero_momentum_and_the_exact_temperature(temperature):
+    case = case_of(gas(temperature=temperature))
+    n, m, v = case.natoms, case.mass, case.v
+    assert n == 400 and np.all(m == 1.0)
+    assert np.abs((m[:, None] * v).sum(axis=0)).max() < 1e-12
+    lj = UNIT_SYSTEMS["lj"]
+    t = lj.mvv2e * float((m[:, None] * v * v).sum()) / ((3 * n - 3) * lj.boltz)
+    assert t == pytest.approx(temperature, rel=1e-13)
+    # each component is Gaussian with variance kT/m: the sample variance within 4 standard errors
+    # (the variance of a sample variance of n Gaussians is 2 s^4 / (n - 1))
+    for d in range(3):
+        var = float(v[:, d].var(ddof=1))
+        assert abs(var - temperature) < 4 * temperature * math.sqrt(2.0 / (n - 1)), (d, var)
+
+
+def test_random_creation_fills_the_region_uniformly():
+    case = case_of(gas(n=3000))
+    x = case.x
+    assert np.all(x >= [0.0, 0.0, 1.6]) and np.all(x <= [6.0, 5.0, 6.4])
+    # uniform on [a, b]: mean (a + b)/2, variance (b - a)^2/12; mean within 4 standard errors,
+    # variance within 4 of its standard errors ((b - a)^4 / 180 / n for the uniform's 4th moment)
+    for d, (a, b) in enumerate([(0.0, 6.0), (0.0, 5.0), (1.6, 6.4)]):
+        mean, var, n = float(x[:, d].mean()), float(x[:, d].var(ddof=1)), len(x)
+        length = b - a
+        assert abs(mean - (a + b) / 2) < 4 * length / math.sqrt(12 * n), (d, mean)
+        assert abs(var - length**2 / 12) < 4 * length**2 * math.sqrt(1 / 180 / n), (d, var)
+
+
+def test_random_stream_depends_on_seed_and_seed_key_only():
+    a, again = case_of(gas()), case_of(gas())
+    assert np.array_equal(a.x, again.x) and np.array_equal(a.v, again.v)  # bit-identical
+    b = case_of(gas(seed=8))
+    k0, k1, k1_again = case_of(gas(), (0,)), case_of(gas(), (1,)), case_of(gas(), (1,))
+    assert np.array_equal(k1.x, k1_again.x) and np.array_equal(k1.v, k1_again.v)
+    for other in (b, k1):
+        assert not np.any(np.all(other.x == a.x, axis=1))  # no atom at the same place
+    assert not np.any(np.all(k0.x == k1.x, axis=1))
+    # (key (0,) is key () again: NumPy's SeedSequence([seed, 0]) is SeedSequence([seed]))
