@@ -5,7 +5,7 @@ The NumPy functions of wallbatch.engine.flow (`log_tail`, `positive_fraction`,
 element at a time (the NumPy solver already freezes each element on its own, so its result does
 not depend on the others). The special functions are SciPy's own (erfc, erfcx, expit from
 scipy.special.cython_special, linked by symbol), so the only differences are exp and log (NumPy's
-SIMD versions vs the C library's): results agree to a few ulp (tests/test_flow_compiled.py).
+SIMD versions vs the C library's): results agree to a few ulp (tests/engine/test_flow_compiled.py).
 The random numbers are drawn in NumPy exactly as before (flow._draw); only the solve is compiled.
 `WALLBATCH_NUMBA=0` (or numba missing) keeps the NumPy solver.
 """

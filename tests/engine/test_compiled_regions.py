@@ -1,6 +1,6 @@
 """wall/region in the compiled path (wallbatch.engine.compiled) against the NumPy engine.
 
-Each scene runs with WALLBATCH_NUMBA=0 and =1 (tests/test_fast.py's `check`): every sampled output
+Each scene runs with WALLBATCH_NUMBA=0 and =1 (tests/engine/test_compiled.py's `check`): every sampled output
 of every case agrees to 1e-14 relative, with the same status and failure message, and the test
 asserts that chunks really ran compiled (or, for scenes the kernel must refuse, that none did).
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from test_fast import STYLE_PARAMS, check, gas
+from test_compiled import STYLE_PARAMS, check, gas
 
 from wallbatch.config.models import config_from_dict
 from wallbatch.engine import compiled as fast
