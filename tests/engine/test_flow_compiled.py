@@ -61,38 +61,36 @@ def test_velocities_match_numpy(monkeypatch, vflow):
     np.testing.assert_allclose(ga * gamma, ra * gamma, rtol=1e-12, atol=2e-13)
 
 
-def test_flow_scene_compiled_matches_numpy(monkeypatch):
-    """An ideal gas of 400 atoms between three flow walls (rule exact), 400 steps: the compiled
-    redraw gives the same crossings and the same sampled outputs (to 1e-12: a few ulp per redraw
-    carried along straight lines), and it really ran (redraws counted). The crossing detection
-    and pending-return logic (flow_compiled.detect) is also covered by every test of
-    tests/test_flow.py, which run the compiled path by default."""
-    calls = []
-    real = flow_compiled.apply
-
-    def spy(*args):
-        calls.append(args[0].size)
-        return real(*args)
-
-    d = {"units": "lj", "seed": 3, "timestep": 0.005,
-         "box": {"lo": [0, 0, 0], "hi": [10.0, 3.0, 3.0], "boundary": ["p", "p", "p"]},
-         "atoms": [{"group": "gas", "create": {"random": {"count": 400}}, "mass": 1.0,
-                    "velocity": {"temperature": 1.5}}],
-         "walls": {"fl": {"style": "flow", "axis": "x", "vflow": 0.4, "temperature": 1.5, "seed": 99,
-                          "coords": [2.5, 5.0, 7.5], "units": "box"}},
-         "run": {"steps": 400, "thermo": 50},
-         "output": {"thermo": ["step", "ke", "temp", "flow_crossings"]}}
-    case = build_case(config_from_dict(d))
+@pytest.mark.parametrize("rule", ["exact", "lammps"])
+def test_flow_scene_compiled_matches_numpy(monkeypatch, rule):
+    """A batch of two ideal gases (400 atoms, different seeds and vflow) between three flow walls,
+    400 steps, in the compiled chunks (flow_compiled's solver inside engine.compiled._flow_step,
+    the draws from each case's generator in the NumPy order): the same crossings per sample and the
+    same sampled outputs (to 1e-12: a few ulp per redraw carried along straight lines); the
+    chunks really ran compiled. The crossing detection and pending-return logic is also covered
+    by every test of tests/engine/test_flow.py, which run the compiled code by default."""
+    def cfg(seed, vflow):
+        return {"units": "lj", "seed": seed, "timestep": 0.005,
+                "box": {"lo": [0, 0, 0], "hi": [10.0, 3.0, 3.0], "boundary": ["p", "p", "p"]},
+                "atoms": [{"group": "gas", "create": {"random": {"count": 400}}, "mass": 1.0,
+                           "velocity": {"temperature": 1.5}}],
+                "walls": {"fl": {"style": "flow", "axis": "x", "vflow": vflow, "temperature": 1.5, "seed": 99 + seed,
+                                 "coords": [2.5, 5.0, 7.5], "units": "box", "rule": rule}},
+                "run": {"steps": 400, "thermo": 50},
+                "output": {"thermo": ["step", "ke", "temp", "flow_crossings"]}}
+    cases = [build_case(config_from_dict(cfg(3, 0.4))), build_case(config_from_dict(cfg(4, 1.2)))]
     monkeypatch.setenv("WALLBATCH_NUMBA", "0")
-    ref = Engine([case]).run()[0]
+    ref = Engine(cases).run()
     monkeypatch.setenv("WALLBATCH_NUMBA", "1")
-    monkeypatch.setattr(flow_compiled, "apply", spy)
-    got = Engine([case]).run()[0]
-    assert sum(calls) > 200  # redraws went through the compiled solver
-    assert ref.status == got.status == "ok"
-    np.testing.assert_array_equal(got.data["flow_crossings"], ref.data["flow_crossings"])
-    for key in ("ke", "temp"):
-        np.testing.assert_allclose(got.data[key], ref.data[key], rtol=1e-12)
+    eng = Engine(cases)
+    got = eng.run()
+    assert eng.fast is not None and eng.fast.compiled_chunks > 0 and eng.fast.fallbacks == 0
+    for r, g in zip(ref, got):
+        assert r.status == g.status == "ok"
+        assert r.data["flow_crossings"].sum() > 200
+        np.testing.assert_array_equal(g.data["flow_crossings"], r.data["flow_crossings"])
+        for key in ("ke", "temp"):
+            np.testing.assert_allclose(g.data[key], r.data[key], rtol=1e-12)
 
 
 def test_kernel_end_of_step_compiled_matches_numpy(monkeypatch):
@@ -138,3 +136,32 @@ def test_kernel_end_of_step_compiled_matches_numpy(monkeypatch):
         total += c0.sum()
     assert total > 300 and any((p != 0).any() for _, _, p in h_ref)  # crossings and pending returns happened
     np.testing.assert_allclose(v_got, v_ref, rtol=1e-11, atol=1e-11)
+
+
+def test_flow_chunk_handed_back_keeps_the_random_streams(monkeypatch):
+    """Flow walls with a weak harmonic z wall that a fast atom gets through: the compiled chunk
+    hands back to NumPy, which re-runs it from the same generator states, so both paths report
+    the same failure at the same step and the surviving case (stiff wall) has the same crossings."""
+    def cfg(eps):
+        return {"units": "lj", "seed": 8, "timestep": 0.005,
+                "box": {"lo": [0, 0, 0], "hi": [10.0, 4.0, 4.0], "boundary": ["p", "p", "f"]},
+                "regions": {"mid": {"style": "block", "lo": [0, 0, 1.0], "hi": [10, 4, 3.0], "units": "box"}},
+                "atoms": [{"group": "gas", "create": {"random": {"count": 300, "region": "mid"}}, "mass": 1.0,
+                           "velocity": {"temperature": 4.0}}],
+                "walls": {"fl": {"style": "flow", "axis": "x", "vflow": 0.4, "temperature": 4.0, "seed": 5,
+                                 "coords": [5.0], "units": "box"},
+                          "z": {"style": "harmonic", "units": "box", "zlo": [0.0, eps, 1.0, 0.8],
+                                "zhi": [4.0, eps, 1.0, 0.8]}},
+                "run": {"steps": 600, "thermo": 100},
+                "output": {"thermo": ["step", "ke", "flow_crossings"]}}
+    cases = [build_case(config_from_dict(cfg(0.5))), build_case(config_from_dict(cfg(200.0)))]
+    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
+    ref = Engine(cases).run()
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    eng = Engine(cases)
+    got = eng.run()
+    assert ref[0].status == got[0].status == "failed" and got[0].error == ref[0].error
+    assert ref[1].status == got[1].status == "ok"
+    assert eng.fast.fallbacks > 0 and eng.fast.compiled_chunks > 0
+    np.testing.assert_array_equal(got[1].data["flow_crossings"], ref[1].data["flow_crossings"])
+    np.testing.assert_allclose(got[1].data["ke"], ref[1].data["ke"], rtol=1e-12)

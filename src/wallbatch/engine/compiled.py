@@ -54,6 +54,7 @@ from typing import Any
 import numpy as np
 
 from wallbatch.engine import dt_reset as _dtr
+from wallbatch.engine import flow_compiled
 from wallbatch.engine.dt_reset import BIG, dt_candidate
 from wallbatch.engine.state import BatchState
 from wallbatch.engine.region_walls import RegionWallKernel
@@ -122,6 +123,7 @@ def _fingerprint(styles: tuple[WallStyle, ...]) -> int:
         h.update(f"{st.name}:{st.needs_radius}:".encode())
         h.update(inspect.getsource(st.force).encode())
     h.update(inspect.getsource(dt_candidate).encode())
+    h.update(inspect.getsource(flow_compiled).encode())
     return int(h.hexdigest()[:15], 16)
 
 
@@ -462,13 +464,71 @@ if njit is not None:
             new = _nmin(new, par[3])
         return new
 
+    @jit
+    def _flow_step(X, V, M, fl_int, fl_f, walls, grp, phys, pend, prev, cross, rng, CI, DIR):
+        """fix wall/flow's end_of_step (flow.FlowKernel.end_of_step) for the one case of the chunk,
+        on its buffers: crossings (segments of the wrapped axis coordinate, pending returns), then
+        the draws from the case's generator in the NumPy order (u1, u2, g (n, 2)) and the redraws
+        (flow_compiled.apply's arithmetic). fl_int: on, axis, exact; fl_f: lo, length, vflow, kT."""
+        ax = fl_int[1]
+        lo, length = fl_f[0], fl_f[1]
+        n = 0
+        for i in range(X.shape[1]):
+            xi = X[ax, i]
+            xw = lo + (xi - lo) % length
+            sg = 0
+            for k in range(walls.shape[0]):
+                sg += xw >= walls[k]
+            if grp[i] != 0:
+                moved = sg != phys[i]
+                pe = float(pend[i])
+                if moved or pe != 0.0:
+                    va = V[ax, i]
+                    dx = xi - prev[i]
+                    dx -= length * np.rint(dx / length)
+                    d = np.sign(dx)
+                    if d == 0.0:
+                        d = np.sign(va)
+                    if d == 0.0:
+                        d = 1.0
+                    returned = (pe != 0.0) & moved & (d == pe)
+                    turned = (pe != 0.0) & (not moved) & (va * pe <= 0.0)
+                    if returned:
+                        pend[i] = 0
+                    if (moved & (not returned)) | turned:
+                        CI[n] = i
+                        DIR[n] = -pe if turned else d
+                        n += 1
+            phys[i] = sg
+            prev[i] = xi
+        if n == 0:
+            return
+        u1 = rng.random(n)
+        u2 = rng.random(n)
+        g = rng.standard_normal((n, 2))
+        kT, vflow = fl_f[3], fl_f[2]
+        for k in range(n):
+            i = CI[k]
+            gamma = 1.0 / math.sqrt(2.0 * kT / M[i])
+            delta = gamma * vflow
+            pplus = flow_compiled._expit(flow_compiled.log_tail(0.0, delta) - flow_compiled.log_tail(0.0, -delta), 0)
+            side = -1.0 if u1[k] > pplus else 1.0
+            v_axis = side * flow_compiled.solve_flux_speed(side * delta, 1.0 - u2[k], 100) / gamma
+            scale = gamma * flow_compiled._SQRT2
+            V[ax, i] = v_axis
+            V[(ax + 1) % 3, i] = g[k, 0] / scale
+            V[(ax + 2) % 3, i] = g[k, 1] / scale
+            pend[i] = -DIR[k] if fl_int[2] != 0 and v_axis * DIR[k] < 0.0 else 0
+        cross[0] += n
+
     def _make_run_chunk(fingerprint: int) -> Any:
         """The chunk kernel; `fingerprint` (see _fingerprint) joins its on-disk cache key."""
 
         @jit
         def _run_chunk(nsteps, time_mode, target, tol, x, v, f, mass, radius, dt, atime, atimestep,
                        step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
-                       stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo, rg_meta, rg_geo, rg_val):
+                       stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo, rg_meta, rg_geo, rg_val,
+                       fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng):
             """Advance every case by nsteps steps (or, with time_mode, to the time `target` as
             Engine.advance_to_time does), reading x, v, f and writing xo, vo, fo. Returns 0, or the
             nonzero status of the first trouble met (1: an atom on/behind a soft wall, 2: a lost atom,
@@ -510,6 +570,9 @@ if njit is not None:
             # wall/region: one argument (a call of more than 30 arguments is compiled by CPython as
             # f(*args), which numba cannot inline); RB holds a block's contacts (_region_contacts)
             rg = (rg_meta, rg_geo, rg_val, np.empty((6, 5, BLOCK)))
+            # wall/flow (fl_int[0] != 0; the chunk then holds one case): step by step over all blocks
+            CI = np.empty(natom if fl_int[0] != 0 else 0, np.int64)
+            DIR = np.empty(natom if fl_int[0] != 0 else 0)
             for c in range(ncase):
                 for a in range(natom):
                     for d in range(3):
@@ -535,7 +598,7 @@ if njit is not None:
                         break
                     # a window of nwin steps at one dt, block by block; or one step (time-based runs, and
                     # dt/reset while dt changes), which is a window of one step followed by its dt update
-                    window = not time_mode and (dtr_every == 0 or stepwise == 0)
+                    window = not time_mode and (dtr_every == 0 or stepwise == 0) and fl_int[0] == 0
                     nwin = 1
                     if window:
                         nwin = nsteps - done if dtr_every == 0 else min(WINDOW, nsteps - done)
@@ -575,6 +638,9 @@ if njit is not None:
                                 return st
                             if due:
                                 low[s] = _nmin(low[s], m)
+                    if fl_int[0] != 0:  # fix wall/flow (end_of_step)
+                        _flow_step(X, V, M, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross,
+                                   fl_rng, CI, DIR)
                     if window and speculate:
                         first = -1
                         for s in range(nwin):
@@ -632,6 +698,10 @@ if njit is not None:
 
 # ----------------------------------------------------------------------------- the Python side
 
+# the wall/flow arguments of a chunk without flow walls (same types: one compiled signature)
+_NO_FLOW = (np.zeros(3, np.int64), np.zeros(4), np.zeros(0), np.zeros(0, np.uint8), np.zeros(0, np.int64),
+            np.zeros(0, np.int64), np.zeros(0), np.zeros(1), np.random.default_rng(0))
+
 
 @dataclass
 class ChunkPlan:
@@ -660,6 +730,7 @@ class ChunkPlan:
     finish_step: Callable[[dict, bool], None]
     advance_numpy: Callable[[int, bool], None]
     region: tuple[RegionWallKernel, ...] = ()
+    flow: tuple = ()  # flow.FlowKernel: at most one, without dt/reset (`eligible`)
 
 
 def eligible(plan: ChunkPlan) -> bool:
@@ -671,6 +742,8 @@ def eligible(plan: ChunkPlan) -> bool:
            or COMPILED_STYLES[STYLE_IDS[w.style.name]] is not w.style for w in plan.soft):
         return False
     if any(not region_eligible(w) for w in plan.region):
+        return False
+    if len(plan.flow) > 1 or (plan.flow and plan.dt_reset is not None):
         return False
     return all(type(w) is ReflectKernel and w.frame in ("lab", "wall") for w in plan.reflect)
 
@@ -797,6 +870,8 @@ class FastPath:
         if any(w.style.needs_radius and not w._radius_checked for w in plan.region):
             return False  # colloid's radius check (the NumPy setup step makes it) reports in NumPy
         time_mode = target is not None
+        if time_mode and plan.flow:
+            return False
         if not time_mode and nsteps <= 0:
             return False
         varying = self._uses_time(plan)
@@ -864,22 +939,50 @@ class FastPath:
             self._spare = tuple(np.empty_like(s.x) for _ in range(3))
         xo, vo, fo = self._spare
         backup = {k: getattr(s, k).copy() for k in ("dt", "atime", "atimestep", "step")}
-        status = _run_chunk(
-            int(nsteps), time_mode, float(target if time_mode else 0.0),
-            float(1e-12 * max(1.0, abs(target))) if time_mode else 0.0,
-            s.x, s.v, s.f, s.mass, s.radius, s.dt, s.atime, s.atimestep, s.step,
-            np.asarray(s.box_lo, float), np.asarray(s.box_hi, float), periodic,
-            sf_meta, np.ascontiguousarray(sf_val), groups_arr, rf_meta, np.ascontiguousarray(rf_val), rf_prev,
-            np.ascontiguousarray(rf_stat), stats, int(dtr.every if dtr is not None else 0), dtr_group, dtr_par,
-            float(s.units.ftm2v), float(s.units.mvv2e), xo, vo, fo, *rg)
+        sf_val, rf_val, rf_stat = (np.ascontiguousarray(a) for a in (sf_val, rf_val, rf_stat))
+        lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)
+        args = (int(nsteps), time_mode, float(target if time_mode else 0.0),
+                float(1e-12 * max(1.0, abs(target))) if time_mode else 0.0)
+        consts = (stats, int(dtr.every if dtr is not None else 0), dtr_group)
+        units = (float(s.units.ftm2v), float(s.units.mvv2e))
+
+        def run(c: slice, fl: tuple) -> int:
+            """The kernel on cases c (a slice: views, so the kernel writes through)."""
+            return _run_chunk(*args, s.x[c], s.v[c], s.f[c], s.mass[c], s.radius[c], s.dt[c], s.atime[c],
+                              s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
+                              rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
+                              rg[0], rg[1], rg[2][c], *fl)
+
+        fk = plan.flow[0] if plan.flow else None
+        if fk is None:
+            status = run(slice(None), _NO_FLOW)
+        else:  # one case per call: each case draws from its own generator
+            rng_states = [r.bit_generator.state for r in fk.rngs]
+            phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
+            prev, cross = np.ascontiguousarray(fk.prev, dtype=float).copy(), np.zeros((C, 1))
+            status = 0
+            for c in range(C):
+                fl_int = np.array([1, fk.axis[c], int(fk.exact[c])], np.int64)
+                fl_f = np.array([fk.lo[c], fk.length[c], fk.vflow[c], fk.kT[c]])
+                walls = np.ascontiguousarray(fk.walls[c][np.isfinite(fk.walls[c])])
+                status = run(slice(c, c + 1), (fl_int, fl_f, walls, fk.group[c].astype(np.uint8), phys[c], pend[c],
+                                               prev[c], cross[c], fk.rngs[c]))
+                if status != 0:
+                    break
         s.ctx = None
         s.var_step = {}
         if status != 0:
             for k, arr in backup.items():
                 getattr(s, k)[...] = arr
+            if fk is not None:  # the NumPy loop re-runs the chunk with the same random numbers
+                for r, st in zip(fk.rngs, rng_states):
+                    r.bit_generator.state = st
             self.fallbacks += 1
             return False
         self.compiled_chunks += 1
+        if fk is not None:
+            fk.phys, fk.pend, fk.prev = phys.astype(np.intp), pend.astype(np.int8), prev
+            fk.crossings += cross[:, 0]
         self._spare = (s.x, s.v, s.f)
         s.x, s.v, s.f = xo, vo, fo
         k = 0

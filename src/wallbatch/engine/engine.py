@@ -97,7 +97,7 @@ class Engine:
         their per-case arrays, the NumPy steps it hands back to, and what else the scene has."""
         s = self.state
         others = tuple(name for name, present in (
-            ("pair", self.pair is not None), ("flow", bool(self.flow)),
+            ("pair", self.pair is not None),
             ("ellipsoids", s.quat is not None or s.angmom is not None or s.torque is not None),
             ("fixes", self.ensemble is not None)) if present)
         dtr = None
@@ -106,7 +106,7 @@ class Engine:
         return ChunkPlan(state=s, soft=tuple(self.soft), reflect=tuple(self.reflect), dt_reset=self.dt_reset,
                          dt_reset_params=dtr, others=others, compute_outputs=lambda: self.compute_forces(True),
                          finish_step=self.finish_step, advance_numpy=self.advance_numpy,
-                         region=tuple(self.region_walls))
+                         region=tuple(self.region_walls), flow=tuple(self.flow))
 
     # -- the step ----------------------------------------------------------------------------
 
