@@ -475,7 +475,10 @@ if njit is not None:
         n = 0
         for i in range(X.shape[1]):
             xi = X[ax, i]
-            xw = lo + (xi - lo) % length
+            t = xi - lo
+            if not (t >= 0.0 and t < length):  # t % length is t itself there (positions are wrapped)
+                t = t % length
+            xw = lo + t
             sg = 0
             for k in range(walls.shape[0]):
                 sg += xw >= walls[k]
