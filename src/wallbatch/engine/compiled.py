@@ -33,7 +33,10 @@ of compiled styles, wall/reflect, dt/reset and equal-style variables (their per-
 before the chunk, vectorised over steps; not when the step's dt can change inside the chunk).
 wall/region fixes of compiled styles with constant parameters run in the kernel too (their contacts
 per atom as RegionGeom.contacts lists them, the force the registry's function; `_region_contacts`).
-Anything else (pair forces, flow, ees, wall/region/ees, ellipsoids) runs in NumPy. A chunk that
+One wall/flow fix (step-based runs without dt/reset) runs in the kernel as well, one case per call
+with the case's own generator (`_flow_step`; numba's Generator draws NumPy's streams), step by
+step over all atoms. Anything else (pair forces, ees, wall/region/ees, ellipsoids, thermostats,
+several flow fixes) runs in NumPy. A chunk that
 meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a variable error or a
 negative variable parameter) leaves the state as it was at its start and is handed back to the
 NumPy loop, which re-runs it and reports exactly as always. `WALLBATCH_NUMBA=0` (or numba not
@@ -716,7 +719,8 @@ class ChunkPlan:
     * ``reflect``: wall/reflect kernels (faces, frame, previous positions, statistics);
     * ``dt_reset`` and ``dt_reset_params`` (C, 4): xmax, emax, tmin, tmax (NaN: no bound);
     * ``region``: wall/region kernels (and wall/region/ees ones, which `eligible` refuses);
-    * ``others``: what else the scene has (pair, flow, ellipsoids): the compiled
+    * ``flow``: the wall/flow kernels (`eligible` takes at most one, without dt/reset);
+    * ``others``: what else the scene has (pair, ellipsoids, fixes): the compiled
       path runs only plans where this is empty;
     * ``compute_outputs()``: the NumPy forces and outputs at the current positions,
       ``finish_step(out, sample)``: drop failed cases and sample, ``advance_numpy(n, sample)``: the
@@ -738,7 +742,8 @@ class ChunkPlan:
 
 def eligible(plan: ChunkPlan) -> bool:
     """Whitelist: flat soft walls of compiled styles, wall/reflect (lab or wall frame), wall/region
-    with compiled styles and constant parameters, dt/reset, variables; nothing else in the scene."""
+    with compiled styles and constant parameters, one wall/flow (not with dt/reset), dt/reset,
+    variables; nothing else in the scene."""
     if plan.others:
         return False
     if any(type(w) is not SoftWallKernel or STYLE_IDS.get(w.style.name) is None

@@ -72,7 +72,7 @@ class Engine:
         self.frames: list[tuple] = []  # (rows, time, x, v) per dump instant
         self.samples: list[dict[str, np.ndarray]] = []  # per sample: name -> (C_total, ...) arrays
         self.sample_rows: list[np.ndarray] = []
-        # the compiled path (fast.py) runs only scenes without pair, flow, ees, wall/region/ees, ellipsoids
+        # the compiled path (compiled.py) runs only scenes without pair, ees, wall/region/ees, ellipsoids
         self.pair = None  # pair.PairLJCut
         if c0.pair is not None:
             self.pair = PairLJCut(np.array([c.pair.epsilon for c in cases]), np.array([c.pair.sigma for c in cases]),
