@@ -177,11 +177,13 @@ class _Plan:
 
     def __init__(self, geom, natoms):
         from wallbatch.styles import STYLES
+        from wallbatch.styles.cutoff import CutoffStyle
 
         class W:
             pass
         w = W()
         w.geom, w.style, w.atoms = geom, STYLES["lj93"], np.arange(natoms)
+        w.cutoff = CutoffStyle(w.style)
         w.params = {"epsilon": np.array([1.0]), "sigma": np.array([1.0]), "cutoff": np.array([2.5])}
         self.region = (w,)
 
@@ -189,3 +191,13 @@ class _Plan:
             ncases = 1
             x = np.zeros((1, natoms, 3))
         self.state = S()
+
+
+@pytest.mark.parametrize("mode,extra", [("force-shift", {}), ("smooth", {"switch_on": 1.5})])
+def test_region_cutoff_modes(monkeypatch, mode, extra):
+    """wall/region under the cut-off modes force-shift and smooth runs compiled (the registry's
+    mode closures) and matches NumPy."""
+    walls = {"rw": {**rwall("lj93", cutoff=2.5), "cutoff_mode": mode, **extra}}
+    ref, _, _ = check(monkeypatch, [region_gas(SPHERE_IN, walls, start=SPHERE_START)])
+    assert ref[0].status == "ok"
+    assert_hits(ref)

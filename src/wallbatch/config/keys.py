@@ -120,6 +120,10 @@ KEYS: dict[str, Key] = {
     "walls.ID.energy": Key("Add the wall energy to `pe` and `etot` (and to the minimized energy).", "",
                            "`fix_modify ID energy yes`"),
     "walls.ID.virial": Key("Add the wall virial to `press`.", "", "`fix_modify ID virial yes`"),
+    "walls.ID.cutoff_mode": Key("Cut-off treatment of a soft wall (flat or region): `shift`, `force-shift` or "
+                                "`smooth`.", "", "— (`shift` is LAMMPS's; the others cannot be exported)"),
+    "walls.ID.switch_on": Key("`cutoff_mode: smooth`: where the switch starts, 0 <= switch_on < cutoff.",
+                              "distance", "—"),
     "walls.ID.pbc": Key("Allow a face in a periodic dimension (the wall acts on its group only; no images).",
                         "", "`pbc yes`"),
     "walls.ID.FACE": Key("A face `xlo xhi ylo yhi zlo zhi`: a mapping, or the positional list in LAMMPS's "

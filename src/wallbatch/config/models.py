@@ -30,6 +30,8 @@ from wallbatch.config.profiles import Averages, Profile, check_profiles
 from wallbatch.config.source import FACES, ConfigError, SourceMap, load_yaml
 from wallbatch.styles import STYLES, WallStyle, region_styles
 from wallbatch.styles import Param as StyleParam
+from wallbatch.styles.cutoff import CUTOFF_MODES
+from wallbatch.styles.cutoff import supported as cutoff_supported
 
 REGION_POTENTIALS = region_styles()
 THERMO_KEYWORDS = (
@@ -300,6 +302,11 @@ class SoftWall(_FaceWall):
     mapping or positionally."""
 
     _style: ClassVar[WallStyle]
+    cutoff_mode: Literal[CUTOFF_MODES] = Field(  # type: ignore[valid-type]
+        "shift", description="cut-off treatment: shift (LAMMPS: energy shifted, force jumps at the cut-off), "
+        "force-shift (force and energy go to 0 at the cut-off) or smooth (quintic switch from switch_on)")
+    switch_on: NonNegativeFloat | None = Field(
+        None, description="smooth: where the switch starts, 0 <= switch_on < cutoff (box units) [distance]")
 
     @model_validator(mode="before")
     @classmethod
@@ -425,7 +432,9 @@ RegionWall = create_model(
     "RegionWall", __base__=_RegionWallHead, __doc__="fix wall/region with a soft potential (a flat wall style).",
     **{k: (Param | None, Field(default=None, description=f"{k} of the potential (as its flat wall style)"))
        for k in REGION_PARAMS},
-    cutoff=(PositiveFloat, ...), energy=(bool, False), virial=(bool, False))
+    cutoff=(PositiveFloat, ...), energy=(bool, False), virial=(bool, False),
+    cutoff_mode=(Literal[CUTOFF_MODES], Field("shift", description="cut-off treatment, as for flat walls")),  # type: ignore[valid-type]
+    switch_on=(NonNegativeFloat | None, Field(None, description="smooth: where the switch starts [distance]")))
 
 Wall = Annotated[
     Union[(*WALL_MODELS.values(), ReflectWall, FlowWall, RegionWall, RegionEESWall)],  # type: ignore[valid-type]
@@ -671,6 +680,7 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
             if needs_shape and (bad := members_without(wall.group, shape_groups)):
                 add(("walls", fid, "group"), f"{_fix_name(wall)} requires ellipsoids (LAMMPS: requires extended "
                     f"particles): give group(s) {', '.join(bad)} a shape [a, b, c], or set this wall's group")
+        _check_cutoff_mode(fid, wall, entry, add)
         if wall.style in ("region", "region/ees"):
             _check_region_wall(cfg, fid, wall, add, check_var)
             continue
@@ -732,6 +742,29 @@ def _check_min(entry: WallStyle | None, key: str, value: Any, path: tuple, add: 
         add(path, f"{key} must be >= {p.min:g}")
     elif p.positive and isinstance(value, float) and not value > 0:
         add(path, f"{key} must be > 0")
+
+
+def _check_cutoff_mode(fid: str, wall: Any, entry: WallStyle | None, add: Any) -> None:
+    """cutoff_mode and switch_on (docs/physics.md §17): smooth needs 0 <= switch_on < every cut-off
+    of the wall, switch_on is refused without smooth, and wall/ees takes only shift."""
+    mode = getattr(wall, "cutoff_mode", "shift")
+    r_on = getattr(wall, "switch_on", None)
+    if mode != "shift" and entry is not None and not cutoff_supported(entry):
+        add(("walls", fid, "cutoff_mode"), f"{_fix_name(wall)} takes only cutoff_mode: shift (its energy depends on "
+            f"more than the distance)")
+    if r_on is not None and mode != "smooth":
+        add(("walls", fid, "switch_on"), f"switch_on is where the smooth switch starts: it needs cutoff_mode: smooth "
+            f"(this wall has {mode})")
+    if mode == "smooth" and r_on is None:
+        add(("walls", fid, "cutoff_mode"), "cutoff_mode: smooth needs switch_on (where the switch starts, "
+            "0 <= switch_on < cutoff)")
+    if mode == "smooth" and r_on is not None:
+        cuts = ([("", wall.cutoff)] if wall.style == "region"
+                else [(f" ({face})", spec.cutoff) for face, spec in wall.faces()])
+        for where, rc in cuts:
+            if isinstance(rc, float) and not r_on < rc:
+                add(("walls", fid, "switch_on"), f"switch_on = {r_on:g} must be smaller than the cut-off{where} "
+                    f"{rc:g}")
 
 
 def _check_region_wall(cfg: "Config", fid: str, wall: Any, add: Any, check_var: Any) -> None:

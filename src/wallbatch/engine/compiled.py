@@ -65,6 +65,9 @@ from wallbatch.engine.walls import ReflectKernel, SoftWallKernel
 from wallbatch.expr import VariableError
 from wallbatch.scene.case import DtResetSpec
 from wallbatch.styles import STYLES, WallStyle
+from wallbatch.styles import cutoff as _cutoff
+from wallbatch.styles.cutoff import CUTOFF_MODES, FORCE_SHIFT, SHIFT, SMOOTH, cutoff_functions
+from wallbatch.styles.cutoff import supported as cutoff_supported
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
@@ -93,28 +96,43 @@ def enabled() -> bool:
 
 
 def _dispatch_source(styles: tuple[WallStyle, ...]) -> str:
-    """Python source of `_soft_face(style, ...)`: one branch per compiled style, each a literal
-    call of the generic face loop with that style's force function and radius flag, so every style
-    gets its own loop with its force inlined."""
-    lines = ["def _soft_face(style, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1):"]
+    """Python source of `_soft_face(style, mode, ...)`: one branch per compiled style and cut-off
+    mode (wallbatch.styles.cutoff), each a literal call of the generic face loop with that pair's
+    force function and radius flag, so every pair gets its own loop with its force inlined."""
+    lines = ["def _soft_face(style, mode, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, u0, u1):"]
+    first = True
     for i, st in enumerate(styles):
-        lines.append(f"    {'if' if i == 0 else 'elif'} style == {i}:  # {st.name}")
-        lines.append(f"        return _face(_FORCE_{i}, {bool(st.needs_radius)}, X, F, RAD, groups, g, d, side, "
-                     "coord, p0, p1, p2, cut, u0, u1)")
+        for m in _modes(st):
+            lines.append(f"    {'if' if first else 'elif'} style == {i} and mode == {m}:  # {st.name} "
+                         f"{CUTOFF_MODES[m]}")
+            lines.append(f"        return _face(_FORCE_{i}_{m}, {bool(st.needs_radius)}, X, F, RAD, groups, g, d, "
+                         "side, coord, p0, p1, p2, cut, ron, u0, u1)")
+            first = False
     lines.append("    return 0")
     return "\n".join(lines) + "\n"
 
 
 def _region_dispatch_source(styles: tuple[WallStyle, ...]) -> str:
-    """Python source of `_region_force(style, ...)`: as `_dispatch_source`, one branch per compiled
-    style calling the generic region-contact force loop with that style's force function inlined."""
-    lines = ["def _region_force(style, F, RAD, RB, nslot, u0, u1, p0, p1, p2, cut):"]
+    """Python source of `_region_force(style, mode, ...)`: as `_dispatch_source`, one branch per
+    compiled style and cut-off mode calling the region-contact force loop with that force inlined."""
+    lines = ["def _region_force(style, mode, F, RAD, RB, nslot, u0, u1, p0, p1, p2, cut, ron):"]
+    first = True
     for i, st in enumerate(styles):
-        lines.append(f"    {'if' if i == 0 else 'elif'} style == {i}:  # {st.name}")
-        lines.append(f"        return _rface(_FORCE_{i}, {bool(st.needs_radius)}, F, RAD, RB, nslot, u0, u1, "
-                     "p0, p1, p2, cut)")
+        for m in _modes(st):
+            lines.append(f"    {'if' if first else 'elif'} style == {i} and mode == {m}:  # {st.name} "
+                         f"{CUTOFF_MODES[m]}")
+            lines.append(f"        return _rface(_FORCE_{i}_{m}, {bool(st.needs_radius)}, F, RAD, RB, nslot, u0, u1, "
+                         "p0, p1, p2, cut, ron)")
+            first = False
     lines.append("    return 0")
     return "\n".join(lines) + "\n"
+
+
+def _modes(st: WallStyle) -> tuple[int, ...]:
+    """The cut-off modes the compiled path runs for a style (smooth needs a compiled shifted_fn)."""
+    if not cutoff_supported(st):
+        return (SHIFT,)
+    return (SHIFT, FORCE_SHIFT, SMOOTH) if st.compiled_shifted else (SHIFT, FORCE_SHIFT)
 
 
 def _fingerprint(styles: tuple[WallStyle, ...]) -> int:
@@ -123,8 +141,11 @@ def _fingerprint(styles: tuple[WallStyle, ...]) -> int:
     (numba keys a cached function by its own file only)."""
     h = hashlib.sha256()
     for st in styles:
-        h.update(f"{st.name}:{st.needs_radius}:".encode())
+        h.update(f"{st.name}:{st.needs_radius}:{_modes(st)}:".encode())
         h.update(inspect.getsource(st.force).encode())
+        if len(_modes(st)) > 1:
+            h.update(inspect.getsource(st.shifted_fn).encode())
+    h.update(inspect.getsource(_cutoff).encode())
     h.update(inspect.getsource(dt_candidate).encode())
     h.update(inspect.getsource(flow_compiled).encode())
     return int(h.hexdigest()[:15], 16)
@@ -160,10 +181,18 @@ if njit is not None:
 
     # the registry's force functions, compiled as they are (the same function objects)
     FORCES = tuple(njit(nogil=True, error_model="numpy")(st.force) for st in COMPILED_STYLES)
+    # each style's force under each cut-off mode it runs: the closures of styles.cutoff around the
+    # compiled force (and, for force-shift and smooth, E(r) - E(rc)), compiled as they are
+    _SHIFTED = {i: njit(nogil=True, error_model="numpy")(st.shifted_fn) for i, st in enumerate(COMPILED_STYLES)
+                if len(_modes(st)) > 1}
+    _switch = njit(nogil=True, error_model="numpy")(_cutoff.switch)
+    MODE_FORCES = {(i, m): njit(nogil=True, error_model="numpy")(
+        cutoff_functions(FORCES[i], _SHIFTED.get(i, FORCES[i]), m, _switch)[0])
+        for i, st in enumerate(COMPILED_STYLES) for m in _modes(st)}
     _dt_candidate = njit(nogil=True, error_model="numpy", inline="always")(dt_candidate)
 
     @inline
-    def _face(force, use_radius, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1):
+    def _face(force, use_radius, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, u0, u1):
         """One soft face over atoms u0..u1-1 (walls.SoftWallKernel.apply): r = distance into the
         allowed region; where r < rc (and the atom is in the group), F[d] -= side F(r). Returns the
         number of atoms on or behind the wall (r <= 0; with use_radius: r <= radius). `force` and
@@ -178,11 +207,11 @@ if njit is not None:
             nbad += near & (r <= rad)
             fi = F[d, i]
             if near:
-                fi = fi - sidef * force(r, p0, p1, p2, cut, rad)
+                fi = fi - sidef * force(r, p0, p1, p2, cut, rad, ron)
             F[d, i] = fi
         return nbad
 
-    _namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}": f for i, f in enumerate(FORCES)}}
+    _namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}_{m}": f for (i, m), f in MODE_FORCES.items()}}
     exec(compile(_dispatch_source(COMPILED_STYLES), "<wallbatch soft-face dispatch>", "exec"), _namespace)
     _soft_face = njit(nogil=True, error_model="numpy", inline="always")(_namespace["_soft_face"])
 
@@ -191,7 +220,7 @@ if njit is not None:
     # (flag 1.0: a contact), one slot per part of RegionGeom.contacts in its order (block in: xlo,
     # xhi, ylo, yhi, zlo, zhi; cylinder in: curved wall, lo cap, hi cap; every other region: one),
     # then one force pass per slot adds (F(r) / r) delta to F, so each atom adds its contacts in the
-    # order np.add.at does. rg_meta rows: kind (REGION_KINDS), axis, style number, group row;
+    # order np.add.at does. rg_meta rows: kind (REGION_KINDS), axis, style number, group row, mode;
     # rg_geo rows: lo x y z, hi x y z, radius, centre (sphere x y z; cylinder the two other dims).
 
     @inline
@@ -315,7 +344,7 @@ if njit is not None:
         return nslot, nwrong
 
     @inline
-    def _rface(force, use_radius, F, RAD, RB, nslot, u0, u1, p0, p1, p2, cut):
+    def _rface(force, use_radius, F, RAD, RB, nslot, u0, u1, p0, p1, p2, cut, ron):
         """The forces of a region's contacts in RB (RegionWallKernel.apply): F += (F(r) / r) delta,
         slot by slot. Returns the number of contacts too close (r <= 0; use_radius: r <= radius)."""
         nbad = 0
@@ -326,7 +355,7 @@ if njit is not None:
                     r = RB[j, 1, b]
                     rad = RAD[i] if use_radius else 0.0
                     nbad += r <= rad
-                    s = force(r, p0, p1, p2, cut, rad) / r
+                    s = force(r, p0, p1, p2, cut, rad, ron) / r
                     F[0, i] = F[0, i] + s * RB[j, 2, b]
                     F[1, i] = F[1, i] + s * RB[j, 3, b]
                     F[2, i] = F[2, i] + s * RB[j, 4, b]
@@ -346,8 +375,8 @@ if njit is not None:
             nslot, nwrong = _region_contacts(rg_meta[k, 0], rg_meta[k, 1], rg_geo[k], X, groups, rg_meta[k, 3],
                                              cut, u0, u1, RB)
             nbad += nwrong
-            nbad += _region_force(rg_meta[k, 2], F, RAD, RB, nslot, u0, u1, rg_val[c, k, 0], rg_val[c, k, 1],
-                                  rg_val[c, k, 2], cut)
+            nbad += _region_force(rg_meta[k, 2], rg_meta[k, 4], F, RAD, RB, nslot, u0, u1, rg_val[c, k, 0],
+                                  rg_val[c, k, 1], rg_val[c, k, 2], cut, rg_val[c, k, 4])
         return nbad
 
     @inline
@@ -396,9 +425,10 @@ if njit is not None:
         for k in range(sf_meta.shape[0]):  # soft walls (post_force), one loop per style
             style = sf_meta[k, 0]
             g, d, side = sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2]
-            coord, cut = sf_val[c, si, k, 0], sf_val[c, si, k, 4]
+            coord, cut, ron = sf_val[c, si, k, 0], sf_val[c, si, k, 4], sf_val[c, si, k, 5]
             p0, p1, p2 = sf_val[c, si, k, 1], sf_val[c, si, k, 2], sf_val[c, si, k, 3]
-            nbad += _soft_face(style, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+            nbad += _soft_face(style, sf_meta[k, 4], X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron,
+                               u0, u1)
         if rg[0].shape[0]:  # wall/region fixes (post_force, after the flat walls as in compute_forces)
             nbad += _region_walls(c, u0, u1, X, F, RAD, groups, rg[0], rg[1], rg[2], rg[3])
         if nbad:
@@ -747,7 +777,8 @@ def eligible(plan: ChunkPlan) -> bool:
     if plan.others:
         return False
     if any(type(w) is not SoftWallKernel or STYLE_IDS.get(w.style.name) is None
-           or COMPILED_STYLES[STYLE_IDS[w.style.name]] is not w.style for w in plan.soft):
+           or COMPILED_STYLES[STYLE_IDS[w.style.name]] is not w.style
+           or w.cutoff.mode_id not in _modes(w.style) for w in plan.soft):
         return False
     if any(not region_eligible(w) for w in plan.region):
         return False
@@ -761,7 +792,7 @@ def region_eligible(w: Any) -> bool:
     of REGION_KINDS, constant parameters."""
     if type(w) is not RegionWallKernel or w.style is None or STYLE_IDS.get(w.style.name) is None:
         return False
-    if COMPILED_STYLES[STYLE_IDS[w.style.name]] is not w.style:
+    if COMPILED_STYLES[STYLE_IDS[w.style.name]] is not w.style or w.cutoff.mode_id not in _modes(w.style):
         return False
     if (w.geom.style, w.geom.side) not in REGION_KINDS or any(isinstance(v, str) for v in w.params.values()):
         return False
@@ -782,7 +813,7 @@ class FastPath:
 
     @staticmethod
     def _values(plan: ChunkPlan, nsteps: int, varying: bool) -> tuple[np.ndarray, np.ndarray] | None:
-        """Per-step wall values: soft (C, S', F, 5) = coord, p0, p1, p2, cutoff and reflect
+        """Per-step wall values: soft (C, S', F, 6) = coord, p0, p1, p2, cutoff, switch_on and reflect
         coords (C, S', R); S' = nsteps when a value varies with time, else 1. None: fall back."""
         s = plan.state
         C = s.ncases
@@ -802,7 +833,7 @@ class FastPath:
             return np.broadcast_to(v, (nval, C)) if isinstance(v, np.ndarray) else var(v)
 
         soft_faces = [(w, face) for w in plan.soft for face in w.faces]
-        sf = np.zeros((C, nval, len(soft_faces), 5))
+        sf = np.zeros((C, nval, len(soft_faces), 6))
         rf = np.zeros((C, nval, sum(len(w.faces) for w in plan.reflect)))
         with np.errstate(all="ignore"):
             try:
@@ -817,6 +848,8 @@ class FastPath:
                                 return None  # the NumPy path fails these cases with its message
                             sf[:, :, k, 1 + j] = val.T
                     sf[:, :, k, 4] = value(face.params["cutoff"]).T
+                    if "switch_on" in face.params:  # cutoff_mode smooth
+                        sf[:, :, k, 5] = value(face.params["switch_on"]).T
                 k = 0
                 for w in plan.reflect:
                     for face in w.faces:
@@ -836,18 +869,19 @@ class FastPath:
     @staticmethod
     def _regions(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The wall/region fixes for the kernel: rg_meta (K, 4) int = kind (REGION_KINDS), axis,
-        style number, group row; rg_geo (K, 10) = lo xyz, hi xyz, radius, centre; rg_val (C, K, 4)
-        = p0, p1, p2, cutoff (constants: `eligible` refuses variables)."""
+        """The wall/region fixes for the kernel: rg_meta (K, 5) int = kind (REGION_KINDS), axis,
+        style number, group row, cut-off mode; rg_geo (K, 10) = lo xyz, hi xyz, radius, centre;
+        rg_val (C, K, 5) = p0, p1, p2, cutoff, switch_on (constants: `eligible` refuses variables)."""
         C = plan.state.ncases
         K = len(plan.region)
-        meta = np.zeros((K, 4), np.int64)
+        meta = np.zeros((K, 5), np.int64)
         geo = np.zeros((K, 10))
-        val = np.zeros((C, K, 4))
+        val = np.zeros((C, K, 5))
         for k, w in enumerate(plan.region):
             g = w.geom
             meta[k] = (REGION_KINDS[(g.style, g.side)], g.axis or 0, STYLE_IDS[w.style.name],
-                       group(np.isin(np.arange(plan.state.x.shape[1]), w.atoms), w.atoms.size == plan.state.x.shape[1]))
+                       group(np.isin(np.arange(plan.state.x.shape[1]), w.atoms), w.atoms.size == plan.state.x.shape[1]),
+                       w.cutoff.mode_id)
             if g.style == "block":
                 geo[k, 0:3], geo[k, 3:6] = g.lo, g.hi
             elif g.style == "sphere":
@@ -858,6 +892,7 @@ class FastPath:
                 if key in w.params:
                     val[:, k, j] = np.broadcast_to(np.asarray(w.params[key], float), (C,))
             val[:, k, 3] = np.broadcast_to(np.asarray(w.params.get("cutoff", np.inf), float), (C,))
+            val[:, k, 4] = np.broadcast_to(np.asarray(w.params.get("switch_on", 0.0), float), (C,))
         return meta, geo, val
 
     # -- the chunk -------------------------------------------------------------------------
@@ -886,7 +921,7 @@ class FastPath:
         if varying and (plan.dt_reset is not None or time_mode):
             return False  # per-step values depend on a dt that changes inside the chunk
         if varying and not time_mode:
-            per_step = 5 * max(1, sum(len(w.faces) for w in plan.soft + plan.reflect)) * s.ncases
+            per_step = 6 * max(1, sum(len(w.faces) for w in plan.soft + plan.reflect)) * s.ncases
             most = max(1, VALUE_BUDGET // per_step)
             if nsteps > most:  # split a long chunk: the values of fewer steps at a time
                 done = 0
@@ -918,8 +953,8 @@ class FastPath:
             groups.append(kernel_group.astype(np.uint8))
             return len(groups) - 1
 
-        sf_meta = np.array([[STYLE_IDS[w.style.name], face.dim, face.side, group(w.group, w.all_atoms)]
-                            for w, face in soft_faces], np.int64).reshape(-1, 4)
+        sf_meta = np.array([[STYLE_IDS[w.style.name], face.dim, face.side, group(w.group, w.all_atoms),
+                             w.cutoff.mode_id] for w, face in soft_faces], np.int64).reshape(-1, 5)
         rf_meta = np.array([[face.dim, face.side, 1 if w.frame == "wall" else 0, group(w.group, w.all_atoms)]
                             for w in plan.reflect for face in w.faces], np.int64).reshape(-1, 4)
         stats = bool(plan.reflect) and plan.reflect[0].stats

@@ -16,6 +16,7 @@ from wallbatch.scene.case import Case, ReflectSpec, SoftWallSpec
 from wallbatch.geometry.quaternion import rotation_matrix
 from wallbatch.styles.ees import ees_energy_force_torque, ees_torque, sigma_n
 from wallbatch.styles.base import WallStyle
+from wallbatch.styles.cutoff import CutoffStyle
 
 
 class SoftWallKernel:
@@ -25,6 +26,7 @@ class SoftWallKernel:
         s0 = specs[0]
         self.fix_id: str = s0.fix_id
         self.style: WallStyle = s0.style
+        self.cutoff = CutoffStyle(s0.style, s0.cutoff_mode)  # the style under the wall's cut-off mode
         self.group: np.ndarray = s0.group
         self.all_atoms = bool(s0.group.all())
         self.energy_to_pe: bool = s0.energy
@@ -57,10 +59,10 @@ class SoftWallKernel:
                 ok = ~bad
                 ci, ai, r = ci[ok], ai[ok], r[ok]
                 pa = {key: val[ok] for key, val in pa.items()}
-            f = self.style.force(r, *self.style.args(pa))
+            f = self.cutoff.force(r, pa)
             state.f[ci, ai, face.dim] -= face.side * f
             if outputs:
-                e_shifted = self.style.shifted_energy(r, pa)  # E(r) - E(rc) without cancellation
+                e_shifted = self.cutoff.energy(r, pa)  # E(r) - E(rc) without cancellation (shift)
                 energy += np.bincount(ci, weights=e_shifted, minlength=C)
                 vector[:, k] = np.bincount(ci, weights=face.side * f, minlength=C)
                 if self.virial:  # +F r on the (dim, dim) component, lo and hi alike (physics.md §3.4)

@@ -243,6 +243,10 @@ def check_exportable(cfg: Config) -> None:
     for fid, wall in cfg.walls.items():
         if wall.style not in WALL_WRITERS:
             problems.append(f"walls.{fid}: wall/{wall.style}")
+        elif getattr(wall, "cutoff_mode", "shift") != "shift":
+            problems.append(f"walls.{fid}: cutoff_mode {wall.cutoff_mode} (LAMMPS's wall fixes only shift the energy "
+                            f"at the cut-off and have no force-continuous option; write this wall with cutoff_mode: "
+                            f"shift to compare with LAMMPS)")
     if problems:
         raise ExportError("cannot export yet: " + "; ".join(problems)
                           + " (no LAMMPS writer in this version of wallbatch export-lammps)")

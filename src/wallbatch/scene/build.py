@@ -5,6 +5,7 @@ masses, radii and initial velocities.
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from pathlib import Path
 from typing import Any
@@ -345,13 +346,20 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
             potential = STYLES[wall.potential] if wall.style == "region" else None
             keys = potential.params if potential is not None else ("epsilon", "sigma", "cutoff")
             params = {k: _value(getattr(wall, k)) for k in keys if getattr(wall, k, None) is not None}
+            mode = getattr(wall, "cutoff_mode", "shift")
+            if mode == "smooth":
+                params["switch_on"] = float(wall.switch_on)
             regional.append(RegionWallSpec(fid, wall.style, wall.region, RegionGeom.from_config(region, spacing),
                                            potential, group, wall.energy, params,
-                                           getattr(wall, "virial", False)))
+                                           getattr(wall, "virial", False), mode))
         else:
             style = STYLES[wall.style]
-            soft.append(SoftWallSpec(fid, style, group, wall.energy, _faces(cfg, fid, wall, style.params),
-                                     wall.virial and style.virial))  # e.g. wall/ees has no virial
+            faces = _faces(cfg, fid, wall, style.params)
+            if wall.cutoff_mode == "smooth":  # r_on joins each face's parameters (a number per case)
+                faces = tuple(dataclasses.replace(f, params={**f.params, "switch_on": float(wall.switch_on)})
+                              for f in faces)
+            soft.append(SoftWallSpec(fid, style, group, wall.energy, faces,
+                                     wall.virial and style.virial, wall.cutoff_mode))  # e.g. wall/ees has no virial
     dtr = None
     if cfg.dt_reset is not None:
         d = cfg.dt_reset

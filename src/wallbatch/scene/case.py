@@ -82,6 +82,9 @@ class SoftWallSpec:
     energy: bool
     faces: tuple[Face, ...]
     virial: bool = False  # fix_modify virial: the wall virial joins press
+    # cut-off treatment (styles.cutoff): shift | force-shift | smooth; smooth's r_on is the faces'
+    # params["switch_on"] (a number per case)
+    cutoff_mode: str = "shift"
 
 
 @dataclass(frozen=True)
@@ -130,6 +133,7 @@ class RegionWallSpec:
     energy: bool
     params: dict[str, Value] = keyed(_params_key)  # the potential's parameters (box units; variables by name)
     virial: bool = False
+    cutoff_mode: str = "shift"  # as SoftWallSpec; smooth's r_on is params["switch_on"]
 
 
 @dataclass(frozen=True)
