@@ -14,6 +14,7 @@ from wallbatch.engine.region_walls import RegionEESKernel, RegionWallKernel
 from wallbatch.engine.state import BatchState, FaceValues
 from wallbatch.engine.stochastic import StochasticKernel
 from wallbatch.scene.case import Case, CustomWallSpec, ReflectSpec, SoftWallSpec, StochasticSpec
+from wallbatch.geometry.quaternion import rotation_matrix
 from wallbatch.styles.ees import ees_energy_force_torque, ees_torque, sigma_n
 from wallbatch.styles.base import WallStyle
 from wallbatch.styles.cutoff import CutoffStyle
@@ -120,15 +121,16 @@ class EESWallKernel(SoftWallKernel):
             normal = np.zeros(3)
             normal[face.dim] = -face.side
             q, shape = state.quat[ci, ai], state.shape[ci, ai]
-            sn = sigma_n(q, shape, normal)
+            rot = rotation_matrix(q)  # once for sigma_n and the torque
+            sn = sigma_n(q, shape, normal, rot)
             bad = r <= sn
             if bad.any():
                 self._fail_inside(state, ci[bad], ai[bad], r[bad], face.name)
                 ok = ~bad
-                ci, ai, r, sn, q, shape = ci[ok], ai[ok], r[ok], sn[ok], q[ok], shape[ok]
+                ci, ai, r, sn, q, shape, rot = ci[ok], ai[ok], r[ok], sn[ok], q[ok], shape[ok], rot[ok]
             e, f, tw = ees_energy_force_torque(r, sn, p["epsilon"][ci], p["sigma"][ci])
             state.f[ci, ai, face.dim] -= face.side * f
-            state.torque[ci, ai] += ees_torque(q, shape, normal, tw)
+            state.torque[ci, ai] += ees_torque(q, shape, normal, tw, rot)
             if outputs:
                 energy += np.bincount(ci, weights=e, minlength=C)
                 vector[:, k] = np.bincount(ci, weights=face.side * f, minlength=C)
