@@ -65,6 +65,60 @@ def gas_slit(n: int, walls: str = "lj93", *, steps: int = 1000, thermo: int = 10
             "output": {"thermo": ["step", "time", "dt", "ke", "pe", "etot"]}}
 
 
+def region_gas(n: int, shape: str = "sphere", *, steps: int = 1000, thermo: int = 100, dt: float = 0.005,
+               density: float = 0.1, seed: int = 7) -> dict:
+    """An ideal gas (T = 1) of n atoms at number density ~`density` held by a wall/region lj93
+    (epsilon 1, sigma 1, cut-off 2.5): `sphere` (a spherical cavity) or `cylinder` (a closed can
+    along z, radius = half its length), fixed boundaries just outside the region."""
+    if shape == "sphere":
+        radius = (3.0 * n / (4.0 * math.pi * density)) ** (1.0 / 3.0) + 1.0
+        region = {"style": "sphere", "center": [radius + 1.0] * 3, "radius": radius}
+        start = {"style": "sphere", "center": [radius + 1.0] * 3, "radius": radius - 1.5}
+    else:
+        radius = (n / (2.0 * math.pi * density)) ** (1.0 / 3.0) + 1.0
+        region = {"style": "cylinder", "axis": "z", "center": [radius + 1.0] * 2, "radius": radius,
+                  "lo": 1.0, "hi": 1.0 + 2.0 * radius}
+        start = {**region, "radius": radius - 1.5, "lo": 2.5, "hi": 2.0 * radius - 0.5}
+    edge = 2.0 * radius + 2.0
+    return {"name": f"region-{shape}-{n}", "units": "lj", "seed": seed,
+            "box": {"lo": [0, 0, 0], "hi": [edge] * 3, "boundary": ["f", "f", "f"]},
+            "regions": {"R": {**region, "units": "box"}, "start": {**start, "units": "box"}},
+            "atoms": [{"group": "gas", "create": {"random": {"count": n, "region": "start"}}, "mass": 1.0,
+                       "velocity": {"temperature": 1.0}}],
+            "walls": {"rw": {"style": "region", "region": "R", "potential": "lj93", "epsilon": 1.0, "sigma": 1.0,
+                             "cutoff": 2.5}},
+            "timestep": dt, "run": {"steps": steps, "thermo": thermo},
+            "output": {"thermo": ["step", "time", "dt", "ke", "pe", "etot"]}}
+
+
+def flow_gas(n: int, *, steps: int = 1000, thermo: int = 100, dt: float = 0.005, density: float = 0.1,
+             seed: int = 7) -> dict:
+    """An ideal gas (T = 1.5) of n atoms at number density `density` in a periodic box 4:1:1 with
+    four wall/flow walls across x (vflow 0.4, T 1.5, rule exact)."""
+    ly = (n / density / 4.0) ** (1.0 / 3.0)
+    lx = 4.0 * ly
+    return {"name": f"flow-gas-{n}", "units": "lj", "seed": seed,
+            "box": {"lo": [0, 0, 0], "hi": [lx, ly, ly], "boundary": ["p", "p", "p"]},
+            "atoms": [{"group": "gas", "create": {"random": {"count": n}}, "mass": 1.0,
+                       "velocity": {"temperature": 1.5}}],
+            "walls": {"fl": {"style": "flow", "axis": "x", "vflow": 0.4, "temperature": 1.5, "seed": 593894,
+                             "coords": [lx * k / 5.0 for k in (1, 2, 3, 4)], "units": "box"}},
+            "timestep": dt, "run": {"steps": steps, "thermo": thermo},
+            "output": {"thermo": ["step", "time", "dt", "ke", "pe", "etot"]}}
+
+
+def lammps_region(g: Any) -> str:
+    """The LAMMPS region arguments of a wallbatch RegionGeom (box units)."""
+    if g.style == "block":
+        geo = " ".join(f"{_num(g.lo[d])} {_num(g.hi[d])}" for d in range(3))
+    elif g.style == "sphere":
+        geo = " ".join(_num(c) for c in g.center) + f" {_num(g.radius)}"
+    else:
+        geo = (f"{'xyz'[g.axis]} {_num(g.center[0])} {_num(g.center[1])} {_num(g.radius)} {_num(g.lo)} "
+               f"{_num(g.hi)}")
+    return f"{g.style} {geo} side {g.side} units box"
+
+
 def with_dt_reset(cfg: dict, xmax: float = 0.05, tmax: float | None = None) -> dict:
     """The scene plus fix dt/reset every step (tmax: the scene's timestep unless given)."""
     out = dict(cfg, name=cfg["name"] + "-dtreset")
@@ -155,6 +209,14 @@ def lammps_commands(case: Case) -> list[str]:
     for w in case.reflect_walls:
         args = " ".join(f"{f.name} {_num(f.coord)}" for f in w.faces)
         cmds.append(f"fix {w.fix_id} all wall/reflect {args} units box")
+    for w in getattr(case, "region_walls", ()):  # wall/region (LAMMPS needs the region defined)
+        cmds.append(f"region {w.region_name} {lammps_region(w.region)}")
+        args = " ".join(_num(w.params[k]) for k in w.potential.params)
+        cmds.append(f"fix {w.fix_id} all wall/region {w.region_name} {w.potential.name} {args}")
+    for i, w in enumerate(getattr(case, "flow_walls", ())):
+        coords = " ".join(_num(c) for c in w.walls)
+        cmds.append(f"fix {w.fix_id} all wall/flow {'xyz'[w.axis]} {_num(w.vflow)} {_num(w.temperature)} "
+                    f"{593894 + i} {len(w.walls)} {coords} units box")
     if case.dt_reset is not None:
         d = case.dt_reset
         tmin = "NULL" if d.tmin is None else _num(d.tmin)

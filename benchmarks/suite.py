@@ -12,7 +12,11 @@ Scenes (ideal gases have no pair forces):
   * a gas slit with lj93, reflect, harmonic and colloid walls, N = 1e3, 1e4, 1e5, steps such that
     N x steps ~ --atom-steps (wallbatch: the engine run of the case; LAMMPS: its `run` command);
   * the lj93 gas slit, N = 1e4, with fix dt/reset every step (compare with the row without);
-  * an LJ fluid slit (pair lj/cut), N = 4000 (n/a where wallbatch refuses pair forces).
+  * an LJ fluid slit (pair lj/cut), N = 4000 (n/a where wallbatch refuses pair forces);
+  * the A/B table (`--ab`, or `--only ab` for it alone): ideal gases in a wall/region lj93 sphere
+    cavity and cylinder and between four wall/flow walls, N = 1e3 and 1e4, N x steps ~
+    --ab-atom-steps, each run by wallbatch compiled, by wallbatch's NumPy path (WALLBATCH_NUMBA=0,
+    same process, same run) and by LAMMPS with its default settings (neighbor check yes).
 
 `speed` is wallbatch atom-steps/s over LAMMPS atom-steps/s (> 1: wallbatch is faster). The machine
 is shared and noisy: compare numbers of one run. --numpy runs wallbatch's NumPy path.
@@ -25,6 +29,8 @@ import os
 import sys
 import tempfile
 import time
+
+import numpy as np
 from pathlib import Path
 
 if "--cold-cache" in sys.argv:  # before numba is imported: compile the kernels from scratch
@@ -35,8 +41,8 @@ if "--numpy" in sys.argv:
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import common  # noqa: E402
-from common import (build, fmt, gas_slit, lammps_module, lammps_run, lj_slit, numba_state,  # noqa: E402
-                    time_wallbatch, with_dt_reset)
+from common import (build, flow_gas, fmt, gas_slit, lammps_module, lammps_run, lj_slit, numba_state,  # noqa: E402
+                    region_gas, time_wallbatch, with_dt_reset)
 
 from wallbatch.batch.runner import build_cases, run_plan  # noqa: E402
 from wallbatch.config.sweep import load_plan  # noqa: E402
@@ -95,6 +101,72 @@ def scene_row(name: str, cfg: dict, use_lammps: bool) -> dict:
     if use_lammps:
         row["lmp"] = lammps_run(case)[0]
     return row
+
+
+def ab_row(name: str, cfg: dict, use_lammps: bool) -> dict:
+    """One case run compiled, then on the NumPy path, then in LAMMPS (interleaved in one process)."""
+    case = build(cfg)
+    row = {"scene": name, "N": case.natoms, "steps": case.steps, "atom_steps": case.natoms * case.steps}
+    saved = os.environ.get("WALLBATCH_NUMBA")
+    try:
+        os.environ["WALLBATCH_NUMBA"] = "1"
+        time_wallbatch(build(dict(cfg, run={**cfg["run"], "steps": 10})))  # kernel load, not timed
+        row["wb"], res = time_wallbatch(case)
+        os.environ["WALLBATCH_NUMBA"] = "0"
+        row["np"], res_np = time_wallbatch(case)
+    finally:
+        if saved is None:
+            os.environ.pop("WALLBATCH_NUMBA", None)
+        else:
+            os.environ["WALLBATCH_NUMBA"] = saved
+    notes = [f"{tag}: {r.error[:60]}" for tag, r in (("numba", res), ("numpy", res_np)) if r.status != "ok"]
+    if res.status == "ok" == res_np.status:
+        ke, ke_np = res.data["ke"], res_np.data["ke"]
+        row["dke"] = float(np.max(np.abs(ke - ke_np)) / np.max(np.abs(ke_np)))
+    row["note"] = "; ".join(notes)
+    row["lmp"] = lammps_run(case)[0] if use_lammps else None
+    return row
+
+
+def ab_table(rows: list[dict], markdown: bool) -> str:
+    """scene, N, steps, seconds (numba, NumPy, LAMMPS), speed vs LAMMPS (atom-steps/s ratio) of the
+    compiled and NumPy paths, gain numba/NumPy, max relative ke difference numba vs NumPy."""
+    head = ["scene", "N", "steps", "numba s", "NumPy s", "LAMMPS s", "numba/LAMMPS", "NumPy/LAMMPS",
+            "numba/NumPy", "ke diff"]
+    lines = []
+    if markdown:
+        lines += ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
+    else:
+        lines.append(f"{head[0]:<34} {'N':>6} {'steps':>6} {'numba s':>8} {'NumPy s':>8} {'LMP s':>8} "
+                     f"{'nb/LMP':>7} {'np/LMP':>7} {'nb/np':>6} {'ke diff':>8}")
+    for r in rows:
+        lmp = r.get("lmp")
+        cells = [r["scene"] + (f" ({r['note']})" if r.get("note") else ""), str(r["N"]), str(r["steps"]),
+                 fmt(r["wb"], ".2f"), fmt(r["np"], ".2f"), fmt(lmp, ".2f"),
+                 fmt(lmp / r["wb"] if lmp else None, ".2f"), fmt(lmp / r["np"] if lmp else None, ".2f"),
+                 fmt(r["np"] / r["wb"], ".1f"), fmt(r.get("dke"), ".1e")]
+        if markdown:
+            lines.append("| " + " | ".join(cells) + " |")
+        else:
+            lines.append(f"{cells[0]:<34} {cells[1]:>6} {cells[2]:>6} {cells[3]:>8} {cells[4]:>8} {cells[5]:>8} "
+                         f"{cells[6]:>7} {cells[7]:>7} {cells[8]:>6} {cells[9]:>8}")
+    return "\n".join(lines)
+
+
+def ab_rows(atom_steps: float, use_lammps: bool) -> list[dict]:
+    """The A/B rows: region walls (sphere cavity, cylinder) and flow walls, N = 1e3 and 1e4."""
+    rows = []
+    print(ab_table([], False), flush=True)
+    for name, make in (("wall/region lj93 sphere cavity", lambda n, st: region_gas(n, "sphere", steps=st,
+                                                                                    thermo=max(1, st // 10))),
+                       ("wall/region lj93 cylinder", lambda n, st: region_gas(n, "cylinder", steps=st,
+                                                                               thermo=max(1, st // 10))),
+                       ("wall/flow ideal gas (4 walls)", lambda n, st: flow_gas(n, steps=st, thermo=max(1, st // 10)))):
+        for n in (1000, 10000):
+            steps = max(100, int(atom_steps // n))
+            rows.append(ab_row(name, make(n, steps), use_lammps))
+            print(ab_table(rows[-1:], False).splitlines()[-1], flush=True)
+    return rows
 
 
 def table(rows: list[dict], markdown: bool) -> str:
@@ -163,6 +235,9 @@ def main() -> None:
     ap.add_argument("--no-lammps", action="store_true")
     ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
                     help="wall time, or CPU time of this process (steadier on a shared machine)")
+    ap.add_argument("--ab", action="store_true", help="also the A/B table (compiled vs NumPy vs LAMMPS)")
+    ap.add_argument("--only", choices=("ab",), help="run only the A/B table")
+    ap.add_argument("--ab-atom-steps", type=float, default=1e7, help="N x steps of each A/B scene")
     args = ap.parse_args()
     common.set_clock(args.clock)
     use_lammps = not args.no_lammps and lammps_module() is not None
@@ -170,6 +245,19 @@ def main() -> None:
     started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
 
     preload_libraries()
+    import platform
+
+    if args.only == "ab":
+        ab = ab_rows(args.ab_atom_steps, use_lammps)
+        load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
+        md = "\n".join([f"Run {started}, LAMMPS: {'yes' if use_lammps else 'not installed'}, {platform.machine()} "
+                        f"{os.cpu_count()} cores (load average at the end {load}), one process, one measurement "
+                        f"per cell, {args.clock} clock.", "", ab_table(ab, True)])
+        print()
+        print(md)
+        if args.markdown:
+            Path(args.markdown).write_text(md + "\n")
+        return
     rows = [sweep_row(args.sweep_steps, use_lammps)]  # first: the kernel load/compile counts here
     print(table(rows, False), flush=True)
     for walls in ("lj93", "reflect", "harmonic", "colloid"):
@@ -186,13 +274,14 @@ def main() -> None:
                           use_lammps))
     print(table(rows[-2:], False).splitlines()[-2:][0])
     print(table(rows[-1:], False).splitlines()[-1])
-    import platform
+    ab = ab_rows(args.ab_atom_steps, use_lammps) if args.ab else []
 
     load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
     header = (f"Run {started}, wallbatch path: {numba_state()}, LAMMPS: {'yes' if use_lammps else 'not installed'}, "
               f"{platform.machine()} {os.cpu_count()} cores (load average at the end {load}), one process, "
               f"one measurement per cell, {args.clock} clock{', numba cache cold' if args.cold_cache else ''}.")
-    md = "\n".join([header, "", table(rows, True), "", "Targets:", *targets(rows)])
+    md = "\n".join([header, "", table(rows, True), "", "Targets:", *targets(rows)]
+                   + (["", "A/B (compiled, NumPy path, LAMMPS defaults):", "", ab_table(ab, True)] if ab else []))
     print()
     print(md)
     if args.markdown:

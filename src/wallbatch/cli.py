@@ -1,4 +1,4 @@
-"""The `wallbatch` command line: run, check, show, plot, schema, export-lammps, validate.
+"""The `wallbatch` command line: run, check, show, plot, schema, table, export-lammps, validate.
 
 Every foreseeable problem ends in one `error: ...` message with its place (file:line:col, the
 sweep file's line or the `--set` argument) and exit code 2; a failed case gives exit code 1; an
@@ -242,6 +242,38 @@ def schema() -> None:
     from wallbatch.config.schema import json_schema
 
     typer.echo(json.dumps(json_schema(), indent=2))
+
+
+@app.command()
+def table(source: str = typer.Argument(..., help="a wall style (lj93, lj126, lj1043, harmonic, morse) or a "
+                                                 "wall/lepton expression of r, e.g. 'k*(r-rc)^2'"),
+          output: Path = typer.Option(..., "-o", "--output", help="table file to write"),
+          param: list[str] = typer.Option(None, "--param", "-p", help="a parameter: name=value (repeatable)"),
+          lo: float = typer.Option(..., help="first distance r [length], > 0"),
+          hi: float = typer.Option(..., help="last distance r [length] (at least the wall's cut-off)"),
+          n: int = typer.Option(1000, "-n", help="number of points"),
+          keyword: str = typer.Option("WALL", "--keyword", "-k", help="section keyword"),
+          append: bool = typer.Option(False, help="add the section to an existing file"),
+          ) -> None:
+    """Write a wall potential (a style or an expression) as a LAMMPS table for wall/table."""
+    from wallbatch.styles.table import TableError, write_source_table
+
+    params: dict[str, float] = {}
+    for item in param or []:
+        name, eq, value = item.partition("=")
+        try:
+            params[name.strip()] = float(value)
+        except ValueError:
+            eq = ""
+        if not eq or not name.strip():
+            typer.echo(f"error: --param {item!r}: write name=number", err=True)
+            raise typer.Exit(2)
+    try:
+        write_source_table(output, source, params, lo, hi, n, keyword, append=append)
+    except TableError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from None
+    typer.echo(f"wrote section {keyword} ({n} points, r in [{lo:g}, {hi:g}]) to {output}")
 
 
 @app.command("export-lammps")

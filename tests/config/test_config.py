@@ -158,6 +158,8 @@ def test_four_wall_forms_give_the_same_model(wall):
         "energy": False,
         "virial": False,
         "pbc": False,
+        "cutoff_mode": "shift",
+        "switch_on": None,
         "xlo": None,
         "xhi": None,
         "ylo": None,

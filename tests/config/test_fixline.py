@@ -216,6 +216,11 @@ ROUND_TRIP_LINES = [
     "fix w all wall/region ball harmonic 1.0 1.0 2.5",
     "fix w all wall/region pipe morse 1.0 2.0 1.1 3.0",
     "fix w all wall/region/ees ball 1.0 1.0 2.5",
+    'fix w all wall/lepton zlo EDGE "k*(r-rc)^2; k=100.0; rc=4.0" 4.0 zhi v_top "exp(-r)" 2.5 units box',
+    "fix w all wall/table spline 500 zlo EDGE walls.table LJ93 2.5 xhi 3.0 t.table HARM 2.0 pbc yes",
+    "fix w all wall/reflect/stochastic diffusive 23424 zlo EDGE 300.0 0.1 0.1 0.0 zhi EDGE 200.0 0.1 0.1 0.0",
+    "fix w all wall/reflect/stochastic maxwell 3 ylo 5.0 1.0 0.1 0.0 0.0 0.8 units box",
+    "fix w all wall/reflect/stochastic ccl 2 xlo 0.0 300.0 0.0 0.1 0.0 0.9 0.8 0.7 xhi EDGE 1.5 0.0 0.1 0.0 0.9 0.8 0.7",
 ]
 
 

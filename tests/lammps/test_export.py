@@ -725,7 +725,7 @@ def test_every_wall_style_pair_and_minimize_have_a_writer():
                   {"minimize": {"etol": 0.0, "ftol": 1e-8}}):
         check_exportable(_model(extra))
     assert set(WALL_WRITERS) == {"lj93", "lj126", "lj1043", "colloid", "harmonic", "morse", "ees", "reflect",
-                                 "region", "region/ees", "flow"}
+                                 "region", "region/ees", "flow", "lepton", "table", "reflect/stochastic"}
     assert set(PAIR_WRITERS) == {"lj/cut"} and set(ATOM_WRITERS) == {"atomic", "sphere", "ellipsoid"}
 
 
@@ -798,8 +798,10 @@ def validate(*args: str):
 EXPORTABLE = {"colloid-slit", "dt-reset-rescue", "harmonic-confinement", "lj1043-graphite", "lj126-piston",
               "lj93-slit", "morse-metal", "quickstart", "reflect-piston", "reflect-swiggle",
               "ellipsoids-ees-slit", "colloid-cavity", "cylinder-obstacle", "lj-liquid-slit", "lj-adsorption-nvt",
-              "lj-slit-profiles"}
+              "lj-slit-profiles",
+              "lepton-slit", "table-slit"}
 FLOW = {"flow-seed"}  # exported, but compared with LAMMPS only statistically (tests/engine/test_flow.py)
+THERMAL = {"thermal-walls"}  # wall/reflect/stochastic: statistically only (tests/engine/test_stochastic.py)
 
 
 @requires_lammps
@@ -816,6 +818,11 @@ def test_validate_shipped_configs(name):
         assert result.exit_code == 2, result.output
         assert "cannot be compared sample by sample" in result.output and "tests/engine/test_flow.py" in result.output
         return
+    if any(w.style == "reflect/stochastic" for w in cfg.walls.values()):
+        assert name in THERMAL
+        assert result.exit_code == 2, result.output
+        assert "checked statistically instead" in result.output and "tests/engine/test_stochastic.py" in result.output
+        return
     assert name in EXPORTABLE
     assert result.exit_code == 0, result.output
     assert "ok: all" in result.output and "FAIL" not in result.output
@@ -825,8 +832,8 @@ def test_validate_shipped_configs(name):
 
 def test_shipped_configs_are_listed():
     """A new shipped config must be added to EXPORTABLE or FLOW (so the test above knows it)."""
-    assert EXPORTABLE | FLOW == {p.stem for p in CONFIGS.glob("*.yaml")}
-    for name in sorted(EXPORTABLE | FLOW):
+    assert EXPORTABLE | FLOW | THERMAL == {p.stem for p in CONFIGS.glob("*.yaml")}
+    for name in sorted(EXPORTABLE | FLOW | THERMAL):
         check_exportable(load_plan(CONFIGS / f"{name}.yaml").cases[0].config)
     assert (CONFIGS.parent / validate_mod.FLOW_TESTS).exists()  # where validate's refusal points
 

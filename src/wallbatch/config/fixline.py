@@ -64,6 +64,9 @@ SUPPORTED_STYLES: tuple[str, ...] = tuple(f"wall/{s}" for s in FLAT_STYLES) + (
     "wall/flow",
     "wall/region",
     "wall/region/ees",
+    "wall/reflect/stochastic",
+    "wall/lepton",
+    "wall/table",
 )
 
 _FLAT_KEYWORDS = ("units", "pbc", "fld")
@@ -244,6 +247,10 @@ def parse_fix_line(text: str, fix_id: str) -> dict:
         return _parse_flat(w, short, group)
     if short == "reflect":
         return _parse_reflect(w, group)
+    if short == "reflect/stochastic":
+        return _parse_stochastic(w, group)
+    if short in ("lepton", "table"):
+        return _parse_custom(w, short, group)
     if short == "flow":
         return _parse_flow(w, group)
     if short == "region":
@@ -625,6 +632,10 @@ def to_fix_line(fix_id: str, wall: Any) -> str:
             words += ["pbc", "yes" if _flag(wall["pbc"], f"{where}.pbc") else "no"]
         if "fld" in wall and _flag(wall["fld"], f"{where}.fld"):
             raise ValueError(f"{where}.fld: fld yes (lubrication) is not supported")
+    elif style == "reflect/stochastic":
+        words += _stochastic_words(wall, where)
+    elif style in ("lepton", "table"):
+        words += _custom_words(wall, style, where)
     elif style == "flow":
         _reject_unknown(
             wall, {"style", "group", "axis", "vflow", "temperature", "seed", "coords", "units"}, where
@@ -686,3 +697,191 @@ def _flag(value: Any, what: str) -> bool:
     if value in ("yes", "no"):
         return value == "yes"
     raise ValueError(f"{what}: expected true/false (or yes/no), got {value!r}")
+
+
+# --------------------------------------------------------------------------------------------
+# wall/reflect/stochastic
+
+_RSTYLE_ACCOM = {"diffusive": 0, "maxwell": 1, "ccl": 3}
+_STOCHASTIC_USAGE = "wall/reflect/stochastic diffusive|maxwell|ccl SEED face coord temp vx vy vz [accom ...] [units lattice|box]"
+
+
+def _parse_stochastic(w: _Words, group: str) -> dict:
+    """``wall/reflect/stochastic rstyle seed face pos temp vx vy vz [a | ax ay az] ... [units]``
+    -> ``{"style": "reflect/stochastic", "group", "rstyle", "seed", face: {coord, temp, vel,
+    accom}, "units"}``."""
+    if len(w) < 6:
+        raise w.missing(f"missing arguments: write 'fix {w[1]} {group} {_STOCHASTIC_USAGE}'")
+    rstyle = w[4]
+    if rstyle not in _RSTYLE_ACCOM:
+        raise w.error(4, "the reflection style must be diffusive, maxwell or ccl")
+    seed = w.integer(5, "SEED (the random seed)")
+    if seed <= 0:
+        raise w.error(5, "the random seed must be a positive integer")
+    nacc = _RSTYLE_ACCOM[rstyle]
+    fields = ("coord", "temp", "vx", "vy", "vz") + ("a", "b", "c")[:nacc]
+    out: dict[str, Any] = {"style": "reflect/stochastic", "group": group, "rstyle": rstyle, "seed": seed}
+    faces: dict[str, dict] = {}
+    i = 6
+    while i < len(w):
+        word = w[i]
+        if word in FACES:
+            if word in faces:
+                raise w.error(i, f"{word} wall defined twice: give each face once per fix")
+            got = _face_arguments(w, i, len(fields), FACES + ("units",))
+            if got < len(fields):
+                raise w.error(
+                    i,
+                    f"missing arguments for the {word} wall: rstyle {rstyle} faces take pos temp vx vy vz"
+                    f"{' and ' + str(nacc) + ' accommodation coefficient(s)' if nacc else ''} "
+                    f"({len(fields)} words), found {got}",
+                )
+            c = w[i + 1]
+            if c == "EDGE":
+                coord: Any = "EDGE"
+            elif _NUMBER_RE.match(c):
+                coord = float(c)
+            else:
+                raise w.error(i + 1, f"{word} pos must be EDGE or a number (no variables for this wall)"
+                              f"{_hint(c) if not c.startswith('v_') else ''}")
+            vals = [w.number(i + 1 + k, f"{word} {f}") for k, f in enumerate(fields) if k > 0]
+            face: dict[str, Any] = {"coord": coord, "temp": vals[0], "vel": vals[1:4]}
+            if nacc == 1:
+                face["accom"] = vals[4]
+            elif nacc == 3:
+                face["accom"] = vals[4:7]
+            faces[word] = face
+            i += 1 + len(fields)
+        elif word == "units":
+            out["units"] = _keyword_value(w, i, ("lattice", "box"))
+            i += 2
+        else:
+            raise w.error(
+                i, f"unknown face or keyword for wall/reflect/stochastic: expected a face ({' '.join(FACES)}) "
+                "or the keyword units",
+            )
+    if not faces:
+        raise w.error(3, f"no walls defined: give at least one face, e.g. 'fix {w[1]} {group} "
+                         f"wall/reflect/stochastic diffusive 1234 zlo EDGE 1.0 0.0 0.0 0.0'")
+    for name, face in faces.items():
+        out[name] = face
+    return out
+
+
+def _stochastic_words(wall: Mapping, where: str) -> list[str]:
+    _reject_unknown(wall, {"style", "group", "rstyle", "seed", "units", *FACES}, where)
+    rstyle = _choice(wall.get("rstyle"), tuple(_RSTYLE_ACCOM), f"{where}.rstyle")
+    words = ["wall/reflect/stochastic", rstyle, _fmt_int(wall.get("seed"), f"{where}.seed")]
+    faces = [k for k in wall if k in FACES]
+    if not faces:
+        raise ValueError(f"{where}: no faces ({' '.join(FACES)}) given")
+    for face in faces:
+        spec = _as_mapping(wall[face])
+        at = f"{where}.{face}"
+        words += [face, "EDGE" if spec.get("coord") == "EDGE" else _fmt_number(spec.get("coord"), f"{at}.coord"),
+                  _fmt_number(spec.get("temp"), f"{at}.temp")]
+        vel = spec.get("vel", (0.0, 0.0, 0.0))
+        words += [_fmt_number(v, f"{at}.vel") for v in vel]
+        accom = spec.get("accom")
+        if accom is not None:
+            accom = [accom] if not isinstance(accom, Sequence) else list(accom)
+            words += [_fmt_number(a, f"{at}.accom") for a in accom]
+    if "units" in wall:
+        words += ["units", _choice(wall["units"], ("lattice", "box"), f"{where}.units")]
+    return words
+
+
+# --------------------------------------------------------------------------------------------
+# wall/lepton and wall/table
+
+
+def _parse_custom(w: _Words, style: str, group: str) -> dict:
+    """``wall/lepton face coord expression cutoff ...`` and ``wall/table linear|spline N face
+    coord file keyword cutoff ...`` (keywords units, pbc, fld no) -> the mapping form."""
+    out: dict[str, Any] = {"style": style, "group": group}
+    i = 4
+    if style == "table":
+        if len(w) < 6:
+            raise w.missing(f"missing arguments: write 'fix {w[1]} {group} wall/table linear|spline N face coord "
+                            "file keyword cutoff'")
+        if w[4] not in ("linear", "spline"):
+            raise w.error(4, "the table style must be linear or spline")
+        out["tabstyle"] = w[4]
+        out["N"] = w.integer(5, "N (the number of table points)")
+        if out["N"] < 2:
+            raise w.error(5, "N must be at least 2")
+        i = 6
+    fields = ("coord", "expression", "cutoff") if style == "lepton" else ("coord", "file", "keyword", "cutoff")
+    stops = FACES + _FLAT_KEYWORDS
+    faces: dict[str, dict] = {}
+    while i < len(w):
+        word = w[i]
+        if word in FACES:
+            if word in faces:
+                raise w.error(i, f"{word} wall defined twice: give each face once per fix")
+            got = _face_arguments(w, i, len(fields), stops)
+            if got < len(fields):
+                raise w.error(i, f"missing arguments for the {word} wall: wall/{style} faces take "
+                                 f"{' '.join(fields)} ({len(fields)} words), found {got}")
+            face: dict[str, Any] = {"coord": w.coord(i + 1, f"{word} coord")}
+            for k, field in enumerate(fields[1:-1], start=2):
+                face[field] = w[i + k]
+            face["cutoff"] = w.number(i + len(fields), f"{word} cutoff")
+            faces[word] = face
+            i += 1 + len(fields)
+        elif word == "units":
+            out["units"] = _keyword_value(w, i, ("lattice", "box"))
+            i += 2
+        elif word == "pbc":
+            out["pbc"] = _keyword_value(w, i, ("yes", "no")) == "yes"
+            i += 2
+        elif word == "fld":
+            if _keyword_value(w, i, ("yes", "no")) == "yes":
+                raise w.error(i, "fld yes (lubrication) is not supported: remove 'fld yes' or write 'fld no'")
+            i += 2
+        else:
+            raise w.error(i, f"unknown face or keyword for wall/{style}: expected a face ({' '.join(FACES)}) or "
+                             "one of the keywords units, pbc, fld")
+    if not faces:
+        raise w.error(3, f"no walls defined: give at least one face, e.g. 'fix {w[1]} {group} wall/{style} "
+                         + ("zlo EDGE \"k*(r-4.0)^2; k=10.0\" 4.0'" if style == "lepton" else
+                            f"{out['tabstyle']} {out['N']} zlo EDGE wall.table WALL 2.5'"))
+    out.update(faces)
+    return out
+
+
+def _custom_words(wall: Mapping, style: str, where: str) -> list[str]:
+    keys = {"style", "group", "units", "pbc", *FACES} | ({"tabstyle", "N"} if style == "table" else set())
+    _reject_unknown(wall, keys, where)
+    words = [f"wall/{style}"]
+    if style == "table":
+        words += [_choice(wall.get("tabstyle"), ("linear", "spline"), f"{where}.tabstyle"),
+                  _fmt_int(wall.get("N"), f"{where}.N")]
+    faces = [k for k in wall if k in FACES]
+    if not faces:
+        raise ValueError(f"{where}: no faces ({' '.join(FACES)}) given")
+    for face in faces:
+        spec = _as_mapping(wall[face])
+        at = f"{where}.{face}"
+        words += [face, _fmt_value(spec.get("coord"), f"{at}.coord", edge=True, variable=True)]
+        if style == "lepton":
+            text = str(spec.get("expression", ""))
+            params = spec.get("params") or {}
+            text += "".join(f"; {k}={float(v)!r}" for k, v in params.items())
+            if '"' in text:
+                raise ValueError(f"{at}.expression: a double quote cannot be written in a LAMMPS fix line")
+            words.append(f'"{text}"')
+        else:
+            words += [_check_path(spec.get("file"), f"{at}.file"), _check_path(spec.get("keyword"), f"{at}.keyword")]
+        words.append(_fmt_number(spec.get("cutoff"), f"{at}.cutoff"))
+    if "units" in wall:
+        words += ["units", _choice(wall["units"], ("lattice", "box"), f"{where}.units")]
+    if "pbc" in wall:
+        words += ["pbc", "yes" if _flag(wall["pbc"], f"{where}.pbc") else "no"]
+    return words
+
+
+def _check_path(value: Any, what: str) -> str:
+    if not isinstance(value, str) or not value or any(c.isspace() or c in "\"'#" for c in value):
+        raise ValueError(f"{what}: a table file path without spaces, quotes or '#', got {value!r}")
+    return value

@@ -120,6 +120,10 @@ KEYS: dict[str, Key] = {
     "walls.ID.energy": Key("Add the wall energy to `pe` and `etot` (and to the minimized energy).", "",
                            "`fix_modify ID energy yes`"),
     "walls.ID.virial": Key("Add the wall virial to `press`.", "", "`fix_modify ID virial yes`"),
+    "walls.ID.cutoff_mode": Key("Cut-off treatment of a soft wall (flat or region): `shift`, `force-shift` or "
+                                "`smooth`.", "", "— (`shift` is LAMMPS's; the others cannot be exported)"),
+    "walls.ID.switch_on": Key("`cutoff_mode: smooth`: where the switch starts, 0 <= switch_on < cutoff.",
+                              "distance", "—"),
     "walls.ID.pbc": Key("Allow a face in a periodic dimension (the wall acts on its group only; no images).",
                         "", "`pbc yes`"),
     "walls.ID.FACE": Key("A face `xlo xhi ylo yhi zlo zhi`: a mapping, or the positional list in LAMMPS's "
@@ -142,7 +146,7 @@ KEYS: dict[str, Key] = {
     "walls.ID.axis": Key("flow: the flow axis (periodic).", "", "`wall/flow AXIS`"),
     "walls.ID.vflow": Key("flow: flow velocity (> 0).", "velocity", "`VFLOW`"),
     "walls.ID.temperature": Key("flow: temperature of the redrawn velocities.", "temperature", "`T`"),
-    "walls.ID.seed": Key("flow: the wall's seed, combined with the master seed and the case coordinates.",
+    "walls.ID.seed": Key("flow, reflect/stochastic: the wall's seed, combined with the master seed and the case coordinates.",
                          "", "`SEED`"),
     "walls.ID.coords": Key("flow: wall positions along the axis, strictly increasing, inside the box.",
                            "distance", "`N w1 ... wN`"),
@@ -264,4 +268,26 @@ KEYS: dict[str, Key] = {
                                         "—"),
     "sweep.replicas": Key("Independent random streams of every grid point: a last dimension `replica`.", "",
                           "—"),
+    "walls.ID.FACE.expression": Key("lepton: the wall energy E(r) as a Lepton expression of r, the distance "
+                                    "from the wall; `;` definitions allowed; F = -dE/dr exactly; shifted to 0 "
+                                    "at the cut-off.", "energy", "`wall/lepton FACE COORD EXPRESSION CUTOFF`"),
+    "walls.ID.FACE.params": Key("lepton: named numbers used by the expression (sweepable; written as `; "
+                                "name=value` definitions for LAMMPS); `cutoff` is reserved.", "",
+                                "`; name=value`"),
+    "walls.ID.FACE.file": Key("table: a LAMMPS table file, relative to the config file.", "",
+                              "`wall/table ... FILE`"),
+    "walls.ID.FACE.keyword": Key("table: the section of the file.", "", "`KEYWORD`"),
+    "walls.ID.tabstyle": Key("table: `linear` or `spline` interpolation, as LAMMPS.", "",
+                             "`wall/table linear|spline`"),
+    "walls.ID.N": Key("table: points of the interpolation table (the file is resampled onto them).", "",
+                      "`wall/table TABSTYLE N`"),
+    "walls.ID.rstyle": Key("reflect/stochastic: `diffusive`, `maxwell` (one accommodation coefficient) or "
+                           "`ccl` (Cercignani-Lampis, three).", "", "`wall/reflect/stochastic RSTYLE`"),
+    "walls.ID.FACE.temp": Key("reflect/stochastic: wall temperature of the reflected velocities.", "temperature",
+                              "`TEMP`"),
+    "walls.ID.FACE.vel": Key("reflect/stochastic: wall velocity [vx, vy, vz], in the wall's plane.", "velocity",
+                             "`VX VY VZ`"),
+    "walls.ID.FACE.accom": Key("reflect/stochastic: accommodation, one number (maxwell: the diffusive "
+                               "fraction) or [ax, ay, az] (ccl: tangential velocity and normal energy "
+                               "accommodation), each in [0, 1]; none for diffusive.", "", "`ACCOM...`"),
 }

@@ -31,6 +31,8 @@ from wallbatch.config.profiles import Averages, Profile, check_profiles
 from wallbatch.config.source import FACES, ConfigError, SourceMap, load_yaml
 from wallbatch.styles import STYLES, WallStyle, region_styles
 from wallbatch.styles import Param as StyleParam
+from wallbatch.styles.cutoff import CUTOFF_MODES
+from wallbatch.styles.cutoff import supported as cutoff_supported
 
 REGION_POTENTIALS = region_styles()
 THERMO_KEYWORDS = (
@@ -99,6 +101,8 @@ from wallbatch.config.ensemble import EnsembleFix, check_ensemble, drop_fix_tag
 from wallbatch.config.ensemble import expand_fix_lines as expand_ensemble_lines
 from wallbatch.config.fixline import FixLineError, parse_fix_line
 from wallbatch.expr import VariableError, Variables
+from wallbatch.styles.lepton import LeptonError, compile_expression
+from wallbatch.styles.table import TableError, read_table
 from wallbatch.units import lattice_constant
 
 # what the loader accepts, for the JSON schema: a number, or a string that is a number, v_name (or EDGE)
@@ -330,6 +334,11 @@ class SoftWall(_FaceWall):
     mapping or positionally."""
 
     _style: ClassVar[WallStyle]
+    cutoff_mode: Literal[CUTOFF_MODES] = Field(  # type: ignore[valid-type]
+        "shift", description="cut-off treatment: shift (LAMMPS: energy shifted, force jumps at the cut-off), "
+        "force-shift (force and energy go to 0 at the cut-off) or smooth (quintic switch from switch_on)")
+    switch_on: NonNegativeFloat | None = Field(
+        None, description="smooth: where the switch starts, 0 <= switch_on < cutoff (box units) [distance]")
 
     @model_validator(mode="before")
     @classmethod
@@ -414,6 +423,98 @@ class ReflectWall(_FaceWall):
         return data
 
 
+class LeptonFace(Model):
+    """One face of wall/lepton: position, the energy as an expression of r (Lepton syntax, `;`
+    definitions allowed), the cut-off, and named parameters (numbers, sweepable)."""
+
+    coord: Coord
+    expression: Annotated[str, Field(min_length=1)]
+    cutoff: PositiveFloat
+    params: dict[str, float] = {}
+
+
+class LeptonWall(_FaceWall):
+    """fix wall/lepton face coord expression cutoff: E(r) from an expression, F = -dE/dr exactly."""
+
+    style: Literal["lepton"]
+    xlo: LeptonFace | None = None
+    xhi: LeptonFace | None = None
+    ylo: LeptonFace | None = None
+    yhi: LeptonFace | None = None
+    zlo: LeptonFace | None = None
+    zhi: LeptonFace | None = None
+
+
+class TableFace(Model):
+    """One face of wall/table: position, a LAMMPS table file (relative to the config) and the
+    keyword of its section, and the cut-off."""
+
+    coord: Coord
+    file: Annotated[str, Field(min_length=1)]
+    keyword: Annotated[str, Field(min_length=1)]
+    cutoff: PositiveFloat
+
+
+class TableWall(_FaceWall):
+    """fix wall/table tabstyle N face coord file keyword cutoff: a tabulated wall."""
+
+    style: Literal["table"]
+    tabstyle: Literal["linear", "spline"]
+    N: Annotated[int, Field(ge=2)]
+    xlo: TableFace | None = None
+    xhi: TableFace | None = None
+    ylo: TableFace | None = None
+    yhi: TableFace | None = None
+    zlo: TableFace | None = None
+    zhi: TableFace | None = None
+
+
+class StochasticFace(Model):
+    """One face of wall/reflect/stochastic: position, wall temperature, wall velocity (in the wall's
+    plane) and accommodation coefficients (none for diffusive, one for maxwell, three for ccl)."""
+
+    coord: Union[float, Literal["EDGE"]]
+    temp: PositiveFloat
+    vel: Vec3 = (0.0, 0.0, 0.0)
+    accom: Union[float, Vec3, None] = None
+
+
+class StochasticWall(_FaceWall):
+    """fix wall/reflect/stochastic rstyle seed face args: thermal walls (diffusive, maxwell, ccl)."""
+
+    style: Literal["reflect/stochastic"]
+    rstyle: Literal["diffusive", "maxwell", "ccl"]
+    seed: Annotated[int, Field(ge=1)]
+    xlo: StochasticFace | None = None
+    xhi: StochasticFace | None = None
+    ylo: StochasticFace | None = None
+    yhi: StochasticFace | None = None
+    zlo: StochasticFace | None = None
+    zhi: StochasticFace | None = None
+
+    @model_validator(mode="after")
+    def _accommodation(self) -> "StochasticWall":
+        for name in FACES:
+            face = getattr(self, name)
+            if face is None:
+                continue
+            a = face.accom
+            if self.rstyle == "diffusive" and a is not None:
+                raise ValueError(f"{name}: accom is not used by rstyle diffusive (leave it out)")
+            if self.rstyle == "maxwell" and not isinstance(a, float):
+                raise ValueError(f"{name}: rstyle maxwell needs one accommodation coefficient, accom: a")
+            if self.rstyle == "ccl" and not isinstance(a, tuple):
+                raise ValueError(f"{name}: rstyle ccl needs three accommodation coefficients, accom: [ax, ay, az]")
+            values = () if a is None else (a,) if isinstance(a, float) else a
+            if any(not 0.0 <= x <= 1.0 for x in values):
+                raise ValueError(f"{name}: accommodation coefficients must be between 0 and 1, got {a}")
+            dim = "xyz".index(name[0])
+            if face.vel[dim] != 0.0:
+                raise ValueError(f"{name}: the wall velocity must lie in the wall's plane: vel[{dim}] "
+                                 f"({name[0]}) must be 0, got {face.vel[dim]}")
+        return self
+
+
 class FlowWall(Model):
     """fix wall/flow (docs/physics.md §8)."""
 
@@ -455,10 +556,13 @@ RegionWall = create_model(
     "RegionWall", __base__=_RegionWallHead, __doc__="fix wall/region with a soft potential (a flat wall style).",
     **{k: (Param | None, Field(default=None, description=f"{k} of the potential (as its flat wall style)"))
        for k in REGION_PARAMS},
-    cutoff=(PositiveFloat, ...), energy=(bool, False), virial=(bool, False))
+    cutoff=(PositiveFloat, ...), energy=(bool, False), virial=(bool, False),
+    cutoff_mode=(Literal[CUTOFF_MODES], Field("shift", description="cut-off treatment, as for flat walls")),  # type: ignore[valid-type]
+    switch_on=(NonNegativeFloat | None, Field(None, description="smooth: where the switch starts [distance]")))
 
 Wall = Annotated[
-    Union[(*WALL_MODELS.values(), ReflectWall, FlowWall, RegionWall, RegionEESWall)],  # type: ignore[valid-type]
+    Union[(*WALL_MODELS.values(), ReflectWall, StochasticWall, LeptonWall, TableWall, FlowWall, RegionWall,
+           RegionEESWall)],  # type: ignore[valid-type]
     Field(discriminator="style"),
 ]
 
@@ -581,8 +685,9 @@ def _expand_fix_lines(data: Any, srcmap: SourceMap) -> Any:
     return {**data, "walls": walls}
 
 
-def validate_data(data: Any, srcmap: SourceMap) -> Config:
-    """Validate loaded YAML data into a Config, then run the cross-field checks."""
+def validate_data(data: Any, srcmap: SourceMap, base: Path | None = None) -> Config:
+    """Validate loaded YAML data into a Config, then run the cross-field checks (relative table
+    files of wall/table start from `base`)."""
     data = _expand_fix_lines(data, srcmap)
     data, problems = expand_ensemble_lines(data, srcmap)
     if problems:
@@ -600,6 +705,8 @@ def validate_data(data: Any, srcmap: SourceMap) -> Config:
                 msg = "unknown key (misspelled? see docs/reference/config.md for the valid keys)"
             problems.append(srcmap.format(drop_fix_tag(tuple(err["loc"])), msg))
         raise ConfigError(problems) from None
+    if base is not None:
+        cfg._base_dir = base
     cfg._srcmap = srcmap
     problems = [srcmap.format(path, msg) for path, msg in check_scene(cfg)]
     if problems:
@@ -620,14 +727,14 @@ def load_config(path: str | Path) -> Config:
 def load_config_text(text: str, filename: str = "<config>", base: Path = Path(".")) -> Config:
     """Parse and validate YAML text; relative `file:` paths start from `base`."""
     data, srcmap = load_yaml(text, filename)
-    cfg = validate_data(data, srcmap)
+    cfg = validate_data(data, srcmap, base)
     cfg._base_dir = base
     return cfg
 
 
 def config_from_dict(data: dict, base: Path = Path(".")) -> Config:
     """Validate an already-loaded mapping (no line numbers: errors name the field path)."""
-    cfg = validate_data(data, SourceMap("<dict>", {}, data))
+    cfg = validate_data(data, SourceMap("<dict>", {}, data), base)
     cfg._base_dir = base
     return cfg
 
@@ -701,12 +808,15 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
             if needs_shape and (bad := members_without(wall.group, shape_groups)):
                 add(("walls", fid, "group"), f"{_fix_name(wall)} requires ellipsoids (LAMMPS: requires extended "
                     f"particles): give group(s) {', '.join(bad)} a shape [a, b, c], or set this wall's group")
+        _check_cutoff_mode(fid, wall, entry, add)
         if wall.style in ("region", "region/ees"):
             _check_region_wall(cfg, fid, wall, add, check_var)
             continue
         if wall.style == "flow":
             _check_flow_wall(cfg, fid, wall, add)
             continue
+        if wall.style in ("lepton", "table"):
+            _check_custom_wall(cfg, fid, wall, add)
         if wall.units == "lattice" and cfg.lattice is None:
             add(("walls", fid), _LATTICE_MSG)
         for face, spec in wall.faces():
@@ -732,7 +842,7 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
     for key, needs, what in (("reflect_count", "reflect", "a reflect wall"),
                              ("reflect_impulse", "reflect", "a reflect wall"),
                              ("flow_crossings", "flow", "a flow wall")):
-        if key in cfg.output.thermo and needs not in styles:
+        if key in cfg.output.thermo and needs not in styles and not (needs == "reflect" and "reflect/stochastic" in styles):
             add(("output", "thermo"), f"{key} needs {what} in the scene")
     if "erot" in cfg.output.thermo and not shape_groups and not file_groups:
         add(("output", "thermo"), "erot is the rotational energy of ellipsoids: no group has a shape")
@@ -764,6 +874,29 @@ def _check_min(entry: WallStyle | None, key: str, value: Any, path: tuple, add: 
         add(path, f"{key} must be > 0")
 
 
+def _check_cutoff_mode(fid: str, wall: Any, entry: WallStyle | None, add: Any) -> None:
+    """cutoff_mode and switch_on (docs/physics.md §17): smooth needs 0 <= switch_on < every cut-off
+    of the wall, switch_on is refused without smooth, and wall/ees takes only shift."""
+    mode = getattr(wall, "cutoff_mode", "shift")
+    r_on = getattr(wall, "switch_on", None)
+    if mode != "shift" and entry is not None and not cutoff_supported(entry):
+        add(("walls", fid, "cutoff_mode"), f"{_fix_name(wall)} takes only cutoff_mode: shift (its energy depends on "
+            f"more than the distance)")
+    if r_on is not None and mode != "smooth":
+        add(("walls", fid, "switch_on"), f"switch_on is where the smooth switch starts: it needs cutoff_mode: smooth "
+            f"(this wall has {mode})")
+    if mode == "smooth" and r_on is None:
+        add(("walls", fid, "cutoff_mode"), "cutoff_mode: smooth needs switch_on (where the switch starts, "
+            "0 <= switch_on < cutoff)")
+    if mode == "smooth" and r_on is not None:
+        cuts = ([("", wall.cutoff)] if wall.style == "region"
+                else [(f" ({face})", spec.cutoff) for face, spec in wall.faces()])
+        for where, rc in cuts:
+            if isinstance(rc, float) and not r_on < rc:
+                add(("walls", fid, "switch_on"), f"switch_on = {r_on:g} must be smaller than the cut-off{where} "
+                    f"{rc:g}")
+
+
 def _check_region_wall(cfg: "Config", fid: str, wall: Any, add: Any, check_var: Any) -> None:
     """wall/region and wall/region/ees: the region exists, the potential's parameters are given."""
     if wall.region not in cfg.regions:
@@ -788,6 +921,33 @@ def _check_region_wall(cfg: "Config", fid: str, wall: Any, add: Any, check_var: 
                 add(("walls", fid, k), f"{k} must be >= 0")
         else:
             _check_min(entry, k, value, ("walls", fid, k), add)
+
+
+def _check_custom_wall(cfg: "Config", fid: str, wall: Any, add: Any) -> None:
+    """wall/lepton: each expression parses, uses only r, its definitions and its params, is
+    finite at the cut-off and divides by zero nowhere in (0, rc]. wall/table: each file and
+    section reads, and the cut-off lies inside the table."""
+    for face, spec in wall.faces():
+        if wall.style == "lepton":
+            if "cutoff" in spec.params:
+                add(("walls", fid, face, "params", "cutoff"), "'cutoff' is the face's cut-off, not a parameter name")
+                continue
+            try:
+                expr = compile_expression(spec.expression, tuple(spec.params))
+                expr.check(spec.cutoff, spec.params)
+            except LeptonError as exc:
+                add(("walls", fid, face, "expression"), str(exc))
+        else:
+            path = Path(spec.file)
+            path = path if path.is_absolute() else cfg._base_dir / path
+            try:
+                data = read_table(path, spec.keyword)
+            except TableError as exc:
+                add(("walls", fid, face, "file"), str(exc))
+                continue
+            if spec.cutoff > data.r[-1]:
+                add(("walls", fid, face, "cutoff"), f"cutoff {spec.cutoff:g} is beyond the table's last distance "
+                    f"{data.r[-1]:g} (LAMMPS: Fix wall/table wall cutoff is larger than table outer cutoff)")
 
 
 def _check_flow_wall(cfg: "Config", fid: str, wall: Any, add: Any) -> None:

@@ -18,6 +18,7 @@ from wallbatch.config.models import COORD_SCHEMA, WALL_MODELS, Config, ReflectWa
 from wallbatch.config.source import FACES
 from wallbatch.config.sweep import Sweep
 from wallbatch.styles import STYLES
+from wallbatch.styles.cutoff import CUTOFF_MODES
 
 FIX_LINE = {"type": "string", "pattern": r"^\s*fix\s",
             "description": "the wall as a LAMMPS fix line: `fix ID group wall/STYLE args ... [keywords]` (ID = this "
@@ -73,7 +74,8 @@ def _faces(defs: dict) -> None:
 
 
 def _walls(schema: dict) -> None:
-    """A wall is a mapping of its model, a fix line, or `{fix: LINE, energy:, virial:}`."""
+    """A wall is a mapping of its model, a fix line, or `{fix: LINE, energy:, virial:, cutoff_mode:,
+    switch_on:}`."""
     walls = schema["properties"]["walls"]
     models = walls["additionalProperties"]
     walls["additionalProperties"] = {"anyOf": [models, FIX_LINE, {
@@ -81,7 +83,10 @@ def _walls(schema: dict) -> None:
         "description": "a LAMMPS fix line with wallbatch settings",
         "properties": {"fix": FIX_LINE,
                        "energy": {"type": "boolean", "description": KEYS["walls.ID.energy"].doc},
-                       "virial": {"type": "boolean", "description": KEYS["walls.ID.virial"].doc}}}]}
+                       "virial": {"type": "boolean", "description": KEYS["walls.ID.virial"].doc},
+                       "cutoff_mode": {"enum": list(CUTOFF_MODES), "description": KEYS["walls.ID.cutoff_mode"].doc},
+                       "switch_on": {"type": "number", "minimum": 0,
+                                     "description": KEYS["walls.ID.switch_on"].doc}}}]}
 
 
 _VALUE_FORMS = {  # the forms of a sweep's values

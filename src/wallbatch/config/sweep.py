@@ -324,7 +324,7 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
     smap = sweep_map or srcmap
     origins = dict(origins or {})
     raw_sweep = data.pop("sweep", None)
-    base = validate_data(data, srcmap)
+    base = validate_data(data, srcmap, base_dir)
     if overrides:
         for key in overrides:
             origins.setdefault(key, f"--set {key}")
@@ -335,7 +335,7 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
             except ConfigError as exc:
                 raise ConfigError([f"{origins[key]}: {p.removeprefix(f'sweep path {key}: ')}"
                                    for p in exc.problems]) from None
-        base = validate_data(base_data, OverlayMap(srcmap, origins))
+        base = validate_data(base_data, OverlayMap(srcmap, origins), base_dir)
         base_text = (f"# {srcmap.filename} with {', '.join(f'{k}={v}' for k, v in overrides.items())}\n"
                      + yaml.safe_dump(config_to_dict(base), sort_keys=False))
     base._base_dir = base_dir
@@ -389,7 +389,7 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
                     set_path(case_data, p, d.values[i])
         label = ", ".join(f"{k}={v}" for k, v in coords.items())
         try:
-            cfg = validate_data(case_data, case_map)
+            cfg = validate_data(case_data, case_map, base_dir)
         except ConfigError as exc:
             problems.extend((label, p) for p in exc.problems)
             continue

@@ -31,7 +31,12 @@ values, dt/reset parameters, callbacks for the NumPy outputs and steps, and what
 has); this module reads nothing else of the engine. Eligibility is a whitelist: soft flat walls
 of compiled styles, wall/reflect, dt/reset and equal-style variables (their per-step values are computed in NumPy
 before the chunk, vectorised over steps; not when the step's dt can change inside the chunk).
-Anything else (pair forces, flow, ees, region walls, ellipsoids) runs in NumPy. A chunk that
+wall/region fixes of compiled styles with constant parameters run in the kernel too (their contacts
+per atom as RegionGeom.contacts lists them, the force the registry's function; `_region_contacts`).
+One wall/flow fix (step-based runs without dt/reset) runs in the kernel as well, one case per call
+with the case's own generator (`_flow_step`; numba's Generator draws NumPy's streams), step by
+step over all atoms. Anything else (pair forces, ees, wall/region/ees, ellipsoids, thermostats,
+several flow fixes) runs in NumPy. A chunk that
 meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a variable error or a
 negative variable parameter) leaves the state as it was at its start and is handed back to the
 NumPy loop, which re-runs it and reports exactly as always. `WALLBATCH_NUMBA=0` (or numba not
@@ -41,10 +46,12 @@ cold compile takes ~15 s once, a cached load ~0.5 s per process.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import inspect
 import math
 import os
+import types
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -52,12 +59,18 @@ from typing import Any
 import numpy as np
 
 from wallbatch.engine import dt_reset as _dtr
+from wallbatch.engine import flow_compiled
 from wallbatch.engine.dt_reset import BIG, dt_candidate
 from wallbatch.engine.state import BatchState
-from wallbatch.engine.walls import ReflectKernel, SoftWallKernel
+from wallbatch.engine.region_walls import RegionWallKernel
+from wallbatch.engine.walls import CustomWallKernel, ReflectKernel, SoftWallKernel
 from wallbatch.expr import VariableError
 from wallbatch.scene.case import DtResetSpec
 from wallbatch.styles import STYLES, WallStyle
+from wallbatch.styles import cutoff as _cutoff
+from wallbatch.styles.cutoff import CUTOFF_MODES, FORCE_SHIFT, SHIFT, SMOOTH, cutoff_functions
+from wallbatch.styles.cutoff import supported as cutoff_supported
+from wallbatch.styles.lepton import LeptonWallStyle, positional_kernels
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
@@ -70,6 +83,9 @@ COMPILED_STYLES: tuple[WallStyle, ...] = tuple(s for s in STYLES.values() if s.c
 STYLE_IDS: dict[str, int] = {s.name: i for i, s in enumerate(COMPILED_STYLES)}
 BLOCK = 256  # atoms per block: a block's buffers stay in L1 cache over a window of steps
 WINDOW = 64  # steps per speculative window under dt/reset
+# wall/region geometries in the kernel (rg_meta's kind column)
+REGION_KINDS: dict[tuple[str, str], int] = {("block", "in"): 0, ("block", "out"): 1, ("sphere", "in"): 2,
+                                            ("sphere", "out"): 3, ("cylinder", "in"): 4, ("cylinder", "out"): 5}
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
 
 
@@ -83,16 +99,43 @@ def enabled() -> bool:
 
 
 def _dispatch_source(styles: tuple[WallStyle, ...]) -> str:
-    """Python source of `_soft_face(style, ...)`: one branch per compiled style, each a literal
-    call of the generic face loop with that style's force function and radius flag, so every style
-    gets its own loop with its force inlined."""
-    lines = ["def _soft_face(style, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1):"]
+    """Python source of `_soft_face(style, mode, ...)`: one branch per compiled style and cut-off
+    mode (wallbatch.styles.cutoff), each a literal call of the generic face loop with that pair's
+    force function and radius flag, so every pair gets its own loop with its force inlined."""
+    lines = ["def _soft_face(style, mode, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, u0, u1):"]
+    first = True
     for i, st in enumerate(styles):
-        lines.append(f"    {'if' if i == 0 else 'elif'} style == {i}:  # {st.name}")
-        lines.append(f"        return _face(_FORCE_{i}, {bool(st.needs_radius)}, X, F, RAD, groups, g, d, side, "
-                     "coord, p0, p1, p2, cut, u0, u1)")
+        for m in _modes(st):
+            lines.append(f"    {'if' if first else 'elif'} style == {i} and mode == {m}:  # {st.name} "
+                         f"{CUTOFF_MODES[m]}")
+            lines.append(f"        return _face(_FORCE_{i}_{m}, {bool(st.needs_radius)}, X, F, RAD, groups, g, d, "
+                         "side, coord, p0, p1, p2, cut, ron, u0, u1)")
+            first = False
     lines.append("    return 0")
     return "\n".join(lines) + "\n"
+
+
+def _region_dispatch_source(styles: tuple[WallStyle, ...]) -> str:
+    """Python source of `_region_force(style, mode, ...)`: as `_dispatch_source`, one branch per
+    compiled style and cut-off mode calling the region-contact force loop with that force inlined."""
+    lines = ["def _region_force(style, mode, F, RAD, RB, nslot, u0, u1, p0, p1, p2, cut, ron):"]
+    first = True
+    for i, st in enumerate(styles):
+        for m in _modes(st):
+            lines.append(f"    {'if' if first else 'elif'} style == {i} and mode == {m}:  # {st.name} "
+                         f"{CUTOFF_MODES[m]}")
+            lines.append(f"        return _rface(_FORCE_{i}_{m}, {bool(st.needs_radius)}, F, RAD, RB, nslot, u0, u1, "
+                         "p0, p1, p2, cut, ron)")
+            first = False
+    lines.append("    return 0")
+    return "\n".join(lines) + "\n"
+
+
+def _modes(st: WallStyle) -> tuple[int, ...]:
+    """The cut-off modes the compiled path runs for a style (smooth needs a compiled shifted_fn)."""
+    if not cutoff_supported(st):
+        return (SHIFT,)
+    return (SHIFT, FORCE_SHIFT, SMOOTH) if st.compiled_shifted else (SHIFT, FORCE_SHIFT)
 
 
 def _fingerprint(styles: tuple[WallStyle, ...]) -> int:
@@ -101,9 +144,13 @@ def _fingerprint(styles: tuple[WallStyle, ...]) -> int:
     (numba keys a cached function by its own file only)."""
     h = hashlib.sha256()
     for st in styles:
-        h.update(f"{st.name}:{st.needs_radius}:".encode())
+        h.update(f"{st.name}:{st.needs_radius}:{_modes(st)}:".encode())
         h.update(inspect.getsource(st.force).encode())
+        if len(_modes(st)) > 1:
+            h.update(inspect.getsource(st.shifted_fn).encode())
+    h.update(inspect.getsource(_cutoff).encode())
     h.update(inspect.getsource(dt_candidate).encode())
+    h.update(inspect.getsource(flow_compiled).encode())
     return int(h.hexdigest()[:15], 16)
 
 
@@ -137,10 +184,18 @@ if njit is not None:
 
     # the registry's force functions, compiled as they are (the same function objects)
     FORCES = tuple(njit(nogil=True, error_model="numpy")(st.force) for st in COMPILED_STYLES)
+    # each style's force under each cut-off mode it runs: the closures of styles.cutoff around the
+    # compiled force (and, for force-shift and smooth, E(r) - E(rc)), compiled as they are
+    _SHIFTED = {i: njit(nogil=True, error_model="numpy")(st.shifted_fn) for i, st in enumerate(COMPILED_STYLES)
+                if len(_modes(st)) > 1}
+    _switch = njit(nogil=True, error_model="numpy")(_cutoff.switch)
+    MODE_FORCES = {(i, m): njit(nogil=True, error_model="numpy")(
+        cutoff_functions(FORCES[i], _SHIFTED.get(i, FORCES[i]), m, _switch)[0])
+        for i, st in enumerate(COMPILED_STYLES) for m in _modes(st)}
     _dt_candidate = njit(nogil=True, error_model="numpy", inline="always")(dt_candidate)
 
     @inline
-    def _face(force, use_radius, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1):
+    def _face(force, use_radius, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, u0, u1):
         """One soft face over atoms u0..u1-1 (walls.SoftWallKernel.apply): r = distance into the
         allowed region; where r < rc (and the atom is in the group), F[d] -= side F(r). Returns the
         number of atoms on or behind the wall (r <= 0; with use_radius: r <= radius). `force` and
@@ -155,17 +210,181 @@ if njit is not None:
             nbad += near & (r <= rad)
             fi = F[d, i]
             if near:
-                fi = fi - sidef * force(r, p0, p1, p2, cut, rad)
+                fi = fi - sidef * force(r, p0, p1, p2, cut, rad, ron)
             F[d, i] = fi
         return nbad
 
-    _namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}": f for i, f in enumerate(FORCES)}}
+    _namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}_{m}": f for (i, m), f in MODE_FORCES.items()}}
     exec(compile(_dispatch_source(COMPILED_STYLES), "<wallbatch soft-face dispatch>", "exec"), _namespace)
     _soft_face = njit(nogil=True, error_model="numpy", inline="always")(_namespace["_soft_face"])
 
+    # -- fix wall/region (region_walls.RegionWallKernel.apply; geometry of regions.RegionGeom) ------
+    # A region's contacts of one block of atoms go into RB[slot, :, i - u0] = (flag, r, delta x, y, z)
+    # (flag 1.0: a contact), one slot per part of RegionGeom.contacts in its order (block in: xlo,
+    # xhi, ylo, yhi, zlo, zhi; cylinder in: curved wall, lo cap, hi cap; every other region: one),
+    # then one force pass per slot adds (F(r) / r) delta to F, so each atom adds its contacts in the
+    # order np.add.at does. rg_meta rows: kind (REGION_KINDS), axis, style number, group row, mode;
+    # rg_geo rows: lo x y z, hi x y z, radius, centre (sphere x y z; cylinder the two other dims).
+
+    @inline
+    def _clip(a, lo, hi):
+        """np.clip for scalars: min(max(a, lo), hi)."""
+        return _nmin(_nmax(a, lo), hi)
+
+    @inline
+    def _slot(RB, j, b, r, d0, d1, d2):
+        RB[j, 0, b] = 1.0
+        RB[j, 1, b] = r
+        RB[j, 2, b] = d0
+        RB[j, 3, b] = d1
+        RB[j, 4, b] = d2
+
+    @jit
+    def _region_contacts(kind, ax, geo, X, groups, g, cut, u0, u1, RB):
+        """The region's contacts of atoms u0..u1-1 (group g) into RB; returns (slots used, number
+        of group atoms on the wrong side of the region)."""
+        nslot = 6 if kind == 0 else (3 if kind == 4 else 1)
+        for j in range(nslot):
+            for i in range(u0, u1):
+                RB[j, 0, i - u0] = 0.0
+        nwrong = 0
+        R = geo[6]
+        for i in range(u0, u1):
+            if groups[g, i] == 0:
+                continue
+            b = i - u0
+            x0, x1, x2 = X[0, i], X[1, i], X[2, i]
+            if kind <= 1:  # block
+                if kind == 0:
+                    ins = True
+                    for d in range(3):
+                        ins = ins & (X[d, i] >= geo[d]) & (X[d, i] <= geo[3 + d])
+                    if not ins:
+                        nwrong += 1
+                        continue
+                    for d in range(3):
+                        dlo = X[d, i] - geo[d]
+                        dhi = geo[3 + d] - X[d, i]
+                        if dlo < cut:
+                            _slot(RB, 2 * d, b, dlo, 1.0 * dlo if d == 0 else 0.0, 1.0 * dlo if d == 1 else 0.0,
+                                  1.0 * dlo if d == 2 else 0.0)
+                        if dhi < cut:
+                            _slot(RB, 2 * d + 1, b, dhi, -dhi if d == 0 else 0.0, -dhi if d == 1 else 0.0,
+                                  -dhi if d == 2 else 0.0)
+                else:
+                    strictly = ((x0 > geo[0]) & (x0 < geo[3]) & (x1 > geo[1]) & (x1 < geo[4])
+                                & (x2 > geo[2]) & (x2 < geo[5]))
+                    inside = ((x0 >= geo[0]) & (x0 <= geo[3]) & (x1 >= geo[1]) & (x1 <= geo[4])
+                              & (x2 >= geo[2]) & (x2 <= geo[5]))
+                    if inside:
+                        nwrong += 1
+                        continue
+                    d0 = x0 - _clip(x0, geo[0], geo[3])
+                    d1 = x1 - _clip(x1, geo[1], geo[4])
+                    d2 = x2 - _clip(x2, geo[2], geo[5])
+                    r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                    if (not strictly) and r < cut:
+                        _slot(RB, 0, b, r, d0, d1, d2)
+            elif kind <= 3:  # sphere
+                d0, d1, d2 = x0 - geo[7], x1 - geo[8], x2 - geo[9]
+                rho = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                if kind == 2:
+                    if not rho <= R:
+                        nwrong += 1
+                        continue
+                    r = R - rho
+                    if rho > 0.0 and r < cut:
+                        s = 1.0 - R / rho
+                        _slot(RB, 0, b, r, d0 * s, d1 * s, d2 * s)
+                else:
+                    if rho <= R:
+                        nwrong += 1
+                        continue
+                    r = rho - R
+                    if r < cut:
+                        s = 1.0 - R / rho
+                        _slot(RB, 0, b, r, d0 * s, d1 * s, d2 * s)
+            else:  # cylinder: axis ax, centre (geo[7], geo[8]) in the two other dims, lo geo[0], hi geo[3]
+                o1 = 1 if ax == 0 else 0
+                o2 = 1 if ax == 2 else 2
+                e1 = X[o1, i] - geo[7]
+                e2 = X[o2, i] - geo[8]
+                rho = math.sqrt(e1 * e1 + e2 * e2)
+                a = X[ax, i]
+                ins = (rho <= R) & (a >= geo[0]) & (a <= geo[3])
+                if kind == 4:
+                    if not ins:
+                        nwrong += 1
+                        continue
+                    rw = R - rho
+                    if rho > 0.0 and rw < cut:
+                        s = 1.0 - R / rho
+                        c1, c2 = e1 * s, e2 * s
+                        _slot(RB, 0, b, rw, c1 if o1 == 0 else 0.0, c1 if o1 == 1 else (c2 if o2 == 1 else 0.0),
+                              c2 if o2 == 2 else 0.0)
+                    dlo = a - geo[0]
+                    dhi = geo[3] - a
+                    if dlo < cut:
+                        _slot(RB, 1, b, dlo, 1.0 * dlo if ax == 0 else 0.0, 1.0 * dlo if ax == 1 else 0.0,
+                              1.0 * dlo if ax == 2 else 0.0)
+                    if dhi < cut:
+                        _slot(RB, 2, b, dhi, -dhi if ax == 0 else 0.0, -dhi if ax == 1 else 0.0,
+                              -dhi if ax == 2 else 0.0)
+                else:
+                    if ins:
+                        nwrong += 1
+                        continue
+                    strictly = (rho < R) & (a > geo[0]) & (a < geo[3])
+                    rim = 1.0 - R / rho if rho > R else 0.0
+                    c1, c2 = e1 * rim, e2 * rim
+                    ca = a - _clip(a, geo[0], geo[3])
+                    d0 = ca if ax == 0 else c1
+                    d1 = ca if ax == 1 else (c1 if o1 == 1 else c2)
+                    d2 = ca if ax == 2 else c2
+                    r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                    if (not strictly) and r < cut:
+                        _slot(RB, 0, b, r, d0, d1, d2)
+        return nslot, nwrong
+
+    @inline
+    def _rface(force, use_radius, F, RAD, RB, nslot, u0, u1, p0, p1, p2, cut, ron):
+        """The forces of a region's contacts in RB (RegionWallKernel.apply): F += (F(r) / r) delta,
+        slot by slot. Returns the number of contacts too close (r <= 0; use_radius: r <= radius)."""
+        nbad = 0
+        for j in range(nslot):
+            for i in range(u0, u1):
+                b = i - u0
+                if RB[j, 0, b] != 0.0:
+                    r = RB[j, 1, b]
+                    rad = RAD[i] if use_radius else 0.0
+                    nbad += r <= rad
+                    s = force(r, p0, p1, p2, cut, rad, ron) / r
+                    F[0, i] = F[0, i] + s * RB[j, 2, b]
+                    F[1, i] = F[1, i] + s * RB[j, 3, b]
+                    F[2, i] = F[2, i] + s * RB[j, 4, b]
+        return nbad
+
+    _namespace["_rface"] = _rface
+    exec(compile(_region_dispatch_source(COMPILED_STYLES), "<wallbatch region dispatch>", "exec"), _namespace)
+    _region_force = njit(nogil=True, error_model="numpy", inline="always")(_namespace["_region_force"])
+
+    @jit
+    def _region_walls(c, u0, u1, X, F, RAD, groups, rg_meta, rg_geo, rg_val, RB):
+        """Every wall/region fix on atoms u0..u1-1 of case c, in order; returns the number of
+        atoms on the wrong side or too close (the NumPy loop then reports them)."""
+        nbad = 0
+        for k in range(rg_meta.shape[0]):
+            cut = rg_val[c, k, 3]
+            nslot, nwrong = _region_contacts(rg_meta[k, 0], rg_meta[k, 1], rg_geo[k], X, groups, rg_meta[k, 3],
+                                             cut, u0, u1, RB)
+            nbad += nwrong
+            nbad += _region_force(rg_meta[k, 2], rg_meta[k, 4], F, RAD, RB, nslot, u0, u1, rg_val[c, k, 0],
+                                  rg_val[c, k, 1], rg_val[c, k, 2], cut, rg_val[c, k, 4])
+        return nbad
+
     @inline
     def _block_step(c, u0, u1, si, row, dtc, due, X, V, F, M, RAD, DTFM, CAND, groups, box,
-                    sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par):
+                    sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg):
         """One velocity-Verlet step (engine.Engine.step) of atoms u0..u1-1 of case c, as simple
         passes over the structure-of-arrays buffers: kick-drift, reflect faces (wall velocities
         vw[row], statistics into rstat[row]), periodic wrap, force clear, soft faces, lost test,
@@ -209,9 +428,12 @@ if njit is not None:
         for k in range(sf_meta.shape[0]):  # soft walls (post_force), one loop per style
             style = sf_meta[k, 0]
             g, d, side = sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2]
-            coord, cut = sf_val[c, si, k, 0], sf_val[c, si, k, 4]
+            coord, cut, ron = sf_val[c, si, k, 0], sf_val[c, si, k, 4], sf_val[c, si, k, 5]
             p0, p1, p2 = sf_val[c, si, k, 1], sf_val[c, si, k, 2], sf_val[c, si, k, 3]
-            nbad += _soft_face(style, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, u0, u1)
+            nbad += _soft_face(style, sf_meta[k, 4], X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron,
+                               u0, u1)
+        if rg[0].shape[0]:  # wall/region fixes (post_force, after the flat walls as in compute_forces)
+            nbad += _region_walls(c, u0, u1, X, F, RAD, groups, rg[0], rg[1], rg[2], rg[3])
         if nbad:
             return 1, 0.0
         nlost = 0
@@ -278,13 +500,74 @@ if njit is not None:
             new = _nmin(new, par[3])
         return new
 
+    @jit
+    def _flow_step(X, V, M, fl_int, fl_f, walls, grp, phys, pend, prev, cross, rng, CI, DIR):
+        """fix wall/flow's end_of_step (flow.FlowKernel.end_of_step) for the one case of the chunk,
+        on its buffers: crossings (segments of the wrapped axis coordinate, pending returns), then
+        the draws from the case's generator in the NumPy order (u1, u2, g (n, 2)) and the redraws
+        (flow_compiled.apply's arithmetic). fl_int: on, axis, exact; fl_f: lo, length, vflow, kT."""
+        ax = fl_int[1]
+        lo, length = fl_f[0], fl_f[1]
+        n = 0
+        for i in range(X.shape[1]):
+            xi = X[ax, i]
+            t = xi - lo
+            if not (t >= 0.0 and t < length):  # t % length is t itself there (positions are wrapped)
+                t = t % length
+            xw = lo + t
+            sg = 0
+            for k in range(walls.shape[0]):
+                sg += xw >= walls[k]
+            if grp[i] != 0:
+                moved = sg != phys[i]
+                pe = float(pend[i])
+                if moved or pe != 0.0:
+                    va = V[ax, i]
+                    dx = xi - prev[i]
+                    dx -= length * np.rint(dx / length)
+                    d = np.sign(dx)
+                    if d == 0.0:
+                        d = np.sign(va)
+                    if d == 0.0:
+                        d = 1.0
+                    returned = (pe != 0.0) & moved & (d == pe)
+                    turned = (pe != 0.0) & (not moved) & (va * pe <= 0.0)
+                    if returned:
+                        pend[i] = 0
+                    if (moved & (not returned)) | turned:
+                        CI[n] = i
+                        DIR[n] = -pe if turned else d
+                        n += 1
+            phys[i] = sg
+            prev[i] = xi
+        if n == 0:
+            return
+        u1 = rng.random(n)
+        u2 = rng.random(n)
+        g = rng.standard_normal((n, 2))
+        kT, vflow = fl_f[3], fl_f[2]
+        for k in range(n):
+            i = CI[k]
+            gamma = 1.0 / math.sqrt(2.0 * kT / M[i])
+            delta = gamma * vflow
+            pplus = flow_compiled._expit(flow_compiled.log_tail(0.0, delta) - flow_compiled.log_tail(0.0, -delta), 0)
+            side = -1.0 if u1[k] > pplus else 1.0
+            v_axis = side * flow_compiled.solve_flux_speed(side * delta, 1.0 - u2[k], 100) / gamma
+            scale = gamma * flow_compiled._SQRT2
+            V[ax, i] = v_axis
+            V[(ax + 1) % 3, i] = g[k, 0] / scale
+            V[(ax + 2) % 3, i] = g[k, 1] / scale
+            pend[i] = -DIR[k] if fl_int[2] != 0 and v_axis * DIR[k] < 0.0 else 0
+        cross[0] += n
+
     def _make_run_chunk(fingerprint: int) -> Any:
         """The chunk kernel; `fingerprint` (see _fingerprint) joins its on-disk cache key."""
 
         @jit
         def _run_chunk(nsteps, time_mode, target, tol, x, v, f, mass, radius, dt, atime, atimestep,
                        step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
-                       stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo):
+                       stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo, rg_meta, rg_geo, rg_val,
+                       fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng):
             """Advance every case by nsteps steps (or, with time_mode, to the time `target` as
             Engine.advance_to_time does), reading x, v, f and writing xo, vo, fo. Returns 0, or the
             nonzero status of the first trouble met (1: an atom on/behind a soft wall, 2: a lost atom,
@@ -323,6 +606,12 @@ if njit is not None:
             vw = np.zeros((nrow, nrf))  # wall velocities (frame wall) per step of a window
             rstat = np.zeros((nrow, nrf, 2))  # reflections and impulse per step and face
             low = np.empty(nrow)  # smallest dt/reset candidate per step of a window
+            # wall/region: one argument (a call of more than 30 arguments is compiled by CPython as
+            # f(*args), which numba cannot inline); RB holds a block's contacts (_region_contacts)
+            rg = (rg_meta, rg_geo, rg_val, np.empty((6, 5, BLOCK)))
+            # wall/flow (fl_int[0] != 0; the chunk then holds one case): step by step over all blocks
+            CI = np.empty(natom if fl_int[0] != 0 else 0, np.int64)
+            DIR = np.empty(natom if fl_int[0] != 0 else 0)
             for c in range(ncase):
                 for a in range(natom):
                     for d in range(3):
@@ -348,7 +637,7 @@ if njit is not None:
                         break
                     # a window of nwin steps at one dt, block by block; or one step (time-based runs, and
                     # dt/reset while dt changes), which is a window of one step followed by its dt update
-                    window = not time_mode and (dtr_every == 0 or stepwise == 0)
+                    window = not time_mode and (dtr_every == 0 or stepwise == 0) and fl_int[0] == 0
                     nwin = 1
                     if window:
                         nwin = nsteps - done if dtr_every == 0 else min(WINDOW, nsteps - done)
@@ -383,11 +672,14 @@ if njit is not None:
                             due = dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
                             st, m = _block_step(c, u0, u1, (done + s) * vary, s, dtc, due, X, V, F, M, RAD, DTFM,
                                                 CAND, groups, box, sf_meta, sf_val, rf_meta, rf_val,
-                                                vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par)
+                                                vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg)
                             if st != 0:
                                 return st
                             if due:
                                 low[s] = _nmin(low[s], m)
+                    if fl_int[0] != 0:  # fix wall/flow (end_of_step)
+                        _flow_step(X, V, M, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross,
+                                   fl_rng, CI, DIR)
                     if window and speculate:
                         first = -1
                         for s in range(nwin):
@@ -442,8 +734,45 @@ if njit is not None:
 
     _run_chunk = _make_run_chunk(_fingerprint(COMPILED_STYLES))
 
+    def _relink(dispatcher: Any, **replace: Any) -> Any:
+        """The Python function of a jitted `dispatcher` with some of its globals replaced (the same
+        code, closure and defaults), ready to be jitted again."""
+        fn = dispatcher.py_func
+        namespace = dict(fn.__globals__)
+        namespace.update(replace)
+        out = types.FunctionType(fn.__code__, namespace, fn.__name__, fn.__defaults__, fn.__closure__)
+        out.__kwdefaults__ = fn.__kwdefaults__
+        return out
+
+    @functools.lru_cache(maxsize=32)
+    def _chunk_kernel(extra: tuple[Any, ...]) -> Any:
+        """The chunk kernel with the generated forces `extra` (wall/lepton expressions, jitted
+        force(r, p0, p1, p2, rc, radius), cut-off mode shift) as styles len(COMPILED_STYLES) + j:
+        the registry's dispatch with one more branch each, inlined like the built-in styles, and
+        the block step and chunk kernel re-linked to it. Compiled on first use in each process (no
+        on-disk cache: the expressions are not in a source file); the built-in styles keep
+        `_run_chunk`."""
+        if not extra:
+            return _run_chunk
+        n = len(COMPILED_STYLES)
+        src = _dispatch_source(COMPILED_STYLES).replace("    return 0\n", "".join(
+            f"    elif style == {n + j} and mode == {SHIFT}:  # wall/lepton\n        return _face(_EXTRA_{j}, False, "
+            "X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, u0, u1)\n" for j in range(len(extra)))
+            + "    return 0\n")
+        namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}_{m}": f for (i, m), f in MODE_FORCES.items()},
+                                     **{f"_EXTRA_{j}": njit(nogil=True, error_model="numpy")(
+                                         cutoff_functions(f, f, SHIFT, _switch)[0]) for j, f in enumerate(extra)}}
+        exec(compile(src, "<wallbatch soft-face dispatch + lepton>", "exec"), namespace)  # noqa: S102 - generated here
+        soft_face = njit(nogil=True, error_model="numpy", inline="always")(namespace["_soft_face"])
+        block_step = njit(nogil=True, error_model="numpy", inline="always")(_relink(_block_step, _soft_face=soft_face))
+        return njit(nogil=True, error_model="numpy")(_relink(_run_chunk, _block_step=block_step))
+
 
 # ----------------------------------------------------------------------------- the Python side
+
+# the wall/flow arguments of a chunk without flow walls (same types: one compiled signature)
+_NO_FLOW = (np.zeros(3, np.int64), np.zeros(4), np.zeros(0), np.zeros(0, np.uint8), np.zeros(0, np.int64),
+            np.zeros(0, np.int64), np.zeros(0), np.zeros(1), np.random.default_rng(0))
 
 
 @dataclass
@@ -455,7 +784,9 @@ class ChunkPlan:
       and per-face values (``kernel.faces``: coord and parameters, (C,) arrays or variable names);
     * ``reflect``: wall/reflect kernels (faces, frame, previous positions, statistics);
     * ``dt_reset`` and ``dt_reset_params`` (C, 4): xmax, emax, tmin, tmax (NaN: no bound);
-    * ``others``: what else the scene has (pair, flow, region walls, ellipsoids): the compiled
+    * ``region``: wall/region kernels (and wall/region/ees ones, which `eligible` refuses);
+    * ``flow``: the wall/flow kernels (`eligible` takes at most one, without dt/reset);
+    * ``others``: what else the scene has (pair, ellipsoids, fixes): the compiled
       path runs only plans where this is empty;
     * ``compute_outputs()``: the NumPy forces and outputs at the current positions,
       ``finish_step(out, sample)``: drop failed cases and sample, ``advance_numpy(n, sample)``: the
@@ -471,17 +802,73 @@ class ChunkPlan:
     compute_outputs: Callable[[], dict]
     finish_step: Callable[[dict, bool], None]
     advance_numpy: Callable[[int, bool], None]
+    region: tuple[RegionWallKernel, ...] = ()
+    flow: tuple = ()  # flow.FlowKernel: at most one, without dt/reset (`eligible`)
+
+
+def _face_styles(w: SoftWallKernel) -> list[WallStyle]:
+    """The style of each face of a soft kernel (wall/lepton and wall/table: one per face)."""
+    return list(w.face_styles) if isinstance(w, CustomWallKernel) else [w.style] * len(w.faces)
+
+
+def _generated_force(style: WallStyle) -> Any | None:
+    """The jitted force of a wall/lepton face (at most 3 parameters), else None."""
+    if isinstance(style, LeptonWallStyle) and style.expression is not None:
+        kernels = positional_kernels(style.expression)
+        return None if kernels is None else kernels[0]
+    return None
+
+
+# wall/lepton kernels are compiled per expression in each process (~15-25 s, no on-disk cache):
+# WALLBATCH_LEPTON_COMPILED=always|never|auto (default auto: when the run has at least
+# LEPTON_MIN_ATOM_STEPS atom-steps over its cases: about where the ~20 s compile pays for itself
+# against the NumPy path, ~25 ns/atom-step slower; benchmarks/lepton.md)
+LEPTON_MIN_ATOM_STEPS = 1e9
+
+
+def lepton_compiled_wanted(state: BatchState) -> bool:
+    """Whether wall/lepton faces run on the compiled path for this batch (see above)."""
+    mode = os.environ.get("WALLBATCH_LEPTON_COMPILED", "auto").strip().lower()
+    if mode in ("always", "1", "yes"):
+        return True
+    if mode in ("never", "0", "no"):
+        return False
+    remaining = np.maximum(state.end_step - state.step, 0).sum()
+    return float(remaining) * state.x.shape[1] >= LEPTON_MIN_ATOM_STEPS
+
+
+def _compiled_face(w: SoftWallKernel, style: WallStyle, state: BatchState) -> bool:
+    if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] is style:
+        return w.cutoff.mode_id in _modes(style)
+    return _generated_force(style) is not None and w.cutoff.mode_id == SHIFT and lepton_compiled_wanted(state)
 
 
 def eligible(plan: ChunkPlan) -> bool:
-    """Whitelist: flat soft walls of compiled styles, wall/reflect (lab or wall frame), dt/reset,
+    """Whitelist: flat soft walls of compiled styles, wall/reflect (lab or wall frame), wall/region
+    with compiled styles and constant parameters, one wall/flow (not with dt/reset), dt/reset,
     variables; nothing else in the scene."""
     if plan.others:
         return False
-    if any(type(w) is not SoftWallKernel or STYLE_IDS.get(w.style.name) is None
-           or COMPILED_STYLES[STYLE_IDS[w.style.name]] is not w.style for w in plan.soft):
+    if any(type(w) not in (SoftWallKernel, CustomWallKernel) or
+           not all(_compiled_face(w, st, plan.state) for st in _face_styles(w)) for w in plan.soft):
+        return False
+    if any(not region_eligible(w) for w in plan.region):
+        return False
+    if len(plan.flow) > 1 or (plan.flow and plan.dt_reset is not None):
         return False
     return all(type(w) is ReflectKernel and w.frame in ("lab", "wall") for w in plan.reflect)
+
+
+def region_eligible(w: Any) -> bool:
+    """A wall/region fix the kernel runs: a compiled soft style (not wall/region/ees), a region
+    of REGION_KINDS, constant parameters."""
+    if type(w) is not RegionWallKernel or w.style is None or STYLE_IDS.get(w.style.name) is None:
+        return False
+    if COMPILED_STYLES[STYLE_IDS[w.style.name]] is not w.style or w.cutoff.mode_id not in _modes(w.style):
+        return False
+    if (w.geom.style, w.geom.side) not in REGION_KINDS or any(isinstance(v, str) for v in w.params.values()):
+        return False
+    return True
 
 
 class FastPath:
@@ -498,7 +885,7 @@ class FastPath:
 
     @staticmethod
     def _values(plan: ChunkPlan, nsteps: int, varying: bool) -> tuple[np.ndarray, np.ndarray] | None:
-        """Per-step wall values: soft (C, S', F, 5) = coord, p0, p1, p2, cutoff and reflect
+        """Per-step wall values: soft (C, S', F, 6) = coord, p0, p1, p2, cutoff, switch_on and reflect
         coords (C, S', R); S' = nsteps when a value varies with time, else 1. None: fall back."""
         s = plan.state
         C = s.ncases
@@ -517,22 +904,24 @@ class FastPath:
         def value(v: Any) -> np.ndarray:
             return np.broadcast_to(v, (nval, C)) if isinstance(v, np.ndarray) else var(v)
 
-        soft_faces = [(w, face) for w in plan.soft for face in w.faces]
-        sf = np.zeros((C, nval, len(soft_faces), 5))
+        soft_faces = [(st, face) for w in plan.soft for st, face in zip(_face_styles(w), w.faces)]
+        sf = np.zeros((C, nval, len(soft_faces), 6))
         rf = np.zeros((C, nval, sum(len(w.faces) for w in plan.reflect)))
         with np.errstate(all="ignore"):
             try:
-                for k, (w, face) in enumerate(soft_faces):
+                for k, (style, face) in enumerate(soft_faces):
                     coord = face.coord if isinstance(face.coord, np.ndarray) else var(face.coord) * face.scale
                     sf[:, :, k, 0] = np.broadcast_to(coord, (nval, C)).T
-                    for j, key in enumerate(w.style.args_names):
+                    for j, key in enumerate(style.args_names):
                         if key in face.params:
                             val = value(face.params[key])
-                            low = w.style.param(key).min
+                            low = style.param(key).min
                             if isinstance(face.params[key], str) and low is not None and np.any(val < low):
                                 return None  # the NumPy path fails these cases with its message
                             sf[:, :, k, 1 + j] = val.T
                     sf[:, :, k, 4] = value(face.params["cutoff"]).T
+                    if "switch_on" in face.params:  # cutoff_mode smooth
+                        sf[:, :, k, 5] = value(face.params["switch_on"]).T
                 k = 0
                 for w in plan.reflect:
                     for face in w.faces:
@@ -549,6 +938,35 @@ class FastPath:
                  for v in [face.coord, *face.params.values()] if isinstance(v, str)]
         return any(plan.state.variables.depends_on_time(n) for n in names)
 
+    @staticmethod
+    def _regions(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The wall/region fixes for the kernel: rg_meta (K, 5) int = kind (REGION_KINDS), axis,
+        style number, group row, cut-off mode; rg_geo (K, 10) = lo xyz, hi xyz, radius, centre;
+        rg_val (C, K, 5) = p0, p1, p2, cutoff, switch_on (constants: `eligible` refuses variables)."""
+        C = plan.state.ncases
+        K = len(plan.region)
+        meta = np.zeros((K, 5), np.int64)
+        geo = np.zeros((K, 10))
+        val = np.zeros((C, K, 5))
+        for k, w in enumerate(plan.region):
+            g = w.geom
+            meta[k] = (REGION_KINDS[(g.style, g.side)], g.axis or 0, STYLE_IDS[w.style.name],
+                       group(np.isin(np.arange(plan.state.x.shape[1]), w.atoms), w.atoms.size == plan.state.x.shape[1]),
+                       w.cutoff.mode_id)
+            if g.style == "block":
+                geo[k, 0:3], geo[k, 3:6] = g.lo, g.hi
+            elif g.style == "sphere":
+                geo[k, 6], geo[k, 7:10] = g.radius, g.center
+            else:
+                geo[k, 0], geo[k, 3], geo[k, 6], geo[k, 7:9] = g.lo, g.hi, g.radius, g.center
+            for j, key in enumerate(w.style.args_names):
+                if key in w.params:
+                    val[:, k, j] = np.broadcast_to(np.asarray(w.params[key], float), (C,))
+            val[:, k, 3] = np.broadcast_to(np.asarray(w.params.get("cutoff", np.inf), float), (C,))
+            val[:, k, 4] = np.broadcast_to(np.asarray(w.params.get("switch_on", 0.0), float), (C,))
+        return meta, geo, val
+
     # -- the chunk -------------------------------------------------------------------------
 
     def advance(self, nsteps: int, sample: bool) -> bool:
@@ -564,14 +982,18 @@ class FastPath:
         s = plan.state
         if s.ncases == 0 or s.failed or not enabled() or not eligible(plan):
             return False
+        if any(w.style.needs_radius and not w._radius_checked for w in plan.region):
+            return False  # colloid's radius check (the NumPy setup step makes it) reports in NumPy
         time_mode = target is not None
+        if time_mode and plan.flow:
+            return False
         if not time_mode and nsteps <= 0:
             return False
         varying = self._uses_time(plan)
         if varying and (plan.dt_reset is not None or time_mode):
             return False  # per-step values depend on a dt that changes inside the chunk
         if varying and not time_mode:
-            per_step = 5 * max(1, sum(len(w.faces) for w in plan.soft + plan.reflect)) * s.ncases
+            per_step = 6 * max(1, sum(len(w.faces) for w in plan.soft + plan.reflect)) * s.ncases
             most = max(1, VALUE_BUDGET // per_step)
             if nsteps > most:  # split a long chunk: the values of fewer steps at a time
                 done = 0
@@ -593,7 +1015,17 @@ class FastPath:
             if not getattr(s, name).flags.c_contiguous:
                 setattr(s, name, np.ascontiguousarray(getattr(s, name)))
 
-        soft_faces = [(w, face) for w in plan.soft for face in w.faces]
+        soft_faces = [(w, st, face) for w in plan.soft for st, face in zip(_face_styles(w), w.faces)]
+        extra: list[Any] = []  # generated forces (wall/lepton), numbered after the registry's styles
+
+        def style_id(style: WallStyle) -> int:
+            if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] is style:
+                return STYLE_IDS[style.name]
+            force = _generated_force(style)
+            if force not in extra:
+                extra.append(force)
+            return len(COMPILED_STYLES) + extra.index(force)
+
         groups: list[np.ndarray] = [np.ones(s.x.shape[1], np.uint8)]
 
         def group(kernel_group: np.ndarray, all_atoms: bool) -> int:
@@ -603,8 +1035,8 @@ class FastPath:
             groups.append(kernel_group.astype(np.uint8))
             return len(groups) - 1
 
-        sf_meta = np.array([[STYLE_IDS[w.style.name], face.dim, face.side, group(w.group, w.all_atoms)]
-                            for w, face in soft_faces], np.int64).reshape(-1, 4)
+        sf_meta = np.array([[style_id(st), face.dim, face.side, group(w.group, w.all_atoms),
+                             w.cutoff.mode_id] for w, st, face in soft_faces], np.int64).reshape(-1, 5)
         rf_meta = np.array([[face.dim, face.side, 1 if w.frame == "wall" else 0, group(w.group, w.all_atoms)]
                             for w in plan.reflect for face in w.faces], np.int64).reshape(-1, 4)
         stats = bool(plan.reflect) and plan.reflect[0].stats
@@ -615,6 +1047,7 @@ class FastPath:
             dtr_par = np.ascontiguousarray(plan.dt_reset_params, dtype=float)
         else:
             dtr_group, dtr_par = 0, np.zeros((C, 4))
+        rg = self._regions(plan, group)
         groups_arr = np.stack(groups)
         rf_prev = np.ascontiguousarray(np.stack([p for w in plan.reflect for p in w.previous], axis=1),
                                        dtype=float) if plan.reflect else np.zeros((C, 0))
@@ -631,22 +1064,51 @@ class FastPath:
             self._spare = tuple(np.empty_like(s.x) for _ in range(3))
         xo, vo, fo = self._spare
         backup = {k: getattr(s, k).copy() for k in ("dt", "atime", "atimestep", "step")}
-        status = _run_chunk(
-            int(nsteps), time_mode, float(target if time_mode else 0.0),
-            float(1e-12 * max(1.0, abs(target))) if time_mode else 0.0,
-            s.x, s.v, s.f, s.mass, s.radius, s.dt, s.atime, s.atimestep, s.step,
-            np.asarray(s.box_lo, float), np.asarray(s.box_hi, float), periodic,
-            sf_meta, np.ascontiguousarray(sf_val), groups_arr, rf_meta, np.ascontiguousarray(rf_val), rf_prev,
-            np.ascontiguousarray(rf_stat), stats, int(dtr.every if dtr is not None else 0), dtr_group, dtr_par,
-            float(s.units.ftm2v), float(s.units.mvv2e), xo, vo, fo)
+        kernel = _chunk_kernel(tuple(extra))
+        sf_val, rf_val, rf_stat = (np.ascontiguousarray(a) for a in (sf_val, rf_val, rf_stat))
+        lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)
+        args = (int(nsteps), time_mode, float(target if time_mode else 0.0),
+                float(1e-12 * max(1.0, abs(target))) if time_mode else 0.0)
+        consts = (stats, int(dtr.every if dtr is not None else 0), dtr_group)
+        units = (float(s.units.ftm2v), float(s.units.mvv2e))
+
+        def run(c: slice, fl: tuple) -> int:
+            """The kernel on cases c (a slice: views, so the kernel writes through)."""
+            return kernel(*args, s.x[c], s.v[c], s.f[c], s.mass[c], s.radius[c], s.dt[c], s.atime[c],
+                              s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
+                              rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
+                              rg[0], rg[1], rg[2][c], *fl)
+
+        fk = plan.flow[0] if plan.flow else None
+        if fk is None:
+            status = run(slice(None), _NO_FLOW)
+        else:  # one case per call: each case draws from its own generator
+            rng_states = [r.bit_generator.state for r in fk.rngs]
+            phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
+            prev, cross = np.ascontiguousarray(fk.prev, dtype=float).copy(), np.zeros((C, 1))
+            status = 0
+            for c in range(C):
+                fl_int = np.array([1, fk.axis[c], int(fk.exact[c])], np.int64)
+                fl_f = np.array([fk.lo[c], fk.length[c], fk.vflow[c], fk.kT[c]])
+                walls = np.ascontiguousarray(fk.walls[c][np.isfinite(fk.walls[c])])
+                status = run(slice(c, c + 1), (fl_int, fl_f, walls, fk.group[c].astype(np.uint8), phys[c], pend[c],
+                                               prev[c], cross[c], fk.rngs[c]))
+                if status != 0:
+                    break
         s.ctx = None
         s.var_step = {}
         if status != 0:
             for k, arr in backup.items():
                 getattr(s, k)[...] = arr
+            if fk is not None:  # the NumPy loop re-runs the chunk with the same random numbers
+                for r, st in zip(fk.rngs, rng_states):
+                    r.bit_generator.state = st
             self.fallbacks += 1
             return False
         self.compiled_chunks += 1
+        if fk is not None:
+            fk.phys, fk.pend, fk.prev = phys.astype(np.intp), pend.astype(np.int8), prev
+            fk.crossings += cross[:, 0]
         self._spare = (s.x, s.v, s.f)
         s.x, s.v, s.f = xo, vo, fo
         k = 0

@@ -72,7 +72,7 @@ class Engine:
         self.frames: list[tuple] = []  # (rows, time, x, v) per dump instant
         self.samples: list[dict[str, np.ndarray]] = []  # per sample: name -> (C_total, ...) arrays
         self.sample_rows: list[np.ndarray] = []
-        # the compiled path (fast.py) runs only scenes without pair, flow, ees, region walls, ellipsoids
+        # the compiled path (compiled.py) runs only scenes without pair, ees, wall/region/ees, ellipsoids
         self.pair = None  # pair.PairLJCut
         if c0.pair is not None:
             self.pair = PairLJCut(np.array([c.pair.epsilon for c in cases]), np.array([c.pair.sigma for c in cases]),
@@ -97,7 +97,7 @@ class Engine:
         their per-case arrays, the NumPy steps it hands back to, and what else the scene has."""
         s = self.state
         others = tuple(name for name, present in (
-            ("pair", self.pair is not None), ("flow", bool(self.flow)), ("region walls", bool(self.region_walls)),
+            ("pair", self.pair is not None),
             ("ellipsoids", s.quat is not None or s.angmom is not None or s.torque is not None),
             ("fixes", self.ensemble is not None)) if present)
         dtr = None
@@ -105,7 +105,8 @@ class Engine:
             dtr = np.stack([self.dtr_xmax, self.dtr_emax, self.dtr_tmin, self.dtr_tmax], axis=1)
         return ChunkPlan(state=s, soft=tuple(self.soft), reflect=tuple(self.reflect), dt_reset=self.dt_reset,
                          dt_reset_params=dtr, others=others, compute_outputs=lambda: self.compute_forces(True),
-                         finish_step=self.finish_step, advance_numpy=self.advance_numpy)
+                         finish_step=self.finish_step, advance_numpy=self.advance_numpy,
+                         region=tuple(self.region_walls), flow=tuple(self.flow))
 
     # -- the step ----------------------------------------------------------------------------
 

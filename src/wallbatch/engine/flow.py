@@ -35,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import erfc, erfcx, expit
 
+from wallbatch.engine import flow_compiled
 from wallbatch.scene.case import FlowSpec
 from wallbatch.units import UnitSystem
 
@@ -178,8 +179,16 @@ def _draw(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray, np.
 def _velocities(u1: np.ndarray, u2: np.ndarray, g: np.ndarray, gamma: np.ndarray,
                 vflow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """§8.3 from given random numbers: side from u1 (backward if u1 > P+), speed from
-    T(ν)/T(0) = 1 - u2 (in (0, 1]), parallel components g/(γ√2) = N(0,1) sqrt(kT/m)."""
+    T(ν)/T(0) = 1 - u2 (in (0, 1]), parallel components g/(γ√2) = N(0,1) sqrt(kT/m).
+    Compiled (flow_compiled.velocities) unless WALLBATCH_NUMBA=0; this NumPy code is the reference."""
     gamma = np.broadcast_to(np.asarray(gamma, float), u1.shape)
+    if flow_compiled.enabled():  # the same arithmetic per redraw, compiled (flow_compiled.py)
+        v_axis, v_par = np.empty(u1.shape), np.empty((u1.size, 2))
+        flow_compiled.velocities(np.ascontiguousarray(u1, float), np.ascontiguousarray(u2, float),
+                                 np.ascontiguousarray(g, float), np.ascontiguousarray(gamma),
+                                 np.ascontiguousarray(np.broadcast_to(np.asarray(vflow, float), u1.shape)),
+                                 v_axis, v_par)
+        return v_axis, v_par
     delta = gamma * np.broadcast_to(np.asarray(vflow, float), u1.shape)
     side = np.where(u1 > positive_fraction(delta), -1.0, 1.0)
     nu = solve_flux_speed(side * delta, 1.0 - u2)
@@ -360,6 +369,9 @@ class FlowKernel:
         """
         if self.phys is None:
             raise RuntimeError(f"walls.{self.fix_id}: FlowKernel.setup(x) must run before end_of_step")
+        if flow_compiled.enabled():
+            self._end_of_step_compiled(x, v, mass)
+            return
         C = self.ncases
         xa = self._axis_coord(x)
         p = self._segment(xa)
@@ -394,6 +406,28 @@ class FlowKernel:
             self.pend[ci, ai] = np.where(back, -direction, 0.0).astype(np.int8)
             self.crossings += counts
         self.phys = p
+        self.prev = xa
+
+    def _end_of_step_compiled(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray) -> None:
+        """end_of_step with the detection and the redraws compiled (flow_compiled.detect, apply);
+        the random numbers drawn here as in the NumPy code (per case, `_draw`, same order)."""
+        C, N = x.shape[0], x.shape[1]
+        seg = np.empty((C, N), np.intp)
+        xa = np.empty((C, N))
+        ci = np.empty(C * N, np.intp)
+        ai = np.empty(C * N, np.intp)
+        direction = np.empty(C * N)
+        n = flow_compiled.detect(x, v, self.group, self.axis, self.lo, self.length, self.walls, self.phys,
+                                 self.pend, self.prev, seg, xa, ci, ai, direction)
+        if n:
+            ci, ai, direction = ci[:n], ai[:n], direction[:n]
+            counts = np.bincount(ci, minlength=C)
+            parts = [_draw(self.rngs[c], int(counts[c])) for c in np.nonzero(counts)[0]]
+            u1, u2, g = (np.concatenate(z) for z in zip(*parts))
+            flow_compiled.apply(ci, ai, direction, u1, u2, g, self.kT, mass, self.vflow, self.axis, self.exact, v,
+                                self.pend)
+            self.crossings += counts
+        self.phys = seg
         self.prev = xa
 
     def take_crossings(self) -> np.ndarray:

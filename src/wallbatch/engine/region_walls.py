@@ -9,7 +9,8 @@ from wallbatch.engine.state import BatchState, Stacked, stack_values
 from wallbatch.geometry.regions import LAMMPS_EES_MESSAGE, LAMMPS_MESSAGE, RegionGeom
 from wallbatch.scene.case import RegionWallSpec
 from wallbatch.styles.ees import EES, ees_energy_force_torque, ees_torque, sigma_n
-from wallbatch.styles.base import Params, WallStyle, shifted_energy_force
+from wallbatch.styles.base import Params, WallStyle
+from wallbatch.styles.cutoff import CutoffStyle
 from wallbatch.styles.flat import colloid
 
 # ----------------------------------------------------------------------------- the kernel
@@ -31,6 +32,8 @@ class RegionWallKernel:
         self.region_name = s0.region_name
         self.geom: RegionGeom = s0.region
         self.style: WallStyle = s0.potential
+        # the potential under the wall's cut-off mode (None for wall/region/ees)
+        self.cutoff = CutoffStyle(s0.potential, s0.cutoff_mode) if s0.potential is not None else None
         self.energy_to_pe: bool = s0.energy
         self.virial: bool = getattr(s0, "virial", False)  # fix_modify virial: sum of F r, set on output steps
         self.last_virial: np.ndarray | None = None
@@ -88,9 +91,9 @@ class RegionWallKernel:
             ci, ai, delta, r = ci[ok], ai[ok], delta[ok], r[ok]
             pa = {k: v[ok] for k, v in pa.items()}
         if outputs:
-            e, f = shifted_energy_force(self.style, r, pa)
+            e, f = self.cutoff.energy_force(r, pa)
         else:
-            f = self.style.force(r, *self.style.args(pa))
+            f = self.cutoff.force(r, pa)
         fvec = (f / r)[:, None] * delta
         if state.f.flags.c_contiguous:  # an atom may have several contacts: unbuffered add
             np.add.at(state.f.reshape(-1, 3), ci * N + ai, fvec)

@@ -12,9 +12,12 @@ import numpy as np
 
 from wallbatch.engine.region_walls import RegionEESKernel, RegionWallKernel
 from wallbatch.engine.state import BatchState, FaceValues
-from wallbatch.scene.case import Case, ReflectSpec, SoftWallSpec
+from wallbatch.engine.stochastic import StochasticKernel
+from wallbatch.scene.case import Case, CustomWallSpec, ReflectSpec, SoftWallSpec, StochasticSpec
+from wallbatch.geometry.quaternion import rotation_matrix
 from wallbatch.styles.ees import ees_energy_force_torque, ees_torque, sigma_n
 from wallbatch.styles.base import WallStyle
+from wallbatch.styles.cutoff import CutoffStyle
 
 
 class SoftWallKernel:
@@ -24,6 +27,7 @@ class SoftWallKernel:
         s0 = specs[0]
         self.fix_id: str = s0.fix_id
         self.style: WallStyle = s0.style
+        self.cutoff = CutoffStyle(s0.style, s0.cutoff_mode)  # the style under the wall's cut-off mode
         self.group: np.ndarray = s0.group
         self.all_atoms = bool(s0.group.all())
         self.energy_to_pe: bool = s0.energy
@@ -56,10 +60,10 @@ class SoftWallKernel:
                 ok = ~bad
                 ci, ai, r = ci[ok], ai[ok], r[ok]
                 pa = {key: val[ok] for key, val in pa.items()}
-            f = self.style.force(r, *self.style.args(pa))
+            f = self.cutoff.force(r, pa)
             state.f[ci, ai, face.dim] -= face.side * f
             if outputs:
-                e_shifted = self.style.shifted_energy(r, pa)  # E(r) - E(rc) without cancellation
+                e_shifted = self.cutoff.energy(r, pa)  # E(r) - E(rc) without cancellation (shift)
                 energy += np.bincount(ci, weights=e_shifted, minlength=C)
                 vector[:, k] = np.bincount(ci, weights=face.side * f, minlength=C)
                 if self.virial:  # +F r on the (dim, dim) component, lo and hi alike (physics.md §3.4)
@@ -117,19 +121,64 @@ class EESWallKernel(SoftWallKernel):
             normal = np.zeros(3)
             normal[face.dim] = -face.side
             q, shape = state.quat[ci, ai], state.shape[ci, ai]
-            sn = sigma_n(q, shape, normal)
+            rot = rotation_matrix(q)  # once for sigma_n and the torque
+            sn = sigma_n(q, shape, normal, rot)
             bad = r <= sn
             if bad.any():
                 self._fail_inside(state, ci[bad], ai[bad], r[bad], face.name)
                 ok = ~bad
-                ci, ai, r, sn, q, shape = ci[ok], ai[ok], r[ok], sn[ok], q[ok], shape[ok]
+                ci, ai, r, sn, q, shape, rot = ci[ok], ai[ok], r[ok], sn[ok], q[ok], shape[ok], rot[ok]
             e, f, tw = ees_energy_force_torque(r, sn, p["epsilon"][ci], p["sigma"][ci])
             state.f[ci, ai, face.dim] -= face.side * f
-            state.torque[ci, ai] += ees_torque(q, shape, normal, tw)
+            state.torque[ci, ai] += ees_torque(q, shape, normal, tw, rot)
             if outputs:
                 energy += np.bincount(ci, weights=e, minlength=C)
                 vector[:, k] = np.bincount(ci, weights=face.side * f, minlength=C)
         return (energy, vector) if outputs else None
+
+
+class CustomWallKernel(SoftWallKernel):
+    """fix wall/lepton and wall/table over a batch: the soft-wall kernel run face by face, each
+    face with its own style (expression or table); outputs as for the other soft walls."""
+
+    def __init__(self, specs: list[CustomWallSpec]):
+        super().__init__(specs)
+        self.face_styles = specs[0].face_styles
+        self.face_cutoffs = [CutoffStyle(st, specs[0].cutoff_mode) for st in self.face_styles]
+
+    def apply(self, state: "BatchState", outputs: bool) -> tuple[np.ndarray, np.ndarray] | None:
+        faces, style, cutoff = self.faces, self.style, self.cutoff
+        C = state.ncases
+        energy = np.zeros(C) if outputs else None
+        vector = np.zeros((C, len(faces))) if outputs else None
+        virial = np.zeros(C) if outputs and self.virial else None
+        try:
+            for k, (face, face_style, face_cutoff) in enumerate(zip(faces, self.face_styles, self.face_cutoffs)):
+                self.faces, self.style, self.cutoff = [face], face_style, face_cutoff
+                res = super().apply(state, outputs)
+                if outputs:
+                    energy += res[0]
+                    vector[:, k] = res[1][:, 0]
+                    if virial is not None:
+                        virial += self.last_virial
+        finally:
+            self.faces, self.style, self.cutoff = faces, style, cutoff
+        if virial is not None:
+            self.last_virial = virial
+        return (energy, vector) if outputs else None
+
+    def _fail_inside(self, state: "BatchState", ci: np.ndarray, ai: np.ndarray, r: np.ndarray, face: str) -> None:
+        if self.style.name != "table":
+            super()._fail_inside(state, ci, ai, r, face)
+            return
+        first: dict[int, tuple[int, float]] = {}
+        for c, a, d in zip(ci.tolist(), ai.tolist(), r.tolist()):
+            first.setdefault(c, (a, d))
+        lo = self.style.lo
+        state.fail(np.array(sorted(first)), lambda c: (
+            f"walls.{self.fix_id} (wall/table {face}): atom {first[c][0]} at distance {first[c][1]:.6g} from the "
+            f"wall at step {int(state.step[c])} is nearer than the table's first distance {lo:g} "
+            f"(LAMMPS: Particle / wall distance < table inner cutoff)"))
 
 
 class ReflectKernel:
@@ -199,11 +248,15 @@ class ReflectKernel:
 
 def build_kernels(cases: list[Case], outputs: tuple[str, ...]) -> tuple[list[SoftWallKernel], list[ReflectKernel]]:
     """Flat soft walls (wall/ees included, as EESWallKernel) and reflecting walls of a batch."""
-    soft = [(EESWallKernel if cases[0].soft_walls[i].style.needs_shape else SoftWallKernel)(
-        [c.soft_walls[i] for c in cases]) for i in range(len(cases[0].soft_walls))]
+    def kind(spec: SoftWallSpec) -> type:
+        if isinstance(spec, CustomWallSpec):
+            return CustomWallKernel
+        return EESWallKernel if spec.style.needs_shape else SoftWallKernel
+
+    soft = [kind(cases[0].soft_walls[i])([c.soft_walls[i] for c in cases]) for i in range(len(cases[0].soft_walls))]
     stats = "reflect_count" in outputs or "reflect_impulse" in outputs
-    reflect = [ReflectKernel([c.reflect_walls[i] for c in cases], stats)
-               for i in range(len(cases[0].reflect_walls))]
+    reflect = [(StochasticKernel if isinstance(cases[0].reflect_walls[i], StochasticSpec) else ReflectKernel)(
+        [c.reflect_walls[i] for c in cases], stats) for i in range(len(cases[0].reflect_walls))]
     return soft, reflect
 
 

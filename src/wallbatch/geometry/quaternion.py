@@ -83,12 +83,17 @@ def rotation_matrix(q: np.ndarray) -> np.ndarray:
     w2, i2, j2, k2 = w * w, i * i, j * j, k * k
     ij, ik, jk = 2.0 * i * j, 2.0 * i * k, 2.0 * j * k
     wi, wj, wk = 2.0 * w * i, 2.0 * w * j, 2.0 * w * k
-    rows = [
-        [w2 + i2 - j2 - k2, ij - wk, ik + wj],
-        [ij + wk, w2 - i2 + j2 - k2, jk - wi],
-        [ik - wj, jk + wi, w2 - i2 - j2 + k2],
-    ]
-    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+    a = np.empty(q.shape[:-1] + (3, 3))  # filled in place: no stacked copies (the ees profile's 30%)
+    a[..., 0, 0] = w2 + i2 - j2 - k2
+    a[..., 0, 1] = ij - wk
+    a[..., 0, 2] = ik + wj
+    a[..., 1, 0] = ij + wk
+    a[..., 1, 1] = w2 - i2 + j2 - k2
+    a[..., 1, 2] = jk - wi
+    a[..., 2, 0] = ik - wj
+    a[..., 2, 1] = jk + wi
+    a[..., 2, 2] = w2 - i2 - j2 + k2
+    return a
 
 
 def from_axis_angle(axis: np.ndarray, angle: np.ndarray, *, degrees: bool = False,
@@ -167,15 +172,12 @@ def _omega_quat(omega: np.ndarray, q: np.ndarray) -> np.ndarray:
     """(0, ω) ⊗ q, the pure-vector Hamilton product of §11.2."""
     a0, a1, a2 = omega[..., 0], omega[..., 1], omega[..., 2]
     b0, b1, b2, b3 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.stack(
-        [
-            -a0 * b1 - a1 * b2 - a2 * b3,
-            b0 * a0 + a1 * b3 - a2 * b2,
-            b0 * a1 + a2 * b1 - a0 * b3,
-            b0 * a2 + a0 * b2 - a1 * b1,
-        ],
-        axis=-1,
-    )
+    out = np.empty(np.broadcast_shapes(omega.shape[:-1], q.shape[:-1]) + (4,))  # filled in place
+    out[..., 0] = -a0 * b1 - a1 * b2 - a2 * b3
+    out[..., 1] = b0 * a0 + a1 * b3 - a2 * b2
+    out[..., 2] = b0 * a1 + a2 * b1 - a0 * b3
+    out[..., 3] = b0 * a2 + a0 * b2 - a1 * b1
+    return out
 
 
 def richardson(q: np.ndarray, angmom: np.ndarray, inertia: np.ndarray, dtq) -> np.ndarray:

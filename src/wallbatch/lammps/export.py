@@ -40,6 +40,7 @@ from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict, set_pat
 from wallbatch.expr import Binary, Call, Keyword, Node, Num, Unary, to_lammps
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import Case, ReflectSpec, RegionWallSpec, SoftWallSpec
+from wallbatch.styles.lepton import compile_expression
 from wallbatch.styles import STYLES
 from wallbatch.units import UNIT_SYSTEMS
 
@@ -141,6 +142,9 @@ DECISIONS: dict[str, str] = {
     "flow_random": "wall/flow random numbers: wallbatch draws from NumPy generators (one stream per case and flow "
                    "wall), LAMMPS from RANMAR seeded with SEED: the runs agree statistically, not sample by sample "
                    "(`wallbatch validate` refuses flow cases)",
+    "stochastic_random": "wall/reflect/stochastic random numbers: wallbatch draws from NumPy generators (one stream "
+                         "per case and wall), LAMMPS from its own generator seeded with SEED: the runs agree "
+                         "statistically, not sample by sample",
     "reflect_frame": "wall/reflect on a moving wall: frame: wall (v -> 2 v_wall - v) cannot be expressed in LAMMPS, "
                      "which does v -> -v; this script reflects in the lab frame, so velocities differ from "
                      "wallbatch's after the first reflection on a moving wall (`wallbatch validate` compares the "
@@ -243,6 +247,10 @@ def check_exportable(cfg: Config) -> None:
     for fid, wall in cfg.walls.items():
         if wall.style not in WALL_WRITERS:
             problems.append(f"walls.{fid}: wall/{wall.style}")
+        elif getattr(wall, "cutoff_mode", "shift") != "shift":
+            problems.append(f"walls.{fid}: cutoff_mode {wall.cutoff_mode} (LAMMPS's wall fixes only shift the energy "
+                            f"at the cut-off and have no force-continuous option; write this wall with cutoff_mode: "
+                            f"shift to compare with LAMMPS)")
     if problems:
         raise ExportError("cannot export yet: " + "; ".join(problems)
                           + " (no LAMMPS writer in this version of wallbatch export-lammps)")
@@ -532,7 +540,69 @@ def _flow_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
         s.notes.append(f"walls.{fid}: coords {list(wall.coords)} lattice spacings written in box units")
 
 
+def _custom_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
+    """fix wall/lepton (the face's expression, its parameters as Lepton `;` definitions with this
+    case's values) or fix wall/table (the table file by absolute path), in box units; energy and
+    wall_force columns as for the other soft walls. LAMMPS's wall/lepton vector is the force on
+    the atoms: the wall_force column compares with its negative."""
+    lid = s.fix_id(fid)
+    written = dict(wall.faces())
+    mapping: dict[str, Any] = {"style": wall.style, "group": s.group(wall.group), "units": "box"}
+    if wall.style == "table":
+        mapping.update(tabstyle=wall.tabstyle, N=int(wall.N))
+    if wall.pbc:
+        mapping["pbc"] = True
+    for face, style, sig in zip(spec.faces, spec.face_styles, spec.signature):
+        values: dict[str, Any] = {"coord": _coord_word(face, written[face.name].coord, s),
+                                  "cutoff": float(face.params["cutoff"])}
+        if wall.style == "lepton":
+            expr = compile_expression(sig, tuple(written[face.name].params))
+            values["expression"] = expr.lammps_text({k: float(v) for k, v in face.params.items() if k != "cutoff"})
+        else:
+            values.update(file=sig[0], keyword=sig[1])
+        mapping[face.name] = values
+    s.fixes.append(to_fix_line(lid, mapping))
+    if spec.energy:
+        s.fixes.append(f"fix_modify {lid} energy yes")
+    if spec.virial:
+        s.fixes.append(f"fix_modify {lid} virial yes")
+    s.energy_column(fid, lid)
+    first = sum(len(w.faces) for w in s.soft_written)
+    s.soft_written.append(spec)
+    for i, face in enumerate(spec.faces):
+        keyword = f"f_{lid}[{i + 1}]"
+        if wall.style == "lepton":
+            helper = _lammps_id(f"wb_{lid}_{face.name}_force", set(s.variables) | set(s.case.variables.names()))
+            s.variables[helper] = f"-{keyword}"
+            keyword = f"v_{helper}"
+        s.columns.append(Column(f"wall_force[{face.label}]", keyword, "wall_force", first + i))
+    if wall.style == "lepton":
+        s.notes.append(f"walls.{fid}: LAMMPS's wall/lepton vector is the force on the atoms, the opposite of "
+                       "wallbatch's wall_force (the force on the wall): compared through v_wb_..._force = -f_ID[i]")
+
+
+def _stochastic_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
+    """fix wall/reflect/stochastic rstyle seed face pos temp vx vy vz [accom ...] units box. The
+    random numbers differ (decisions table): LAMMPS and wallbatch agree statistically only."""
+    lid = s.fix_id(fid)
+    written = dict(wall.faces())
+    mapping: dict[str, Any] = {"style": "reflect/stochastic", "group": s.group(wall.group), "rstyle": wall.rstyle,
+                               "seed": int(wall.seed), "units": "box"}
+    for face in spec.faces:
+        f = written[face.name]
+        mapping[face.name] = {"coord": _coord_word(face, f.coord, s), "temp": f.temp, "vel": list(f.vel)}
+        if f.accom is not None:
+            mapping[face.name]["accom"] = f.accom if isinstance(f.accom, float) else list(f.accom)
+    s.fixes.append(to_fix_line(lid, mapping))
+    s.decide("stochastic_random")
+    if "reflect_count" in s.case.outputs or "reflect_impulse" in s.case.outputs:
+        s.notes.append(f"reflect_count / reflect_impulse of {fid} are wallbatch outputs with no LAMMPS counterpart")
+
+
 WALL_WRITERS: dict[str, WallWriter] = {
+    "reflect/stochastic": _stochastic_wall,
+    "lepton": _custom_wall,
+    "table": _custom_wall,
     **{style: _soft_wall for style in STYLES},
     "reflect": _reflect_wall,
     "region": _region_wall,

@@ -5,6 +5,8 @@ masses, radii and initial velocities.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import warnings
 from pathlib import Path
 from typing import Any
@@ -25,14 +27,18 @@ from wallbatch.scene.case import (
     MinimizeWarning,
     MinSettings,
     PairSpec,
+    CustomWallSpec,
     ProfileSpec,
     ReflectSpec,
+    StochasticSpec,
     RegionWallSpec,
     SoftWallSpec,
     Value,
 )
 from wallbatch.scene.ensemble import build_fixes
 from wallbatch.styles import STYLES
+from wallbatch.styles.lepton import compile_expression, lepton_style
+from wallbatch.styles.table import TableError, WallTable, read_table, table_style
 from wallbatch.units import LATTICE_CELL, LATTICE_POSITIONS, LATTICES_2D, UNIT_SYSTEMS, UnitSystem
 
 
@@ -322,6 +328,10 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
         if wall.style == "reflect":
             reflect.append(ReflectSpec(fid, mask(wall.group), wall.frame, _faces(cfg, fid, wall, ())))
             continue
+        if wall.style == "reflect/stochastic":
+            reflect.append(_stochastic_spec(cfg, fid, wall, mask(wall.group), (cfg.seed, *seed_key, wall.seed,
+                                                                                len(reflect))))
+            continue
         if wall.style == "flow":
             scale = 1.0 if wall.units == "box" else lattice_spacing(cfg)
             flows.append(FlowSpec(fid, mask(wall.group), "xyz".index(wall.axis), wall.vflow, wall.temperature,
@@ -339,19 +349,29 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
                 raise CaseError(f"walls.{fid}: wall/{wall.style} requires extended particles: every atom of group "
                                 f"{wall.group} needs a shape (ellipsoid semi-axes)")
         fix_order.append(fid)
+        if wall.style in ("lepton", "table"):
+            soft.append(_custom_spec(cfg, fid, wall, group))
+            continue
         if wall.style in ("region", "region/ees"):
             region = cfg.regions[wall.region]
             spacing = None if region.units == "box" else lattice_spacing(cfg)
             potential = STYLES[wall.potential] if wall.style == "region" else None
             keys = potential.params if potential is not None else ("epsilon", "sigma", "cutoff")
             params = {k: _value(getattr(wall, k)) for k in keys if getattr(wall, k, None) is not None}
+            mode = getattr(wall, "cutoff_mode", "shift")
+            if mode == "smooth":
+                params["switch_on"] = float(wall.switch_on)
             regional.append(RegionWallSpec(fid, wall.style, wall.region, RegionGeom.from_config(region, spacing),
                                            potential, group, wall.energy, params,
-                                           getattr(wall, "virial", False)))
+                                           getattr(wall, "virial", False), mode))
         else:
             style = STYLES[wall.style]
-            soft.append(SoftWallSpec(fid, style, group, wall.energy, _faces(cfg, fid, wall, style.params),
-                                     wall.virial and style.virial))  # e.g. wall/ees has no virial
+            faces = _faces(cfg, fid, wall, style.params)
+            if wall.cutoff_mode == "smooth":  # r_on joins each face's parameters (a number per case)
+                faces = tuple(dataclasses.replace(f, params={**f.params, "switch_on": float(wall.switch_on)})
+                              for f in faces)
+            soft.append(SoftWallSpec(fid, style, group, wall.energy, faces,
+                                     wall.virial and style.virial, wall.cutoff_mode))  # e.g. wall/ees has no virial
     dtr = None
     if cfg.dt_reset is not None:
         d = cfg.dt_reset
@@ -382,6 +402,50 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
         fixes=build_fixes(cfg, mask, seed_key), dimension=cfg.dimension,
         profiles=_profiles(cfg, mask), average_start=_average_start(cfg),
     )
+
+
+def _custom_spec(cfg: Config, fid: str, wall: Any, group: np.ndarray) -> CustomWallSpec:
+    """wall/lepton (a compiled expression per face; params: cutoff and the expression's names)
+    or wall/table (a resampled table per face, files relative to the config; params: cutoff)."""
+    faces, styles, signature = [], [], []
+    for face, (_, spec) in zip(_faces(cfg, fid, wall, ()), wall.faces()):
+        if wall.style == "lepton":
+            expr = compile_expression(spec.expression, tuple(spec.params))
+            style = lepton_style(expr)
+            params = {"cutoff": spec.cutoff, **{n: float(spec.params.get(n, expr.defaults.get(n, 0.0)))
+                                                for n in expr.params}}
+            signature.append(spec.expression)
+        else:
+            path = Path(spec.file)
+            path = path if path.is_absolute() else cfg._base_dir / path
+            try:
+                table = _table(str(path.resolve()), spec.keyword, wall.tabstyle, wall.N)
+            except TableError as exc:
+                raise CaseError(f"walls.{fid}.{face.name}.file: {exc}") from None
+            style = table_style(table)
+            params = {"cutoff": spec.cutoff}
+            signature.append((str(path.resolve()), spec.keyword, wall.tabstyle, wall.N))
+        styles.append(style)
+        faces.append(Face(face.label, face.name, face.dim, face.side, face.coord, face.scale, params))
+    return CustomWallSpec(fid, styles[0], group, wall.energy, tuple(faces), virial=wall.virial,
+                          face_styles=tuple(styles), signature=tuple(signature))
+
+
+@functools.lru_cache(maxsize=64)
+def _table(path: str, keyword: str, tabstyle: str, n: int) -> WallTable:
+    return WallTable.build(read_table(path, keyword), tabstyle, n)
+
+
+def _stochastic_spec(cfg: Config, fid: str, wall: Any, group: np.ndarray, seed: tuple[int, ...]) -> StochasticSpec:
+    """wall/reflect/stochastic: faces with params temp, vx, vy, vz, ax, ay, az (ax for maxwell)."""
+    faces = []
+    for face, (_, spec) in zip(_faces(cfg, fid, wall, ()), wall.faces()):
+        a = spec.accom
+        acc = (0.0, 0.0, 0.0) if a is None else (a, a, a) if isinstance(a, float) else a
+        params = {"temp": spec.temp, "vx": spec.vel[0], "vy": spec.vel[1], "vz": spec.vel[2],
+                  "ax": acc[0], "ay": acc[1], "az": acc[2]}
+        faces.append(Face(face.label, face.name, face.dim, face.side, face.coord, face.scale, params))
+    return StochasticSpec(fid, group, f"stochastic/{wall.rstyle}", tuple(faces), seed=seed)
 
 
 def _profiles(cfg: Config, mask: Any) -> tuple[ProfileSpec, ...]:
@@ -421,7 +485,8 @@ def _pair_spec(cfg: Config) -> PairSpec | None:
 def _min_settings(cfg: Config, dt: float) -> Any:
     if cfg.minimize is None:
         return None
-    quiet = [fid for fid, w in cfg.walls.items() if w.style not in ("reflect", "flow") and not w.energy]
+    quiet = [fid for fid, w in cfg.walls.items() if w.style not in ("reflect", "reflect/stochastic", "flow")
+             and not w.energy]
     if quiet:
         warnings.warn(
             f"minimize: wall(s) {', '.join(quiet)} have energy: false, so (as in LAMMPS without fix_modify "

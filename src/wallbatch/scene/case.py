@@ -82,6 +82,19 @@ class SoftWallSpec:
     energy: bool
     faces: tuple[Face, ...]
     virial: bool = False  # fix_modify virial: the wall virial joins press
+    # cut-off treatment (styles.cutoff): shift | force-shift | smooth; smooth's r_on is the faces'
+    # params["switch_on"] (a number per case)
+    cutoff_mode: str = "shift"
+
+
+@dataclass(frozen=True)
+class CustomWallSpec(SoftWallSpec):
+    """fix wall/lepton or wall/table: a style per face (`face_styles`, from its expression or
+    table); `signature` (per face: expression text, or table file, keyword, tabstyle, N) decides
+    which cases may share a batch."""
+
+    face_styles: tuple[WallStyle, ...] = keyed(lambda styles: tuple(_name_key(s) for s in styles), default=())
+    signature: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -92,6 +105,18 @@ class ReflectSpec:
     group: np.ndarray
     frame: str
     faces: tuple[Face, ...]
+
+
+@dataclass(frozen=True)
+class StochasticSpec(ReflectSpec):
+    """fix wall/reflect/stochastic: `frame` is "stochastic/<rstyle>" (diffusive, maxwell, ccl);
+    face params temp, vx, vy, vz, ax, ay, az; `seed` keys the case's random stream of this wall."""
+
+    seed: tuple[int, ...] = per_case(default=())
+
+    @property
+    def rstyle(self) -> str:
+        return self.frame.split("/", 1)[1]
 
 
 @dataclass(frozen=True)
@@ -130,6 +155,7 @@ class RegionWallSpec:
     energy: bool
     params: dict[str, Value] = keyed(_params_key)  # the potential's parameters (box units; variables by name)
     virial: bool = False
+    cutoff_mode: str = "shift"  # as SoftWallSpec; smooth's r_on is params["switch_on"]
 
 
 @dataclass(frozen=True)

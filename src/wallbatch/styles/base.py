@@ -83,6 +83,9 @@ class WallStyle:
     virial: bool = True
     decision: str | None = None
     region_quirk: bool = False  # LAMMPS's wall/region with this potential differs (decision row region_NAME)
+    # the numba path can compile shifted_fn (the smooth cut-off's force needs E(r) - E(rc)); False:
+    # cutoff_mode smooth of this style runs in NumPy
+    compiled_shifted: bool = True
     doc: str = ""
     lammps: str = field(default="")
 

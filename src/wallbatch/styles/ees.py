@@ -14,25 +14,28 @@ from wallbatch.styles.base import Param, WallStyle, cutoff_param
 # wall/ees (§4.7, §6)
 
 
-def sigma_n(q: np.ndarray, shape: np.ndarray, normal: np.ndarray) -> np.ndarray:
+def sigma_n(q: np.ndarray, shape: np.ndarray, normal: np.ndarray, a: np.ndarray | None = None) -> np.ndarray:
     """Distance [length] from the centre to the tangent plane with unit normal n̂ (§4.7), (...).
 
     sigma_n = |S A^T n̂| = sqrt(n̂^T A S² A^T n̂), S = diag(a, b, c); ``normal`` (..., 3) broadcasts.
+    ``a``: rotation_matrix(q) if the caller already has it.
     """
-    a = rotation_matrix(q)
+    a = rotation_matrix(q) if a is None else a
     n = np.asarray(normal, dtype=np.float64)
     a, n = np.broadcast_arrays(a, n[..., None, :])
     u = np.asarray(shape, dtype=np.float64) * _to_body(a, n[..., 0, :])
     return np.sqrt(u[..., 0] * u[..., 0] + u[..., 1] * u[..., 1] + u[..., 2] * u[..., 2])
 
 
-def ees_torque(q: np.ndarray, shape: np.ndarray, normal: np.ndarray, tw: np.ndarray) -> np.ndarray:
+def ees_torque(q: np.ndarray, shape: np.ndarray, normal: np.ndarray, tw: np.ndarray,
+               a: np.ndarray | None = None) -> np.ndarray:
     """wall/ees torque [energy] τ = T_w (n̂ × (A S² A^T) n̂), (..., 3) (§4.7).
 
     ``tw`` is T_w = (1/σn) ∂E/∂σn of :func:`ees_energy_force_torque`. τ = -∂E/∂θ for rotations of
     the ellipsoid about space-fixed axes; a sphere (A S² A^T ∝ 1) gets none. Same for n̂ and -n̂.
+    ``a``: rotation_matrix(q) if the caller already has it.
     """
-    a = rotation_matrix(q)
+    a = rotation_matrix(q) if a is None else a
     n = np.asarray(normal, dtype=np.float64)
     a, n = np.broadcast_arrays(a, n[..., None, :])
     n = n[..., 0, :]

@@ -377,7 +377,7 @@ LJ1043 = WallStyle(
              "style; LAMMPS silently skips the atom (and includes one exactly at the cut-off with E = 0, F != 0). "
              "A run that reaches such a state differs: wallbatch fails, LAMMPS goes on")
 COLLOID = WallStyle("colloid", _LJ, colloid_force, colloid_energy, colloid_shifted, needs_radius=True,
-                    region_quirk=True,
+                    region_quirk=True, compiled_shifted=False,  # colloid_shifted picks its form per element
                     doc="finite-size sphere (radius R) against a flat wall; r is the centre distance")
 HARMONIC = WallStyle(
     "harmonic",

@@ -1,0 +1,209 @@
+"""fix wall/flow's velocity redraw compiled with numba (behind wallbatch.engine.flow._velocities).
+
+The NumPy functions of wallbatch.engine.flow (`log_tail`, `positive_fraction`,
+`solve_flux_speed`) are the reference; this module runs the same arithmetic per redraw, one
+element at a time (the NumPy solver already freezes each element on its own, so its result does
+not depend on the others). The special functions are SciPy's own (erfc, erfcx, expit from
+scipy.special.cython_special, linked by symbol), so the only differences are exp and log (NumPy's
+SIMD versions vs the C library's): results agree to a few ulp (tests/engine/test_flow_compiled.py).
+The random numbers are drawn in NumPy exactly as before (flow._draw); only the solve is compiled.
+`WALLBATCH_NUMBA=0` (or numba missing) keeps the NumPy solver.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+try:  # numba is a dependency, but the NumPy path must keep working without it
+    import llvmlite.binding as _llvm
+    from numba import njit, types
+    from numba.extending import get_cython_function_address
+except Exception:  # noqa: BLE001 - any import failure means "no compiled path"
+    njit = None
+
+_SQRT_PI = float(np.sqrt(np.pi))
+_EPS = float(np.finfo(float).eps)
+_SQRT2 = float(np.sqrt(2.0))
+
+
+def enabled() -> bool:
+    """True if the compiled solver may be used (numba importable, WALLBATCH_NUMBA not 0)."""
+    return njit is not None and os.environ.get("WALLBATCH_NUMBA", "1").strip().lower() not in ("0", "false", "no", "off")
+
+
+def _link(name: str, fused: str) -> "types.ExternalFunction":
+    """SciPy's double-precision `name` (a cpdef function: double f(double, int skip_dispatch)) as
+    an external symbol for numba; by name, so the on-disk cache of the kernels stays valid."""
+    symbol = f"wallbatch_scipy_{name}"
+    _llvm.add_symbol(symbol, get_cython_function_address("scipy.special.cython_special", fused + name))
+    return types.ExternalFunction(symbol, types.float64(types.float64, types.intc))
+
+
+if njit is not None:
+    _erfc = _link("erfc", "__pyx_fuse_1")
+    _erfcx = _link("erfcx", "__pyx_fuse_1")
+    _expit = _link("expit", "__pyx_fuse_0")
+    jit = njit(cache=True, nogil=True, error_model="numpy")
+
+    @jit
+    def _one_minus_r(y: float) -> float:
+        """flow._one_minus_r for one y >= 0."""
+        if y < 2.0:
+            return 1.0 - _SQRT_PI * y * _erfcx(y, 0)
+        depth = 60 if y < 3.0 else (40 if y < 5.0 else 20)
+        t = 0.0
+        for k in range(depth, 0, -1):
+            t = (0.5 * k) / (y + t)
+        return t / (y + t)
+
+    @jit
+    def log_tail(nu: float, delta: float) -> float:
+        """flow.log_tail for one (ν, δ): ln ∫_ν^∞ t exp(-(t - δ)²) dt."""
+        y = nu - delta
+        if y < 0.0:
+            return math.log(0.5 * math.exp(-y * y) + delta * (0.5 * _SQRT_PI) * _erfc(y, 0))
+        if delta >= 0.0:
+            return -y * y + math.log(0.5 + delta * (0.5 * _SQRT_PI) * _erfcx(y, 0))
+        q = _one_minus_r(y)
+        return -y * y + math.log(0.5 * (q + (nu / y) * (1.0 - q)))
+
+    @jit
+    def _nmax(a: float, b: float) -> float:
+        """np.maximum for two scalars (NaN propagates)."""
+        if a != a:
+            return a
+        if b != b:
+            return b
+        return a if a >= b else b
+
+    @jit
+    def _nmin(a: float, b: float) -> float:
+        """np.minimum for two scalars (NaN propagates)."""
+        if a != a:
+            return a
+        if b != b:
+            return b
+        return a if a <= b else b
+
+    @jit
+    def solve_flux_speed(delta: float, u: float, max_iter: int) -> float:
+        """flow.solve_flux_speed for one (δ, u), u in (0, 1]: the same bracket, start, Halley or
+        Newton steps and stopping tests, element by element."""
+        target = log_tail(0.0, delta) + math.log(u)
+        dpos = _nmax(delta, 0.0)
+        k = math.log1p(_SQRT_PI * dpos) - math.log(math.exp(-dpos * dpos) + _SQRT_PI * dpos)
+        a = 0.0
+        b = dpos + math.sqrt(k - math.log(u)) + 1.0
+        for _ in range(200):
+            if not log_tail(b, delta) > target:
+                break
+            a = b
+            b = 2.0 * b + 1.0
+        s = math.sqrt(delta * delta + 2.0)
+        mode = 0.5 * (delta + s) if delta >= 0.0 else 1.0 / (s - delta)
+        x = _nmin(_nmax(mode, a), b)
+        if not u < 1.0:
+            return 0.0
+        for _ in range(max_iter):
+            lt = log_tail(x, delta)
+            f = lt - target
+            if f >= 0.0:
+                a = x
+            if f <= 0.0:
+                b = x
+            e = x - delta
+            w = math.exp(-(e * e) - lt)
+            d1 = -x * w
+            d2 = -w * (1.0 - 2.0 * x * (x - delta) + x * x * w)
+            newton = f / d1
+            corr = 1.0 - 0.5 * newton * d2 / d1
+            step = newton / corr if (corr > 0.5) & (corr < 2.0) else newton
+            noise = 4 * _EPS * _nmax(x, (abs(lt) + abs(target) + 1.0) / abs(d1))
+            xn = x - step
+            inside = (d1 < 0.0) & (xn >= a) & (xn <= b)
+            if not inside:
+                xn = 0.5 * (a + b)
+            done = (f == 0.0) | (inside & (abs(xn - x) <= noise)) | (b - a <= 4 * _EPS * b)
+            if f != 0.0:
+                x = xn
+            if done:
+                break
+        return x
+
+    @jit
+    def velocities(u1: np.ndarray, u2: np.ndarray, g: np.ndarray, gamma: np.ndarray, vflow: np.ndarray,
+                   v_axis: np.ndarray, v_par: np.ndarray) -> None:
+        """flow._velocities into v_axis (n,) and v_par (n, 2): side from u1 (backward if u1 > P+),
+        speed ν from T(ν)/T(0) = 1 - u2, v_axis = side ν / γ, v_par = g / (γ √2)."""
+        for i in range(u1.shape[0]):
+            delta = gamma[i] * vflow[i]
+            pplus = _expit(log_tail(0.0, delta) - log_tail(0.0, -delta), 0)
+            side = -1.0 if u1[i] > pplus else 1.0
+            nu = solve_flux_speed(side * delta, 1.0 - u2[i], 100)
+            v_axis[i] = side * nu / gamma[i]
+            scale = gamma[i] * _SQRT2
+            v_par[i, 0] = g[i, 0] / scale
+            v_par[i, 1] = g[i, 1] / scale
+
+    @jit
+    def detect(x, v, group, axis, lo, length, walls, phys, pend, prev, seg, xa, ci, ai, direction) -> int:
+        """FlowKernel.end_of_step up to the draws, for every case: the wrapped axis coordinate xa
+        (C, N) and its segment seg (C, N); returned atoms get pend 0; the crossings go to ci, ai,
+        direction (case-major, ascending atom: the order of the draws). Returns their number."""
+        C, N = x.shape[0], x.shape[1]
+        n = 0
+        for c in range(C):
+            ax = axis[c]
+            for i in range(N):
+                xi = x[c, i, ax]
+                xa[c, i] = xi
+                xw = lo[c] + (xi - lo[c]) % length[c]
+                s = 0
+                for k in range(walls.shape[1]):
+                    s += xw >= walls[c, k]
+                seg[c, i] = s
+                if not group[c, i]:
+                    continue
+                moved = s != phys[c, i]
+                pe = float(pend[c, i])
+                if not moved and pe == 0.0:
+                    continue
+                va = v[c, i, ax]
+                dx = xi - prev[c, i]
+                dx -= length[c] * np.rint(dx / length[c])
+                d = np.sign(dx)
+                if d == 0.0:
+                    d = np.sign(va)
+                if d == 0.0:
+                    d = 1.0
+                returned = (pe != 0.0) & moved & (d == pe)
+                turned = (pe != 0.0) & (not moved) & (va * pe <= 0.0)
+                if returned:
+                    pend[c, i] = 0
+                if (moved & (not returned)) | turned:
+                    ci[n] = c
+                    ai[n] = i
+                    direction[n] = -pe if turned else d
+                    n += 1
+        return n
+
+    @jit
+    def apply(ci, ai, direction, u1, u2, g, kT, mass, vflow, axis, exact, v, pend) -> None:
+        """The redraws of the crossings ci, ai from the drawn u1, u2, g (flow._velocities per atom),
+        and pend after them (rule exact: -direction if the new velocity points back, else 0)."""
+        for k in range(ci.shape[0]):
+            c, a = ci[k], ai[k]
+            gamma = 1.0 / math.sqrt(2.0 * kT[c] / mass[c, a])
+            delta = gamma * vflow[c]
+            pplus = _expit(log_tail(0.0, delta) - log_tail(0.0, -delta), 0)
+            side = -1.0 if u1[k] > pplus else 1.0
+            v_axis = side * solve_flux_speed(side * delta, 1.0 - u2[k], 100) / gamma
+            ax = axis[c]
+            scale = gamma * _SQRT2
+            v[c, a, ax] = v_axis
+            v[c, a, (ax + 1) % 3] = g[k, 0] / scale
+            v[c, a, (ax + 2) % 3] = g[k, 1] / scale
+            pend[c, a] = -direction[k] if exact[c] and v_axis * direction[k] < 0.0 else 0.0
