@@ -838,7 +838,7 @@ def lepton_compiled_wanted(state: BatchState) -> bool:
 
 
 def _compiled_face(w: SoftWallKernel, style: WallStyle, state: BatchState) -> bool:
-    if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] is style:
+    if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] == style:
         return w.cutoff.mode_id in _modes(style)
     return _generated_force(style) is not None and w.cutoff.mode_id == SHIFT and lepton_compiled_wanted(state)
 
@@ -864,7 +864,7 @@ def region_eligible(w: Any) -> bool:
     of REGION_KINDS, constant parameters."""
     if type(w) is not RegionWallKernel or w.style is None or STYLE_IDS.get(w.style.name) is None:
         return False
-    if COMPILED_STYLES[STYLE_IDS[w.style.name]] is not w.style or w.cutoff.mode_id not in _modes(w.style):
+    if COMPILED_STYLES[STYLE_IDS[w.style.name]] != w.style or w.cutoff.mode_id not in _modes(w.style):
         return False
     if (w.geom.style, w.geom.side) not in REGION_KINDS or any(isinstance(v, str) for v in w.params.values()):
         return False
@@ -1019,7 +1019,7 @@ class FastPath:
         extra: list[Any] = []  # generated forces (wall/lepton), numbered after the registry's styles
 
         def style_id(style: WallStyle) -> int:
-            if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] is style:
+            if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] == style:
                 return STYLE_IDS[style.name]
             force = _generated_force(style)
             if force not in extra:
