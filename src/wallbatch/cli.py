@@ -295,6 +295,8 @@ def export_lammps(config: Path = typer.Argument(..., help="scene or sweep YAML f
         raise typer.Exit(2) from None
     script, data = write_export(exp, output)
     typer.echo(f"wrote {script} and {data} ({exp.steps} steps; run: cd {output} && lmp -in {exp.script_name})")
+    for name in exp.files:
+        typer.echo(f"wrote {Path(output) / name} (read by the script's fix wall/table)")
     if exp.decisions:
         typer.echo(f"{len(exp.decisions)} place(s) where wallbatch decides differently from LAMMPS: see the "
                    f"comment block of {exp.script_name}")

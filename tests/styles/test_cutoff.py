@@ -336,11 +336,19 @@ def test_sweep_over_mode_and_switch_on_and_batching():
     assert not np.array_equal(together[0].data["etot"], together[2].data["etot"])
 
 
-def test_export_refuses_a_non_shift_wall():
+def test_export_refuses_a_non_shift_region_wall():
+    """A flat wall with a non-shift mode is exported as a wall/table (tests/lammps/test_cutoff_table.py);
+    a region wall cannot be."""
     for mode, on in (("force-shift", None), ("smooth", 2.0)):
-        cfg = config_from_dict(gas(mode, on))
-        with pytest.raises(ExportError, match=rf"walls\.w: cutoff_mode {mode} \(LAMMPS's wall fixes only shift"):
-            check_exportable(cfg)
+        d = gas("shift")
+        d["walls"] = {"ball": {"style": "region", "region": "ball", "potential": "lj93", "epsilon": 1.0,
+                               "sigma": 1.0, "cutoff": 2.5, "cutoff_mode": mode, "energy": True,
+                               **({"switch_on": on} if on else {})}}
+        d["regions"]["ball"] = {"style": "sphere", "center": [5, 5, 5], "radius": 4.0, "units": "box"}
+        with pytest.raises(ExportError, match=rf"walls\.ball: cutoff_mode {mode} on wall/region \(LAMMPS's wall "
+                                              rf"fixes only shift"):
+            check_exportable(config_from_dict(d))
+        check_exportable(config_from_dict(gas(mode, on)))
     check_exportable(config_from_dict(gas("shift")))
 
 

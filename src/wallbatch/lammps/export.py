@@ -40,7 +40,9 @@ from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict, set_pat
 from wallbatch.expr import Binary, Call, Keyword, Node, Num, Unary, to_lammps
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import Case, ReflectSpec, RegionWallSpec, SoftWallSpec
+from wallbatch.styles.cutoff import CutoffStyle
 from wallbatch.styles.lepton import compile_expression
+from wallbatch.styles.table import TableData, WallTable
 from wallbatch.styles import STYLES
 from wallbatch.units import UNIT_SYSTEMS
 
@@ -99,6 +101,8 @@ class LammpsExport:
     expected: dict[str, str] = field(default_factory=dict)  # output label -> why it differs by design
     region_colloid: tuple[str, ...] = ()  # wall/region colloid fix IDs (validate: the force-matched variant)
     force_matched: bool = False  # written with epsilon -> -epsilon on those fixes (see `export_case`)
+    files: dict[str, str] = field(default_factory=dict)  # other files beside the data file (name -> text)
+    table_rtol: float = 0.0  # interpolation error of the wall/table files (`cutoff_table_error`); 0: none
 
     @property
     def thermo_columns(self) -> tuple[Column, ...]:
@@ -247,10 +251,12 @@ def check_exportable(cfg: Config) -> None:
     for fid, wall in cfg.walls.items():
         if wall.style not in WALL_WRITERS:
             problems.append(f"walls.{fid}: wall/{wall.style}")
-        elif getattr(wall, "cutoff_mode", "shift") != "shift":
-            problems.append(f"walls.{fid}: cutoff_mode {wall.cutoff_mode} (LAMMPS's wall fixes only shift the energy "
-                            f"at the cut-off and have no force-continuous option; write this wall with cutoff_mode: "
-                            f"shift to compare with LAMMPS)")
+        elif getattr(wall, "cutoff_mode", "shift") != "shift" and (
+                WALL_WRITERS[wall.style] is not _soft_wall or STYLES[wall.style].needs_radius):
+            problems.append(f"walls.{fid}: cutoff_mode {wall.cutoff_mode} on wall/{wall.style} (LAMMPS's wall fixes "
+                            f"only shift the energy at the cut-off; a flat wall without a particle radius is written "
+                            f"as a wall/table, this one cannot be: write it with cutoff_mode: shift to compare "
+                            f"with LAMMPS)")
     if problems:
         raise ExportError("cannot export yet: " + "; ".join(problems)
                           + " (no LAMMPS writer in this version of wallbatch export-lammps)")
@@ -355,6 +361,10 @@ class _Script:
     force_matched: bool = False  # wall/region colloid written with -epsilon (validate's variant)
     region_colloid: list[str] = field(default_factory=list)
     minimized_dump: str | Path | None = None  # validate: write_dump of the minimized positions
+    table_dir: Path | None = None  # the data file's folder (None: the folder LAMMPS runs in)
+    table_name: str = "table.wallbatch"  # the wall/table file of non-shift cut-off walls
+    table_text: list[str] = field(default_factory=list)
+    table_rtol: float = 0.0
 
     def decide(self, key: str, text: str | None = None) -> None:
         self.decisions.setdefault(key, text or DECISIONS[key])
@@ -411,6 +421,9 @@ def _soft_wall(fid: str, wall: Any, spec: SoftWallSpec, s: _Script) -> None:
     """fix wall/lj93 | lj126 | lj1043 | colloid | harmonic | morse | ees, in box units; fix_modify
     energy yes for `energy: true` (virial yes for `virial: true`; wall/ees has no virial); columns
     f_ID and f_ID[i]."""
+    if spec.cutoff_mode != "shift":
+        _cutoff_table_wall(fid, wall, spec, s)
+        return
     lid = s.fix_id(fid)
     written = dict(wall.faces())
     mapping: dict[str, Any] = {"style": wall.style, "group": s.group(wall.group), "units": "box"}
@@ -439,6 +452,112 @@ def _soft_wall(fid: str, wall: Any, spec: SoftWallSpec, s: _Script) -> None:
         s.fixes.append(f"fix_modify {lid} virial yes")
     elif getattr(wall, "virial", False):
         s.notes.append(f"walls.{fid}: virial: true has no effect on wall/{wall.style} (it has no virial)")
+    s.energy_column(fid, lid)
+    first = sum(len(w.faces) for w in s.soft_written)
+    s.soft_written.append(spec)
+    for i, face in enumerate(spec.faces):
+        s.columns.append(Column(f"wall_force[{face.label}]", f"f_{lid}[{i + 1}]", "wall_force", first + i))
+
+
+# wall/table of a non-shift cut-off: N grid points per mode (smooth's force has a jump of d2F/dr2 at
+# switch_on and rc, where a cubic spline's error is O(h^2), hence more points), the first at
+# TABLE_LO_FRACTION sigma (r0 for morse; see `_table_lo`), error measured at TABLE_PROBES points
+TABLE_N: dict[str, int] = {"force-shift": 4000, "smooth": 16000}
+TABLE_LO_FRACTION = 0.5
+TABLE_PROBES = 20011
+
+
+def _table_lo(p: dict[str, float]) -> float:
+    """The table's first distance: half of sigma (r0 for morse), where the wall's energy is large
+    (lj93: 60 eps) but finite; 1e-3 of the cut-off for a style with neither (harmonic: finite
+    everywhere). [distance]"""
+    scale = p.get("sigma", p.get("r0"))
+    if scale is None:
+        return 1e-3 * float(p["cutoff"])
+    return TABLE_LO_FRACTION * min(float(scale), float(p["cutoff"]))
+
+
+def cutoff_table_error(table: WallTable, energy_force: Callable, lo: float, hi: float) -> float:
+    """The interpolation error of a spline wall/table against the function it samples, relative:
+    the largest |F_tab - F| / (|F| + F_s) and |E_tab - E| / (|E| + E_s) over TABLE_PROBES points of
+    [lo, hi] (E_tab the energy LAMMPS uses: minus its linear lookup at the cut-off), with F_s, E_s
+    the largest |F|, |E| from 2 lo (sigma or r0) to hi: relative where the wall is steep, relative
+    to the wall's typical size where F or E is small. [-]"""
+    r = np.linspace(lo, hi, TABLE_PROBES)
+    e, f = energy_force(r)
+    et, ft = table.shifted_energy_force(r, hi)
+    typical = r >= 2.0 * lo
+    es, fs = np.max(np.abs(e[typical])), np.max(np.abs(f[typical]))
+    return float(max(np.max(np.abs(et - e) / (np.abs(e) + es)), np.max(np.abs(ft - f) / (np.abs(f) + fs))))
+
+
+def _cutoff_table_wall(fid: str, wall: Any, spec: SoftWallSpec, s: _Script) -> None:
+    """A flat soft wall with cutoff_mode force-shift or smooth as `fix wall/table spline N`: each
+    face's treated energy and force (styles.cutoff) sampled on N = TABLE_N[mode] points from `_table_lo` to
+    the cut-off into one table file beside the data file (a keyword per face, FP from the force's
+    central difference), with a decisions-table row; its interpolation error joins `table_rtol`."""
+    lid = s.fix_id(fid)
+    written = dict(wall.faces())
+    treated = CutoffStyle(spec.style, spec.cutoff_mode)
+    n = TABLE_N[spec.cutoff_mode]
+    mapping: dict[str, Any] = {"style": "table", "group": s.group(wall.group), "units": "box",
+                               "tabstyle": "spline", "N": n}
+    if wall.pbc:
+        mapping["pbc"] = True
+    path = s.table_name if s.table_dir is None else str(Path(s.table_dir) / s.table_name)
+    ranges, error = [], 0.0
+    for face in spec.faces:
+        p = {}
+        for key, v in face.params.items():
+            if isinstance(v, str):
+                const = s.case.variables.constant_value(v)
+                if const is None:
+                    raise ExportError(f"walls.{fid}.{face.name}.{key}: v_{v} changes during the run and cutoff_mode "
+                                      f"{spec.cutoff_mode} is exported as a LAMMPS wall/table sampled once: cannot "
+                                      f"export (use a number, or cutoff_mode: shift)")
+                s.notes.append(f"walls.{fid}.{face.name}.{key}: v_{v} is constant: its value {_num(const)} is in "
+                               f"the wall/table")
+                v = const
+            p[key] = float(v)
+        lo, hi = _table_lo(p), p["cutoff"]
+        if spec.cutoff_mode == "smooth" and p["switch_on"] > lo:  # a grid point on r_on (d2F/dr2 jumps there)
+            m = max(1, round((hi - p["switch_on"]) / (hi - lo) * (n - 1)))
+            lo = hi - (n - 1) * ((hi - p["switch_on"]) / m)
+            if lo <= 0.0:
+                lo = hi - (n - 1) * ((hi - p["switch_on"]) / (m + 1))
+        r = lo + np.arange(n) * ((hi - lo) / (n - 1))
+        r[-1] = hi
+        energy_force = lambda x, p=p: treated.energy_force(x, p)
+        e, f = (np.asarray(a, dtype=np.float64) for a in energy_force(r))
+        if not (np.all(np.isfinite(e)) and np.all(np.isfinite(f))):
+            raise ExportError(f"walls.{fid}.{face.name}: the wall is not finite at r = {lo!r}: cannot tabulate")
+        h = 1e-5 * (hi - lo)
+        fp = tuple(float((energy_force(np.float64(x + h))[1] - energy_force(np.float64(x - h))[1]) / (2 * h))
+                   for x in (lo, hi))
+        keyword = f"{lid}_{face.name}"
+        table = WallTable.build(TableData(keyword, r, e, f, fp[0], fp[1]), "spline", n)
+        error = max(error, cutoff_table_error(table, energy_force, lo, hi))
+        about = ", ".join(f"{k}={v!r}" for k, v in p.items())
+        title = f"# {face.label}: wall/{spec.style.name} cutoff_mode {spec.cutoff_mode} ({about}), {n} points"
+        s.table_text += [f"{title} on [{lo!r}, {hi!r}]", "", keyword, f"N {n} FP {fp[0]!r} {fp[1]!r}", ""]
+        s.table_text += [f"{k} {ri!r} {ei!r} {fi!r}" for k, (ri, ei, fi)
+                         in enumerate(zip(r.tolist(), e.tolist(), f.tolist()), start=1)]
+        s.table_text.append("")
+        mapping[face.name] = {"coord": _coord_word(face, written[face.name].coord, s), "file": path,
+                              "keyword": keyword, "cutoff": hi}
+        ranges.append(f"{face.label} [{lo!r}, {hi!r}]")
+    s.decide(f"cutoff_table_{fid}",
+             f"walls.{fid} has cutoff_mode {spec.cutoff_mode} (docs/physics.md §17), which no LAMMPS wall fix "
+             f"offers: it is written as fix wall/table spline {n} reading {s.table_name}, the treated energy "
+             f"and force sampled on {n} points over {', '.join(ranges)} (an atom nearer to the wall than the "
+             f"first point stops LAMMPS). LAMMPS interpolates the table, so it agrees with wallbatch only to the "
+             f"table's interpolation error ({error:.2g} relative: docs/howto/validate.md)")
+    s.table_rtol = max(s.table_rtol, error)
+    s.fixes.append(to_fix_line(lid, mapping))
+    if spec.energy:
+        s.fixes.append(f"fix_modify {lid} energy yes")
+    if spec.virial:
+        s.fixes.append(f"fix_modify {lid} virial yes")
     s.energy_column(fid, lid)
     first = sum(len(w.faces) for w in s.soft_written)
     s.soft_written.append(spec)
@@ -847,7 +966,8 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
         raise ExportError("a run to a simulated time must be converted to steps first (lammps_ready)")
     name = re.sub(r"[^A-Za-z0-9_.\-]", "_", cfg.name) or "wallbatch"
     script_name, data_name = f"in.{name}", f"data.{name}"
-    s = _Script(cfg, case, notes=list(notes), force_matched=force_matched, minimized_dump=minimized_dump)
+    s = _Script(cfg, case, notes=list(notes), force_matched=force_matched, minimized_dump=minimized_dump,
+                table_dir=None if data_dir is None else Path(data_dir), table_name=f"table.{name}")
     taken: set[str] = {"all"}
     for g in case.group_names:
         s.groups[g] = _lammps_id(g, taken)
@@ -951,7 +1071,8 @@ def export_case(cfg: Config, case: Case, *, data_dir: str | Path | None = None, 
               f"run             {int(case.steps)}", ""]
     return LammpsExport("\n".join(lines), data, script_name, data_name, columns, int(case.steps),
                         int(case.thermo), tuple(s.decisions.values()), tuple(s.notes), dict(s.expected),
-                        tuple(s.region_colloid), force_matched)
+                        tuple(s.region_colloid), force_matched,
+                        {s.table_name: "\n".join(s.table_text)} if s.table_text else {}, s.table_rtol)
 
 
 def _pad(command: str) -> str:
@@ -998,12 +1119,15 @@ def _dt_reset(s: _Script) -> None:
 
 
 def write_export(exp: LammpsExport, folder: str | Path) -> tuple[Path, Path]:
-    """Write the script and data file into `folder` (created); return their paths."""
+    """Write the script and data file (and any table file, beside it) into `folder` (created);
+    return the paths of the script and the data file."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     script, data = folder / exp.script_name, folder / exp.data_name
     script.write_text(exp.script)
     data.write_text(exp.data)
+    for name, text in exp.files.items():
+        (folder / name).write_text(text)
     return script, data
 
 
