@@ -24,7 +24,7 @@ from wallbatch.engine.engine import CaseResult, run_cases
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import Case
 
-__all__ = ["SceneLike", "atoms", "box_scene", "case_of", "config_of", "run_dataset", "run_ok", "run_one", "slab_gas"]
+__all__ = ["SceneLike", "atoms", "box_scene", "case_of", "config_of", "run_dataset", "run_ok", "run_one", "slab_gas", "slit_yaml"]
 
 SceneLike = dict | str | Path | Config  # a config dict, YAML text, a config file, or a validated Config
 
@@ -102,3 +102,29 @@ def slab_gas(walls: dict, *, n: int, hi, margin: float, temperature: float, seed
         d["output"] = {"thermo": output}
     d.update(extra)
     return d
+
+
+def slit_yaml(name: str, count: int, steps: int, thermo: int) -> str:
+    """The YAML text of a small lj93 gas slit (6 x 6 x 10 box, walls at 0 and 9.9): the scene the
+    run, resume, interrupt and hostile-input tests write to a file and then vary as text."""
+    return f"""\
+name: {name}
+units: lj
+seed: 3
+box: {{lo: [0, 0, 0], hi: [6, 6, 10], boundary: [p, p, f]}}
+regions:
+  slab: {{style: block, lo: [0, 0, 1], hi: [6, 6, 8], units: box}}
+atoms:
+  - group: gas
+    create: {{random: {{count: {count}, overlap: 0.8, region: slab}}}}
+    mass: 1.0
+    velocity: {{temperature: 1.0}}
+walls:
+  zwalls:
+    style: lj93
+    units: box
+    energy: true
+    zlo: {{coord: EDGE, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}}
+    zhi: {{coord: 9.9, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}}
+run: {{steps: {steps}, thermo: {thermo}}}
+"""

@@ -25,29 +25,11 @@ from wallbatch.cli import app
 from wallbatch.config.source import ConfigError, load_yaml
 from wallbatch.config.sweep import load_plan
 
+from factories import slit_yaml
+
 cli = CliRunner()
 
-SCENE = """\
-name: hostile
-units: lj
-seed: 3
-box: {lo: [0, 0, 0], hi: [6, 6, 10], boundary: [p, p, f]}
-regions:
-  slab: {style: block, lo: [0, 0, 1], hi: [6, 6, 8], units: box}
-atoms:
-  - group: gas
-    create: {random: {count: 20, overlap: 0.8, region: slab}}
-    mass: 1.0
-    velocity: {temperature: 1.0}
-walls:
-  zwalls:
-    style: lj93
-    units: box
-    energy: true
-    zlo: {coord: EDGE, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}
-    zhi: {coord: 9.9, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}
-run: {steps: 40, thermo: 20}
-"""
+SCENE = slit_yaml('hostile', 20, 40, 20)
 
 
 @pytest.fixture

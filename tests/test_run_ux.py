@@ -17,30 +17,12 @@ from wallbatch.batch.runner import kernel_cache_cold, run_plan
 from wallbatch.cli import app
 from wallbatch.config.sweep import load_plan
 
+from factories import slit_yaml
+
 cli = CliRunner()
 HEAVY = ("dask", "distributed", "scipy.spatial", "matplotlib")
 
-SCENE = """\
-name: ux
-units: lj
-seed: 3
-box: {lo: [0, 0, 0], hi: [6, 6, 10], boundary: [p, p, f]}
-regions:
-  slab: {style: block, lo: [0, 0, 1], hi: [6, 6, 8], units: box}
-atoms:
-  - group: gas
-    create: {random: {count: 30, overlap: 0.8, region: slab}}
-    mass: 1.0
-    velocity: {temperature: 1.0}
-walls:
-  zwalls:
-    style: lj93
-    units: box
-    energy: true
-    zlo: {coord: EDGE, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}
-    zhi: {coord: 9.9, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}
-run: {steps: 4000, thermo: 400}
-"""
+SCENE = slit_yaml('ux', 30, 4000, 400)
 
 
 def sweep(tmp_path: Path, body: str) -> Path:

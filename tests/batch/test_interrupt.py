@@ -18,29 +18,11 @@ import pytest
 from wallbatch.batch.runner import case_key, parts_dir
 from wallbatch.config.sweep import load_plan
 
+from factories import slit_yaml
+
 pytestmark = pytest.mark.slow
 
-SCENE = """\
-name: inttest
-units: lj
-seed: 3
-box: {lo: [0, 0, 0], hi: [6, 6, 10], boundary: [p, p, f]}
-regions:
-  slab: {style: block, lo: [0, 0, 1], hi: [6, 6, 8], units: box}
-atoms:
-  - group: gas
-    create: {random: {count: 40, overlap: 0.8, region: slab}}
-    mass: 1.0
-    velocity: {temperature: 1.0}
-walls:
-  zwalls:
-    style: lj93
-    units: box
-    energy: true
-    zlo: {coord: EDGE, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}
-    zhi: {coord: 9.9, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}
-run: {steps: 1500000, thermo: 150000}
-"""
+SCENE = slit_yaml('inttest', 40, 1500000, 150000)
 # 12 atom counts = 12 structures = 12 tasks of one case each (~1 s per case on one core)
 SWEEP = """\
 base: scene.yaml
