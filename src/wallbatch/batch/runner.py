@@ -285,6 +285,19 @@ def _run_window(items: list) -> list[Outcome]:
     return out  # type: ignore[return-value]
 
 
+def _warm_compiler() -> None:
+    """Initialise numba's compiler (its type and target contexts, ~1 s) in this process before
+    forking workers: they inherit it instead of each spending that second again, and only load
+    their kernels from the on-disk cache (~0.1 s)."""
+    if not compiled.enabled() or _fork_context() is None:
+        return
+    with contextlib.suppress(Exception):
+        from numba.core.registry import cpu_target
+
+        cpu_target.typing_context.refresh()
+        cpu_target.target_context.refresh()
+
+
 def _fork_context() -> Any:
     """The fork start method where the platform has it (workers then inherit the plan), else None."""
     return multiprocessing.get_context("fork") if "fork" in multiprocessing.get_all_start_methods() else None
@@ -366,6 +379,7 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
         for k, t in enumerate(tasks):
             yield k, _run_window(t)
     else:
+        _warm_compiler()
         pool = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=_fork_context(),
                                    initializer=_worker_init, initargs=(os.getpid(),))
         try:
