@@ -264,11 +264,12 @@ def make_windows(plan: SweepPlan, todo: list[int], jobs: int) -> list[list[int]]
     return windows
 
 
-def _run_window(items: list) -> list[Outcome]:
-    """Build a window's cases (items: indices into the running plan, built here, or (case, error,
-    seconds) built by the parent), run its same-structure cases as batches, and return one
-    Outcome per item; the built cases are freed on return."""
-    built = [build_one(_PLAN.cases[it]) if isinstance(it, int) else it for it in items]  # type: ignore[union-attr]
+def _run_window(items: list, plan: SweepPlan | None = None) -> list[Outcome]:
+    """Build a window's cases (items: indices into `plan`, or the running plan a forked worker
+    inherited, built here; or (case, error, seconds) built by the parent), run its same-structure
+    cases as batches, and return one Outcome per item; the built cases are freed on return."""
+    source = plan if plan is not None else _PLAN
+    built = [build_one(source.cases[it]) if isinstance(it, int) else it for it in items]  # type: ignore[union-attr]
     out: list[Outcome | None] = [None] * len(items)
     cases: dict[int, Case] = {}
     for k, (case, error, sec) in enumerate(built):
@@ -360,9 +361,10 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
 
 
 def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
-            scheduler: str | None = None) -> Iterator[tuple[int, list[Outcome]]]:
-    """Run windows (see `_run_window`); yield (window index, outcomes) as each finishes. Closing the generator early (an
-    interrupt) cancels the pending tasks and stops the workers."""
+            scheduler: str | None = None, plan: SweepPlan | None = None) -> Iterator[tuple[int, list[Outcome]]]:
+    """Run windows (see `_run_window`; in this process from `plan`); yield (window index, outcomes)
+    as each finishes. Closing the generator early (an interrupt) cancels the pending tasks and
+    stops the workers."""
     if executor == "dask":
         from distributed import Client
         from distributed import as_completed as dask_completed
@@ -377,7 +379,7 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
                 raise
     elif jobs <= 1 or len(tasks) <= 1:
         for k, t in enumerate(tasks):
-            yield k, _run_window(t)
+            yield k, _run_window(t, plan)
     else:
         _warm_compiler()
         pool = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=_fork_context(),
@@ -695,8 +697,8 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
             tasks = [w if local else [build_one(plan.cases[i]) for i in w] for w in windows]
             layout: tuple | None = None
             built = len(saved)  # cases built (or reused)
-            _PLAN = plan
-            runs = execute(tasks, jobs, executor, scheduler)
+            _PLAN = plan  # for forked workers
+            runs = execute(tasks, jobs, executor, scheduler, plan=plan)
             try:
                 for k, outcomes in _worker_deaths(runs, parts, saved):
                     for i, out in zip(windows[k], outcomes):
