@@ -104,8 +104,7 @@ def test_langevin_same_stream_bit_for_bit(monkeypatch):
 
 def test_langevin_zero_tally_on_a_group(monkeypatch):
     d = gas({"a": "fix a all nve", "b": "fix b hot langevin 2.0 2.0 0.2 9 zero yes tally yes"})
-    d["groups"] = {"hot": {"region": "low"}}
-    d["regions"]["low"] = {"style": "block", "lo": [0, 0, 0], "hi": [6, 6, 4], "units": "box"}
+    d["atoms"].append({**d["atoms"][0], "group": "hot", "create": {"random": {"count": 100, "region": "mid"}}})
     ref, got, eng = check(monkeypatch, [d])
     ec = got[0].data["ecouple"]
     assert np.all(ec[1:] != 0.0)
@@ -123,11 +122,13 @@ def test_berendsen_and_rescale_bit_for_bit(monkeypatch):
 
 
 def test_nvt_matches_numpy(monkeypatch):
-    fixes = {"a": "fix a all nvt temp 1.0 1.2 0.1 tchain 3 tloop 2 drag 0.1"}
-    ref, got, eng = check(monkeypatch, [gas(fixes), gas(fixes, temperature=0.7)], rtol=1e-13)
+    """Bit for bit: the chain's exp is the C library's on both paths (thermostats.libm_exp)."""
+    ramp = {"a": "fix a all nvt temp 1.0 1.2 0.1 tchain 3 tloop 2 drag 0.1"}
+    plain = {"a": "fix a all nvt temp 1.0 1.0 0.1 tchain 3 tloop 2"}
+    ref, got, eng = check(monkeypatch, [gas(ramp), gas(plain, temperature=0.7)])
     econ = got[1].data["econserve"]
-    assert np.ptp(econ) < 1e-2 * abs(econ[0])  # the chain's energy balances the exchange
-    assert abs(np.mean(got[1].data["temp"][4:]) - 1.1) < 0.3
+    assert np.ptp(econ) < 1e-3 * abs(econ[0])  # the chain's energy balances the exchange
+    assert np.ptp(got[1].data["etot"]) > 0.1 * abs(econ[0])
 
 
 def test_sampling_every_step_with_langevin(monkeypatch):
@@ -149,7 +150,7 @@ def test_fallback_restores_the_langevin_stream(monkeypatch):
 
 def test_refused_fix_combinations_run_in_numpy(monkeypatch):
     d = gas({"a": "fix a all nve", "b": "fix b all langevin 1.0 1.0 0.5 5"}, steps=40, thermo=20)
-    d["dt_reset"] = {"every": 1, "xmax": 0.05}
+    d["dt_reset"] = {"every": 1, "xmax": 0.05, "units": "box"}
     _, got, eng = run_both(monkeypatch, [d])
     assert eng.fast is None
 
@@ -158,10 +159,10 @@ def test_refused_fix_combinations_run_in_numpy(monkeypatch):
 
 
 def test_two_dimensional_scene_runs_compiled(monkeypatch):
+    xy = np.random.default_rng(4).random((200, 2)) * [10.0, 5.0] + [0.0, 1.5]
     d = {"units": "lj", "seed": 3, "dimension": 2,
          "box": {"lo": [0, 0, -0.5], "hi": [10, 8, 0.5], "boundary": ["p", "f", "p"]},
-         "regions": {"mid": {"style": "block", "lo": [0, 1.5, 0], "hi": [10, 6.5, 0], "units": "box"}},
-         "atoms": [{"group": "gas", "create": {"random": {"count": 200, "region": "mid"}}, "mass": 1.0,
+         "atoms": [{"group": "gas", "create": {"positions": [[a, b, 0.0] for a, b in xy.tolist()]}, "mass": 1.0,
                     "velocity": {"temperature": 1.0}}],
          "walls": {"w": {"style": "lj93", "units": "box", "energy": True,
                          "ylo": {"coord": 0.0, "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
@@ -171,3 +172,4 @@ def test_two_dimensional_scene_runs_compiled(monkeypatch):
     _, got2, eng2 = check(monkeypatch, [{**d, "fixes": {"a": "fix a all nve",
                                                          "t": "fix t all langevin 1.5 1.5 0.3 7"}}])
     assert eng.fast.compiled_chunks == 3 and eng2.fast.compiled_chunks == 3
+    assert np.all(got[0].data["wall_force"][1:] != 0.0)  # atoms reached the y walls

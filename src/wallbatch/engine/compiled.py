@@ -160,16 +160,6 @@ def _fingerprint(styles: tuple[WallStyle, ...]) -> int:
     return int(h.hexdigest()[:15], 16)
 
 
-def _self_recursive(fn: Callable) -> Any:
-    """A jitted copy of the plain recursive function `fn` whose recursive call is the jitted
-    function itself (numba compiles calls to dispatchers, not to plain functions)."""
-    namespace = dict(fn.__globals__)
-    out = types.FunctionType(fn.__code__, namespace, fn.__name__, fn.__defaults__, fn.__closure__)
-    disp = njit(nogil=True, error_model="numpy")(out)
-    namespace[fn.__name__] = disp
-    return disp
-
-
 if njit is not None:
     # error_model="numpy": x/0 gives inf/nan as in NumPy (no zero-division checks, so loops vectorise)
     jit = njit(cache=True, nogil=True, error_model="numpy")
@@ -179,6 +169,16 @@ if njit is not None:
     def _select_scalar(cond, a, b):  # noqa: ANN001, ANN202
         """dt_reset.select for scalars: a if cond else b (np.where's value, without an array)."""
         return lambda cond, a, b: a if cond else b
+
+    @overload(_th.libm_exp)
+    def _libm_exp(x):  # noqa: ANN001, ANN202
+        """thermostats.libm_exp: math.exp element by element (the C library's exp)."""
+        def impl(x):  # noqa: ANN001, ANN202
+            out = np.empty(x.shape[0])
+            for i in range(x.shape[0]):
+                out[i] = math.exp(x[i])
+            return out
+        return impl
 
     @inline
     def _nmin(a: float, b: float) -> float:
@@ -411,7 +411,7 @@ if njit is not None:
     _th_berendsen = jit(_th.berendsen_factor)
     _th_rescale = jit(_th.rescale_factor)
     _th_nh = jit(_th.nh_half_step)
-    _th_pairwise = _self_recursive(_th.pairwise_sum)
+    _th_pairwise = jit(_th.pairwise_sum)
 
     @inline
     def _fix_post_force(u0, u1, V, F, groups, fxp):
