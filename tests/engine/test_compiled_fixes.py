@@ -77,17 +77,22 @@ def test_pairwise_sum_is_numpys_order(n):
     assert fast._th_pairwise(a, 1, n) == a[1:n + 1].sum()
 
 
-def test_chain_half_step_compiled_equals_numpy_to_an_ulp():
-    def chain():
-        r = np.random.default_rng(1)
-        return [r.random((1, 3)), r.random((1, 4)) * 0.1, r.random((1, 3)), np.zeros((1, 3))]
-    a, b = chain(), chain()
-    args = (np.array([1.2]), np.array([1.0]), np.array([10.0]), 30.0, 1.0, 2, np.array([0.1]), np.array([0.005]))
-    t1, c1 = th.nh_half_step(*a, *args)
-    t2, c2 = fast._th_nh(*b, *args)
-    np.testing.assert_allclose(t2, t1, rtol=1e-15)
-    np.testing.assert_allclose(c2, c1, rtol=1e-15)
-    assert t1[0] != 1.0  # the chain did act
+def test_chain_half_step_compiled_equals_numpy():
+    """nh_half_step: NumPy on (M, C) columns of two cases, numba on one case's rows and scalars."""
+    r = np.random.default_rng(1)
+    eta, ed, edd = r.random((2, 3)), r.random((2, 4)) * 0.1, r.random((2, 3))
+    Q = np.zeros((2, 3))
+    vals = (np.array([1.2, 0.9]), np.array([1.0, 1.1]), np.array([10.0, 5.0]))
+    tail = (np.array([0.1, 0.0]), np.array([0.005, 0.002]))
+    ref = [a.copy() for a in (eta, ed, edd, Q)]
+    with np.errstate(all="ignore"):
+        t1, c1 = th.nh_half_step(*(a.T for a in ref), *vals, 30.0, 1.0, 2, *tail)
+    for c in range(2):
+        rows = [a[c] for a in (eta, ed, edd, Q)]
+        t2, c2 = fast._th_nh(*rows, vals[0][c], vals[1][c], vals[2][c], 30.0, 1.0, 2, tail[0][c], tail[1][c])
+        assert t2 == t1[c] and c2 == c1[c] and t2 != 1.0
+    for a, b in zip(ref, (eta, ed, edd, Q)):
+        np.testing.assert_array_equal(a, b)
 
 
 # ----------------------------------------------------------------------------- thermostats

@@ -172,13 +172,8 @@ if njit is not None:
 
     @overload(_th.libm_exp)
     def _libm_exp(x):  # noqa: ANN001, ANN202
-        """thermostats.libm_exp: math.exp element by element (the C library's exp)."""
-        def impl(x):  # noqa: ANN001, ANN202
-            out = np.empty(x.shape[0])
-            for i in range(x.shape[0]):
-                out[i] = math.exp(x[i])
-            return out
-        return impl
+        """thermostats.libm_exp for a scalar: math.exp (the C library's exp)."""
+        return lambda x: math.exp(x)
 
     @inline
     def _nmin(a: float, b: float) -> float:
@@ -453,7 +448,7 @@ if njit is not None:
                     V[d, i] = V[d, i] * factor
 
     @jit
-    def _fix_pre(c, stepn, dtc, V, M, groups, fx, rng, SQM, FR, KB, one):
+    def _fix_pre(c, stepn, dtc, V, M, groups, fx, rng, SQM, FR, KB):
         """Before the step's atoms move: fix nvt's first chain half step and velocity scaling
         (Ensemble.initial_integrate), and fix langevin's random forces of the step (the case's
         generator, drawn as rng.random((n_group, 3)) in Ensemble.post_force)."""
@@ -466,14 +461,10 @@ if njit is not None:
             g = fx_meta[k, 1]
             target = _th_ramped(fx_val[c, k, 0], fx_val[c, k, 1], frac)
             if kind == FIX_NVT:
-                one[0, 0] = target
-                one[0, 1] = dtc
                 tt[c] = target
-                total, tnew = _th_nh(eta[c:c + 1], ed[c:c + 1], edd[c:c + 1], Q[c:c + 1], tc[c:c + 1],
-                                     one[0, 0:1], tf[c:c + 1], fx_val[c, k, 5], boltz, fx_int[0], drag[c:c + 1],
-                                     one[0, 1:2])
-                tc[c] = tnew[0]
-                _scale_group(V, groups, g, total[0])
+                total, tc[c] = _th_nh(eta[c], ed[c], edd[c], Q[c], tc[c], target, tf[c], fx_val[c, k, 5], boltz,
+                                      fx_int[0], drag[c], dtc)
+                _scale_group(V, groups, g, total)
             elif kind == FIX_LANGEVIN:
                 amp = _th_amp(fx_val[c, k, 2], dtc, fx_f[1], fx_f[2], boltz)
                 st = np.sqrt(target)
@@ -513,7 +504,7 @@ if njit is not None:
         return 0
 
     @jit
-    def _fix_end(c, stepn, dtc, V, M, groups, fx, KB, FL, one):
+    def _fix_end(c, stepn, dtc, V, M, groups, fx, KB, FL):
         """After the step's final kick: fix nvt's second half step (Ensemble.final_integrate), then
         Ensemble.end_of_step: temp/berendsen, temp/rescale (every N), the Langevin tally. Returns 6
         when a rescaling fix meets a zero temperature (the NumPy loop reports it)."""
@@ -526,14 +517,10 @@ if njit is not None:
                 g = fx_meta[k, 1]
                 target = _th_ramped(fx_val[c, k, 0], fx_val[c, k, 1], frac)
                 tc[c] = _group_temperature(V, M, groups, g, fx_val[c, k, 5], mvv2e, boltz, KB)
-                one[0, 0] = target
-                one[0, 1] = dtc
                 tt[c] = target
-                total, tnew = _th_nh(eta[c:c + 1], ed[c:c + 1], edd[c:c + 1], Q[c:c + 1], tc[c:c + 1],
-                                     one[0, 0:1], tf[c:c + 1], fx_val[c, k, 5], boltz, fx_int[0], drag[c:c + 1],
-                                     one[0, 1:2])
-                tc[c] = tnew[0]
-                _scale_group(V, groups, g, total[0])
+                total, tc[c] = _th_nh(eta[c], ed[c], edd[c], Q[c], tc[c], target, tf[c], fx_val[c, k, 5], boltz,
+                                      fx_int[0], drag[c], dtc)
+                _scale_group(V, groups, g, total)
         for k in range(fx_meta.shape[0]):
             kind = fx_meta[k, 0]
             if kind != FIX_BERENDSEN and kind != FIX_RESCALE:
@@ -811,7 +798,6 @@ if njit is not None:
             FR = np.zeros((3, nfx))  # this step's Langevin random forces
             FL = np.zeros((3, nfx))  # this step's Langevin forces (the tally's)
             KB = np.empty(nfx)  # per-atom terms of a sum over atoms
-            one = np.empty((1, 2))
             fxp = (fx_meta, G1, FR, FL)
             for c in range(ncase):
                 for a in range(natom):
@@ -871,7 +857,7 @@ if njit is not None:
                             rstat[s, k, 0] = 0.0
                             rstat[s, k, 1] = 0.0
                     if thermo:  # fix nvt's first half step, the Langevin random forces
-                        _fix_pre(c, step[c] + 1, dtc, V, M, groups, fx, fx_rng, SQM, FR, KB, one)
+                        _fix_pre(c, step[c] + 1, dtc, V, M, groups, fx, fx_rng, SQM, FR, KB)
                     for b in range(nblock):
                         u0 = np.uint64(b * BLOCK)  # unsigned: no negative-index wraparound, loops vectorise
                         u1 = np.uint64(min(b * BLOCK + BLOCK, natom))
@@ -885,7 +871,7 @@ if njit is not None:
                             if due:
                                 low[s] = _nmin(low[s], m)
                     if thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
-                        st = _fix_end(c, step[c] + 1, dtc, V, M, groups, fx, KB, FL, one)
+                        st = _fix_end(c, step[c] + 1, dtc, V, M, groups, fx, KB, FL)
                         if st != 0:
                             return st
                     if fl_int[0] != 0:  # fix wall/flow (end_of_step)

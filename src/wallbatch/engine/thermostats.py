@@ -105,8 +105,8 @@ def pairwise_sum(a, lo, n):
 
 def libm_exp(x: np.ndarray) -> np.ndarray:
     """exp of a 1-D array by the C library's exp (math.exp), not NumPy's SIMD exp, so the chain
-    agrees bit for bit with the compiled path (which calls the same exp); for the few values
-    (C,) of a chain step."""
+    agrees bit for bit with the compiled path (which calls math.exp); for the few values (C,) of
+    a chain step."""
     return np.array([math.exp(v) for v in x.tolist()], dtype=float)
 
 
@@ -227,7 +227,7 @@ class NHChain:
         self.t_target = np.array(t_target, float)
         drag = np.broadcast_to(np.asarray(self.drag, float), self.t_current.shape)
         with np.errstate(divide="ignore", invalid="ignore"):
-            total, self.t_current = nh_half_step(self.eta, self.eta_dot, self.eta_dotdot, self.eta_mass,
+            total, self.t_current = nh_half_step(self.eta.T, self.eta_dot.T, self.eta_dotdot.T, self.eta_mass.T,
                                                  np.asarray(self.t_current, float), self.t_target, self.t_freq,
                                                  self.dof, self.boltz, self.tloop, drag, np.asarray(dt, float))
         return total
@@ -245,38 +245,40 @@ class NHChain:
 
 
 def nh_half_step(eta, ed, edd, Q, t_current, t_target, t_freq, dof, boltz, tloop, drag, dt):
-    """One half step dt/2 of C Nose-Hoover chains (NHChain.half_step; LAMMPS fix nvt's nhc_temp_integrate):
-    chain arrays (C, M) (ed: (C, M + 1)) updated in place, per-case values (C,) arrays. Returns
-    (velocity factor (C,), the new t_current (C,)). The masses Q follow t_target (NHChain._masses)."""
-    M = eta.shape[1]
+    """One half step dt/2 of Nose-Hoover chains (NHChain.half_step; LAMMPS fix nvt's
+    nhc_temp_integrate). The chain member is the FIRST index: eta, edd, Q (M, ...), ed (M + 1, ...);
+    the rest are per-case values: NumPy passes the (C, M) arrays transposed and (C,) values, the
+    compiled path one case's (M,) rows and scalars. Chain arrays are updated in place; returns
+    (velocity factor, the new t_current). The masses Q follow t_target (NHChain._masses)."""
+    M = eta.shape[0]
     w2 = t_freq * t_freq
-    Q[:, 0] = dof * boltz * t_target / w2
+    Q[0] = dof * boltz * t_target / w2
     for k in range(1, M):
-        Q[:, k] = boltz * t_target / w2
+        Q[k] = boltz * t_target / w2
     kt = boltz * t_target
     ke_target = dof * kt
     nc = 1.0 / tloop
     dt4, dt8, dthalf = 0.25 * dt, 0.125 * dt, 0.5 * dt
     drag = 1.0 - dt * t_freq * drag / tloop
-    edd[:, 0] = np.where(Q[:, 0] > 0, (dof * boltz * t_current - ke_target) / Q[:, 0], 0.0)
-    total = np.ones_like(t_current)
+    edd[0] = select(Q[0] > 0, (dof * boltz * t_current - ke_target) / Q[0], 0.0)
+    total = 1.0
     for _ in range(tloop):
         for k in range(M - 1, 0, -1):  # from the chain's end down to member 1
-            e = libm_exp(-nc * dt8 * ed[:, k + 1])
-            ed[:, k] = (ed[:, k] * e + edd[:, k] * nc * dt4) * drag * e
-        e = libm_exp(-nc * dt8 * ed[:, 1])
-        ed[:, 0] = (ed[:, 0] * e + edd[:, 0] * nc * dt4) * drag * e
-        factor = libm_exp(-nc * dthalf * ed[:, 0])
+            e = libm_exp(-nc * dt8 * ed[k + 1])
+            ed[k] = (ed[k] * e + edd[k] * nc * dt4) * drag * e
+        e = libm_exp(-nc * dt8 * ed[1])
+        ed[0] = (ed[0] * e + edd[0] * nc * dt4) * drag * e
+        factor = libm_exp(-nc * dthalf * ed[0])
         total = total * factor
         t_current = t_current * factor * factor
-        edd[:, 0] = np.where(Q[:, 0] > 0, (dof * boltz * t_current - ke_target) / Q[:, 0], 0.0)
+        edd[0] = select(Q[0] > 0, (dof * boltz * t_current - ke_target) / Q[0], 0.0)
         for k in range(M):
-            eta[:, k] += (nc * dthalf) * ed[:, k]
-        ed[:, 0] = (ed[:, 0] * e + edd[:, 0] * nc * dt4) * e
+            eta[k] += (nc * dthalf) * ed[k]
+        ed[0] = (ed[0] * e + edd[0] * nc * dt4) * e
         for k in range(1, M):  # back up the chain
-            e = libm_exp(-nc * dt8 * ed[:, k + 1])
-            edd[:, k] = (Q[:, k - 1] * ed[:, k - 1] ** 2 - kt) / Q[:, k]
-            ed[:, k] = (ed[:, k] * e + edd[:, k] * nc * dt4) * e
+            e = libm_exp(-nc * dt8 * ed[k + 1])
+            edd[k] = (Q[k - 1] * ed[k - 1] ** 2 - kt) / Q[k]
+            ed[k] = (ed[k] * e + edd[k] * nc * dt4) * e
     return total, t_current
 
 
