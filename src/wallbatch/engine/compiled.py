@@ -35,7 +35,10 @@ wall/region fixes of compiled styles with constant parameters run in the kernel 
 per atom as RegionGeom.contacts lists them, the force the registry's function; `_region_contacts`).
 One wall/flow fix (step-based runs without dt/reset) runs in the kernel as well, one case per call
 with the case's own generator (`_flow_step`; numba's Generator draws NumPy's streams), step by
-step over all atoms. Anything else (pair forces, ees, wall/region/ees, ellipsoids, thermostats,
+step over all atoms. `fixes:` (nvt, langevin, temp/berendsen, temp/rescale, enforce2d;
+`fixes_eligible`) run in the kernel with engine/thermostats.py's functions (`_fix_pre`,
+`_fix_post_force`, `_fix_end`; step by step when a thermostat couples the atoms, one case per call
+with fix langevin's generator). Anything else (pair forces, ees, wall/region/ees, ellipsoids,
 several flow fixes) runs in NumPy. A chunk that
 meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a variable error or a
 negative variable parameter) leaves the state as it was at its start and is handed back to the
