@@ -8,6 +8,8 @@ checks that the chunks really ran compiled, so a silent fallback cannot pass.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 from factories import slab_gas
@@ -29,7 +31,7 @@ WALLS = {"w": {"style": "lj93", "units": "box", "energy": True,
 
 def gas(fixes, *, n=300, steps=400, thermo=50, seed=5, temperature=1.5, **extra):
     """n atoms of an ideal gas between lj93 walls (x, y periodic) with the given fixes."""
-    return slab_gas(WALLS, n=n, hi=(6.0, 6.0, 8.0), margin=1.6, temperature=temperature, seed=seed, dt=0.005,
+    return slab_gas(copy.deepcopy(WALLS), n=n, hi=(6.0, 6.0, 8.0), margin=1.6, temperature=temperature, seed=seed, dt=0.005,
                     steps=steps, thermo=thermo, output=OUT, fixes=fixes, **extra)
 
 
@@ -148,8 +150,11 @@ def test_fallback_restores_the_langevin_stream(monkeypatch):
     fixes = {"a": "fix a all nve", "b": "fix b all langevin 30.0 30.0 0.01 5"}
     d = gas(fixes, steps=2000, thermo=500, n=40)
     d["walls"]["w"]["zlo"]["cutoff"] = 0.3
-    ref, got, eng = run_both(monkeypatch, [d])
-    assert eng.fast.fallbacks > 0
+    calm = gas({"a": "fix a all nve", "b": "fix b all langevin 1.0 1.0 0.5 5"}, steps=2000, thermo=500, n=40,
+               seed=9)
+    ref, got, eng = run_both(monkeypatch, [calm, d])
+    assert eng.fast.fallbacks > 0 and eng.fast.compiled_chunks > 0
+    assert [r.status for r in got] == ["ok", "failed"] and "behind the wall" in got[1].error
     assert_same(ref, got)
 
 
