@@ -128,6 +128,13 @@ def test_berendsen_and_rescale_bit_for_bit(monkeypatch):
     assert abs(t[-1] - 0.8) < 0.1 and np.all(got[1].data["ecouple"][1:] > 0.0)
 
 
+def test_rescale_alone_runs_in_windows_bit_for_bit(monkeypatch):
+    """temp/rescale every 7 steps (samples every 50): windows end on its due steps."""
+    fixes = {"a": "fix a all nve", "c": "fix c all temp/rescale 7 0.9 0.9 0.01 0.5"}
+    ref, got, eng = check(monkeypatch, [gas(fixes), gas(fixes, temperature=2.0)])
+    assert abs(got[1].data["temp"][-1] - 0.9) < 0.1 and got[1].data["ecouple"][-1] > 0.0
+
+
 def test_nvt_matches_numpy(monkeypatch):
     """Bit for bit: the chain's exp is the C library's on both paths (thermostats.libm_exp)."""
     ramp = {"a": "fix a all nvt temp 1.0 1.2 0.1 tchain 3 tloop 2 drag 0.1"}

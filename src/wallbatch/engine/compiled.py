@@ -791,10 +791,13 @@ if njit is not None:
             fx_meta = fx[0]
             thermo = False
             langevin = -1
+            rescale_only = True  # temp/rescale alone: windows up to its next due step
             for k in range(fx_meta.shape[0]):
                 thermo = thermo or fx_meta[k, 0] != FIX_ENFORCE2D
                 if fx_meta[k, 0] == FIX_LANGEVIN:
                     langevin = k
+                if fx_meta[k, 0] != FIX_ENFORCE2D and fx_meta[k, 0] != FIX_RESCALE:
+                    rescale_only = False
             nfx = natom if fx_meta.shape[0] else 0
             SQM = np.empty(nfx)  # sqrt(m): the Langevin random force's per-atom factor
             G1 = np.empty(nfx)  # the Langevin drag per atom
@@ -831,10 +834,16 @@ if njit is not None:
                         break
                     # a window of nwin steps at one dt, block by block; or one step (time-based runs, and
                     # dt/reset while dt changes), which is a window of one step followed by its dt update
-                    window = not time_mode and (dtr_every == 0 or stepwise == 0) and fl_int[0] == 0 and not thermo
+                    window = (not time_mode and (dtr_every == 0 or stepwise == 0) and fl_int[0] == 0
+                              and (rescale_only or not thermo))
                     nwin = 1
                     if window:
                         nwin = nsteps - done if dtr_every == 0 else min(WINDOW, nsteps - done)
+                        if thermo:  # temp/rescale only (its atoms are coupled on due steps only)
+                            for k in range(fx_meta.shape[0]):
+                                if fx_meta[k, 0] == FIX_RESCALE:
+                                    every = fx_meta[k, 2]
+                                    nwin = min(nwin, every - step[c] % every)
                     if time_mode:
                         base = dt[c]
                         rem = target - now
@@ -874,7 +883,7 @@ if njit is not None:
                             if due:
                                 low[s] = _nmin(low[s], m)
                     if thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
-                        st = _fix_end(c, step[c] + 1, dtc, V, M, groups, fx, KB, FL)
+                        st = _fix_end(c, step[c] + nwin, dtc, V, M, groups, fx, KB, FL)
                         if st != 0:
                             return st
                     if fl_int[0] != 0:  # fix wall/flow (end_of_step)
