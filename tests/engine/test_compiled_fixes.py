@@ -145,6 +145,16 @@ def test_nvt_matches_numpy(monkeypatch):
     assert np.ptp(got[1].data["etot"]) > 0.1 * abs(econ[0])
 
 
+def test_thermostats_on_groups(monkeypatch):
+    """nvt on one group, nve + berendsen on the other: group temperatures (masked pairwise sums)
+    and group scaling."""
+    d = gas({"a": "fix a hot nvt temp 2.0 2.0 0.1", "b": "fix b gas nve",
+             "c": "fix c gas temp/berendsen 0.5 0.5 0.2"})
+    d["atoms"].append({**d["atoms"][0], "group": "hot", "create": {"random": {"count": 120, "region": "mid"}}})
+    ref, got, eng = check(monkeypatch, [d])
+    assert got[0].data["temp"][-1] != got[0].data["temp"][0]
+
+
 def test_sampling_every_step_with_langevin(monkeypatch):
     fixes = {"a": "fix a all nve", "b": "fix b all langevin 1.0 1.0 0.5 5"}
     _, got, eng = check(monkeypatch, [gas(fixes, steps=30, thermo=1, n=50)])
