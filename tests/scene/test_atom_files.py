@@ -91,7 +91,6 @@ def test_data_file_wrong_count(tmp_path):
     ({"x": np.ones((3, 3)), "radius": np.zeros(4)}, "array radius has shape (4,), expected (3,)"),
     ({"x": np.ones((3, 2))}, "needs an array x of shape (N, 3), got shape (3, 2)"),
     ({"pos": np.ones((3, 3))}, "needs an array x of shape (N, 3), got arrays ['pos']"),
-    ({"x": np.zeros((0, 3))}, "holds no atoms"),
 ])
 def test_npz_errors_name_file_array_and_field(tmp_path, arrays, words):
     np.savez(tmp_path / "atoms.npz", **arrays)

@@ -230,9 +230,7 @@ def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]
             if "x" not in data or data["x"].ndim != 2 or data["x"].shape[1] != 3:
                 got = f"shape {data['x'].shape}" if "x" in data else f"arrays {sorted(data)[:10]}"
                 raise _fail_at(cfg, where, f"{file} needs an array x of shape (N, 3), got {got}")
-            nfile = len(data["x"])
-            if nfile == 0:
-                raise _fail_at(cfg, where, f"{file} holds no atoms (x has 0 rows)")
+            nfile = len(data["x"])  # 0 is allowed: a group may be empty (a scene with no atoms fails)
             for key, width in (("x", 3), ("v", 3), ("mass", 0), ("radius", 0), ("shape", 3), ("quat", 4),
                                ("angmom", 3)):
                 if key not in data:
