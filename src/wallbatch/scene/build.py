@@ -61,7 +61,9 @@ def _fail_at(cfg: Config, path: str, msg: str) -> CaseError:
 
 def _check_finite_rows(cfg: Config, path: str, file: Path, name: str, arr: np.ndarray) -> None:
     """Every value of an atoms-file array finite: else name the file, the array and the atom."""
-    bad = ~np.isfinite(arr.reshape(len(arr), -1)).all(axis=1) if arr.ndim else ~np.isfinite(arr)
+    if arr.size == 0:
+        return
+    bad = ~np.isfinite(arr.reshape(len(arr), -1)).all(axis=1)
     if np.any(bad):
         i = int(np.flatnonzero(bad)[0])
         raise _fail_at(cfg, path, f"{file}: array {name} has a non-finite value (inf or nan) at row {i} "
