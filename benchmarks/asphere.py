@@ -51,7 +51,7 @@ def ellipsoid_slit(n: int, *, steps: int = 1000, thermo: int = 100, region: bool
            "timestep": 0.002, "run": {"steps": steps, "thermo": thermo},
            "output": {"thermo": ["step", "time", "dt", "temp", "ke", "pe", "etot", "erot"]}}
     if region:
-        cfg["regions"]["slit"] = {"style": "block", "lo": [-1, -1, 0], "hi": [side + 1, side + 1, 8], "units": "box"}
+        cfg["regions"]["slit"] = {"style": "block", "lo": [-10, -10, 0], "hi": [side + 10, side + 10, 8], "units": "box"}
         cfg["walls"] = {"slit": {"style": "region/ees", "region": "slit", "epsilon": 2.0, "sigma": 1.0,
                                  "cutoff": 3.0, "energy": True}}
     else:

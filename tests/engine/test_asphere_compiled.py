@@ -191,3 +191,71 @@ def test_compiled_ees_pieces_are_the_numpy_ones():
         np.testing.assert_allclose(ac._torque(a, *semi, *normal, got[2]), tau[i], rtol=1e-14,
                                    atol=1e-14 * np.abs(tau[i]).max())
     assert 30 < closed < 270
+
+
+# ----------------------------------------------------------------------------- wall/region/ees
+
+
+def region_scene(region: dict, *, start: dict, n=40, boundary=("f", "f", "f"), eps=2.0, cutoff=3.0, steps=300,
+                 thermo=50, seed=4, group=None, extra_atoms=()) -> dict:
+    """n ellipsoids started in `start`, held by a wall/region/ees of `region` in a 12^3 box."""
+    wall = {"style": "region/ees", "region": "R", "epsilon": eps, "sigma": 1.0, "cutoff": cutoff, "energy": True}
+    if group:
+        wall["group"] = group
+    return {"units": "lj", "seed": seed,
+            "box": {"lo": [0, 0, 0], "hi": [12, 12, 12], "boundary": list(boundary)},
+            "regions": {"R": {**region, "units": "box"}, "start": {**start, "units": "box"}},
+            "atoms": [{"group": "rods", "create": {"random": {"count": n, "region": "start", "overlap": 1.2}},
+                       **ROD, "velocity": {"temperature": 1.5}}, *extra_atoms],
+            "walls": {"cage": wall}, "timestep": 0.002, "run": {"steps": steps, "thermo": thermo},
+            "output": {"thermo": ["step", "time", "temp", "ke", "pe", "etot", "erot"]}}
+
+
+REGIONS = {
+    "sphere in": ({"style": "sphere", "center": [6, 6, 6], "radius": 5.5},
+                  {"style": "sphere", "center": [6, 6, 6], "radius": 3.5}, ("f", "f", "f")),
+    "block in": ({"style": "block", "lo": [0.5, 0.5, 0.5], "hi": [11.5, 11.5, 11.5]},
+                 {"style": "block", "lo": [2.5, 2.5, 2.5], "hi": [9.5, 9.5, 9.5]}, ("f", "f", "f")),
+    "cylinder in": ({"style": "cylinder", "axis": "y", "center": [6, 6], "radius": 5.5, "lo": 0.5, "hi": 11.5},
+                    {"style": "cylinder", "axis": "y", "center": [6, 6], "radius": 3.5, "lo": 2.5, "hi": 9.5},
+                    ("f", "f", "f")),
+    "sphere out": ({"style": "sphere", "center": [6, 6, 6], "radius": 2.5, "side": "out"},
+                   {"style": "block", "lo": [0, 0, 0], "hi": [12, 12, 2.5]}, ("p", "p", "p")),
+    "cylinder out": ({"style": "cylinder", "axis": "z", "center": [6, 6], "radius": 2.0, "lo": 3.0, "hi": 9.0,
+                      "side": "out"}, {"style": "block", "lo": [0, 0, 0], "hi": [12, 3.0, 12]}, ("p", "p", "p")),
+}
+
+
+@pytest.mark.parametrize("name", sorted(REGIONS))
+def test_region_ees_matches_numpy(monkeypatch, name):
+    region, start, boundary = REGIONS[name]
+    configs = [region_scene(region, start=start, boundary=boundary),
+               region_scene(region, start=start, boundary=boundary, eps=0.8, seed=5)]
+    ref, got, eng = check(monkeypatch, configs)
+    assert eng.fast.fallbacks == 0
+    for r in ref:
+        assert r.status == "ok" and np.any(r.data["region_force"] != 0.0)  # the region wall acts
+        assert np.ptp(r.data["pe"]) > 1e-4
+
+
+def test_region_ees_and_flat_ees_on_groups(monkeypatch):
+    """A flat wall/ees on one group of rods and a wall/region/ees sphere on another, together."""
+    region, start, _ = REGIONS["sphere in"]
+    more = {"group": "others", "create": {"random": {"count": 15, "region": "start", "overlap": 1.2}}, **ROD,
+            "velocity": {"temperature": 1.0}}
+    d = region_scene(region, start=start, group="rods", extra_atoms=(more,), n=25)
+    d["walls"]["floor"] = {"style": "ees", "units": "box", "group": "others", "energy": True,
+                           "zlo": {"coord": 0.4, "epsilon": 1.0, "sigma": 1.0, "cutoff": 6.0}}
+    ref, got, eng = check(monkeypatch, [d])
+    assert eng.fast.fallbacks == 0
+    assert np.any(ref[0].data["wall_force"] != 0.0) and np.any(ref[0].data["region_force"] != 0.0)
+
+
+def test_region_ees_too_close_falls_back_and_fails_as_numpy(monkeypatch):
+    region, start, boundary = REGIONS["sphere in"]
+    d = region_scene(region, start=start, boundary=boundary, eps=0.02, n=10, steps=300, thermo=100)
+    d["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 6.0]]}, **ROD,
+                       "velocity": {"values": [[0.0, 0.0, 400.0]]}})
+    ref, got, eng = check(monkeypatch, [d], compiled=False)
+    assert got[0].status == "failed" and "wall/region/ees" in got[0].error
+    assert eng.fast.fallbacks >= 1

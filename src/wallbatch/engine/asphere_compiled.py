@@ -40,7 +40,9 @@ from typing import Any
 
 import numpy as np
 
-from wallbatch.engine.compiled import ChunkPlan, enabled
+from wallbatch.engine import compiled as _compiled
+from wallbatch.engine.compiled import REGION_KINDS, ChunkPlan, enabled
+from wallbatch.engine.region_walls import RegionEESKernel
 from wallbatch.engine.walls import EESWallKernel
 from wallbatch.geometry import quaternion as _quat
 from wallbatch.geometry.quaternion import richardson_step, rotation_rows
@@ -82,6 +84,7 @@ if njit is not None:
         # than leaving the inlining to LLVM)
         register_jitable(inline="always", error_model="numpy", nogil=True)(_fn)
 
+    _region_contacts = _compiled._region_contacts  # a region's contacts per block (wall/region's own)
     _richardson = njit(nogil=True, error_model="numpy", inline="always")(richardson_step)
     _rotation = njit(nogil=True, error_model="numpy", inline="always")(rotation_rows)
     _sigma_n = njit(nogil=True, error_model="numpy", inline="always")(sigma_n_of)
@@ -173,14 +176,46 @@ if njit is not None:
             B[_o(T + 2) + i] = ti + t2 if near else ti
         return nbad
 
+    @inline
+    def _region_ees(B, RB, nslot, nb, eps, sig):
+        """The wall/region/ees forces and torques of a block's contacts in RB (region_walls.
+        RegionEESKernel.apply): normal n = delta / r, sigma_n along n, F += F n, T += tau, slot by
+        slot (each atom adds its contacts in the order np.add.at does). Returns the number of
+        contacts with r <= sigma_n."""
+        nbad = 0
+        for j in range(nslot):
+            for i in range(nb):
+                if RB[j, 0, i] != 0.0:
+                    r = RB[j, 1, i]
+                    n0, n1, n2 = RB[j, 2, i] / r, RB[j, 3, i] / r, RB[j, 4, i] / r
+                    a = _rotation(B[_o(Q) + i], B[_o(Q + 1) + i], B[_o(Q + 2) + i], B[_o(Q + 3) + i])
+                    sn = _sigma_n(a, B[_o(S) + i], B[_o(S + 1) + i], B[_o(S + 2) + i], n0, n1, n2)
+                    nbad += r <= sn
+                    t, s, p = _ratios(r, sn)
+                    if t < SERIES_T:
+                        g_, k_ = _series(s)
+                    else:
+                        g_, k_ = _closed(t, p, math.log((r - sn) / (r + sn)))
+                    e, f, tw = _combine(r, s, p, g_, k_, eps, sig)
+                    t0, t1, t2 = _torque(a, B[_o(S) + i], B[_o(S + 1) + i], B[_o(S + 2) + i], n0, n1, n2, tw)
+                    B[_o(FR) + i] = B[_o(FR) + i] + f * n0
+                    B[_o(FR + 1) + i] = B[_o(FR + 1) + i] + f * n1
+                    B[_o(FR + 2) + i] = B[_o(FR + 2) + i] + f * n2
+                    B[_o(T) + i] = B[_o(T) + i] + t0
+                    B[_o(T + 1) + i] = B[_o(T + 1) + i] + t1
+                    B[_o(T + 2) + i] = B[_o(T + 2) + i] + t2
+        return nbad
+
     @jit
     def _run_chunk(nsteps, x, v, f, quat, angmom, torque, mass, shape, inertia, dt, lo, hi, periodic, ftm2v,
-                   ef_meta, ef_val, groups, xo, vo, fo, qo, lo_, to):
+                   ef_meta, ef_val, groups, rg_meta, rg_geo, rg_val, xo, vo, fo, qo, lo_, to):
         """Advance every case by nsteps steps, reading x, v, f, quat, angmom, torque and writing
         xo, vo, fo, qo, lo_, to. ef_meta (K, 3) int: dim, side, group row of each wall/ees face;
-        ef_val (C, K, 4): coord, epsilon, sigma, cutoff. Returns 0, or the status of the first
-        trouble met (1: an ellipsoid on or inside a wall, 2: a lost atom, 3: a non-finite value);
-        the caller then falls back to NumPy.
+        ef_val (C, K, 4): coord, epsilon, sigma, cutoff. rg_meta (KR, 3) int: kind (REGION_KINDS),
+        axis, group row of each wall/region/ees fix; rg_geo (KR, 10): lo xyz, hi xyz, radius,
+        centre (compiled.py's layout); rg_val (C, KR, 3): epsilon, sigma, cutoff. Returns 0, or the
+        status of the first trouble met (1: an ellipsoid on or inside a wall, or on the wrong side
+        of a region, 2: a lost atom, 3: a non-finite value); the caller then falls back to NumPy.
 
         A block's atoms live in one flat buffer B, a row of BLOCK values per quantity at constant
         offsets (_o), so the compiler sees that rows never overlap and vectorises the loops."""
@@ -189,6 +224,10 @@ if njit is not None:
         hf = 0.5 * ftm2v
         B = np.zeros(NROW * BLOCK)
         GRP = np.zeros((nface, BLOCK), np.uint8)
+        nreg = rg_meta.shape[0]
+        GRPR = np.zeros((max(nreg, 1), BLOCK), np.uint8)
+        RB = np.zeros((6, 5, BLOCK))  # a region's contacts of the block (compiled._region_contacts)
+        XB = B[:3 * BLOCK].reshape((3, BLOCK))  # the block's positions (rows X..X+2), a view
         nblock = (natom + BLOCK - 1) // BLOCK
         for c in range(ncase):
             dtc = dt[c]
@@ -214,6 +253,8 @@ if njit is not None:
                     B[_o(DTFM) + j] = (hf * dtc) / mass[c, a]
                     for k in range(nface):
                         GRP[k, jj] = groups[ef_meta[k, 2], a]
+                    for k in range(nreg):
+                        GRPR[k, jj] = groups[rg_meta[k, 2], a]
                 for _s in range(nsteps):
                     _kick_rotate(B, nb, dtc, dtt, dtq)
                     for d in range(3):  # periodic wrap
@@ -231,6 +272,11 @@ if njit is not None:
                     for k in range(nface):
                         nbad += _ees_face(B, nb, ef_meta[k, 0], ef_meta[k, 1], ef_val[c, k, 0], ef_val[c, k, 1],
                                           ef_val[c, k, 2], ef_val[c, k, 3], GRP[k])
+                    for k in range(nreg):  # wall/region/ees (post_force, after the flat walls)
+                        nslot, nwrong = _region_contacts(rg_meta[k, 0], rg_meta[k, 1], rg_geo[k], XB, GRPR, k,
+                                                         rg_val[c, k, 2], np.uint64(0), nb, RB)
+                        nbad += nwrong
+                        nbad += _region_ees(B, RB, nslot, nb, rg_val[c, k, 0], rg_val[c, k, 1])
                     if nbad:
                         return 1
                     nlost = 0
@@ -270,12 +316,18 @@ if njit is not None:
 
 
 def eligible(plan: ChunkPlan) -> bool:
-    """Whitelist: ellipsoids integrated by fix nve/asphere, wall/ees faces with constant
-    coordinates and parameters; nothing else (pair, fixes, reflect, region, flow, dt/reset)."""
+    """Whitelist: ellipsoids integrated by fix nve/asphere, wall/ees faces and wall/region/ees
+    fixes (block, sphere, cylinder; in or out) with constant coordinates and parameters; nothing
+    else (pair, fixes, reflect, other walls, flow, dt/reset)."""
     if plan.others != ("ellipsoids",) or plan.state.quat is None:
         return False
-    if plan.reflect or plan.region or plan.flow or plan.dt_reset is not None:
+    if plan.reflect or plan.flow or plan.dt_reset is not None:
         return False
+    for w in plan.region:
+        if type(w) is not RegionEESKernel or (w.geom.style, w.geom.side) not in REGION_KINDS:
+            return False
+        if any(isinstance(w.params.get(k), str) for k in ("epsilon", "sigma", "cutoff")):
+            return False
     for w in plan.soft:
         if type(w) is not EESWallKernel:
             return False
@@ -322,6 +374,26 @@ class AspherePath:
             ef_val[:, k, 0] = face.coord
             for j, key in enumerate(("epsilon", "sigma", "cutoff")):
                 ef_val[:, k, 1 + j] = face.params[key]
+        KR = len(plan.region)
+        rg_meta = np.zeros((KR, 3), np.int64)
+        rg_geo = np.zeros((KR, 10))
+        rg_val = np.zeros((C, KR, 3))
+        N = s.x.shape[1]
+        for k, w in enumerate(plan.region):
+            g = w.geom
+            row = 0
+            if w.atoms.size != N:
+                groups.append(np.isin(np.arange(N), w.atoms).astype(np.uint8))
+                row = len(groups) - 1
+            rg_meta[k] = (REGION_KINDS[(g.style, g.side)], g.axis or 0, row)
+            if g.style == "block":
+                rg_geo[k, 0:3], rg_geo[k, 3:6] = g.lo, g.hi
+            elif g.style == "sphere":
+                rg_geo[k, 6], rg_geo[k, 7:10] = g.radius, g.center
+            else:
+                rg_geo[k, 0], rg_geo[k, 3], rg_geo[k, 6], rg_geo[k, 7:9] = g.lo, g.hi, g.radius, g.center
+            for j, key in enumerate(("epsilon", "sigma", "cutoff")):
+                rg_val[:, k, j] = np.broadcast_to(np.asarray(w.params[key], float), (C,))
         names = ("x", "v", "f", "quat", "angmom", "torque", "mass", "shape", "inertia")
         for name in names:
             arr = getattr(s, name)
@@ -338,7 +410,7 @@ class AspherePath:
             status = _run_chunk(int(nsteps), s.x, s.v, s.f, s.quat, s.angmom, s.torque, s.mass, s.shape, s.inertia,
                                 np.ascontiguousarray(s.dt, dtype=float), np.asarray(s.box_lo, float),
                                 np.asarray(s.box_hi, float), periodic, float(s.units.ftm2v), ef_meta, ef_val,
-                                np.stack(groups), xo, vo, fo, qo, lo_, to)
+                                np.stack(groups), rg_meta, rg_geo, rg_val, xo, vo, fo, qo, lo_, to)
         if status != 0:
             self.fallbacks += 1
             return False
