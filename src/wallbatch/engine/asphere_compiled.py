@@ -180,30 +180,58 @@ if njit is not None:
     def _region_ees(B, RB, nslot, nb, eps, sig):
         """The wall/region/ees forces and torques of a block's contacts in RB (region_walls.
         RegionEESKernel.apply): normal n = delta / r, sigma_n along n, F += F n, T += tau, slot by
-        slot (each atom adds its contacts in the order np.add.at does). Returns the number of
-        contacts with r <= sigma_n."""
+        slot (each atom adds its contacts in the order np.add.at does). As _ees_face, branch-free
+        passes over the block (series for every atom, closed forms only where needed, then the
+        force and torque where RB flags a contact). Returns the number of contacts with r <= sigma_n."""
         nbad = 0
         for j in range(nslot):
+            ncontact = 0
             for i in range(nb):
-                if RB[j, 0, i] != 0.0:
-                    r = RB[j, 1, i]
-                    n0, n1, n2 = RB[j, 2, i] / r, RB[j, 3, i] / r, RB[j, 4, i] / r
-                    a = _rotation(B[_o(Q) + i], B[_o(Q + 1) + i], B[_o(Q + 2) + i], B[_o(Q + 3) + i])
-                    sn = _sigma_n(a, B[_o(S) + i], B[_o(S + 1) + i], B[_o(S + 2) + i], n0, n1, n2)
-                    nbad += r <= sn
+                ncontact += RB[j, 0, i] != 0.0
+            if ncontact == 0:  # e.g. the faces of a block that no atom of the block is near
+                continue
+            nclosed = 0
+            for i in range(nb):
+                r = RB[j, 1, i]
+                n0, n1, n2 = RB[j, 2, i] / r, RB[j, 3, i] / r, RB[j, 4, i] / r
+                a = _rotation(B[_o(Q) + i], B[_o(Q + 1) + i], B[_o(Q + 2) + i], B[_o(Q + 3) + i])
+                sn = _sigma_n(a, B[_o(S) + i], B[_o(S + 1) + i], B[_o(S + 2) + i], n0, n1, n2)
+                t, s, p = _ratios(r, sn)
+                g_, k_ = _series(s)
+                contact = RB[j, 0, i] != 0.0
+                nbad += contact & (r <= sn)
+                nclosed += contact & (t >= SERIES_T)
+                B[_o(SN) + i] = sn
+                B[_o(G) + i] = g_
+                B[_o(K) + i] = k_
+            if nclosed:
+                for i in range(nb):
+                    r, sn = RB[j, 1, i], B[_o(SN) + i]
                     t, s, p = _ratios(r, sn)
-                    if t < SERIES_T:
-                        g_, k_ = _series(s)
-                    else:
+                    if RB[j, 0, i] != 0.0 and t >= SERIES_T:
                         g_, k_ = _closed(t, p, math.log((r - sn) / (r + sn)))
-                    e, f, tw = _combine(r, s, p, g_, k_, eps, sig)
-                    t0, t1, t2 = _torque(a, B[_o(S) + i], B[_o(S + 1) + i], B[_o(S + 2) + i], n0, n1, n2, tw)
-                    B[_o(FR) + i] = B[_o(FR) + i] + f * n0
-                    B[_o(FR + 1) + i] = B[_o(FR + 1) + i] + f * n1
-                    B[_o(FR + 2) + i] = B[_o(FR + 2) + i] + f * n2
-                    B[_o(T) + i] = B[_o(T) + i] + t0
-                    B[_o(T + 1) + i] = B[_o(T + 1) + i] + t1
-                    B[_o(T + 2) + i] = B[_o(T + 2) + i] + t2
+                        B[_o(G) + i] = g_
+                        B[_o(K) + i] = k_
+            for i in range(nb):
+                r, sn = RB[j, 1, i], B[_o(SN) + i]
+                n0, n1, n2 = RB[j, 2, i] / r, RB[j, 3, i] / r, RB[j, 4, i] / r
+                t, s, p = _ratios(r, sn)
+                e, f, tw = _combine(r, s, p, B[_o(G) + i], B[_o(K) + i], eps, sig)
+                a = _rotation(B[_o(Q) + i], B[_o(Q + 1) + i], B[_o(Q + 2) + i], B[_o(Q + 3) + i])
+                t0, t1, t2 = _torque(a, B[_o(S) + i], B[_o(S + 1) + i], B[_o(S + 2) + i], n0, n1, n2, tw)
+                contact = RB[j, 0, i] != 0.0
+                fi = B[_o(FR) + i]
+                B[_o(FR) + i] = fi + f * n0 if contact else fi
+                fi = B[_o(FR + 1) + i]
+                B[_o(FR + 1) + i] = fi + f * n1 if contact else fi
+                fi = B[_o(FR + 2) + i]
+                B[_o(FR + 2) + i] = fi + f * n2 if contact else fi
+                ti = B[_o(T) + i]
+                B[_o(T) + i] = ti + t0 if contact else ti
+                ti = B[_o(T + 1) + i]
+                B[_o(T + 1) + i] = ti + t1 if contact else ti
+                ti = B[_o(T + 2) + i]
+                B[_o(T + 2) + i] = ti + t2 if contact else ti
         return nbad
 
     @jit
