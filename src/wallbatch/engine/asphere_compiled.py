@@ -349,6 +349,8 @@ def eligible(plan: ChunkPlan) -> bool:
     else (pair, fixes, reflect, other walls, flow, dt/reset)."""
     if plan.others != ("ellipsoids",) or plan.state.quat is None:
         return False
+    if getattr(plan, "ensemble", None) is not None:  # integrator groups, thermostats, 2-D: NumPy
+        return False
     if plan.reflect or plan.flow or plan.dt_reset is not None:
         return False
     for w in plan.region:
