@@ -33,6 +33,8 @@ selects the NumPy path. The kernel is cached on disk (numba cache=True).
 
 from __future__ import annotations
 
+import hashlib
+import inspect
 import math
 import warnings
 from collections.abc import Callable
@@ -64,6 +66,17 @@ BLOCK = 64  # atoms per block: their buffer (NROW doubles each) stays in L1 cach
 X, V, FR, T, Q, L, S, IN, DTFM, R, SN, G, K, NEAR = 0, 3, 6, 9, 12, 16, 19, 22, 25, 26, 27, 28, 29, 30
 NROW = 31
 SERIES_T = 0.5  # ees_energy_force_torque: series for sigma_n/r below this, closed form above
+
+
+def _fingerprint() -> int:
+    """A number that changes with the source of every function compiled into the kernel from
+    outside this file (geometry/quaternion.py, styles/ees.py, compiled._region_contacts): part of
+    the kernel's on-disk cache key (numba keys a cached function by its own file only)."""
+    h = hashlib.sha256()
+    for src in (inspect.getsource(_quat), inspect.getsource(_ees),
+                inspect.getsource(_compiled._region_contacts.py_func)):
+        h.update(src.encode())
+    return int(h.hexdigest()[:15], 16)
 
 
 if njit is not None:
@@ -234,110 +247,118 @@ if njit is not None:
                 B[_o(T + 2) + i] = ti + t2 if contact else ti
         return nbad
 
-    @jit
-    def _run_chunk(nsteps, x, v, f, quat, angmom, torque, mass, shape, inertia, dt, lo, hi, periodic, ftm2v,
-                   ef_meta, ef_val, groups, rg_meta, rg_geo, rg_val, xo, vo, fo, qo, lo_, to):
-        """Advance every case by nsteps steps, reading x, v, f, quat, angmom, torque and writing
-        xo, vo, fo, qo, lo_, to. ef_meta (K, 3) int: dim, side, group row of each wall/ees face;
-        ef_val (C, K, 4): coord, epsilon, sigma, cutoff. rg_meta (KR, 3) int: kind (REGION_KINDS),
-        axis, group row of each wall/region/ees fix; rg_geo (KR, 10): lo xyz, hi xyz, radius,
-        centre (compiled.py's layout); rg_val (C, KR, 3): epsilon, sigma, cutoff. Returns 0, or the
-        status of the first trouble met (1: an ellipsoid on or inside a wall, or on the wrong side
-        of a region, 2: a lost atom, 3: a non-finite value); the caller then falls back to NumPy.
+    def _make_run_chunk(fingerprint: int) -> Any:
+        """The chunk kernel; `fingerprint` (see _fingerprint) joins its on-disk cache key."""
 
-        A block's atoms live in one flat buffer B, a row of BLOCK values per quantity at constant
-        offsets (_o), so the compiler sees that rows never overlap and vectorises the loops."""
-        ncase, natom = x.shape[0], x.shape[1]
-        nface = ef_meta.shape[0]
-        hf = 0.5 * ftm2v
-        B = np.zeros(NROW * BLOCK)
-        GRP = np.zeros((nface, BLOCK), np.uint8)
-        nreg = rg_meta.shape[0]
-        GRPR = np.zeros((max(nreg, 1), BLOCK), np.uint8)
-        RB = np.zeros((6, 5, BLOCK))  # a region's contacts of the block (compiled._region_contacts)
-        XB = B[:3 * BLOCK].reshape((3, BLOCK))  # the block's positions (rows X..X+2), a view
-        nblock = (natom + BLOCK - 1) // BLOCK
-        for c in range(ncase):
-            dtc = dt[c]
-            dtt = hf * dtc  # (0.5 ftm2v) dt: the angular-momentum half kick
-            dtq = 0.5 * dtc
-            for blk in range(nblock):
-                a0 = blk * BLOCK
-                nbi = min(a0 + BLOCK, natom) - a0
-                nb = np.uint64(nbi)
-                for jj in range(nbi):
-                    a = a0 + jj
-                    j = np.uint64(jj)
-                    for d in range(3):
-                        B[_o(X + d) + j] = x[c, a, d]
-                        B[_o(V + d) + j] = v[c, a, d]
-                        B[_o(FR + d) + j] = f[c, a, d]
-                        B[_o(L + d) + j] = angmom[c, a, d]
-                        B[_o(T + d) + j] = torque[c, a, d]
-                        B[_o(S + d) + j] = shape[c, a, d]
-                        B[_o(IN + d) + j] = inertia[c, a, d]
-                    for d in range(4):
-                        B[_o(Q + d) + j] = quat[c, a, d]
-                    B[_o(DTFM) + j] = (hf * dtc) / mass[c, a]
-                    for k in range(nface):
-                        GRP[k, jj] = groups[ef_meta[k, 2], a]
-                    for k in range(nreg):
-                        GRPR[k, jj] = groups[rg_meta[k, 2], a]
-                for _s in range(nsteps):
-                    _kick_rotate(B, nb, dtc, dtt, dtq)
-                    for d in range(3):  # periodic wrap
-                        if periodic[d] != 0:
-                            lod, hid = lo[d], hi[d]
-                            length = hid - lod
-                            ox = _o(X + d)
+        @jit
+        def _run_chunk(nsteps, x, v, f, quat, angmom, torque, mass, shape, inertia, dt, lo, hi, periodic, ftm2v,
+                       ef_meta, ef_val, groups, rg_meta, rg_geo, rg_val, xo, vo, fo, qo, lo_, to):
+            """Advance every case by nsteps steps, reading x, v, f, quat, angmom, torque and writing
+            xo, vo, fo, qo, lo_, to. ef_meta (K, 3) int: dim, side, group row of each wall/ees face;
+            ef_val (C, K, 4): coord, epsilon, sigma, cutoff. rg_meta (KR, 3) int: kind (REGION_KINDS),
+            axis, group row of each wall/region/ees fix; rg_geo (KR, 10): lo xyz, hi xyz, radius,
+            centre (compiled.py's layout); rg_val (C, KR, 3): epsilon, sigma, cutoff. Returns 0, or the
+            status of the first trouble met (1: an ellipsoid on or inside a wall, or on the wrong side
+            of a region, 2: a lost atom, 3: a non-finite value); the caller then falls back to NumPy.
+
+            A block's atoms live in one flat buffer B, a row of BLOCK values per quantity at constant
+            offsets (_o), so the compiler sees that rows never overlap and vectorises the loops."""
+            if nsteps == -fingerprint:  # never: ties the on-disk cache to the shared functions
+                return 5
+            ncase, natom = x.shape[0], x.shape[1]
+            nface = ef_meta.shape[0]
+            hf = 0.5 * ftm2v
+            B = np.zeros(NROW * BLOCK)
+            GRP = np.zeros((nface, BLOCK), np.uint8)
+            nreg = rg_meta.shape[0]
+            GRPR = np.zeros((max(nreg, 1), BLOCK), np.uint8)
+            RB = np.zeros((6, 5, BLOCK))  # a region's contacts of the block (compiled._region_contacts)
+            XB = B[:3 * BLOCK].reshape((3, BLOCK))  # the block's positions (rows X..X+2), a view
+            nblock = (natom + BLOCK - 1) // BLOCK
+            for c in range(ncase):
+                dtc = dt[c]
+                dtt = hf * dtc  # (0.5 ftm2v) dt: the angular-momentum half kick
+                dtq = 0.5 * dtc
+                for blk in range(nblock):
+                    a0 = blk * BLOCK
+                    nbi = min(a0 + BLOCK, natom) - a0
+                    nb = np.uint64(nbi)
+                    for jj in range(nbi):
+                        a = a0 + jj
+                        j = np.uint64(jj)
+                        for d in range(3):
+                            B[_o(X + d) + j] = x[c, a, d]
+                            B[_o(V + d) + j] = v[c, a, d]
+                            B[_o(FR + d) + j] = f[c, a, d]
+                            B[_o(L + d) + j] = angmom[c, a, d]
+                            B[_o(T + d) + j] = torque[c, a, d]
+                            B[_o(S + d) + j] = shape[c, a, d]
+                            B[_o(IN + d) + j] = inertia[c, a, d]
+                        for d in range(4):
+                            B[_o(Q + d) + j] = quat[c, a, d]
+                        B[_o(DTFM) + j] = (hf * dtc) / mass[c, a]
+                        for k in range(nface):
+                            GRP[k, jj] = groups[ef_meta[k, 2], a]
+                        for k in range(nreg):
+                            GRPR[k, jj] = groups[rg_meta[k, 2], a]
+                    for _s in range(nsteps):
+                        _kick_rotate(B, nb, dtc, dtt, dtq)
+                        for d in range(3):  # periodic wrap
+                            if periodic[d] != 0:
+                                lod, hid = lo[d], hi[d]
+                                length = hid - lod
+                                ox = _o(X + d)
+                                for i in range(nb):
+                                    xi = B[ox + i]
+                                    xi = xi - length if xi >= hid else xi
+                                    B[ox + i] = xi + length if xi < lod else xi
+                        for i in range(np.uint64(6 * BLOCK)):  # force and torque clear (FR, T: rows 6..11)
+                            B[_o(FR) + i] = 0.0
+                        nbad = 0
+                        for k in range(nface):
+                            nbad += _ees_face(B, nb, ef_meta[k, 0], ef_meta[k, 1], ef_val[c, k, 0], ef_val[c, k, 1],
+                                              ef_val[c, k, 2], ef_val[c, k, 3], GRP[k])
+                        for k in range(nreg):  # wall/region/ees (post_force, after the flat walls)
+                            nslot, nwrong = _region_contacts(rg_meta[k, 0], rg_meta[k, 1], rg_geo[k], XB, GRPR, k,
+                                                             rg_val[c, k, 2], np.uint64(0), nb, RB)
+                            nbad += nwrong
+                            nbad += _region_ees(B, RB, nslot, nb, rg_val[c, k, 0], rg_val[c, k, 1])
+                        if nbad:
+                            return 1
+                        nlost = 0
+                        for d in range(3):  # lost atoms
+                            if periodic[d] == 0:
+                                lod, hid = lo[d], hi[d]
+                                ox = _o(X + d)
+                                for i in range(nb):
+                                    nlost += (B[ox + i] < lod) | (B[ox + i] > hid)
+                        if nlost:
+                            return 2
+                        for d in range(3):  # final_integrate: v += dtfm f; L += dt/2 ftm2v T
+                            ov, of_, ol, ot = _o(V + d), _o(FR + d), _o(L + d), _o(T + d)
                             for i in range(nb):
-                                xi = B[ox + i]
-                                xi = xi - length if xi >= hid else xi
-                                B[ox + i] = xi + length if xi < lod else xi
-                    for i in range(np.uint64(6 * BLOCK)):  # force and torque clear (FR, T: rows 6..11)
-                        B[_o(FR) + i] = 0.0
-                    nbad = 0
-                    for k in range(nface):
-                        nbad += _ees_face(B, nb, ef_meta[k, 0], ef_meta[k, 1], ef_val[c, k, 0], ef_val[c, k, 1],
-                                          ef_val[c, k, 2], ef_val[c, k, 3], GRP[k])
-                    for k in range(nreg):  # wall/region/ees (post_force, after the flat walls)
-                        nslot, nwrong = _region_contacts(rg_meta[k, 0], rg_meta[k, 1], rg_geo[k], XB, GRPR, k,
-                                                         rg_val[c, k, 2], np.uint64(0), nb, RB)
-                        nbad += nwrong
-                        nbad += _region_ees(B, RB, nslot, nb, rg_val[c, k, 0], rg_val[c, k, 1])
-                    if nbad:
-                        return 1
-                    nlost = 0
-                    for d in range(3):  # lost atoms
-                        if periodic[d] == 0:
-                            lod, hid = lo[d], hi[d]
-                            ox = _o(X + d)
-                            for i in range(nb):
-                                nlost += (B[ox + i] < lod) | (B[ox + i] > hid)
-                    if nlost:
-                        return 2
-                    for d in range(3):  # final_integrate: v += dtfm f; L += dt/2 ftm2v T
-                        ov, of_, ol, ot = _o(V + d), _o(FR + d), _o(L + d), _o(T + d)
-                        for i in range(nb):
-                            B[ov + i] = B[ov + i] + B[_o(DTFM) + i] * B[of_ + i]
-                            B[ol + i] = B[ol + i] + dtt * B[ot + i]
-                for jj in range(nbi):
-                    a = a0 + jj
-                    j = np.uint64(jj)
-                    for d in range(3):
-                        if not (math.isfinite(B[_o(X + d) + j]) and math.isfinite(B[_o(V + d) + j])
-                                and math.isfinite(B[_o(L + d) + j])):
-                            return 3
-                        xo[c, a, d] = B[_o(X + d) + j]
-                        vo[c, a, d] = B[_o(V + d) + j]
-                        fo[c, a, d] = B[_o(FR + d) + j]
-                        lo_[c, a, d] = B[_o(L + d) + j]
-                        to[c, a, d] = B[_o(T + d) + j]
-                    for d in range(4):
-                        if not math.isfinite(B[_o(Q + d) + j]):
-                            return 3
-                        qo[c, a, d] = B[_o(Q + d) + j]
-        return 0
+                                B[ov + i] = B[ov + i] + B[_o(DTFM) + i] * B[of_ + i]
+                                B[ol + i] = B[ol + i] + dtt * B[ot + i]
+                    for jj in range(nbi):
+                        a = a0 + jj
+                        j = np.uint64(jj)
+                        for d in range(3):
+                            if not (math.isfinite(B[_o(X + d) + j]) and math.isfinite(B[_o(V + d) + j])
+                                    and math.isfinite(B[_o(L + d) + j])):
+                                return 3
+                            xo[c, a, d] = B[_o(X + d) + j]
+                            vo[c, a, d] = B[_o(V + d) + j]
+                            fo[c, a, d] = B[_o(FR + d) + j]
+                            lo_[c, a, d] = B[_o(L + d) + j]
+                            to[c, a, d] = B[_o(T + d) + j]
+                        for d in range(4):
+                            if not math.isfinite(B[_o(Q + d) + j]):
+                                return 3
+                            qo[c, a, d] = B[_o(Q + d) + j]
+            return 0
+        return _run_chunk
+
+    _run_chunk = _make_run_chunk(_fingerprint())
 
 
 # ----------------------------------------------------------------------------- the Python side
