@@ -714,7 +714,9 @@ def _parse_stochastic(w: _Words, group: str) -> dict:
         raise w.missing(f"missing arguments: write 'fix {w[1]} {group} {_STOCHASTIC_USAGE}'")
     rstyle = w[4]
     if rstyle not in _RSTYLE_ACCOM:
-        raise w.error(4, "the reflection style must be diffusive, maxwell or ccl")
+        hint = (" (LAMMPS spells the Cercignani-Lampis model ccl: it refuses the long name too)"
+                if rstyle.lower() in ("cercignanilampis", "cercignani-lampis", "cl") else "")
+        raise w.error(4, f"the reflection style must be diffusive, maxwell or ccl{hint}")
     seed = w.integer(5, "SEED (the random seed)")
     if seed <= 0:
         raise w.error(5, "the random seed must be a positive integer")
