@@ -417,6 +417,14 @@ if njit is not None:
     _th_nh = jit(_th.nh_half_step)
     _th_pairwise = _self_recursive(_th.pairwise_sum)
 
+    @functools.lru_cache(maxsize=1)
+    def _link_recursive() -> None:
+        """Compile the self-recursive helpers in this process before a chunk kernel runs: a kernel
+        loaded from numba's disk cache reaches a recursive function through a
+        `.numba.unresolved$` symbol that only a compile in this process defines (without it LLVM
+        aborts the process: "Symbol not found")."""
+        _th_pairwise(np.zeros(1), 0, 1)
+
     @inline
     def _fix_post_force(u0, u1, V, F, groups, fxp):
         """Engine.step's post_force fixes (Ensemble.post_force) on atoms u0..u1-1: the Langevin
@@ -1423,6 +1431,7 @@ class FastPath:
             self._spare = tuple(np.empty_like(s.x) for _ in range(3))
         xo, vo, fo = self._spare
         backup = {k: getattr(s, k).copy() for k in ("dt", "atime", "atimestep", "step")}
+        _link_recursive()
         kernel = _chunk_kernel(extra)
         sf_val, rf_val, rf_stat = (np.ascontiguousarray(a) for a in (sf_val, rf_val, rf_stat))
         lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)
