@@ -164,16 +164,6 @@ def _fingerprint(styles: tuple[WallStyle, ...]) -> int:
     return int(h.hexdigest()[:15], 16)
 
 
-def _self_recursive(fn: Callable) -> Any:
-    """A jitted copy of the plain recursive function `fn` whose recursive call is the jitted
-    function itself (numba compiles calls to dispatchers, not to plain functions)."""
-    namespace = dict(fn.__globals__)
-    out = types.FunctionType(fn.__code__, namespace, fn.__name__, fn.__defaults__, fn.__closure__)
-    disp = njit(nogil=True, error_model="numpy")(out)
-    namespace[fn.__name__] = disp
-    return disp
-
-
 if njit is not None:
     # error_model="numpy": x/0 gives inf/nan as in NumPy (no zero-division checks, so loops vectorise)
     jit = njit(cache=True, nogil=True, error_model="numpy")
@@ -415,15 +405,7 @@ if njit is not None:
     _th_berendsen = jit(_th.berendsen_factor)
     _th_rescale = jit(_th.rescale_factor)
     _th_nh = jit(_th.nh_half_step)
-    _th_pairwise = _self_recursive(_th.pairwise_sum)
-
-    @functools.lru_cache(maxsize=1)
-    def _link_recursive() -> None:
-        """Compile the self-recursive helpers in this process before a chunk kernel runs: a kernel
-        loaded from numba's disk cache reaches a recursive function through a
-        `.numba.unresolved$` symbol that only a compile in this process defines (without it LLVM
-        aborts the process: "Symbol not found")."""
-        _th_pairwise(np.zeros(1), 0, 1)
+    _th_pairwise = jit(_th.pairwise_sum)  # iterative: a recursive one breaks the disk cache
 
     @inline
     def _fix_post_force(u0, u1, V, F, groups, fxp):
@@ -1431,7 +1413,6 @@ class FastPath:
             self._spare = tuple(np.empty_like(s.x) for _ in range(3))
         xo, vo, fo = self._spare
         backup = {k: getattr(s, k).copy() for k in ("dt", "atime", "atimestep", "step")}
-        _link_recursive()
         kernel = _chunk_kernel(extra)
         sf_val, rf_val, rf_stat = (np.ascontiguousarray(a) for a in (sf_val, rf_val, rf_stat))
         lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)

@@ -48,35 +48,68 @@ def dot3(a0, a1, a2, b0, b1, b2):
 def pairwise_sum(a, lo, n):
     """sum(a[lo:lo + n]) in the order of NumPy's np.add.reduce over a contiguous float64 axis
     (its pairwise summation: blocks of at most 128 values summed with 8 partial sums, halves of
-    longer runs summed separately), so a compiled loop reproduces `x.sum(axis=-1)` bit for bit."""
-    if n < 8:
-        res = 0.0
-        for i in range(lo, lo + n):
-            res += a[i]
-        return res
-    if n <= 128:
-        r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
-        r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
-        i = lo + 8
-        end8 = lo + n - n % 8
-        while i < end8:
-            r0 += a[i]
-            r1 += a[i + 1]
-            r2 += a[i + 2]
-            r3 += a[i + 3]
-            r4 += a[i + 4]
-            r5 += a[i + 5]
-            r6 += a[i + 6]
-            r7 += a[i + 7]
-            i += 8
-        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-        while i < lo + n:
-            res += a[i]
-            i += 1
-        return res
-    n2 = n // 2
-    n2 -= n2 % 8
-    return pairwise_sum(a, lo, n2) + pairwise_sum(a, lo + n2, n - n2)
+    longer runs summed separately), so a compiled loop reproduces `x.sum(axis=-1)` bit for bit.
+
+    Iterative, with an explicit stack of the halves still to sum (each half's sum is formed from
+    its own halves' sums, so the bits are those of the recursive definition): numba reaches a
+    recursive jitted function through a per-process symbol, which a kernel loaded from numba's
+    disk cache cannot resolve (the process crashed)."""
+    los = np.zeros(64, np.int64)
+    ns = np.zeros(64, np.int64)
+    stage = np.zeros(64, np.int64)  # 1: the left half is being summed, 2: the right half
+    left = np.zeros(64)
+    top = 0
+    los[0] = lo
+    ns[0] = n
+    while True:
+        s, m = los[top], ns[top]
+        if m > 128:  # split, the left half first
+            h = m // 2
+            h -= h % 8
+            stage[top] = 1
+            top += 1
+            los[top] = s
+            ns[top] = h
+            continue
+        if m < 8:
+            v = 0.0
+            for i in range(s, s + m):
+                v += a[i]
+        else:
+            r0, r1, r2, r3 = a[s], a[s + 1], a[s + 2], a[s + 3]
+            r4, r5, r6, r7 = a[s + 4], a[s + 5], a[s + 6], a[s + 7]
+            i = s + 8
+            end8 = s + m - m % 8
+            while i < end8:
+                r0 += a[i]
+                r1 += a[i + 1]
+                r2 += a[i + 2]
+                r3 += a[i + 3]
+                r4 += a[i + 4]
+                r5 += a[i + 5]
+                r6 += a[i + 6]
+                r7 += a[i + 7]
+                i += 8
+            v = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+            while i < s + m:
+                v += a[i]
+                i += 1
+        finished = True
+        while top > 0:  # hand the sum up: a left half waits for its right half, a right half completes its parent
+            top -= 1
+            if stage[top] == 1:
+                left[top] = v
+                stage[top] = 2
+                h = ns[top] // 2
+                h -= h % 8
+                top += 1
+                los[top] = los[top - 1] + h
+                ns[top] = ns[top - 1] - h
+                finished = False
+                break
+            v = left[top] + v
+        if finished:
+            return v
 
 
 def ramped(t_start, t_stop, fraction):
