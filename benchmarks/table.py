@@ -61,7 +61,7 @@ def run(cfg: dict, numpy: bool) -> tuple[float, Engine]:
 def lammps_table(cfg: dict, path: str, tabstyle: str) -> float:
     """Seconds of LAMMPS's run of the built-in scene with its lj93 fix replaced by wall/table."""
     case = build(cfg)
-    lo, hi = case.box_lo[2], case.box_hi[2]
+    lo, hi = float(case.box_lo[2]), float(case.box_hi[2])
     line = (f"fix w all wall/table {tabstyle} {N_TABLE} zlo {lo!r} {path} LJ93 2.5 zhi {hi!r} {path} LJ93 2.5 "
             "units box")
     import common  # noqa: PLC0415 - the module whose lammps_run reads lammps_commands
