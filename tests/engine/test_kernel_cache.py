@@ -36,7 +36,7 @@ print(json.dumps({"hits": sum(k.stats.cache_hits.values()), "etot": res.data["et
 def test_builtin_chunk_kernel_loads_from_disk_in_a_second_process(tmp_path):
     """Regression: after the thermostats joined the chunk kernel, a kernel loaded from the disk
     cache referenced the recursive pairwise_sum through an unresolved symbol and the second
-    process crashed (SIGSEGV / LLVM "Symbol not found"); compiled._link_recursive defines it."""
+    process crashed (SIGSEGV / LLVM "Symbol not found"); thermostats.pairwise_sum is iterative now."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "WALLBATCH_NUMBA": "1",
            "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
     runs = []
