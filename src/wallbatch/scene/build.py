@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import functools
 import warnings
 import zipfile
 from pathlib import Path
@@ -38,9 +37,7 @@ from wallbatch.scene.case import (
     Value,
 )
 from wallbatch.scene.ensemble import build_fixes
-from wallbatch.styles import STYLES
-from wallbatch.styles.lepton import compile_expression, lepton_style
-from wallbatch.styles.table import TableError, WallTable, read_table, table_style
+from wallbatch.styles import STYLES, WallStyle
 from wallbatch.units import LATTICE_CELL, LATTICE_POSITIONS, LATTICES_2D, UNIT_SYSTEMS, UnitSystem
 
 
@@ -386,8 +383,8 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
                 raise CaseError(f"walls.{fid}: wall/{wall.style} requires extended particles: every atom of group "
                                 f"{wall.group} needs a shape (ellipsoid semi-axes)")
         fix_order.append(fid)
-        if wall.style in ("lepton", "table"):
-            soft.append(_custom_spec(cfg, fid, wall, group))
+        if entry is not None and entry.per_face:
+            soft.append(_per_face_spec(cfg, fid, wall, entry, group))
             continue
         if wall.style in ("region", "region/ees"):
             region = cfg.regions[wall.region]
@@ -441,36 +438,22 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
     )
 
 
-def _custom_spec(cfg: Config, fid: str, wall: Any, group: np.ndarray) -> CustomWallSpec:
-    """wall/lepton (a compiled expression per face; params: cutoff and the expression's names)
-    or wall/table (a resampled table per face, files relative to the config; params: cutoff)."""
+def _per_face_spec(cfg: Config, fid: str, wall: Any, entry: WallStyle, group: np.ndarray) -> CustomWallSpec:
+    """A style built per face (wall/lepton: a compiled expression per face, params the cutoff and
+    the expression's names; wall/table: a resampled table per face, files relative to the config,
+    params the cutoff): the registry entry's face_style for each face."""
     faces, styles, signature = [], [], []
+    values = wall.model_dump()
     for face, (_, spec) in zip(_faces(cfg, fid, wall, ()), wall.faces()):
-        if wall.style == "lepton":
-            expr = compile_expression(spec.expression, tuple(spec.params))
-            style = lepton_style(expr)
-            params = {"cutoff": spec.cutoff, **{n: float(spec.params.get(n, expr.defaults.get(n, 0.0)))
-                                                for n in expr.params}}
-            signature.append(spec.expression)
-        else:
-            path = Path(spec.file)
-            path = path if path.is_absolute() else cfg._base_dir / path
-            try:
-                table = _table(str(path.resolve()), spec.keyword, wall.tabstyle, wall.N)
-            except TableError as exc:
-                raise CaseError(f"walls.{fid}.{face.name}.file: {exc}") from None
-            style = table_style(table)
-            params = {"cutoff": spec.cutoff}
-            signature.append((str(path.resolve()), spec.keyword, wall.tabstyle, wall.N))
+        try:
+            style, params, sig = entry.face_style(spec.model_dump(), values, str(cfg._base_dir))
+        except ValueError as exc:
+            raise CaseError(f"walls.{fid}.{face.name}.{getattr(exc, 'key', 'expression')}: {exc}") from None
         styles.append(style)
+        signature.append(sig)
         faces.append(Face(face.label, face.name, face.dim, face.side, face.coord, face.scale, params))
     return CustomWallSpec(fid, styles[0], group, wall.energy, tuple(faces), virial=wall.virial,
                           face_styles=tuple(styles), signature=tuple(signature))
-
-
-@functools.lru_cache(maxsize=64)
-def _table(path: str, keyword: str, tabstyle: str, n: int) -> WallTable:
-    return WallTable.build(read_table(path, keyword), tabstyle, n)
 
 
 def _stochastic_spec(cfg: Config, fid: str, wall: Any, group: np.ndarray, seed: tuple[int, ...]) -> StochasticSpec:
