@@ -205,60 +205,120 @@ if njit is not None:
         first[N] = m
         return m
 
+    @njit(nogil=True, error_model="numpy", inline="always")
+    def _pair_terms(n, gx, gy, gz, tx, ty, tz, e24, s2c, rcut2, inv0, inv1, inv2, L0, L1, L2):
+        """fpair d of n pairs from their raw separations g = x_i - x_j (contiguous buffers, no
+        indirect access: the loop vectorises): the minimum image, then the NumPy path's operations
+        (module docstring of `forces`), into t."""
+        for k in range(n):
+            d0 = gx[k]
+            d0 -= np.rint(d0 * inv0) * L0
+            d1 = gy[k]
+            d1 -= np.rint(d1 * inv1) * L1
+            d2 = gz[k]
+            d2 -= np.rint(d2 * inv2) * L2
+            r2 = d0 * d0 + d1 * d1 + d2 * d2
+            inside = 1.0 if r2 < rcut2 else 0.0
+            t = s2c / r2
+            s6 = t * t * t
+            fpair = (s6 * 2.0 - 1.0) * s6 * e24 / r2 * inside
+            tx[k] = fpair * d0
+            ty[k] = fpair * d1
+            tz[k] = fpair * d2
+
+    @jit
+    def forces_case(xc: np.ndarray, fc: np.ndarray, ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, e24: float,
+                    s2c: float, rcut2: float, length: np.ndarray, periodic: np.ndarray) -> None:
+        """Add the pair forces of one case (positions xc (N, 3), half list ow/fr/nc) into fc (N, 3).
+
+        Per row s of the list (atom i = ow[s]), three passes: gather the separations x_i - x_j
+        into contiguous buffers, compute fpair d for all of them in one vectorised loop
+        (`_pair_terms`), then add them in list order: F_i += sum (one sum, added at the end of the
+        row) and F_j -= each. The additions are the ones of a single fused loop in the same order,
+        so the bits do not depend on the split."""
+        inv0 = 1.0 / length[0] if periodic[0] else 0.0
+        inv1 = 1.0 / length[1] if periodic[1] else 0.0
+        inv2 = 1.0 / length[2] if periodic[2] else 0.0
+        L0, L1, L2 = length[0], length[1], length[2]
+        nrow = len(ow)
+        most = 0
+        for s in range(nrow):
+            most = max(most, fr[s + 1] - fr[s])
+        buf = np.empty((6, most))
+        gx, gy, gz, tx, ty, tz = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]
+        for s in range(nrow):
+            i = ow[s]
+            xi0, xi1, xi2 = xc[i, 0], xc[i, 1], xc[i, 2]
+            k0 = fr[s]
+            n = fr[s + 1] - k0
+            for k in range(n):
+                j = nc[k0 + k]
+                gx[k] = xi0 - xc[j, 0]
+                gy[k] = xi1 - xc[j, 1]
+                gz[k] = xi2 - xc[j, 2]
+            _pair_terms(n, gx, gy, gz, tx, ty, tz, e24, s2c, rcut2, inv0, inv1, inv2, L0, L1, L2)
+            fi0, fi1, fi2 = 0.0, 0.0, 0.0
+            for k in range(n):
+                j = nc[k0 + k]
+                a, b, c = tx[k], ty[k], tz[k]
+                fi0 += a
+                fi1 += b
+                fi2 += c
+                fc[j, 0] -= a
+                fc[j, 1] -= b
+                fc[j, 2] -= c
+            fc[i, 0] += fi0
+            fc[i, 1] += fi1
+            fc[i, 2] += fi2
+
+    @jit
+    def outputs_case(xc: np.ndarray, ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, e24: float, e4: float,
+                     s2c: float, rcut2: float, off: float, length: np.ndarray, periodic: np.ndarray
+                     ) -> tuple[float, float]:
+        """Energy (shifted by off per pair inside rc) and virial sum fpair r^2 of one case, summed
+        over the list in order (the per-pair values of `_pair_terms`)."""
+        inv0 = 1.0 / length[0] if periodic[0] else 0.0
+        inv1 = 1.0 / length[1] if periodic[1] else 0.0
+        inv2 = 1.0 / length[2] if periodic[2] else 0.0
+        L0, L1, L2 = length[0], length[1], length[2]
+        esum, wsum = 0.0, 0.0
+        for s in range(len(ow)):
+            i = ow[s]
+            for q in range(fr[s], fr[s + 1]):
+                j = nc[q]
+                d0 = xc[i, 0] - xc[j, 0]
+                d0 -= np.rint(d0 * inv0) * L0
+                d1 = xc[i, 1] - xc[j, 1]
+                d1 -= np.rint(d1 * inv1) * L1
+                d2 = xc[i, 2] - xc[j, 2]
+                d2 -= np.rint(d2 * inv2) * L2
+                r2 = d0 * d0 + d1 * d1 + d2 * d2
+                inside = 1.0 if r2 < rcut2 else 0.0
+                t = s2c / r2
+                s6 = t * t * t
+                fpair = (s6 * 2.0 - 1.0) * s6 * e24 / r2 * inside
+                esum += ((s6 - 1.0) * s6 * e4 - off) * inside
+                wsum += fpair * r2
+        return esum, wsum
+
     @jit
     def forces(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray,
                eps: np.ndarray, sig2: np.ndarray, rc2: np.ndarray, offset: np.ndarray, length: np.ndarray,
                periodic: np.ndarray, bad: np.ndarray, outputs: bool, energy: np.ndarray,
                virial: np.ndarray) -> None:
-        """Add the pair forces of every case that is not bad into f (C, N, 3); with outputs, also
-        energy[c] (shifted by offset[c] per pair inside rc) and virial[c] = sum fpair r^2.
+        """Add the pair forces of every case that is not bad into f (C, N, 3) (`forces_case`); with
+        outputs, also energy[c] (shifted by offset[c] per pair inside rc) and virial[c] = sum
+        fpair r^2 (`outputs_case`).
 
         Per pair, the NumPy path's operations: d = x_i - x_j, d -= rint(d (1/L)) L in periodic
         dims (bad cases are skipped, so d is finite), r2, s6 = ((sig2/r2)^2)(sig2/r2),
         fpair = (((2 s6) - 1) s6)(24 eps)/r2, times (r2 < rc2): computed for every listed pair,
         then zeroed outside rc (no branch).
         """
-        C = x.shape[0]
-        # fixed dims: 1/L replaced by 0, so d - rint(d * 0) L = d exactly (finite d): no branch
-        inv0 = 1.0 / length[0] if periodic[0] else 0.0
-        inv1 = 1.0 / length[1] if periodic[1] else 0.0
-        inv2 = 1.0 / length[2] if periodic[2] else 0.0
-        L0, L1, L2 = length[0], length[1], length[2]
-        for c in range(C):
+        for c in range(x.shape[0]):
             if bad[c]:
                 continue
-            e24, e4, s2c, rcut2, off = 24.0 * eps[c], 4.0 * eps[c], sig2[c], rc2[c], offset[c]
-            xc, fc, nc, fr, ow = x[c], f[c], neigh[c], first[c], owner[c]
-            esum, wsum = 0.0, 0.0
-            for s in range(len(ow)):
-                i = ow[s]
-                xi0, xi1, xi2 = xc[i, 0], xc[i, 1], xc[i, 2]
-                fi0, fi1, fi2 = 0.0, 0.0, 0.0
-                for q in range(fr[s], fr[s + 1]):
-                    j = nc[q]
-                    d0 = xi0 - xc[j, 0]
-                    d0 -= np.rint(d0 * inv0) * L0
-                    d1 = xi1 - xc[j, 1]
-                    d1 -= np.rint(d1 * inv1) * L1
-                    d2 = xi2 - xc[j, 2]
-                    d2 -= np.rint(d2 * inv2) * L2
-                    r2 = d0 * d0 + d1 * d1 + d2 * d2
-                    inside = 1.0 if r2 < rcut2 else 0.0
-                    t = s2c / r2
-                    s6 = t * t * t
-                    fpair = (s6 * 2.0 - 1.0) * s6 * e24 / r2 * inside
-                    fi0 += fpair * d0
-                    fi1 += fpair * d1
-                    fi2 += fpair * d2
-                    fc[j, 0] -= fpair * d0
-                    fc[j, 1] -= fpair * d1
-                    fc[j, 2] -= fpair * d2
-                    if outputs:
-                        esum += ((s6 - 1.0) * s6 * e4 - off) * inside
-                        wsum += fpair * r2
-                fc[i, 0] += fi0
-                fc[i, 1] += fi1
-                fc[i, 2] += fi2
+            forces_case(x[c], f[c], owner[c], first[c], neigh[c], 24.0 * eps[c], sig2[c], rc2[c], length, periodic)
             if outputs:
-                energy[c] = esum
-                virial[c] = wsum
+                energy[c], virial[c] = outputs_case(x[c], owner[c], first[c], neigh[c], 24.0 * eps[c], 4.0 * eps[c],
+                                                    sig2[c], rc2[c], offset[c], length, periodic)
