@@ -19,9 +19,15 @@ C-contiguous arrays (float64 positions, int32/int64 lists, bool flags: one compi
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import os
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
+
+from wallbatch.engine import compiled as _compiled
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
@@ -322,3 +328,257 @@ if njit is not None:
             if outputs:
                 energy[c], virial[c] = outputs_case(x[c], owner[c], first[c], neigh[c], 24.0 * eps[c], 4.0 * eps[c],
                                                     sig2[c], rc2[c], offset[c], length, periodic)
+
+
+# ----------------------------------------------------------------------------- fused pair chunks
+# Whole chunks of steps of a pair scene in one compiled call per case (PairChunks below): the step
+# of engine.Engine.step with the pair forces of `forces_case` and the wall forces of the chunk
+# kernels of engine/compiled.py (the registry's compiled functions, imported, not copied).
+
+if njit is not None:
+    import hashlib
+    import inspect
+
+    from wallbatch.engine.compiled import BLOCK, _flow_step, _region_walls, _soft_face
+
+    @jit
+    def _moved(xc: np.ndarray, xref: np.ndarray, length: np.ndarray, periodic: np.ndarray, limit2: float) -> bool:
+        """Some atom of one case moved more than sqrt(limit2) since xref (`moved_cases`)."""
+        for i in range(xc.shape[0]):
+            d2 = 0.0
+            for k in range(3):
+                d = xc[i, k] - xref[i, k]
+                if periodic[k]:
+                    d -= length[k] * np.rint(d / length[k])
+                d2 += d * d
+            if not d2 <= limit2:
+                return True
+        return False
+
+    def _make_pair_chunk(fingerprint: int):
+        """The fused chunk kernel; `fingerprint` joins its on-disk cache key (numba keys a cached
+        function by its own file: the wall kernels come from compiled.py and the styles)."""
+
+        @jit
+        def pair_chunk(nsteps, x, v, f, mass, radius, dt, ftm2v, lo, hi, box_per, length, pair_per, reach,
+                       limit2, e24, s2c, rcut2, xref, owner, first, neigh, sf_meta, sf_val, groups, rg_meta,
+                       rg_geo, rg_val, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng):
+            """Advance one case (x, v, f: (N, 3), written in place) by nsteps velocity-Verlet steps
+            of engine.Engine.step: v += dtfm f, x += dt v; periodic wrap; the pair list rebuilt
+            (`build_case`) when an atom moved more than skin/2 since xref; f = 0, pair forces
+            (`forces_case`), soft flat faces and wall/region fixes (compiled.py's kernels), lost
+            atoms; v += dtfm f; wall/flow (fl_int[0] != 0). Returns (status, builds, neigh):
+            status 0, 1 (an atom on/behind a wall), 2 (a lost atom) or 3 (a non-finite value; the
+            caller then hands the chunk back to NumPy); neigh is a longer array when the list grew."""
+            if nsteps == -fingerprint:  # never: ties the on-disk cache to the wall kernels
+                return 5, 0, neigh
+            N = x.shape[0]
+            X, V, F = x.T, v.T, f.T  # (3, N) views: the wall kernels' layout
+            hdt = (0.5 * ftm2v) * dt
+            dtfm = np.empty(N)
+            for a in range(N):
+                dtfm[a] = hdt / mass[a]
+            vary = sf_val.shape[0] > 1
+            RB = np.empty((6, 5, BLOCK))
+            CI = np.empty(N if fl_int[0] != 0 else 0, np.int64)
+            DIR = np.empty(N if fl_int[0] != 0 else 0)
+            builds = 0
+            for step in range(nsteps):
+                si = step if vary else 0
+                for a in range(N):  # initial_integrate
+                    for d in range(3):
+                        va = v[a, d] + dtfm[a] * f[a, d]
+                        v[a, d] = va
+                        x[a, d] = x[a, d] + dt * va
+                for d in range(3):  # periodic wrap
+                    if box_per[d]:
+                        lod, hid = lo[d], hi[d]
+                        L = hid - lod
+                        for a in range(N):
+                            xa = x[a, d]
+                            xa = xa - L if xa >= hid else xa
+                            x[a, d] = xa + L if xa < lod else xa
+                if _moved(x, xref, length, pair_per, limit2):  # neighbor list (check yes)
+                    for a in range(N):
+                        for d in range(3):
+                            if not math.isfinite(x[a, d]):
+                                return 3, builds, neigh
+                    m = build_case(x, lo, length, pair_per, reach, owner, first, neigh)
+                    while m < 0:
+                        neigh = np.empty(2 * len(neigh) + 4 * N, np.int32)
+                        m = build_case(x, lo, length, pair_per, reach, owner, first, neigh)
+                    xref[:] = x
+                    builds += 1
+                for a in range(N):  # force clear, pair forces
+                    for d in range(3):
+                        f[a, d] = 0.0
+                forces_case(x, f, owner, first, neigh, e24, s2c, rcut2, length, pair_per)
+                nbad = 0
+                for k in range(sf_meta.shape[0]):  # soft flat walls, fix order
+                    nbad += _soft_face(sf_meta[k, 0], sf_meta[k, 4], X, F, radius, groups, sf_meta[k, 3],
+                                       sf_meta[k, 1], sf_meta[k, 2], sf_val[si, k, 0], sf_val[si, k, 1],
+                                       sf_val[si, k, 2], sf_val[si, k, 3], sf_val[si, k, 4], sf_val[si, k, 5], 0, N)
+                if rg_meta.shape[0]:  # wall/region fixes, block by block
+                    for u0 in range(0, N, BLOCK):
+                        nbad += _region_walls(0, u0, min(u0 + BLOCK, N), X, F, radius, groups, rg_meta, rg_geo,
+                                              rg_val, RB)
+                if nbad:
+                    return 1, builds, neigh
+                for d in range(3):  # lost atoms
+                    if not box_per[d]:
+                        for a in range(N):
+                            if (x[a, d] < lo[d]) | (x[a, d] > hi[d]):
+                                return 2, builds, neigh
+                for a in range(N):  # final_integrate
+                    for d in range(3):
+                        v[a, d] = v[a, d] + dtfm[a] * f[a, d]
+                if fl_int[0] != 0:  # fix wall/flow (end_of_step)
+                    _flow_step(X, V, mass, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross,
+                               fl_rng, CI, DIR)
+            for a in range(N):
+                for d in range(3):
+                    if not (math.isfinite(x[a, d]) and math.isfinite(v[a, d])):
+                        return 3, builds, neigh
+            return 0, builds, neigh
+
+        return pair_chunk
+
+    def _chunk_fingerprint() -> int:
+        h = hashlib.sha256()
+        h.update(str(_compiled._fingerprint(_compiled.COMPILED_STYLES)).encode())
+        h.update(inspect.getsource(_compiled).encode())
+        return int(h.hexdigest()[:15], 16)
+
+    pair_chunk = _make_pair_chunk(_chunk_fingerprint())
+
+
+def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
+    """Whether `PairChunks` runs this plan: pair lj/cut on its compiled path with what the chunk
+    kernels of compiled.py run (flat soft walls of the registry's compiled styles, wall/region,
+    one wall/flow), without wall/reflect, dt/reset, wall/lepton faces or anything else."""
+    if njit is None or plan.others != ("pair",) or plan.reflect or plan.dt_reset is not None:
+        return False
+    if not pair.compiled or pair.ncases != plan.state.ncases:
+        return False
+    if not _compiled.eligible(dataclasses.replace(plan, others=())):
+        return False
+    for w in plan.soft:
+        for st in _compiled._face_styles(w):
+            if _compiled.STYLE_IDS.get(st.name) is None or _compiled.COMPILED_STYLES[_compiled.STYLE_IDS[st.name]] != st:
+                return False
+    return not any(w.style.needs_radius and not w._radius_checked for w in plan.region)
+
+
+class PairChunks:
+    """Engine.advance for pair scenes: each case's chunk of steps in one `pair_chunk` call, on
+    copies of its state that replace it when every case of the batch finished the chunk cleanly.
+    Anything the kernel meets (an atom on/behind a wall, a lost atom, a non-finite value) hands the
+    chunk back to the NumPy loop, which re-runs it from the same state (random streams restored)
+    and reports as always. On a sampled chunk the outputs come from the NumPy `compute_forces` at
+    the final positions (as compiled.FastPath). Step-based runs only; `advance_to_time` declines."""
+
+    def __init__(self, plan_source: Callable[[], "_compiled.ChunkPlan"], pair: Any):
+        self.plan_source = plan_source
+        self.pair = pair
+        self.compiled_chunks = 0
+        self.fallbacks = 0
+
+    def advance_to_time(self, target: float) -> bool:
+        return False
+
+    def advance(self, nsteps: int, sample: bool) -> bool:
+        """Run nsteps steps (and the sample of the last one); False: let the NumPy loop do it."""
+        plan = self.plan_source()
+        s, pair = plan.state, self.pair
+        if s.ncases == 0 or s.failed or nsteps <= 0 or not enabled() or not chunk_eligible(plan, pair):
+            return False
+        if pair._first is None or pair._xref is None or pair._xref.shape != s.x.shape or pair._bad.any():
+            return False
+        C, N = s.x.shape[:2]
+        varying = _compiled.FastPath._uses_time(plan)
+        nfaces = max(1, sum(len(w.faces) for w in plan.soft))
+        if varying and nsteps * nfaces * 6 * C > _compiled.VALUE_BUDGET:
+            return False
+        values = _compiled.FastPath._values(plan, nsteps if varying else 1, varying)
+        if values is None:
+            self.fallbacks += 1
+            return False
+        sf_val = np.ascontiguousarray(values[0])
+        groups: list[np.ndarray] = [np.ones(N, np.uint8)]
+
+        def group(mask: np.ndarray, all_atoms: bool) -> int:
+            if all_atoms:
+                return 0
+            groups.append(np.asarray(mask).astype(np.uint8))
+            return len(groups) - 1
+
+        sf_meta = np.array([[_compiled.STYLE_IDS[st.name], face.dim, face.side, group(w.group, w.all_atoms),
+                             w.cutoff.mode_id] for w in plan.soft
+                            for st, face in zip(_compiled._face_styles(w), w.faces)], np.int64).reshape(-1, 5)
+        rg_meta, rg_geo, rg_val = _compiled.FastPath._regions(plan, group)
+        groups_arr = np.stack(groups)
+        box_per = np.zeros(3, np.int64)
+        box_per[s.periodic] = 1
+        lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)
+        rc2 = pair.cutoff * pair.cutoff
+        fk = plan.flow[0] if plan.flow else None
+        if fk is not None:
+            rng_states = [r.bit_generator.state for r in fk.rngs]
+            phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
+            prev, cross = np.ascontiguousarray(fk.prev, dtype=float).copy(), np.zeros((C, 1))
+        done = []
+        for c in range(C):
+            x, v, f = s.x[c].copy(), s.v[c].copy(), s.f[c].copy()
+            xref, owner, first = pair._xref[c].copy(), pair._owner[c].copy(), pair._first[c].copy()
+            neigh = pair._neigh[c].copy()
+            if fk is None:
+                fl = _compiled._NO_FLOW
+            else:
+                fl = (np.array([1, fk.axis[c], int(fk.exact[c])], np.int64),
+                      np.array([fk.lo[c], fk.length[c], fk.vflow[c], fk.kT[c]]),
+                      np.ascontiguousarray(fk.walls[c][np.isfinite(fk.walls[c])]), fk.group[c].astype(np.uint8),
+                      phys[c], pend[c], prev[c], cross[c], fk.rngs[c])
+            status, builds, neigh = pair_chunk(
+                int(nsteps), x, v, f, np.ascontiguousarray(s.mass[c], dtype=float),
+                np.ascontiguousarray(s.radius[c], dtype=float), float(s.dt[c]), float(s.units.ftm2v), lo, hi, box_per,
+                pair.length, pair.periodic, float(pair.cutoff[c] + pair.skin), (0.5 * pair.skin) ** 2,
+                24.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2), float(rc2[c]), xref, owner, first, neigh,
+                sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl)
+            if status != 0:
+                if fk is not None:  # the NumPy loop re-runs the chunk with the same random numbers
+                    for r, st in zip(fk.rngs, rng_states):
+                        r.bit_generator.state = st
+                self.fallbacks += 1
+                return False
+            done.append((x, v, f, xref, owner, first, neigh, builds))
+        for c, (x, v, f, xref, owner, first, neigh, builds) in enumerate(done):
+            s.x[c], s.v[c], s.f[c] = x, v, f
+            pair._xref[c], pair._owner[c], pair._first[c] = xref, owner, first
+            if len(neigh) > pair._neigh.shape[1]:
+                pair._grow(len(neigh))
+            pair._neigh[c, :len(neigh)] = neigh
+            pair.builds += builds
+            pair.case_builds[c] += builds
+        s.step += nsteps
+        s.ctx = None
+        s.var_step = {}
+        if fk is not None:
+            fk.phys, fk.pend, fk.prev = phys.astype(np.intp), pend.astype(np.int8), prev
+            fk.crossings += cross[:, 0]
+        self.compiled_chunks += 1
+        out: dict = {}
+        if sample:
+            forces = s.f.copy()
+            out = plan.compute_outputs()
+            s.f[...] = forces
+            s.ctx = None
+            s.var_step = {}
+        plan.finish_step(out, sample)
+        return True
+
+
+def attach_pair_chunks(plan_source: Callable[[], "_compiled.ChunkPlan"], pair: Any) -> PairChunks | None:
+    """The fused chunks for the engine whose plans `plan_source` gives, or None."""
+    if not enabled() or not chunk_eligible(plan_source(), pair):
+        return None
+    return PairChunks(plan_source, pair)
