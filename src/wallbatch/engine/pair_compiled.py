@@ -13,6 +13,14 @@ atoms within reach (minimum image in periodic dims). Each pair is listed once. T
 CSR form: the partners j of atom owner[s] are neigh[first[s]:first[s+1]]; the order is fixed by
 the positions alone (cell order, then atom index), and atoms near in space are near in the list.
 
+Fused chunks (`pair_chunk`, driven by `PairChunks`, attached by the engine when compiled.py's
+own chunks decline because of the pair): a whole chunk of steps of one case in one call, the
+step of engine.Engine.step (kick, drift, wrap, list check and rebuild, force clear, pair forces,
+flat soft faces and wall/region fixes with compiled.py's kernels, lost atoms, kick, wall/flow with
+compiled.py's `_flow_step`), so no Python runs between steps. It calls the very kernels of the
+per-step compiled path, so both give the same bits; trouble hands the chunk back to NumPy. Not
+fused: wall/reflect, dt/reset, thermostats and other fixes, wall/lepton faces, time-based runs.
+
 All kernels are `@njit(cache=True)` without fastmath (results are reproducible) and take
 C-contiguous arrays (float64 positions, int32/int64 lists, bool flags: one compiled signature each).
 """
