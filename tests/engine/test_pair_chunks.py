@@ -181,10 +181,14 @@ def test_list_grows_inside_the_chunk(monkeypatch):
     np.testing.assert_array_equal(a.pair.case_builds, b.pair.case_builds)
 
 
-def test_reflect_walls_stay_on_the_stepwise_path(monkeypatch):
-    """What the fused chunk does not run (here wall/reflect) keeps the per-step path."""
+@pytest.mark.parametrize("what", ["reflect", "langevin"])
+def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
+    """What the fused chunk does not run (wall/reflect, thermostats) keeps the per-step path."""
     d = slit()
-    d["walls"] = {"r": {"style": "reflect", "units": "box", "zlo": "EDGE", "zhi": "EDGE"}}
+    if what == "reflect":
+        d["walls"] = {"r": {"style": "reflect", "units": "box", "zlo": "EDGE", "zhi": "EDGE"}}
+    else:
+        d["fixes"] = {"a": "fix a all nve", "b": "fix b all langevin 2.0 2.0 0.5 48279"}
     monkeypatch.setenv("WALLBATCH_NUMBA", "1")
     eng = Engine(cases_of(d))
     assert eng.fast is None and eng.pair.compiled

@@ -463,8 +463,9 @@ if njit is not None:
 def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     """Whether `PairChunks` runs this plan: pair lj/cut on its compiled path with what the chunk
     kernels of compiled.py run (flat soft walls of the registry's compiled styles, wall/region,
-    one wall/flow), without wall/reflect, dt/reset, wall/lepton faces or anything else."""
-    if njit is None or plan.others != ("pair",) or plan.reflect or plan.dt_reset is not None:
+    one wall/flow), without wall/reflect, dt/reset, `fixes:` (thermostats, enforce2d), wall/lepton
+    faces or anything else."""
+    if njit is None or plan.others != ("pair",) or plan.reflect or plan.dt_reset is not None or plan.ensemble is not None:
         return False
     if not pair.compiled or pair.ncases != plan.state.ncases:
         return False
