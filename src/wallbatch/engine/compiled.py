@@ -923,9 +923,10 @@ if njit is not None:
                         stepwise -= 1
                     if time_mode:
                         new_base = dt[c] if dt[c] != sdt else base
-                        now = atime[c] + (step[c] - atimestep[c]) * dt[c]
-                        atime[c] = target if landing else now
-                        atimestep[c] = step[c]
+                        if landing or new_base != dt[c]:  # at a fixed dt: time = atime + n dt (no sum)
+                            now = atime[c] + (step[c] - atimestep[c]) * dt[c]
+                            atime[c] = target if landing else now
+                            atimestep[c] = step[c]
                         dt[c] = new_base
                         if landing:
                             break

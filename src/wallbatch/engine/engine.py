@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from wallbatch.engine.asphere_compiled import attach_asphere_path
 from wallbatch.engine.compiled import ChunkPlan, attach_fast_path
 from wallbatch.engine.dt_reset import dt_candidate
 from wallbatch.engine.ensemble import Ensemble
@@ -73,7 +74,8 @@ class Engine:
         self.frames: list[tuple] = []  # (rows, time, x, v) per dump instant
         self.samples: list[dict[str, np.ndarray]] = []  # per sample: name -> (C_total, ...) arrays
         self.sample_rows: list[np.ndarray] = []
-        # the compiled path (compiled.py) runs only scenes without pair, ees, wall/region/ees, ellipsoids
+        # the compiled path (compiled.py) runs only scenes without pair, ees, wall/region/ees, ellipsoids;
+        # asphere_compiled.py runs ellipsoids between wall/ees faces
         self.pair = None  # pair.PairLJCut
         if c0.pair is not None:
             self.pair = PairLJCut(np.array([c.pair.epsilon for c in cases]), np.array([c.pair.sigma for c in cases]),
@@ -90,8 +92,9 @@ class Engine:
         # fixes: integrator groups, thermostats, 2-D (None: fix nve on all atoms, 3-D)
         self.ensemble = Ensemble(cases, self.state) if Ensemble.needed(c0) else None
         self.profiles = ProfileSampler(cases) if c0.profiles else None  # output.profiles
-        # compiled chunks of steps, or None (compiled.eligible: which scenes and fixes)
-        self.fast = attach_fast_path(self.compiled_plan)
+        # compiled chunks of steps, or None (compiled.eligible: which scenes and fixes; ellipsoids
+        # between wall/ees faces: asphere_compiled.eligible)
+        self.fast = attach_fast_path(self.compiled_plan) or attach_asphere_path(self.compiled_plan)
         if self.fast is None and self.pair is not None:  # pair scenes: fused chunks (pair_compiled.py)
             self.fast = attach_pair_chunks(self.compiled_plan, self.pair)
 
@@ -376,10 +379,13 @@ class Engine:
             done_after = ~np.any(active & ~landing)
             s.set_dt(step_dt)
             out = self.step(s.dt, outputs=done_after, active=active.astype(np.int64))
-            # land exactly, then restore the dt in force (dt/reset may have changed it)
+            # land exactly, then restore the dt in force (dt/reset may have changed it). The time
+            # accumulator closes only where the run lands or dt changes: at a fixed dt the time is
+            # atime + n dt from the step count, as in step-based runs, not a sum of n additions
             new_base = np.where(s.dt != step_dt, s.dt, base)
-            s.atime = np.where(landing, target, s.time)
-            s.atimestep = s.step.copy()
+            close = landing | (new_base != s.dt)
+            s.atime = np.where(landing, target, np.where(close, s.time, s.atime))
+            s.atimestep = np.where(close, s.step, s.atimestep)
             s.dt = new_base
             self.finish_step(out, sample=done_after)
             if done_after:

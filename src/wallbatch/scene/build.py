@@ -5,9 +5,11 @@ masses, radii and initial velocities.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import warnings
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +46,28 @@ from wallbatch.units import LATTICE_CELL, LATTICE_POSITIONS, LATTICES_2D, UNIT_S
 
 def _fail(path: str, msg: str) -> CaseError:
     return CaseError(f"{path}: {msg}")
+
+
+def _fail_at(cfg: Config, path: str, msg: str) -> CaseError:
+    """A CaseError at the config field `path` (dotted), with the config's file:line:col when the
+    config came from a file."""
+    srcmap = getattr(cfg, "_srcmap", None)
+    if srcmap is not None:
+        loc = tuple(int(p) if p.isdigit() else p for p in path.split("."))
+        with contextlib.suppress(Exception):
+            return CaseError(srcmap.format(loc, msg))
+    return _fail(path, msg)
+
+
+def _check_finite_rows(cfg: Config, path: str, file: Path, name: str, arr: np.ndarray) -> None:
+    """Every value of an atoms-file array finite: else name the file, the array and the atom."""
+    if arr.size == 0:
+        return
+    bad = ~np.isfinite(arr.reshape(len(arr), -1)).all(axis=1)
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        raise _fail_at(cfg, path, f"{file}: array {name} has a non-finite value (inf or nan) at row {i} "
+                                  f"(atom {i + 1} of the file): {str(arr[i].tolist())[:200]}")
 
 
 # ----------------------------------------------------------------------------- atoms
@@ -134,7 +158,7 @@ def _data_file_atoms(cfg: Config, g: Any, file: Path, path: str) -> dict[str, np
     try:
         df = read_data_file(file, periodic=periodic)
     except DataFileError as exc:
-        raise _fail(f"{path}.file", str(exc)) from None
+        raise _fail_at(cfg, f"{path}.file", str(exc)) from None
     select = None
     if g.create.ids is not None:
         select = select_ids(df.ids, g.create.ids)
@@ -195,16 +219,29 @@ def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]
         else:
             file = Path(c.file)
             file = file if file.is_absolute() else cfg._base_dir / file
+            where = f"{path}.create.file"
             if not _is_npz(file):  # a LAMMPS data file (any name: data.NAME, NAME.data, ...)
                 data = _data_file_atoms(cfg, g, file, f"{path}.create")
             else:
                 try:
-                    with np.load(file) as npz:
+                    with np.load(file, allow_pickle=False) as npz:
                         data = {k: np.asarray(npz[k], float) for k in npz.files}
-                except (OSError, ValueError) as exc:
-                    raise _fail(f"{path}.create.file", f"cannot read {file}: {exc}") from None
+                except (OSError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+                    raise _fail_at(cfg, where, f"cannot read {file} as a NumPy .npz archive: "
+                                               f"{str(exc)[:200] or type(exc).__name__}") from None
             if "x" not in data or data["x"].ndim != 2 or data["x"].shape[1] != 3:
-                raise _fail(f"{path}.create.file", f"{file} needs an array x of shape (N, 3)")
+                got = f"shape {data['x'].shape}" if "x" in data else f"arrays {sorted(data)[:10]}"
+                raise _fail_at(cfg, where, f"{file} needs an array x of shape (N, 3), got {got}")
+            nfile = len(data["x"])  # 0 is allowed: a group may be empty (a scene with no atoms fails)
+            for key, width in (("x", 3), ("v", 3), ("mass", 0), ("radius", 0), ("shape", 3), ("quat", 4),
+                               ("angmom", 3)):
+                if key not in data:
+                    continue
+                want = (nfile, width) if width else (nfile,)
+                if data[key].shape != want:
+                    raise _fail_at(cfg, where, f"{file}: array {key} has shape {data[key].shape}, expected {want} "
+                                               f"(one row per atom of x)")
+                _check_finite_rows(cfg, where, file, key, data[key])
             x = data["x"]
         n = len(x)
         for key, given in (("mass", g.mass), ("radius", g.radius)):
