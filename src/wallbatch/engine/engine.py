@@ -31,6 +31,7 @@ from wallbatch.engine.ensemble import Ensemble
 from wallbatch.engine.flow import FlowKernel
 from wallbatch.engine.minimize import minimize
 from wallbatch.engine.pair import PairLJCut
+from wallbatch.engine.pair_compiled import attach_pair_chunks
 from wallbatch.engine.profiles import ProfileSampler
 from wallbatch.engine.state import BatchState
 from wallbatch.engine.walls import build_kernels, build_region_kernels
@@ -94,6 +95,8 @@ class Engine:
         # compiled chunks of steps, or None (compiled.eligible: which scenes and fixes; ellipsoids
         # between wall/ees faces: asphere_compiled.eligible)
         self.fast = attach_fast_path(self.compiled_plan) or attach_asphere_path(self.compiled_plan)
+        if self.fast is None and self.pair is not None:  # pair scenes: fused chunks (pair_compiled.py)
+            self.fast = attach_pair_chunks(self.compiled_plan, self.pair)
 
     def compiled_plan(self) -> ChunkPlan:
         """What the compiled path would run now: the flat walls, reflect walls and dt/reset with

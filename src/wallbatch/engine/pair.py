@@ -24,14 +24,17 @@ atoms sums the runs of equal i (pairs are sorted by i) with `np.add.reduceat` an
 with `np.bincount` (for 156k pairs: 1 ms, against 2 ms with six `np.bincount` and 12 ms with
 `np.add.at`); work arrays are reused between steps.
 
-Compiled path (pair_numba.py; the default when numba imports and WALLBATCH_NUMBA is not "0",
+Compiled path (pair_compiled.py; the default when numba imports and WALLBATCH_NUMBA is not "0",
 `compiled=False` forces NumPy): the same per-case rebuild decisions, a cell-list build per case
-(the same pairs, each once, in cell order; CSR rows in (C, ...) arrays) and one fused pass over
-all cases that accumulates forces, energy and virial without temporaries. Each pair's values
-come from the NumPy path's operations in the same order; only the order of the sums differs, so
-the paths agree to rounding (tests: <= 1e-13 relative to the case's force, energy and virial
-scales). Each case is still computed alone, so its numbers never depend on its batch. For N = 4000
-at density 0.8 (135k pairs): force pass ~0.8 ms, build ~1.3 ms (NumPy: ~2 ms and ~20-30 ms).
+(the same pairs, each once, in cell order; CSR rows in (C, ...) arrays) and a force pass per case
+that gathers each row's separations into contiguous buffers, computes the pair terms in one
+vectorised loop and adds them in list order. Each pair's values come from the NumPy path's
+operations in the same order; only the order of the sums differs, so the paths agree to rounding
+(tests: <= 1e-13 relative to the case's force, energy and virial scales). Each case is still
+computed alone, so its numbers never depend on its batch. For N = 4000 at density 0.8 (137k
+pairs): force pass ~0.7 ms, build ~2 ms. Scenes whose other fixes the chunk kernels run (flat
+soft walls, wall/region, one wall/flow) run whole chunks of steps in one compiled call per case
+(pair_compiled.PairChunks), with the same bits as this path step by step.
 """
 
 from __future__ import annotations

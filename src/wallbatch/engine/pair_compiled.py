@@ -13,15 +13,29 @@ atoms within reach (minimum image in periodic dims). Each pair is listed once. T
 CSR form: the partners j of atom owner[s] are neigh[first[s]:first[s+1]]; the order is fixed by
 the positions alone (cell order, then atom index), and atoms near in space are near in the list.
 
+Fused chunks (`pair_chunk`, driven by `PairChunks`, attached by the engine when compiled.py's
+own chunks decline because of the pair): a whole chunk of steps of one case in one call, the
+step of engine.Engine.step (kick, drift, wrap, list check and rebuild, force clear, pair forces,
+flat soft faces and wall/region fixes with compiled.py's kernels, lost atoms, kick, wall/flow with
+compiled.py's `_flow_step`), so no Python runs between steps. It calls the very kernels of the
+per-step compiled path, so both give the same bits; trouble hands the chunk back to NumPy. Not
+fused: wall/reflect, dt/reset, thermostats and other fixes, wall/lepton faces, time-based runs.
+
 All kernels are `@njit(cache=True)` without fastmath (results are reproducible) and take
 C-contiguous arrays (float64 positions, int32/int64 lists, bool flags: one compiled signature each).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import os
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
+
+from wallbatch.engine import compiled as _compiled
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
@@ -205,60 +219,375 @@ if njit is not None:
         first[N] = m
         return m
 
+    @njit(nogil=True, error_model="numpy", inline="always")
+    def _pair_terms(n, gx, gy, gz, tx, ty, tz, e24, s2c, rcut2, inv0, inv1, inv2, L0, L1, L2):
+        """fpair d of n pairs from their raw separations g = x_i - x_j (contiguous buffers, no
+        indirect access: the loop vectorises): the minimum image, then the NumPy path's operations
+        (module docstring of `forces`), into t."""
+        for k in range(n):
+            d0 = gx[k]
+            d0 -= np.rint(d0 * inv0) * L0
+            d1 = gy[k]
+            d1 -= np.rint(d1 * inv1) * L1
+            d2 = gz[k]
+            d2 -= np.rint(d2 * inv2) * L2
+            r2 = d0 * d0 + d1 * d1 + d2 * d2
+            inside = 1.0 if r2 < rcut2 else 0.0
+            t = s2c / r2
+            s6 = t * t * t
+            fpair = (s6 * 2.0 - 1.0) * s6 * e24 / r2 * inside
+            tx[k] = fpair * d0
+            ty[k] = fpair * d1
+            tz[k] = fpair * d2
+
+    @jit
+    def forces_case(xc: np.ndarray, fc: np.ndarray, ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, e24: float,
+                    s2c: float, rcut2: float, length: np.ndarray, periodic: np.ndarray) -> None:
+        """Add the pair forces of one case (positions xc (N, 3), half list ow/fr/nc) into fc (N, 3).
+
+        Per row s of the list (atom i = ow[s]), three passes: gather the separations x_i - x_j
+        into contiguous buffers, compute fpair d for all of them in one vectorised loop
+        (`_pair_terms`), then add them in list order: F_i += sum (one sum, added at the end of the
+        row) and F_j -= each. The additions are the ones of a single fused loop in the same order,
+        so the bits do not depend on the split."""
+        inv0 = 1.0 / length[0] if periodic[0] else 0.0
+        inv1 = 1.0 / length[1] if periodic[1] else 0.0
+        inv2 = 1.0 / length[2] if periodic[2] else 0.0
+        L0, L1, L2 = length[0], length[1], length[2]
+        nrow = len(ow)
+        most = 0
+        for s in range(nrow):
+            most = max(most, fr[s + 1] - fr[s])
+        buf = np.empty((6, most))
+        gx, gy, gz, tx, ty, tz = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]
+        for s in range(nrow):
+            i = ow[s]
+            xi0, xi1, xi2 = xc[i, 0], xc[i, 1], xc[i, 2]
+            k0 = fr[s]
+            n = fr[s + 1] - k0
+            for k in range(n):
+                j = nc[k0 + k]
+                gx[k] = xi0 - xc[j, 0]
+                gy[k] = xi1 - xc[j, 1]
+                gz[k] = xi2 - xc[j, 2]
+            _pair_terms(n, gx, gy, gz, tx, ty, tz, e24, s2c, rcut2, inv0, inv1, inv2, L0, L1, L2)
+            fi0, fi1, fi2 = 0.0, 0.0, 0.0
+            for k in range(n):
+                j = nc[k0 + k]
+                a, b, c = tx[k], ty[k], tz[k]
+                fi0 += a
+                fi1 += b
+                fi2 += c
+                fc[j, 0] -= a
+                fc[j, 1] -= b
+                fc[j, 2] -= c
+            fc[i, 0] += fi0
+            fc[i, 1] += fi1
+            fc[i, 2] += fi2
+
+    @jit
+    def outputs_case(xc: np.ndarray, ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, e24: float, e4: float,
+                     s2c: float, rcut2: float, off: float, length: np.ndarray, periodic: np.ndarray
+                     ) -> tuple[float, float]:
+        """Energy (shifted by off per pair inside rc) and virial sum fpair r^2 of one case, summed
+        over the list in order (the per-pair values of `_pair_terms`)."""
+        inv0 = 1.0 / length[0] if periodic[0] else 0.0
+        inv1 = 1.0 / length[1] if periodic[1] else 0.0
+        inv2 = 1.0 / length[2] if periodic[2] else 0.0
+        L0, L1, L2 = length[0], length[1], length[2]
+        esum, wsum = 0.0, 0.0
+        for s in range(len(ow)):
+            i = ow[s]
+            for q in range(fr[s], fr[s + 1]):
+                j = nc[q]
+                d0 = xc[i, 0] - xc[j, 0]
+                d0 -= np.rint(d0 * inv0) * L0
+                d1 = xc[i, 1] - xc[j, 1]
+                d1 -= np.rint(d1 * inv1) * L1
+                d2 = xc[i, 2] - xc[j, 2]
+                d2 -= np.rint(d2 * inv2) * L2
+                r2 = d0 * d0 + d1 * d1 + d2 * d2
+                inside = 1.0 if r2 < rcut2 else 0.0
+                t = s2c / r2
+                s6 = t * t * t
+                fpair = (s6 * 2.0 - 1.0) * s6 * e24 / r2 * inside
+                esum += ((s6 - 1.0) * s6 * e4 - off) * inside
+                wsum += fpair * r2
+        return esum, wsum
+
     @jit
     def forces(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray,
                eps: np.ndarray, sig2: np.ndarray, rc2: np.ndarray, offset: np.ndarray, length: np.ndarray,
                periodic: np.ndarray, bad: np.ndarray, outputs: bool, energy: np.ndarray,
                virial: np.ndarray) -> None:
-        """Add the pair forces of every case that is not bad into f (C, N, 3); with outputs, also
-        energy[c] (shifted by offset[c] per pair inside rc) and virial[c] = sum fpair r^2.
+        """Add the pair forces of every case that is not bad into f (C, N, 3) (`forces_case`); with
+        outputs, also energy[c] (shifted by offset[c] per pair inside rc) and virial[c] = sum
+        fpair r^2 (`outputs_case`).
 
         Per pair, the NumPy path's operations: d = x_i - x_j, d -= rint(d (1/L)) L in periodic
         dims (bad cases are skipped, so d is finite), r2, s6 = ((sig2/r2)^2)(sig2/r2),
         fpair = (((2 s6) - 1) s6)(24 eps)/r2, times (r2 < rc2): computed for every listed pair,
         then zeroed outside rc (no branch).
         """
-        C = x.shape[0]
-        # fixed dims: 1/L replaced by 0, so d - rint(d * 0) L = d exactly (finite d): no branch
-        inv0 = 1.0 / length[0] if periodic[0] else 0.0
-        inv1 = 1.0 / length[1] if periodic[1] else 0.0
-        inv2 = 1.0 / length[2] if periodic[2] else 0.0
-        L0, L1, L2 = length[0], length[1], length[2]
-        for c in range(C):
+        for c in range(x.shape[0]):
             if bad[c]:
                 continue
-            e24, e4, s2c, rcut2, off = 24.0 * eps[c], 4.0 * eps[c], sig2[c], rc2[c], offset[c]
-            xc, fc, nc, fr, ow = x[c], f[c], neigh[c], first[c], owner[c]
-            esum, wsum = 0.0, 0.0
-            for s in range(len(ow)):
-                i = ow[s]
-                xi0, xi1, xi2 = xc[i, 0], xc[i, 1], xc[i, 2]
-                fi0, fi1, fi2 = 0.0, 0.0, 0.0
-                for q in range(fr[s], fr[s + 1]):
-                    j = nc[q]
-                    d0 = xi0 - xc[j, 0]
-                    d0 -= np.rint(d0 * inv0) * L0
-                    d1 = xi1 - xc[j, 1]
-                    d1 -= np.rint(d1 * inv1) * L1
-                    d2 = xi2 - xc[j, 2]
-                    d2 -= np.rint(d2 * inv2) * L2
-                    r2 = d0 * d0 + d1 * d1 + d2 * d2
-                    inside = 1.0 if r2 < rcut2 else 0.0
-                    t = s2c / r2
-                    s6 = t * t * t
-                    fpair = (s6 * 2.0 - 1.0) * s6 * e24 / r2 * inside
-                    fi0 += fpair * d0
-                    fi1 += fpair * d1
-                    fi2 += fpair * d2
-                    fc[j, 0] -= fpair * d0
-                    fc[j, 1] -= fpair * d1
-                    fc[j, 2] -= fpair * d2
-                    if outputs:
-                        esum += ((s6 - 1.0) * s6 * e4 - off) * inside
-                        wsum += fpair * r2
-                fc[i, 0] += fi0
-                fc[i, 1] += fi1
-                fc[i, 2] += fi2
+            forces_case(x[c], f[c], owner[c], first[c], neigh[c], 24.0 * eps[c], sig2[c], rc2[c], length, periodic)
             if outputs:
-                energy[c] = esum
-                virial[c] = wsum
+                energy[c], virial[c] = outputs_case(x[c], owner[c], first[c], neigh[c], 24.0 * eps[c], 4.0 * eps[c],
+                                                    sig2[c], rc2[c], offset[c], length, periodic)
+
+
+# ----------------------------------------------------------------------------- fused pair chunks
+# Whole chunks of steps of a pair scene in one compiled call per case (PairChunks below): the step
+# of engine.Engine.step with the pair forces of `forces_case` and the wall forces of the chunk
+# kernels of engine/compiled.py (the registry's compiled functions, imported, not copied).
+
+if njit is not None:
+    import hashlib
+    import inspect
+
+    from wallbatch.engine.compiled import BLOCK, _flow_step, _region_walls, _soft_face
+
+    @jit
+    def _moved(xc: np.ndarray, xref: np.ndarray, length: np.ndarray, periodic: np.ndarray, limit2: float) -> bool:
+        """Some atom of one case moved more than sqrt(limit2) since xref (`moved_cases`)."""
+        for i in range(xc.shape[0]):
+            d2 = 0.0
+            for k in range(3):
+                d = xc[i, k] - xref[i, k]
+                if periodic[k]:
+                    d -= length[k] * np.rint(d / length[k])
+                d2 += d * d
+            if not d2 <= limit2:
+                return True
+        return False
+
+    def _make_pair_chunk(fingerprint: int):
+        """The fused chunk kernel; `fingerprint` joins its on-disk cache key (numba keys a cached
+        function by its own file: the wall kernels come from compiled.py and the styles)."""
+
+        @jit
+        def pair_chunk(nsteps, x, v, f, mass, radius, dt, ftm2v, lo, hi, box_per, length, pair_per, reach,
+                       limit2, e24, s2c, rcut2, xref, owner, first, neigh, sf_meta, sf_val, groups, rg_meta,
+                       rg_geo, rg_val, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng):
+            """Advance one case (x, v, f: (N, 3), written in place) by nsteps velocity-Verlet steps
+            of engine.Engine.step: v += dtfm f, x += dt v; periodic wrap; the pair list rebuilt
+            (`build_case`) when an atom moved more than skin/2 since xref; f = 0, pair forces
+            (`forces_case`), soft flat faces and wall/region fixes (compiled.py's kernels), lost
+            atoms; v += dtfm f; wall/flow (fl_int[0] != 0). Returns (status, builds, neigh):
+            status 0, 1 (an atom on/behind a wall), 2 (a lost atom) or 3 (a non-finite value; the
+            caller then hands the chunk back to NumPy); neigh is a longer array when the list grew."""
+            if nsteps == -fingerprint:  # never: ties the on-disk cache to the wall kernels
+                return 5, 0, neigh
+            N = x.shape[0]
+            X, V, F = x.T, v.T, f.T  # (3, N) views: the wall kernels' layout
+            hdt = (0.5 * ftm2v) * dt
+            dtfm = np.empty(N)
+            for a in range(N):
+                dtfm[a] = hdt / mass[a]
+            vary = sf_val.shape[0] > 1
+            RB = np.empty((6, 5, BLOCK))
+            CI = np.empty(N if fl_int[0] != 0 else 0, np.int64)
+            DIR = np.empty(N if fl_int[0] != 0 else 0)
+            builds = 0
+            for step in range(nsteps):
+                si = step if vary else 0
+                for a in range(N):  # initial_integrate
+                    for d in range(3):
+                        va = v[a, d] + dtfm[a] * f[a, d]
+                        v[a, d] = va
+                        x[a, d] = x[a, d] + dt * va
+                for d in range(3):  # periodic wrap
+                    if box_per[d]:
+                        lod, hid = lo[d], hi[d]
+                        L = hid - lod
+                        for a in range(N):
+                            xa = x[a, d]
+                            xa = xa - L if xa >= hid else xa
+                            x[a, d] = xa + L if xa < lod else xa
+                if _moved(x, xref, length, pair_per, limit2):  # neighbor list (check yes)
+                    for a in range(N):
+                        for d in range(3):
+                            if not math.isfinite(x[a, d]):
+                                return 3, builds, neigh
+                    m = build_case(x, lo, length, pair_per, reach, owner, first, neigh)
+                    while m < 0:
+                        neigh = np.empty(2 * len(neigh) + 4 * N, np.int32)
+                        m = build_case(x, lo, length, pair_per, reach, owner, first, neigh)
+                    xref[:] = x
+                    builds += 1
+                for a in range(N):  # force clear, pair forces
+                    for d in range(3):
+                        f[a, d] = 0.0
+                forces_case(x, f, owner, first, neigh, e24, s2c, rcut2, length, pair_per)
+                nbad = 0
+                for k in range(sf_meta.shape[0]):  # soft flat walls, fix order
+                    nbad += _soft_face(sf_meta[k, 0], sf_meta[k, 4], X, F, radius, groups, sf_meta[k, 3],
+                                       sf_meta[k, 1], sf_meta[k, 2], sf_val[si, k, 0], sf_val[si, k, 1],
+                                       sf_val[si, k, 2], sf_val[si, k, 3], sf_val[si, k, 4], sf_val[si, k, 5], 0, N)
+                if rg_meta.shape[0]:  # wall/region fixes, block by block
+                    for u0 in range(0, N, BLOCK):
+                        nbad += _region_walls(0, u0, min(u0 + BLOCK, N), X, F, radius, groups, rg_meta, rg_geo,
+                                              rg_val, RB)
+                if nbad:
+                    return 1, builds, neigh
+                for d in range(3):  # lost atoms
+                    if not box_per[d]:
+                        for a in range(N):
+                            if (x[a, d] < lo[d]) | (x[a, d] > hi[d]):
+                                return 2, builds, neigh
+                for a in range(N):  # final_integrate
+                    for d in range(3):
+                        v[a, d] = v[a, d] + dtfm[a] * f[a, d]
+                if fl_int[0] != 0:  # fix wall/flow (end_of_step)
+                    _flow_step(X, V, mass, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross,
+                               fl_rng, CI, DIR)
+            for a in range(N):
+                for d in range(3):
+                    if not (math.isfinite(x[a, d]) and math.isfinite(v[a, d])):
+                        return 3, builds, neigh
+            return 0, builds, neigh
+
+        return pair_chunk
+
+    def _chunk_fingerprint() -> int:
+        h = hashlib.sha256()
+        h.update(str(_compiled._fingerprint(_compiled.COMPILED_STYLES)).encode())
+        h.update(inspect.getsource(_compiled).encode())
+        return int(h.hexdigest()[:15], 16)
+
+    pair_chunk = _make_pair_chunk(_chunk_fingerprint())
+
+
+def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
+    """Whether `PairChunks` runs this plan: pair lj/cut on its compiled path with what the chunk
+    kernels of compiled.py run (flat soft walls of the registry's compiled styles, wall/region,
+    one wall/flow), without wall/reflect, dt/reset, `fixes:` (thermostats, enforce2d), wall/lepton
+    faces or anything else."""
+    if njit is None or plan.others != ("pair",) or plan.reflect or plan.dt_reset is not None or plan.ensemble is not None:
+        return False
+    if not pair.compiled or pair.ncases != plan.state.ncases:
+        return False
+    if not _compiled.eligible(dataclasses.replace(plan, others=())):
+        return False
+    for w in plan.soft:
+        for st in _compiled._face_styles(w):
+            if _compiled.STYLE_IDS.get(st.name) is None or _compiled.COMPILED_STYLES[_compiled.STYLE_IDS[st.name]] != st:
+                return False
+    return not any(w.style.needs_radius and not w._radius_checked for w in plan.region)
+
+
+class PairChunks:
+    """Engine.advance for pair scenes: each case's chunk of steps in one `pair_chunk` call, on
+    copies of its state that replace it when every case of the batch finished the chunk cleanly.
+    Anything the kernel meets (an atom on/behind a wall, a lost atom, a non-finite value) hands the
+    chunk back to the NumPy loop, which re-runs it from the same state (random streams restored)
+    and reports as always. On a sampled chunk the outputs come from the NumPy `compute_forces` at
+    the final positions (as compiled.FastPath). Step-based runs only; `advance_to_time` declines."""
+
+    def __init__(self, plan_source: Callable[[], "_compiled.ChunkPlan"], pair: Any):
+        self.plan_source = plan_source
+        self.pair = pair
+        self.compiled_chunks = 0
+        self.fallbacks = 0
+
+    def advance_to_time(self, target: float) -> bool:
+        return False
+
+    def advance(self, nsteps: int, sample: bool) -> bool:
+        """Run nsteps steps (and the sample of the last one); False: let the NumPy loop do it."""
+        plan = self.plan_source()
+        s, pair = plan.state, self.pair
+        if s.ncases == 0 or s.failed or nsteps <= 0 or not enabled() or not chunk_eligible(plan, pair):
+            return False
+        if pair._first is None or pair._xref is None or pair._xref.shape != s.x.shape or pair._bad.any():
+            return False
+        C, N = s.x.shape[:2]
+        varying = _compiled.FastPath._uses_time(plan)
+        nfaces = max(1, sum(len(w.faces) for w in plan.soft))
+        if varying and nsteps * nfaces * 6 * C > _compiled.VALUE_BUDGET:
+            return False
+        values = _compiled.FastPath._values(plan, nsteps if varying else 1, varying)
+        if values is None:
+            self.fallbacks += 1
+            return False
+        sf_val = np.ascontiguousarray(values[0])
+        groups: list[np.ndarray] = [np.ones(N, np.uint8)]
+
+        def group(mask: np.ndarray, all_atoms: bool) -> int:
+            if all_atoms:
+                return 0
+            groups.append(np.asarray(mask).astype(np.uint8))
+            return len(groups) - 1
+
+        sf_meta = np.array([[_compiled.STYLE_IDS[st.name], face.dim, face.side, group(w.group, w.all_atoms),
+                             w.cutoff.mode_id] for w in plan.soft
+                            for st, face in zip(_compiled._face_styles(w), w.faces)], np.int64).reshape(-1, 5)
+        rg_meta, rg_geo, rg_val = _compiled.FastPath._regions(plan, group)
+        groups_arr = np.stack(groups)
+        box_per = np.zeros(3, np.int64)
+        box_per[s.periodic] = 1
+        lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)
+        rc2 = pair.cutoff * pair.cutoff
+        fk = plan.flow[0] if plan.flow else None
+        if fk is not None:
+            rng_states = [r.bit_generator.state for r in fk.rngs]
+            phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
+            prev, cross = np.ascontiguousarray(fk.prev, dtype=float).copy(), np.zeros((C, 1))
+        done = []
+        for c in range(C):
+            x, v, f = s.x[c].copy(), s.v[c].copy(), s.f[c].copy()
+            xref, owner, first = pair._xref[c].copy(), pair._owner[c].copy(), pair._first[c].copy()
+            neigh = pair._neigh[c].copy()
+            if fk is None:
+                fl = _compiled._NO_FLOW
+            else:
+                fl = (np.array([1, fk.axis[c], int(fk.exact[c])], np.int64),
+                      np.array([fk.lo[c], fk.length[c], fk.vflow[c], fk.kT[c]]),
+                      np.ascontiguousarray(fk.walls[c][np.isfinite(fk.walls[c])]), fk.group[c].astype(np.uint8),
+                      phys[c], pend[c], prev[c], cross[c], fk.rngs[c])
+            status, builds, neigh = pair_chunk(
+                int(nsteps), x, v, f, np.ascontiguousarray(s.mass[c], dtype=float),
+                np.ascontiguousarray(s.radius[c], dtype=float), float(s.dt[c]), float(s.units.ftm2v), lo, hi, box_per,
+                pair.length, pair.periodic, float(pair.cutoff[c] + pair.skin), (0.5 * pair.skin) ** 2,
+                24.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2), float(rc2[c]), xref, owner, first, neigh,
+                sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl)
+            if status != 0:
+                if fk is not None:  # the NumPy loop re-runs the chunk with the same random numbers
+                    for r, st in zip(fk.rngs, rng_states):
+                        r.bit_generator.state = st
+                self.fallbacks += 1
+                return False
+            done.append((x, v, f, xref, owner, first, neigh, builds))
+        for c, (x, v, f, xref, owner, first, neigh, builds) in enumerate(done):
+            s.x[c], s.v[c], s.f[c] = x, v, f
+            pair._xref[c], pair._owner[c], pair._first[c] = xref, owner, first
+            if len(neigh) > pair._neigh.shape[1]:
+                pair._grow(len(neigh))
+            pair._neigh[c, :len(neigh)] = neigh
+            pair.builds += builds
+            pair.case_builds[c] += builds
+        s.step += nsteps
+        s.ctx = None
+        s.var_step = {}
+        if fk is not None:
+            fk.phys, fk.pend, fk.prev = phys.astype(np.intp), pend.astype(np.int8), prev
+            fk.crossings += cross[:, 0]
+        self.compiled_chunks += 1
+        out: dict = {}
+        if sample:
+            forces = s.f.copy()
+            out = plan.compute_outputs()
+            s.f[...] = forces
+            s.ctx = None
+            s.var_step = {}
+        plan.finish_step(out, sample)
+        return True
+
+
+def attach_pair_chunks(plan_source: Callable[[], "_compiled.ChunkPlan"], pair: Any) -> PairChunks | None:
+    """The fused chunks for the engine whose plans `plan_source` gives, or None."""
+    if not enabled() or not chunk_eligible(plan_source(), pair):
+        return None
+    return PairChunks(plan_source, pair)

@@ -1,0 +1,195 @@
+"""Fused pair chunks (wallbatch.engine.pair_compiled.PairChunks): whole chunks of steps of a
+pair lj/cut scene in one compiled call per case. The per-step compiled pair path (the engine with
+the fused chunks switched off) runs the same kernels step by step from Python, so every sampled
+output must be the same bits; the NumPy engine (WALLBATCH_NUMBA=0) agrees to rounding. Each test
+checks that the fused chunks really ran (or handed a chunk back), so a silent fallback cannot pass.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import wallbatch.engine.engine as engine_mod
+from wallbatch.config.models import config_from_dict
+from wallbatch.engine import pair_compiled
+from wallbatch.engine.engine import Engine
+from wallbatch.engine.pair_compiled import PairChunks
+from wallbatch.scene.build import build_case
+from wallbatch.scene.case import structure_key
+
+pytestmark = pytest.mark.skipif(pair_compiled.njit is None, reason="numba not importable")
+
+WALL = ["EDGE", 1.0, 1.0, 2.5]
+
+
+def slit(eps: float = 1.0, *, steps: int = 40, thermo: int = 10, temperature: float = 2.0) -> dict:
+    """An fcc LJ liquid melting between two lj93 walls (x, y periodic, z fixed): ~290 atoms."""
+    return {
+        "name": "lj-slit", "units": "lj", "seed": 3, "lattice": {"style": "fcc", "scale": 0.8},
+        "box": {"lo": [0, 0, 0], "hi": [6.84, 6.84, 8.0], "boundary": ["p", "p", "f"]},
+        "regions": {"pore": {"style": "block", "lo": [0, 0, 1.0], "hi": [6.8, 6.8, 7.0], "units": "box"}},
+        "atoms": [{"group": "liquid", "create": {"lattice": {"region": "pore"}}, "mass": 1.0,
+                   "velocity": {"temperature": temperature}}],
+        "pair": {"style": "lj/cut", "epsilon": eps, "sigma": 1.0, "cutoff": 2.5, "shift": True},
+        "walls": {"pore": {"style": "lj93", "units": "box", "energy": True, "virial": True,
+                           "zlo": list(WALL), "zhi": list(WALL)}},
+        "timestep": 0.005, "run": {"steps": steps, "thermo": thermo},
+        "output": {"thermo": ["step", "temp", "pe", "etot", "press"]},
+    }
+
+
+def flow_fluid(rule: str = "lammps") -> dict:
+    """An LJ fluid in a periodic box with three wall/flow walls across x (~150 atoms)."""
+    return {
+        "name": "flow-lj", "units": "lj", "seed": 593894,
+        "box": {"lo": [0, 0, 0], "hi": [10, 6, 6], "boundary": ["p", "p", "p"]},
+        "atoms": [{"group": "fluid", "create": {"random": {"count": 150, "overlap": 0.9}}, "mass": 1.0,
+                   "velocity": {"temperature": 1.5}}],
+        "pair": {"style": "lj/cut", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
+        "walls": {"fl": {"style": "flow", "axis": "x", "vflow": 0.4, "temperature": 1.5, "seed": 7,
+                         "coords": [2.5, 5.0, 7.5], "units": "box", "rule": rule}},
+        "timestep": 0.002, "run": {"steps": 150, "thermo": 50},
+    }
+
+
+def sphere_cavity() -> dict:
+    """An LJ fluid in a closed box held by a wall/region lj93 sphere, plus a flat lj126 floor."""
+    return {
+        "name": "lj-cavity", "units": "lj", "seed": 11,
+        "box": {"lo": [0, 0, 0], "hi": [12, 12, 12], "boundary": ["f", "f", "f"]},
+        "regions": {"R": {"style": "sphere", "center": [6, 6, 6], "radius": 5.5, "units": "box"},
+                    "start": {"style": "sphere", "center": [6, 6, 6], "radius": 4.0, "units": "box"}},
+        "atoms": [{"group": "fluid", "create": {"random": {"count": 120, "region": "start", "overlap": 0.9}},
+                   "mass": 1.0, "velocity": {"temperature": 2.0}}],
+        "pair": {"style": "lj/cut", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5, "shift": True},
+        "walls": {"rw": {"style": "region", "region": "R", "potential": "lj93", "epsilon": 1.0, "sigma": 1.0,
+                         "cutoff": 2.5},
+                  "floor": {"style": "lj126", "units": "box", "energy": True, "zlo": [0.0, 1.0, 1.0, 2.5]}},
+        "timestep": 0.004, "run": {"steps": 200, "thermo": 40},
+        "output": {"thermo": ["step", "pe", "etot"]},
+    }
+
+
+def cases_of(*configs: dict) -> list:
+    cases = [build_case(config_from_dict(d)) for d in configs]
+    assert len({structure_key(c) for c in cases}) == 1  # one batch, as run_cases would make it
+    return cases
+
+
+def run_fused_and_stepwise(monkeypatch, cases):
+    """(fused results, fused engine, per-step compiled results, per-step engine)."""
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    fused = Engine(cases)
+    assert isinstance(fused.fast, PairChunks)
+    got = fused.run()
+    with monkeypatch.context() as m:
+        m.setattr(engine_mod, "attach_pair_chunks", lambda *a: None)
+        step = Engine(cases)
+        assert step.fast is None and step.pair.compiled
+        ref = step.run()
+    return got, fused, ref, step
+
+
+def assert_bits(got, ref):
+    assert [r.status for r in got] == [r.status for r in ref]
+    assert [r.error for r in got] == [r.error for r in ref]
+    for a, b in zip(got, ref):
+        assert a.data.keys() == b.data.keys()
+        for name in a.data:
+            np.testing.assert_array_equal(a.data[name], b.data[name], err_msg=name)
+
+
+def test_slit_batch_same_bits_as_stepwise(monkeypatch):
+    """Two cases (different eps) melting between lj93 walls with energy and virial: fused chunks
+    give the per-step compiled path's bits, with the same neighbor-list builds per case."""
+    cases = cases_of(slit(1.0), slit(1.3))
+    got, fused, ref, step = run_fused_and_stepwise(monkeypatch, cases)
+    assert_bits(got, ref)
+    assert fused.fast.compiled_chunks == 4 and fused.fast.fallbacks == 0
+    np.testing.assert_array_equal(fused.pair.case_builds, step.pair.case_builds)
+    assert fused.pair.case_builds.min() >= 3  # the lists were rebuilt inside the chunks
+    assert np.ptp(got[0].data["pe"]) > 1.0 and got[0].data["pe"][-1] != got[1].data["pe"][-1]
+
+
+def test_slit_agrees_with_numpy(monkeypatch):
+    """The fused chunks against the NumPy engine: rounding differences only (1e-10 over 40 steps)."""
+    cases = cases_of(slit())
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    eng = Engine(cases)
+    got = eng.run()
+    assert eng.fast.compiled_chunks == 4
+    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
+    ref = Engine(cases).run()
+    for key in ("temp", "pe", "etot", "press"):
+        np.testing.assert_allclose(got[0].data[key], ref[0].data[key], rtol=1e-10, atol=0, err_msg=key)
+
+
+@pytest.mark.parametrize("rule", ["lammps", "exact"])
+def test_flow_walls_same_bits_as_stepwise(monkeypatch, rule):
+    """wall/flow with pair forces: the same redraws from the same generator streams (the chunk
+    runs compiled.py's flow step), so the same crossings and the same bits."""
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(flow_fluid(rule)))
+    assert_bits(got, ref)
+    assert fused.fast.compiled_chunks == 3 and fused.fast.fallbacks == 0
+    assert got[0].data["flow_crossings"][1:].min() >= 3  # atoms did cross the walls
+
+
+def test_region_and_flat_walls_same_bits_as_stepwise(monkeypatch):
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(sphere_cavity()))
+    assert_bits(got, ref)
+    assert fused.fast.compiled_chunks == 5
+    assert np.abs(got[0].data["region_force"][1:]).max() > 0  # the cavity wall acted
+
+
+def test_trouble_hands_the_chunk_back(monkeypatch):
+    """An atom shot through the lower wall: the fused chunk hands the chunk back, the NumPy loop
+    reports the per-step path's message; the other case of the batch runs to the end."""
+    bad = slit(steps=30)
+    bad["atoms"].append({"group": "bullet", "create": {"positions": [[3.4, 3.4, 0.9]]}, "mass": 1.0,
+                         "velocity": {"values": [[0.0, 0.0, -400.0]]}})
+    good = slit(steps=30)
+    good["atoms"].append({"group": "bullet", "create": {"positions": [[3.4, 3.4, 0.9]]}, "mass": 1.0,
+                          "velocity": {"values": [[0.0, 0.0, 0.0]]}})
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(bad, good))
+    assert_bits(got, ref)
+    assert got[0].status == "failed" and got[1].status == "ok"
+    assert fused.fast.fallbacks >= 1 and fused.fast.compiled_chunks >= 1
+
+
+def test_list_grows_inside_the_chunk(monkeypatch):
+    """A pair list storage too short for the next build: the kernel grows it and the run keeps
+    the per-step path's bits (which grows it in Python)."""
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    cases = cases_of(slit(steps=20, thermo=20))
+    engines = []
+    for fused in (True, False):
+        with monkeypatch.context() as m:
+            if not fused:
+                m.setattr(engine_mod, "attach_pair_chunks", lambda *a: None)
+            eng = Engine(cases)
+        eng.setup()
+        eng.pair._neigh = eng.pair._neigh[:, :16].copy()  # room for 16 pairs
+        eng.pair._xref = eng.pair._xref + 1.0  # every atom "moved": rebuild on the first step
+        eng.advance(20)
+        engines.append(eng)
+    a, b = engines
+    assert isinstance(a.fast, PairChunks) and a.fast.compiled_chunks == 1 and b.fast is None
+    assert a.pair._neigh.shape[1] > 1000 and a.pair.npairs == b.pair.npairs
+    np.testing.assert_array_equal(a.state.x, b.state.x)
+    np.testing.assert_array_equal(a.state.v, b.state.v)
+    np.testing.assert_array_equal(a.pair.case_builds, b.pair.case_builds)
+
+
+@pytest.mark.parametrize("what", ["reflect", "langevin"])
+def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
+    """What the fused chunk does not run (wall/reflect, thermostats) keeps the per-step path."""
+    d = slit()
+    if what == "reflect":
+        d["walls"] = {"r": {"style": "reflect", "units": "box", "zlo": "EDGE", "zhi": "EDGE"}}
+    else:
+        d["fixes"] = {"a": "fix a all nve", "b": "fix b all langevin 2.0 2.0 0.5 48279"}
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    eng = Engine(cases_of(d))
+    assert eng.fast is None and eng.pair.compiled
+    assert eng.run()[0].status == "ok"
