@@ -47,6 +47,11 @@ from typing import Any, Callable
 
 import numpy as np
 
+# One core for wallbatch as for LAMMPS (serial) in every row but the two-core rows, which set their
+# own; before wallbatch (and numba) is imported. Override by setting WALLBATCH_THREADS yourself.
+if __name__ == "__main__":  # not when imported (tests, the threads row's child)
+    os.environ.setdefault("WALLBATCH_THREADS", "1")
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
@@ -466,7 +471,8 @@ def first_run() -> dict:
 @row("jobs2-64cases", at_least(1.8, "x --jobs 1"))
 def jobs2() -> dict:
     """`wallbatch run` of a 64-case sweep (8 x 8 epsilon, sigma of the lj93 gas slit, N = 1000),
-    `--jobs 2` against `--jobs 1`, each a new process (warm), interleaved, best of two each."""
+    `--jobs 2` against `--jobs 1`, each a new process (warm, WALLBATCH_THREADS=1), interleaved, best
+    of two each."""
     n = 1000
     steps = scaled(6.4e8, 64 * n, 100)
     cfg = gas_slit(n, "lj93", steps=steps, thermo=max(1, steps // 10))
@@ -477,10 +483,11 @@ def jobs2() -> dict:
         work = Path(tmp)
         write_yaml(work / "sweep.yaml", cfg)
         base = WB + ["run", "sweep.yaml", "-o", "sweep.nc", "--force"]
+        env = dict(os.environ, WALLBATCH_THREADS="1")  # processes only: one thread each
         runs: dict[int, list[float]] = {1: [], 2: []}
         for _ in range(2):  # interleaved, best of two each: the machine's load moves between runs
             for j in (1, 2):
-                runs[j].append(measured(base + ["-j", str(j)], work)[0])
+                runs[j].append(measured(base + ["-j", str(j)], work, env)[0])
         one, two = min(runs[1]), min(runs[2])
     return {"scene": "64-case sweep, `--jobs 2` vs `--jobs 1` (new processes)", "N": n, "steps": steps,
             "wb": f"{two:.1f} s (-j 1: {one:.1f} s)", "lmp": "n/a (no sweep driver)", "value": one / two,
@@ -638,7 +645,8 @@ def header(started: str, clock: str) -> str:
     except (OSError, StopIteration):
         pass
     return (f"Run {started}, {cpu}, {os.cpu_count()} cores, load average at the end {load}; wallbatch compiled "
-            f"path {common.numba_state()}, LAMMPS {lmp}; {clock} clock, one measurement per cell, scale {SCALE:g}.")
+            f"path {common.numba_state()}, WALLBATCH_THREADS={os.environ.get('WALLBATCH_THREADS')} (but the two-core "
+            f"rows), LAMMPS {lmp} serial (but threads-1e6); {clock} clock, one measurement per cell, scale {SCALE:g}.")
 
 
 def behind(results: dict[str, dict]) -> list[str]:
