@@ -659,7 +659,8 @@ def behind(results: dict[str, dict]) -> list[str]:
     out = []
     for scene, items in groups.items():
         names = ", ".join(k for k, _, _ in items)
-        sizes = " / ".join((f"{r['ratio']:.2f}x" if r.get("ratio") else r.get("wb", "n/a"))
+        vs_lammps = ROWS[items[0][0]].target.text.endswith("x LAMMPS")  # else: show what the target reads
+        sizes = " / ".join((f"{r['ratio']:.2f}x" if vs_lammps and r.get("ratio") else r.get("wb", "n/a"))
                            + (f" (N = {r['N']:,})" if r.get("N") and len(items) > 1 else "") for _, r, _ in items)
         why = sorted({m for _, _, m in items})
         out.append(f"- {scene} [{names}]: {sizes}; target {ROWS[items[0][0]].target.text}: {', '.join(why)}")

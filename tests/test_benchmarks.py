@@ -89,7 +89,7 @@ def test_readme_section_is_replaced_between_its_markers_only(suite, tmp_path):
     readme.write_text(f"# top\n\n{suite.README_BEGIN}\nold table\n{suite.README_END}\n\nbottom\n")
     fake = {"gas-lj93-1000": {"scene": "gas", "N": 1000, "steps": 10, "wb": "0.1 s", "lmp": "0.3 s", "ratio": 3.0,
                               "value": 3.0},
-            "threads-1e6": {"scene": "big", "N": 10**6, "steps": 10, "wb": "1 s", "value": 1.0}}
+            "threads-1e6": {"scene": "big", "N": 10**6, "steps": 10, "wb": "1 s", "value": 1.0, "ratio": 3.0}}
     suite.write_readme(readme, "Run HEAD", fake)
     text = readme.read_text()
     assert text.startswith("# top\n\n") and text.endswith("\n\nbottom\n") and "old table" not in text
