@@ -16,8 +16,9 @@ The table has the columns scene, N, steps, wallbatch, LAMMPS, ratio, target, met
   (`check yes`, the export's every-step rebuild dropped), through its Python module, serially;
   only its `run` command is timed.
 * End-to-end rows run `wallbatch run` (and LAMMPS's `lmp`) as a new process each: wall seconds
-  and the peak resident memory of that process (os.wait4), warm (kernels in numba's cache) unless
-  the row says cold.
+  and the peak resident memory of that process (GNU time), warm (kernels in numba's cache) unless
+  the row says cold. wallbatch runs on one thread (WALLBATCH_THREADS=1 unless set) like serial
+  LAMMPS, except in the two-core rows (`--jobs 2`, two threads against `mpiexec -np 2`).
 * Rows whose wallbatch path is not compiled yet still run (NumPy path) and say so; when a faster
   path lands (compiled thermostats or ellipsoids, threads via WALLBATCH_THREADS, outputs inside
   the chunk), the same rows pick it up.
@@ -357,6 +358,34 @@ def lepton_row() -> dict:
         out["ratio"] = out["lmp_s"] / t_lep
     out["lmp"] = _secs(out.get("lmp_s"))
     return out
+
+
+@row("lepton-compiled-vs-builtin", Target("lepton time <= 1.5 x built-in", lambda r: r["value"] <= 1.5), "issue 19")
+def lepton_compiled_row() -> dict:
+    """As `lepton-vs-builtin`, with the expression's kernel forced on (WALLBATCH_LEPTON_COMPILED=
+    always); its one-time compile in this process (a short run first) is not timed, but shown."""
+    n = 10000
+    steps = scaled(2e7, n)
+    base = gas_slit(n, "lj93", steps=steps, thermo=max(1, steps // 10))
+    lep = lepton_slit(n, steps=steps, thermo=max(1, steps // 10))
+    saved = os.environ.get("WALLBATCH_LEPTON_COMPILED")
+    os.environ["WALLBATCH_LEPTON_COMPILED"] = "always"
+    try:
+        engine_run(build(_short(base)))
+        t0 = time.perf_counter()
+        engine_run(build(_short(lep)))  # generates and compiles the expression's chunk kernel
+        compile_s = time.perf_counter() - t0
+        t_builtin, _, _ = engine_run(build(base))
+        t_lep, _, path = engine_run(build(lep))
+    finally:
+        if saved is None:
+            os.environ.pop("WALLBATCH_LEPTON_COMPILED", None)
+        else:
+            os.environ["WALLBATCH_LEPTON_COMPILED"] = saved
+    return {"scene": "wall/lepton lj93, kernel forced on (compile not timed) vs built-in", "N": n, "steps": steps,
+            "wb_s": t_lep, "wb": f"{t_lep:.2f} s (built-in {t_builtin:.2f} s)", "path": path, "lmp": "n/a",
+            "value": t_lep / t_builtin,
+            "note": f"lepton/built-in {t_lep / t_builtin:.2f}; one-time compile {compile_s:.0f} s per process"}
 
 
 # ----------------------------------------------------------------------------- rows: sampling every step
