@@ -89,7 +89,7 @@ class Engine:
         # fixes: integrator groups, thermostats, 2-D (None: fix nve on all atoms, 3-D)
         self.ensemble = Ensemble(cases, self.state) if Ensemble.needed(c0) else None
         self.profiles = ProfileSampler(cases) if c0.profiles else None  # output.profiles
-        # compiled chunks of steps, or None; scenes with fixes: beyond nve on all run on NumPy
+        # compiled chunks of steps, or None (compiled.eligible: which scenes and fixes)
         self.fast = attach_fast_path(self.compiled_plan)
 
     def compiled_plan(self) -> ChunkPlan:
@@ -98,15 +98,14 @@ class Engine:
         s = self.state
         others = tuple(name for name, present in (
             ("pair", self.pair is not None),
-            ("ellipsoids", s.quat is not None or s.angmom is not None or s.torque is not None),
-            ("fixes", self.ensemble is not None)) if present)
+            ("ellipsoids", s.quat is not None or s.angmom is not None or s.torque is not None)) if present)
         dtr = None
         if self.dt_reset is not None:
             dtr = np.stack([self.dtr_xmax, self.dtr_emax, self.dtr_tmin, self.dtr_tmax], axis=1)
         return ChunkPlan(state=s, soft=tuple(self.soft), reflect=tuple(self.reflect), dt_reset=self.dt_reset,
                          dt_reset_params=dtr, others=others, compute_outputs=lambda: self.compute_forces(True),
                          finish_step=self.finish_step, advance_numpy=self.advance_numpy,
-                         region=tuple(self.region_walls), flow=tuple(self.flow))
+                         region=tuple(self.region_walls), flow=tuple(self.flow), ensemble=self.ensemble)
 
     # -- the step ----------------------------------------------------------------------------
 

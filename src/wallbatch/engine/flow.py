@@ -33,9 +33,7 @@ consumes random numbers, so a run is bit-reproducible from the generators' state
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import erfc, erfcx, expit
 
-from wallbatch.engine import flow_compiled
 from wallbatch.scene.case import FlowSpec
 from wallbatch.units import UnitSystem
 
@@ -54,6 +52,7 @@ def _one_minus_r(y: np.ndarray) -> np.ndarray:
     60 levels (40 from y = 3, 20 from y = 5) give full double precision (checked against mpmath
     in the tests).
     """
+    from scipy.special import erfcx  # lazy: scipy.special costs ~0.35 s of import, only flow walls use it
     y = np.asarray(y, float)
     out = np.empty_like(y)
     small = y < 2.0
@@ -80,6 +79,7 @@ def log_tail(nu: np.ndarray, delta: np.ndarray) -> np.ndarray:
     δ < 0 (y >= |δ|):   -y² + ln(q(y) + (ν/y)(1 - q(y))) - ln 2, with q = 1 - √π y erfcx(y),
                         since 1 - |δ| √π erfcx(y) = q + (ν/y)(1 - q) with both terms >= 0.
     """
+    from scipy.special import erfc, erfcx  # lazy (see _one_minus_r)
     nu, delta = np.broadcast_arrays(np.asarray(nu, float), np.asarray(delta, float))
     y = nu - delta
     out = np.empty_like(y)
@@ -100,6 +100,7 @@ def positive_fraction(delta: np.ndarray) -> np.ndarray:
     """P+ = probability that the drawn perpendicular velocity is positive, for δ = γ vflow >= 0:
     T(0; δ) / (T(0; δ) + T(0; -δ)) (= (1 + δ/E)/2 of §8.3, E = exp(-δ²)/√π + δ erf δ), computed
     as a logistic of the log ratio so that it is exactly 1, not NaN, for large δ."""
+    from scipy.special import expit  # lazy (see _one_minus_r)
     delta = np.asarray(delta, float)
     return expit(log_tail(0.0, delta) - log_tail(0.0, -delta))
 
@@ -181,6 +182,7 @@ def _velocities(u1: np.ndarray, u2: np.ndarray, g: np.ndarray, gamma: np.ndarray
     """§8.3 from given random numbers: side from u1 (backward if u1 > P+), speed from
     T(ν)/T(0) = 1 - u2 (in (0, 1]), parallel components g/(γ√2) = N(0,1) sqrt(kT/m).
     Compiled (flow_compiled.velocities) unless WALLBATCH_NUMBA=0; this NumPy code is the reference."""
+    from wallbatch.engine import flow_compiled  # lazy: numba + scipy.special, only for flow walls
     gamma = np.broadcast_to(np.asarray(gamma, float), u1.shape)
     if flow_compiled.enabled():  # the same arithmetic per redraw, compiled (flow_compiled.py)
         v_axis, v_par = np.empty(u1.shape), np.empty((u1.size, 2))
@@ -367,6 +369,7 @@ class FlowKernel:
           turned round in front of the wall, i.e. re-entered its segment: crossing in -pend.
         After a redraw under rule exact, pend = -d if the new v_axis points back (v_axis * d < 0).
         """
+        from wallbatch.engine import flow_compiled  # lazy (see _velocities)
         if self.phys is None:
             raise RuntimeError(f"walls.{self.fix_id}: FlowKernel.setup(x) must run before end_of_step")
         if flow_compiled.enabled():
@@ -411,6 +414,7 @@ class FlowKernel:
     def _end_of_step_compiled(self, x: np.ndarray, v: np.ndarray, mass: np.ndarray) -> None:
         """end_of_step with the detection and the redraws compiled (flow_compiled.detect, apply);
         the random numbers drawn here as in the NumPy code (per case, `_draw`, same order)."""
+        from wallbatch.engine import flow_compiled  # lazy (see _velocities)
         C, N = x.shape[0], x.shape[1]
         seg = np.empty((C, N), np.intp)
         xa = np.empty((C, N))

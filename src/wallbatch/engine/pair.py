@@ -37,7 +37,6 @@ at density 0.8 (135k pairs): force pass ~0.8 ms, build ~1.3 ms (NumPy: ~2 ms and
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from wallbatch.engine import pair_compiled as pair_numba
 
@@ -158,6 +157,8 @@ class PairLJCut:
                 boxsize[k] = top + 2.0 * reach + 1.0
                 if boxsize[k] <= top:  # reach lost to rounding (an atom at 1e60): 1 ulp is > reach
                     boxsize[k] = np.nextafter(top, np.inf)
+        from scipy.spatial import cKDTree  # lazy: ~0.2 s of import, only for the NumPy pair path
+
         pairs = cKDTree(p, boxsize=boxsize).query_pairs(reach, output_type="ndarray")
         key = np.sort(pairs[:, 0].astype(np.int64) * len(pos) + pairs[:, 1])  # by i, then j
         self._pairs[c] = np.stack(np.divmod(key, len(pos)), axis=1)
