@@ -302,13 +302,13 @@ KINDS: list[tuple[str, str, Callable[..., dict], float]] = [  # (row prefix, sce
     ("region-cylinder", "wall/region lj93 cylinder", lambda n, **k: region_gas(n, "cylinder", **k), 1e7),
     ("region-ees", "ellipsoids in a wall/region/ees sphere", region_ees, 2e6),
     ("flow-gas", "wall/flow ideal gas (4 walls)", flow_gas, 1e7),
-    ("thermostat-langevin", "gas slit lj93 + fix langevin", lambda n, **k: thermostat_slit(n, "langevin", **k), 5e6),
-    ("thermostat-nvt", "gas slit lj93 + fix nvt", lambda n, **k: thermostat_slit(n, "nvt", **k), 5e6),
+    ("thermostat-langevin", "gas slit lj93 + fix langevin", lambda n, **k: thermostat_slit(n, "langevin", **k), 1e7),
+    ("thermostat-nvt", "gas slit lj93 + fix nvt", lambda n, **k: thermostat_slit(n, "nvt", **k), 1e7),
     ("thermostat-berendsen", "gas slit lj93 + fix temp/berendsen",
-     lambda n, **k: thermostat_slit(n, "berendsen", **k), 5e6),
-    ("2d", "2-D gas channel lj93 (enforce2d)", gas_2d, 5e6),
-    ("table", "gas slit wall/table (spline 2000)", table_slit, 5e6),
-    ("stochastic", "gas slit wall/reflect/stochastic diffusive", stochastic_slit, 5e6),
+     lambda n, **k: thermostat_slit(n, "berendsen", **k), 1e7),
+    ("2d", "2-D gas channel lj93 (enforce2d)", gas_2d, 1e7),
+    ("table", "gas slit wall/table (spline 2000)", table_slit, 1e7),
+    ("stochastic", "gas slit wall/reflect/stochastic diffusive", stochastic_slit, 1e7),
 ]
 for _prefix, _scene, _make, _as in KINDS:
     for _n in (1000, 10000):
