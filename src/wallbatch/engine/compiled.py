@@ -35,7 +35,10 @@ wall/region fixes of compiled styles with constant parameters run in the kernel 
 per atom as RegionGeom.contacts lists them, the force the registry's function; `_region_contacts`).
 One wall/flow fix (step-based runs without dt/reset) runs in the kernel as well, one case per call
 with the case's own generator (`_flow_step`; numba's Generator draws NumPy's streams), step by
-step over all atoms. Anything else (pair forces, ees, wall/region/ees, ellipsoids, thermostats,
+step over all atoms. `fixes:` (nvt, langevin, temp/berendsen, temp/rescale, enforce2d;
+`fixes_eligible`) run in the kernel with engine/thermostats.py's functions (`_fix_pre`,
+`_fix_post_force`, `_fix_end`; step by step when a thermostat couples the atoms, one case per call
+with fix langevin's generator). Anything else (pair forces, ees, wall/region/ees, ellipsoids,
 several flow fixes) runs in NumPy. A chunk that
 meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a variable error or a
 negative variable parameter) leaves the state as it was at its start and is handed back to the
@@ -160,16 +163,6 @@ def _fingerprint(styles: tuple[WallStyle, ...]) -> int:
     return int(h.hexdigest()[:15], 16)
 
 
-def _self_recursive(fn: Callable) -> Any:
-    """A jitted copy of the plain recursive function `fn` whose recursive call is the jitted
-    function itself (numba compiles calls to dispatchers, not to plain functions)."""
-    namespace = dict(fn.__globals__)
-    out = types.FunctionType(fn.__code__, namespace, fn.__name__, fn.__defaults__, fn.__closure__)
-    disp = njit(nogil=True, error_model="numpy")(out)
-    namespace[fn.__name__] = disp
-    return disp
-
-
 if njit is not None:
     # error_model="numpy": x/0 gives inf/nan as in NumPy (no zero-division checks, so loops vectorise)
     jit = njit(cache=True, nogil=True, error_model="numpy")
@@ -179,6 +172,11 @@ if njit is not None:
     def _select_scalar(cond, a, b):  # noqa: ANN001, ANN202
         """dt_reset.select for scalars: a if cond else b (np.where's value, without an array)."""
         return lambda cond, a, b: a if cond else b
+
+    @overload(_th.libm_exp)
+    def _libm_exp(x):  # noqa: ANN001, ANN202
+        """thermostats.libm_exp for a scalar: math.exp (the C library's exp)."""
+        return lambda x: math.exp(x)
 
     @inline
     def _nmin(a: float, b: float) -> float:
@@ -411,7 +409,7 @@ if njit is not None:
     _th_berendsen = jit(_th.berendsen_factor)
     _th_rescale = jit(_th.rescale_factor)
     _th_nh = jit(_th.nh_half_step)
-    _th_pairwise = _self_recursive(_th.pairwise_sum)
+    _th_pairwise = jit(_th.pairwise_sum)
 
     @inline
     def _fix_post_force(u0, u1, V, F, groups, fxp):
@@ -453,7 +451,7 @@ if njit is not None:
                     V[d, i] = V[d, i] * factor
 
     @jit
-    def _fix_pre(c, stepn, dtc, V, M, groups, fx, rng, SQM, FR, KB, one):
+    def _fix_pre(c, stepn, dtc, V, M, groups, fx, rng, SQM, FR, KB):
         """Before the step's atoms move: fix nvt's first chain half step and velocity scaling
         (Ensemble.initial_integrate), and fix langevin's random forces of the step (the case's
         generator, drawn as rng.random((n_group, 3)) in Ensemble.post_force)."""
@@ -466,14 +464,10 @@ if njit is not None:
             g = fx_meta[k, 1]
             target = _th_ramped(fx_val[c, k, 0], fx_val[c, k, 1], frac)
             if kind == FIX_NVT:
-                one[0, 0] = target
-                one[0, 1] = dtc
                 tt[c] = target
-                total, tnew = _th_nh(eta[c:c + 1], ed[c:c + 1], edd[c:c + 1], Q[c:c + 1], tc[c:c + 1],
-                                     one[0, 0:1], tf[c:c + 1], fx_val[c, k, 5], boltz, fx_int[0], drag[c:c + 1],
-                                     one[0, 1:2])
-                tc[c] = tnew[0]
-                _scale_group(V, groups, g, total[0])
+                total, tc[c] = _th_nh(eta[c], ed[c], edd[c], Q[c], tc[c], target, tf[c], fx_val[c, k, 5], boltz,
+                                      fx_int[0], drag[c], dtc)
+                _scale_group(V, groups, g, total)
             elif kind == FIX_LANGEVIN:
                 amp = _th_amp(fx_val[c, k, 2], dtc, fx_f[1], fx_f[2], boltz)
                 st = np.sqrt(target)
@@ -513,7 +507,7 @@ if njit is not None:
         return 0
 
     @jit
-    def _fix_end(c, stepn, dtc, V, M, groups, fx, KB, FL, one):
+    def _fix_end(c, stepn, dtc, V, M, groups, fx, KB, FL):
         """After the step's final kick: fix nvt's second half step (Ensemble.final_integrate), then
         Ensemble.end_of_step: temp/berendsen, temp/rescale (every N), the Langevin tally. Returns 6
         when a rescaling fix meets a zero temperature (the NumPy loop reports it)."""
@@ -526,14 +520,10 @@ if njit is not None:
                 g = fx_meta[k, 1]
                 target = _th_ramped(fx_val[c, k, 0], fx_val[c, k, 1], frac)
                 tc[c] = _group_temperature(V, M, groups, g, fx_val[c, k, 5], mvv2e, boltz, KB)
-                one[0, 0] = target
-                one[0, 1] = dtc
                 tt[c] = target
-                total, tnew = _th_nh(eta[c:c + 1], ed[c:c + 1], edd[c:c + 1], Q[c:c + 1], tc[c:c + 1],
-                                     one[0, 0:1], tf[c:c + 1], fx_val[c, k, 5], boltz, fx_int[0], drag[c:c + 1],
-                                     one[0, 1:2])
-                tc[c] = tnew[0]
-                _scale_group(V, groups, g, total[0])
+                total, tc[c] = _th_nh(eta[c], ed[c], edd[c], Q[c], tc[c], target, tf[c], fx_val[c, k, 5], boltz,
+                                      fx_int[0], drag[c], dtc)
+                _scale_group(V, groups, g, total)
         for k in range(fx_meta.shape[0]):
             kind = fx_meta[k, 0]
             if kind != FIX_BERENDSEN and kind != FIX_RESCALE:
@@ -801,17 +791,19 @@ if njit is not None:
             fx_meta = fx[0]
             thermo = False
             langevin = -1
+            rescale_only = True  # temp/rescale alone: windows up to its next due step
             for k in range(fx_meta.shape[0]):
                 thermo = thermo or fx_meta[k, 0] != FIX_ENFORCE2D
                 if fx_meta[k, 0] == FIX_LANGEVIN:
                     langevin = k
+                if fx_meta[k, 0] != FIX_ENFORCE2D and fx_meta[k, 0] != FIX_RESCALE:
+                    rescale_only = False
             nfx = natom if fx_meta.shape[0] else 0
             SQM = np.empty(nfx)  # sqrt(m): the Langevin random force's per-atom factor
             G1 = np.empty(nfx)  # the Langevin drag per atom
             FR = np.zeros((3, nfx))  # this step's Langevin random forces
             FL = np.zeros((3, nfx))  # this step's Langevin forces (the tally's)
             KB = np.empty(nfx)  # per-atom terms of a sum over atoms
-            one = np.empty((1, 2))
             fxp = (fx_meta, G1, FR, FL)
             for c in range(ncase):
                 for a in range(natom):
@@ -842,10 +834,16 @@ if njit is not None:
                         break
                     # a window of nwin steps at one dt, block by block; or one step (time-based runs, and
                     # dt/reset while dt changes), which is a window of one step followed by its dt update
-                    window = not time_mode and (dtr_every == 0 or stepwise == 0) and fl_int[0] == 0 and not thermo
+                    window = (not time_mode and (dtr_every == 0 or stepwise == 0) and fl_int[0] == 0
+                              and (rescale_only or not thermo))
                     nwin = 1
                     if window:
                         nwin = nsteps - done if dtr_every == 0 else min(WINDOW, nsteps - done)
+                        if thermo:  # temp/rescale only (its atoms are coupled on due steps only)
+                            for k in range(fx_meta.shape[0]):
+                                if fx_meta[k, 0] == FIX_RESCALE:
+                                    every = fx_meta[k, 2]
+                                    nwin = min(nwin, every - step[c] % every)
                     if time_mode:
                         base = dt[c]
                         rem = target - now
@@ -871,7 +869,7 @@ if njit is not None:
                             rstat[s, k, 0] = 0.0
                             rstat[s, k, 1] = 0.0
                     if thermo:  # fix nvt's first half step, the Langevin random forces
-                        _fix_pre(c, step[c] + 1, dtc, V, M, groups, fx, fx_rng, SQM, FR, KB, one)
+                        _fix_pre(c, step[c] + 1, dtc, V, M, groups, fx, fx_rng, SQM, FR, KB)
                     for b in range(nblock):
                         u0 = np.uint64(b * BLOCK)  # unsigned: no negative-index wraparound, loops vectorise
                         u1 = np.uint64(min(b * BLOCK + BLOCK, natom))
@@ -885,7 +883,7 @@ if njit is not None:
                             if due:
                                 low[s] = _nmin(low[s], m)
                     if thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
-                        st = _fix_end(c, step[c] + 1, dtc, V, M, groups, fx, KB, FL, one)
+                        st = _fix_end(c, step[c] + nwin, dtc, V, M, groups, fx, KB, FL)
                         if st != 0:
                             return st
                     if fl_int[0] != 0:  # fix wall/flow (end_of_step)

@@ -26,6 +26,7 @@ sums (`pairwise_sum` is their order, for the compiled path), so both paths agree
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,36 +48,66 @@ def dot3(a0, a1, a2, b0, b1, b2):
 
 def pairwise_sum(a, lo, n):
     """sum(a[lo:lo + n]) in the order of NumPy's np.add.reduce over a contiguous float64 axis
-    (its pairwise summation: blocks of at most 128 values summed with 8 partial sums, halves of
-    longer runs summed separately), so a compiled loop reproduces `x.sum(axis=-1)` bit for bit."""
-    if n < 8:
-        res = 0.0
-        for i in range(lo, lo + n):
-            res += a[i]
-        return res
-    if n <= 128:
-        r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
-        r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
-        i = lo + 8
-        end8 = lo + n - n % 8
-        while i < end8:
-            r0 += a[i]
-            r1 += a[i + 1]
-            r2 += a[i + 2]
-            r3 += a[i + 3]
-            r4 += a[i + 4]
-            r5 += a[i + 5]
-            r6 += a[i + 6]
-            r7 += a[i + 7]
-            i += 8
-        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-        while i < lo + n:
-            res += a[i]
-            i += 1
-        return res
-    n2 = n // 2
-    n2 -= n2 % 8
-    return pairwise_sum(a, lo, n2) + pairwise_sum(a, lo + n2, n - n2)
+    (its pairwise summation: runs of at most 128 values summed with 8 partial sums, longer runs
+    split in two halves summed separately), so a compiled loop reproduces `x.sum(axis=-1)` bit for
+    bit. NumPy's recursion is written with an explicit stack (numba caches it that way)."""
+    slo = np.empty(64, np.int64)  # the recursion's frames: start, length, state, left half's sum
+    sn = np.empty(64, np.int64)
+    sst = np.empty(64, np.int64)
+    sval = np.empty(64)
+    top = 0
+    slo[0], sn[0], sst[0] = lo, n, 0
+    ret = 0.0
+    while top >= 0:
+        lo1, m, state = slo[top], sn[top], sst[top]
+        if m < 8:
+            ret = 0.0
+            for i in range(lo1, lo1 + m):
+                ret += a[i]
+            top -= 1
+        elif m <= 128:
+            r0, r1, r2, r3 = a[lo1], a[lo1 + 1], a[lo1 + 2], a[lo1 + 3]
+            r4, r5, r6, r7 = a[lo1 + 4], a[lo1 + 5], a[lo1 + 6], a[lo1 + 7]
+            i = lo1 + 8
+            end8 = lo1 + m - m % 8
+            while i < end8:
+                r0 += a[i]
+                r1 += a[i + 1]
+                r2 += a[i + 2]
+                r3 += a[i + 3]
+                r4 += a[i + 4]
+                r5 += a[i + 5]
+                r6 += a[i + 6]
+                r7 += a[i + 7]
+                i += 8
+            ret = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+            while i < lo1 + m:
+                ret += a[i]
+                i += 1
+            top -= 1
+        else:
+            n2 = m // 2
+            n2 -= n2 % 8
+            if state == 0:  # first the left half
+                sst[top] = 1
+                top += 1
+                slo[top], sn[top], sst[top] = lo1, n2, 0
+            elif state == 1:  # keep its sum, then the right half
+                sval[top] = ret
+                sst[top] = 2
+                top += 1
+                slo[top], sn[top], sst[top] = lo1 + n2, m - n2, 0
+            else:
+                ret = sval[top] + ret
+                top -= 1
+    return ret
+
+
+def libm_exp(x: np.ndarray) -> np.ndarray:
+    """exp of a 1-D array by the C library's exp (math.exp), not NumPy's SIMD exp, so the chain
+    agrees bit for bit with the compiled path (which calls math.exp); for the few values (C,) of
+    a chain step."""
+    return np.array([math.exp(v) for v in x.tolist()], dtype=float)
 
 
 def ramped(t_start, t_stop, fraction):
@@ -196,7 +227,7 @@ class NHChain:
         self.t_target = np.array(t_target, float)
         drag = np.broadcast_to(np.asarray(self.drag, float), self.t_current.shape)
         with np.errstate(divide="ignore", invalid="ignore"):
-            total, self.t_current = nh_half_step(self.eta, self.eta_dot, self.eta_dotdot, self.eta_mass,
+            total, self.t_current = nh_half_step(self.eta.T, self.eta_dot.T, self.eta_dotdot.T, self.eta_mass.T,
                                                  np.asarray(self.t_current, float), self.t_target, self.t_freq,
                                                  self.dof, self.boltz, self.tloop, drag, np.asarray(dt, float))
         return total
@@ -214,38 +245,40 @@ class NHChain:
 
 
 def nh_half_step(eta, ed, edd, Q, t_current, t_target, t_freq, dof, boltz, tloop, drag, dt):
-    """One half step dt/2 of C Nose-Hoover chains (NHChain.half_step; LAMMPS fix nvt's nhc_temp_integrate):
-    chain arrays (C, M) (ed: (C, M + 1)) updated in place, per-case values (C,) arrays. Returns
-    (velocity factor (C,), the new t_current (C,)). The masses Q follow t_target (NHChain._masses)."""
-    M = eta.shape[1]
+    """One half step dt/2 of Nose-Hoover chains (NHChain.half_step; LAMMPS fix nvt's
+    nhc_temp_integrate). The chain member is the FIRST index: eta, edd, Q (M, ...), ed (M + 1, ...);
+    the rest are per-case values: NumPy passes the (C, M) arrays transposed and (C,) values, the
+    compiled path one case's (M,) rows and scalars. Chain arrays are updated in place; returns
+    (velocity factor, the new t_current). The masses Q follow t_target (NHChain._masses)."""
+    M = eta.shape[0]
     w2 = t_freq * t_freq
-    Q[:, 0] = dof * boltz * t_target / w2
+    Q[0] = dof * boltz * t_target / w2
     for k in range(1, M):
-        Q[:, k] = boltz * t_target / w2
+        Q[k] = boltz * t_target / w2
     kt = boltz * t_target
     ke_target = dof * kt
     nc = 1.0 / tloop
     dt4, dt8, dthalf = 0.25 * dt, 0.125 * dt, 0.5 * dt
     drag = 1.0 - dt * t_freq * drag / tloop
-    edd[:, 0] = np.where(Q[:, 0] > 0, (dof * boltz * t_current - ke_target) / Q[:, 0], 0.0)
-    total = np.ones_like(t_current)
+    edd[0] = select(Q[0] > 0, (dof * boltz * t_current - ke_target) / Q[0], 0.0)
+    total = 1.0
     for _ in range(tloop):
         for k in range(M - 1, 0, -1):  # from the chain's end down to member 1
-            e = np.exp(-nc * dt8 * ed[:, k + 1])
-            ed[:, k] = (ed[:, k] * e + edd[:, k] * nc * dt4) * drag * e
-        e = np.exp(-nc * dt8 * ed[:, 1])
-        ed[:, 0] = (ed[:, 0] * e + edd[:, 0] * nc * dt4) * drag * e
-        factor = np.exp(-nc * dthalf * ed[:, 0])
+            e = libm_exp(-nc * dt8 * ed[k + 1])
+            ed[k] = (ed[k] * e + edd[k] * nc * dt4) * drag * e
+        e = libm_exp(-nc * dt8 * ed[1])
+        ed[0] = (ed[0] * e + edd[0] * nc * dt4) * drag * e
+        factor = libm_exp(-nc * dthalf * ed[0])
         total = total * factor
         t_current = t_current * factor * factor
-        edd[:, 0] = np.where(Q[:, 0] > 0, (dof * boltz * t_current - ke_target) / Q[:, 0], 0.0)
+        edd[0] = select(Q[0] > 0, (dof * boltz * t_current - ke_target) / Q[0], 0.0)
         for k in range(M):
-            eta[:, k] += (nc * dthalf) * ed[:, k]
-        ed[:, 0] = (ed[:, 0] * e + edd[:, 0] * nc * dt4) * e
+            eta[k] += (nc * dthalf) * ed[k]
+        ed[0] = (ed[0] * e + edd[0] * nc * dt4) * e
         for k in range(1, M):  # back up the chain
-            e = np.exp(-nc * dt8 * ed[:, k + 1])
-            edd[:, k] = (Q[:, k - 1] * ed[:, k - 1] ** 2 - kt) / Q[:, k]
-            ed[:, k] = (ed[:, k] * e + edd[:, k] * nc * dt4) * e
+            e = libm_exp(-nc * dt8 * ed[k + 1])
+            edd[k] = (Q[k - 1] * ed[k - 1] ** 2 - kt) / Q[k]
+            ed[k] = (ed[k] * e + edd[k] * nc * dt4) * e
     return total, t_current
 
 
