@@ -6,8 +6,8 @@ two lj93 faces written as the expression eps*(2/15*(sig/r)^9-(sig/r)^3).
 Rows (one process; wall-clock seconds of the engine run of one case):
   * built-in lj93, compiled path (its kernel loaded from numba's on-disk cache beforehand);
   * wall/lepton, compiled path: the kernel generated from the expression and inlined in the chunk
-    kernel (WALLBATCH_LEPTON_COMPILED=always); its one-time compile in this process is timed
-    apart (a short run before the timed one);
+    kernel (WALLBATCH_LEPTON_COMPILED=always); compiled the first time on a machine, then loaded
+    from the disk cache: timed apart (a short run before the timed one);
   * both on the NumPy path (WALLBATCH_NUMBA=0 equivalent: the engine without its fast path).
 
 `vs built-in` is the built-in compiled time over the row's time (1 = as fast).
@@ -68,7 +68,7 @@ def main() -> None:
     short["run"] = {"steps": 5, "thermo": 5}
     run(short, False)  # load the built-in kernel from the on-disk cache
     t0 = time.perf_counter()
-    run(lepton_scene(short), False)  # generate and compile the lepton chunk kernel
+    run(lepton_scene(short), False)  # generate and compile (or load from the disk cache) the lepton chunk kernel
     compile_s = time.perf_counter() - t0
     rows = []
     t_builtin, e = run(base, False)
@@ -80,8 +80,8 @@ def main() -> None:
     rows.append(("lj93 built-in", "numpy", run(base, True)[0]))
     rows.append(("lj93 as wall/lepton", "numpy", run(lep, True)[0]))
     atom_steps = args.n * args.steps
-    lines = [f"gas slit, N = {args.n}, {args.steps} steps ({atom_steps:.2g} atom-steps); lepton compile "
-             f"(once per process): {compile_s:.1f} s; numba {compiled.enabled()}",
+    lines = [f"gas slit, N = {args.n}, {args.steps} steps ({atom_steps:.2g} atom-steps); lepton "
+             f"kernel (compiled once per machine, then loaded): {compile_s:.1f} s; numba {compiled.enabled()}",
              "", "| wall | path | seconds | ns/atom-step | vs built-in |", "| --- | --- | --- | --- | --- |"]
     for name, path, secs in rows:
         lines.append(f"| {name} | {path} | {secs:.2f} | {secs / atom_steps * 1e9:.1f} | {t_builtin / secs:.2f} |")

@@ -91,9 +91,9 @@ def test_jobs_capped_by_cores(tmp_path, monkeypatch):
     seen = {}
     real = runner.execute
 
-    def spy(tasks, jobs, executor, scheduler):
+    def spy(tasks, jobs, executor, scheduler, plan=None):
         seen["jobs"], seen["tasks"] = jobs, len(tasks)
-        return real(tasks, jobs, executor, scheduler)
+        return real(tasks, jobs, executor, scheduler, plan=plan)
 
     monkeypatch.setattr(runner, "execute", spy)
     res = cli.invoke(app, ["run", str(path), "-o", str(tmp_path / "o.nc"), "--jobs", "64"])

@@ -333,3 +333,93 @@ def test_compiled_lepton_equals_numpy_bit_for_bit(monkeypatch):
     assert none is None and fast is not None and fast.compiled_chunks > 0 and fast.fallbacks == 0
     for key in ("etot", "wall_energy", "wall_force", "temp"):
         np.testing.assert_array_equal(compiled.data[key], numpy_res.data[key])
+
+
+def test_lepton_auto_policy_loads_a_cached_kernel_for_shorter_runs(tmp_path, monkeypatch):
+    """WALLBATCH_LEPTON_COMPILED=auto: a batch runs compiled from LEPTON_CACHED_MIN_ATOM_STEPS
+    atom-steps when its generated chunk kernel is on disk (marked after its first compile), and
+    from LEPTON_MIN_ATOM_STEPS when it would have to be compiled; always / never decide alone."""
+    from types import SimpleNamespace  # noqa: PLC0415
+
+    fast = pytest.importorskip("wallbatch.engine.compiled")
+    from wallbatch.styles.lepton import compile_expression, force_source  # noqa: PLC0415
+
+    monkeypatch.setenv("WALLBATCH_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("WALLBATCH_LEPTON_COMPILED", raising=False)
+    extra = (force_source(compile_expression("k*(r-rc)^2", ("k", "rc"))),)
+
+    def state(atoms: int, steps: int) -> SimpleNamespace:  # two cases, half the steps each
+        return SimpleNamespace(end_step=np.array([steps // 2, steps // 2]), step=np.zeros(2, np.int64),
+                               x=np.zeros((2, atoms, 3)))
+
+    cached_min, compile_min = fast.LEPTON_CACHED_MIN_ATOM_STEPS, fast.LEPTON_MIN_ATOM_STEPS
+    assert cached_min < compile_min
+    mid = state(1000, int(2 * cached_min / 1000))  # between the thresholds
+    assert not fast.lepton_compiled_wanted(mid, extra)
+    assert fast.lepton_compiled_wanted(state(1000, int(compile_min / 1000)), extra)
+    fast._mark_compiled(extra)
+    assert fast._compiled_marker(extra).exists()
+    assert fast.lepton_compiled_wanted(mid, extra)
+    assert not fast.lepton_compiled_wanted(state(1000, int(cached_min / 2000)), extra)
+    monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", "never")
+    assert not fast.lepton_compiled_wanted(state(1000, int(compile_min / 1000)), extra)
+    monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", "always")
+    assert fast.lepton_compiled_wanted(state(10, 10), extra)
+
+
+@pytest.mark.slow
+def test_lepton_chunk_kernel_is_loaded_from_disk_by_a_second_process(tmp_path):
+    """The chunk kernel generated for an expression wall is compiled by the first process and
+    loaded from numba's on-disk cache by the next (no compile), with the same trajectory bits."""
+    import json  # noqa: PLC0415
+    import os  # noqa: PLC0415
+    import subprocess  # noqa: PLC0415
+    import sys  # noqa: PLC0415
+
+    text = slit("w: {style: lepton, units: box, energy: true, zlo: {coord: EDGE, cutoff: 1.5, expression: "
+                "'k*(r-rc)^2', params: {k: 30.0, rc: 1.5}}}\n" + TOP, steps=200)
+    probe = ("import json, sys\n"
+             "from wallbatch.config.models import load_config_text\n"
+             "from wallbatch.engine import compiled\n"
+             "from wallbatch.engine.engine import Engine\n"
+             "from wallbatch.scene.build import build_case\n"
+             "engine = Engine([build_case(load_config_text(sys.stdin.read()))])\n"
+             "res = engine.run()[0]\n"
+             "assert res.status == 'ok' and engine.fast.compiled_chunks > 0 and engine.fast.fallbacks == 0\n"
+             "kernel = compiled._chunk_kernel(compiled._lepton_extra(engine.compiled_plan()))\n"
+             "print(json.dumps({'hits': sum(kernel.stats.cache_hits.values()),\n"
+             "                  'misses': sum(kernel.stats.cache_misses.values()),\n"
+             "                  'etot': res.data['etot'].tolist()}))\n")
+    env = {**os.environ, "WALLBATCH_CACHE_DIR": str(tmp_path), "WALLBATCH_LEPTON_COMPILED": "always",
+           "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
+    runs = [json.loads(subprocess.run([sys.executable, "-c", probe], input=text, capture_output=True, text=True,
+                                      env=env, timeout=1800, check=True).stdout) for _ in range(2)]
+    assert (runs[0]["hits"], runs[0]["misses"]) == (0, 1)  # compiled (and written to disk)
+    assert (runs[1]["hits"], runs[1]["misses"]) == (1, 0)  # loaded
+    assert runs[0]["etot"] == runs[1]["etot"]
+    assert list((tmp_path / "kernels").glob("lepton_chunk_*.compiled"))
+
+
+@pytest.mark.slow
+def test_compiled_tables_equal_numpy_bit_for_bit(tmp_path, monkeypatch):
+    """wall/table faces (a linear and a spline table) run in the compiled chunk kernel with the
+    force generated from each table (the same lookup functions, jitted): the trajectory and
+    outputs equal the NumPy engine's bit for bit."""
+    from wallbatch.engine.engine import Engine  # noqa: PLC0415
+
+    tab = lj93_tables(tmp_path, n=300)
+    text = slit(f"a: {{style: table, tabstyle: linear, N: 700, units: box, energy: true, "
+                f"zlo: {{coord: EDGE, file: {tab.name}, keyword: LJ93, cutoff: 2.5}}}}\n"
+                f"b: {{style: table, tabstyle: spline, N: 500, units: box, energy: true, "
+                f"zhi: {{coord: EDGE, file: {tab.name}, keyword: HARM, cutoff: 2.0}}}}\n", steps=300)
+    case = build_case(load_config(write(tmp_path, text)))
+    runs = {}
+    for mode in ("always", "never"):
+        monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", mode)
+        engine = Engine([case])
+        runs[mode] = (engine.run()[0], engine.fast)
+    (compiled, fast), (numpy_res, none) = runs["always"], runs["never"]
+    assert none is None and fast is not None and fast.compiled_chunks > 0 and fast.fallbacks == 0
+    assert np.all(numpy_res.data["wall_force"][1:] != 0.0)
+    for key in ("etot", "wall_energy", "wall_force", "temp"):
+        np.testing.assert_array_equal(compiled.data[key], numpy_res.data[key])

@@ -582,6 +582,36 @@ def test_time_based_run_with_dt_reset():
     assert np.all(ds.dt.values > 0.05) and np.all(ds.dt.values < 0.1)
 
 
+def test_time_based_run_clock_is_step_count_times_dt(monkeypatch):
+    """run: {time: T} at a fixed dt: the clock after n steps is n dt from the step count (as in
+    step-based runs), not n repeated additions of dt, which drift (0.7999999999999999 after 8
+    steps of 0.1; 1.6e-6 relative after 1e7 steps); the samples still land exactly on the
+    thermo times."""
+    from wallbatch.engine import compiled
+
+    monkeypatch.setattr(compiled, "enabled", lambda: False)  # the NumPy loop, step by step
+    d = scene([atoms("a", [(5, 5, 5)], [(0.01, 0.0, 0.0)])], boundary=("p", "p", "p"), timestep=0.1)
+    d["run"] = {"time": 400.05, "thermo": {"time": 200.0}}
+    seen: list[tuple[int, float]] = []
+    real = Engine.finish_step
+
+    def spy(self, out, sample):
+        real(self, out, sample)
+        seen.append((int(self.state.step[0]), float(self.state.time[0])))
+
+    monkeypatch.setattr(Engine, "finish_step", spy)
+    res = run_cases([build_case(config_from_dict(d))])[0]
+    assert res.status == "ok", res.error
+    assert res.data["time"].tolist() == [0.0, 200.0, 400.0, 400.05]
+    landings = {2000, 4000, 4001}
+    off = [(n, t) for n, t in seen if n not in landings and t != 200.0 * (n > 2000) + (n - 2000 * (n > 2000)) * 0.1]
+    assert not off, off[:3]
+    summed = 0.0
+    for _ in range(1999):
+        summed += 0.1
+    assert summed != 1999 * 0.1  # the repeated sum this replaces does drift
+
+
 # ----------------------------------------------------------------------------- batching
 
 

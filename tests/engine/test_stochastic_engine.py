@@ -60,6 +60,10 @@ def test_fix_line_and_mapping_give_the_same_case():
         ("  w: {style: reflect/stochastic, rstyle: diffusive, seed: 0, units: box, zlo: {coord: EDGE, temp: 1.0}}\n",
          "seed"),
         ('  w: "fix w all wall/reflect/stochastic diffusive 3 zlo EDGE 1.0 0 0"\n', "missing arguments for the zlo wall"),
+        ('  w: "fix w all wall/reflect/stochastic cercignanilampis 3 zlo EDGE 1.0 0 0 0 0.5 0.5 0.5"\n',
+         "LAMMPS spells the Cercignani-Lampis model ccl"),
+        ("  w: {style: reflect/stochastic, rstyle: cercignanilampis, seed: 3, units: box, zlo: {coord: EDGE, temp: 1.0, "
+         "accom: [0.5, 0.5, 0.5]}}\n", "rstyle"),
     ],
 )
 def test_errors_name_file_line_and_field(walls, needle):

@@ -347,3 +347,20 @@ def test_quirks_page_names_real_tests_and_every_section_13_quirk():
     section = text.split("## Quirk by quirk")[1].split("## ")[0]
     numbers = [int(m) for m in re.findall(r"^\| (\d+) \|", section, flags=re.MULTILINE)]
     assert numbers == list(range(1, 27))
+
+
+@requires_lammps
+@pytest.mark.lammps
+@pytest.mark.parametrize("rstyle", ["cercignanilampis", "CCL"])
+def test_stochastic_rstyle_is_spelled_ccl_in_lammps_too(rstyle):
+    """wall/reflect/stochastic: LAMMPS accepts only the short names diffusive, maxwell, ccl (not
+    the long cercignanilampis, nor upper case); wallbatch refuses the same words, with a hint."""
+    base = ["units lj", "boundary p p f", "region b block 0 5 0 5 0 5", "create_box 1 b", "mass 1 1.0",
+            "create_atoms 1 single 1 1 1"]
+    lammps_commands(base + ["fix 1 all wall/reflect/stochastic ccl 123 zlo EDGE 1.0 0 0 0 0.5 0.5 0.5",
+                            "run 0"]).close()
+    with pytest.raises(Exception, match="Illegal fix wall/reflect/stochastic"):
+        lammps_commands(base + [f"fix 1 all wall/reflect/stochastic {rstyle} 123 zlo EDGE 1.0 0 0 0 0.5 0.5 0.5"])
+    walls = {"w": f"fix w all wall/reflect/stochastic {rstyle} 123 zlo EDGE 1.0 0 0 0 0.5 0.5 0.5 units box"}
+    with pytest.raises(ConfigError, match="diffusive, maxwell or ccl"):
+        config_from_dict(scene([point([(5, 5, 5)])], walls, boundary=("p", "p", "f")))

@@ -324,3 +324,39 @@ def test_positional_kernels_bit_identical(text, params):
     e, f = expr.energy_force(rs, params)
     np.testing.assert_array_equal([force(x, *args, 2.5, 0.0) for x in rs], f)
     np.testing.assert_array_equal([energy(x, *args, 2.5, 0.0) for x in rs], e)
+
+
+def test_generated_module_is_a_file_numba_caches_across_processes(tmp_path, monkeypatch):
+    """styles.lepton.generated_module writes generated source once to a file keyed by its hash
+    (WALLBATCH_CACHE_DIR/kernels), so a function jitted from it with cache=True is cached on disk:
+    a second process loads it (a numba cache hit) and computes the same bits as NumPy."""
+    import subprocess  # noqa: PLC0415
+    import sys  # noqa: PLC0415
+    from pathlib import Path  # noqa: PLC0415
+
+    from numba import njit  # noqa: PLC0415
+
+    from wallbatch.styles.lepton import HELPERS_IMPORT, force_source, generated_module, generated_path  # noqa: PLC0415
+
+    monkeypatch.setenv("WALLBATCH_CACHE_DIR", str(tmp_path))
+    expr = compile_expression("eps*(2/15*(sig/r)^9-(sig/r)^3)+k*exp(-r)", ("eps", "sig", "k"))
+    source = HELPERS_IMPORT + force_source(expr, "force")
+    module = generated_module(source, "test")
+    path = Path(module.__file__)
+    assert path.parent == tmp_path / "kernels" and path == generated_path(source, "test")
+    assert path.read_text() == source and generated_module(source, "test") is module
+    assert generated_path(source + "\n", "test") != path  # another source, another file
+    force = njit(cache=True)(module.force)
+    rs = np.linspace(0.5, 2.5, 50)
+    want = expr.energy_force(rs, {"eps": 1.3, "sig": 0.9, "k": 2.0})[1]
+    np.testing.assert_array_equal([force(r, 1.3, 0.9, 2.0, 2.5, 0.0) for r in rs], want)
+    assert list((path.parent / "__pycache__").glob(f"{path.stem}.force-*.nbi"))
+    code = ("import sys; from numba import njit; from wallbatch.styles.lepton import generated_module; "
+            f"m = generated_module(open({str(path)!r}).read(), 'test'); f = njit(cache=True)(m.force); "
+            "v = f(1.1, 1.3, 0.9, 2.0, 2.5, 0.0); print(sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values()), repr(v))")
+    src_dir = Path(__file__).resolve().parents[2] / "src"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True,
+                          env={**__import__("os").environ, "PYTHONPATH": str(src_dir)})
+    hits, misses, value = proc.stdout.split()
+    assert (int(hits), int(misses)) == (1, 0), proc.stdout  # loaded from the first process's cache
+    assert float(value) == float(expr.energy_force(np.float64(1.1), {"eps": 1.3, "sig": 0.9, "k": 2.0})[1])

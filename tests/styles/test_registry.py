@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import re
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -32,9 +33,20 @@ CLOSED = sorted(n for n, s in STYLES.items() if s.force is not _missing)  # E(r)
 # ----------------------------------------------------------------------------- generic test values
 
 
+_EXAMPLES = tempfile.mkdtemp(prefix="wallbatch-registry-")  # files of the per-face styles' examples
+
+
+def wall_values(style: WallStyle) -> dict:
+    """The wall keys of a style's example (wall/table: tabstyle, N); {} for most styles."""
+    return style.example(_EXAMPLES)[0] if style.per_face else {}
+
+
 def values(style: WallStyle) -> dict[str, float]:
     """Parameter values for a style, from the unit kinds alone (so a new style needs no table):
-    energies 1.3, distances 0.9, cut-off 2.5, other kinds 2.0; a radius 0.5 when needed."""
+    energies 1.3, distances 0.9, cut-off 2.5, other kinds 2.0; a radius 0.5 when needed. A style
+    built per face (an expression, a table file) gives its own example face."""
+    if style.per_face:
+        return dict(style.example(_EXAMPLES)[1])
     p = {}
     for prm in style.parameters:
         if prm.name == "cutoff":
@@ -77,11 +89,17 @@ def test_entry_is_complete(name):
     assert style.positional == ("coord", *style.params)
     assert len(set(style.params)) == len(style.params)
     for prm in style.parameters:
-        assert prm.unit and (prm.doc or prm.name == "cutoff"), prm
+        assert (prm.unit or not prm.numeric) and (prm.doc or prm.name == "cutoff"), prm
     if style.compiled:
         assert style.force is not _missing and len(style.args_names) <= MAX_COMPILED_PARAMS
-    if style.shifted:
+    if style.shifted and not style.per_face:
         assert style.energy is not _missing
+    if style.per_face:  # its example face passes its checks and builds a style with a force
+        wall, face = style.example(_EXAMPLES)
+        assert style.check_face({"coord": 0.0, **face}, wall, _EXAMPLES) == []
+        face_style, params, _ = style.face_style({"coord": 0.0, **face}, wall, _EXAMPLES)
+        assert params["cutoff"] == face["cutoff"] and not face_style.per_face
+        assert np.isfinite(face_style.force(1.0, *face_style.args(params)))
 
 
 # ----------------------------------------------------------------------------- physics invariants
@@ -169,7 +187,8 @@ def _scene(style: WallStyle, zs: list[float]) -> dict:
         group["orientation"] = [1.0, 0.0, 0.0, 0.0]
     face = {"coord": 0.0, **{k: v for k, v in p.items() if k != "radius"}}
     return {"box": {"lo": [0, 0, 0], "hi": [4, 4, 8], "boundary": ["p", "p", "f"]}, "atoms": [group],
-            "walls": {"w": {"style": style.name, "units": "box", "energy": True, "zlo": face}},
+            "walls": {"w": {"style": style.name, "units": "box", "energy": True, **wall_values(style),
+                            "zlo": face}},
             "timestep": 0.001, "run": {"steps": 0}}
 
 
@@ -187,6 +206,9 @@ def test_no_force_past_the_cutoff(name):
     assert f[0, 2] != 0.0
     if style.force is not _missing:
         assert f[0, 2] == style.force(inside, *style.args(values(style)))
+    if style.per_face:  # the face's own style
+        face_style, params, _ = style.face_style({"coord": 0.0, **values(style)}, wall_values(style), _EXAMPLES)
+        assert f[0, 2] == face_style.force(inside, *face_style.args(params))
 
 
 # ----------------------------------------------------------------------------- what derives from an entry
@@ -198,7 +220,8 @@ def test_config_model_and_positional_form(name):
     model = WALL_MODELS[name]
     assert model._style is style
     face_model = model.model_fields["zlo"].annotation.__args__[0]
-    assert tuple(face_model.model_fields) == style.positional
+    assert tuple(face_model.model_fields) == ("coord", *style.face_keys)
+    assert all(p.name in model.model_fields for p in style.wall_parameters)
     p = values(style)
     scene = _scene(style, [1.5])
     by_name = config_from_dict(scene).walls["w"].zlo
@@ -211,15 +234,22 @@ def test_config_model_and_positional_form(name):
 def test_fix_line_round_trip(name):
     style = STYLES[name]
     p = values(style)
-    words = " ".join(repr(float(p[k])) for k in style.params)
-    line = f"fix w all {style.lammps} zlo EDGE {words} zhi 5.0 {words} units box"
+
+    def word(k: str) -> str:
+        prm = style.param(k)
+        return repr(float(p[k])) if prm.numeric else f'"{p[k]}"' if prm.quoted else str(p[k])
+
+    words = " ".join(word(k) for k in style.params)
+    head = "".join(f"{v} " for v in wall_values(style).values())
+    line = f"fix w all {style.lammps} {head}zlo EDGE {words} zhi 5.0 {words} units box"
     parsed = fixline.parse_fix_line(line, "w")
     assert parsed["style"] == name and parsed["zlo"] == {"coord": "EDGE", **{k: p[k] for k in style.params}}
+    assert all(parsed[k] == v for k, v in wall_values(style).items())
     assert fixline.to_fix_line("w", parsed) == line
     assert f"wall/{name}" in fixline.SUPPORTED_STYLES and name in WALL_TAGS and name in WALL_WRITERS
-    for prm in style.parameters:  # v_name where the entry allows a variable, else refused
+    for prm in (q for q in style.parameters if q.numeric):  # v_name where the entry allows a variable, else refused
         bad = line.replace(f"zhi 5.0 {words}", "zhi 5.0 " + " ".join(
-            "v_x" if q.name == prm.name else repr(float(p[q.name])) for q in style.parameters))
+            "v_x" if q == prm.name else word(q) for q in style.params))
         if prm.variable:
             assert fixline.parse_fix_line(bad, "w")["zhi"][prm.name] == "v_x"
         else:

@@ -184,3 +184,30 @@ def test_lammps_refuses_what_we_refuse(tmp_path):
         probe_wall(f"wall/table linear 50 zlo -5.0 {path} LJ93 2.5 units box", np.array([0.4]))
     with pytest.raises(Exception, match="larger than table outer cutoff"):
         probe_wall(f"wall/table linear 50 zlo -5.0 {path} LJ93 4.5 units box", np.array([1.0]))
+
+
+@pytest.mark.parametrize("tabstyle", ["linear", "spline"])
+def test_generated_table_force_is_the_numpy_lookup_bit_for_bit(tmp_path, monkeypatch, tabstyle):
+    """WallTable.force_source: the compiled path's force (the grid saved to the kernel cache, the
+    same linear_lookup / spline_lookup jitted) equals lookup()'s force bit for bit over the whole
+    table, grid points and the last point included; NaN below the first distance."""
+    from numba import njit  # noqa: PLC0415
+
+    from wallbatch.styles.lepton import HELPERS_IMPORT, generated_module  # noqa: PLC0415
+    from wallbatch.styles.table import TableData, WallTable  # noqa: PLC0415
+
+    monkeypatch.setenv("WALLBATCH_CACHE_DIR", str(tmp_path))
+    lj93 = STYLES["lj93"]
+    p = {"epsilon": 1.3, "sigma": 0.9, "cutoff": 3.0}
+    r = np.linspace(0.4, 3.0, 257)
+    e, f = lj93.energy_force(r, p)
+    table = WallTable.build(TableData("LJ", r, e, f, None, None), tabstyle, 500)
+    source = table.force_source()
+    assert source is table.force_source()  # generated once per table
+    assert list((tmp_path / "kernels").glob("table_*.npy"))
+    force = njit(error_model="numpy")(generated_module(HELPERS_IMPORT + source, "test_table").kernel)
+    rs = np.concatenate([np.random.default_rng(5).uniform(0.4, 3.0, 400), table.r, [3.0]])
+    want = table.lookup(rs)[1]
+    got = np.array([force(x, 0.0, 0.0, 0.0, 3.0, 0.0) for x in rs])
+    np.testing.assert_array_equal(got, want)
+    assert np.isnan(force(0.39, 0.0, 0.0, 0.0, 3.0, 0.0))

@@ -1,6 +1,9 @@
-"""From a validated plan to a results file: build every case, split same-structure cases into
-batches, run them (in this process, in local worker processes or on a dask.distributed cluster),
-persist each finished case under `OUT.parts/`, and assemble the NetCDF at the end.
+"""From a validated plan to a results file: split the cases into windows of consecutive cases,
+build each window's cases just before it runs (in this process, in local worker processes, which
+build their own cases, or on a dask.distributed cluster), run each window's same-structure cases
+as batches, persist each finished case under `OUT.parts/` and free it, and assemble the NetCDF at
+the end by reading the parts back one at a time. Memory is bounded by what runs (a window) plus
+the output arrays themselves, not by the number of cases.
 
 Only this process writes files; workers return results. A case's outputs do not depend on the
 batch it ran in or the worker that ran it (random streams come from its sweep coordinates), so
@@ -14,6 +17,7 @@ import ctypes
 import hashlib
 import json
 import math
+import multiprocessing
 import os
 import shutil
 import signal
@@ -22,8 +26,9 @@ import threading
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Any, Callable, Iterator
 
 import numpy as np
 import xarray as xr
@@ -59,30 +64,38 @@ class Interrupted(Exception):
         super().__init__(f"interrupted: {saved}/{total} cases {where}")
 
 
+def build_one(sc: SweepCase) -> tuple[Case | None, str, float]:
+    """Build one case: (case, "", seconds) or (None, why it cannot be built, seconds). A case that
+    cannot be built (bad input, a variable that divides by zero, anything raised while building)
+    fails alone, its message kept."""
+    t0 = time.perf_counter()
+    case, error = None, ""
+    try:
+        case = build_case(sc.config, sc.seed_key)
+        structure_key(case)  # evaluates constant variables: a division by zero fails this case here
+        check_size(case)
+    except CaseError as exc:
+        case, error = None, str(exc)
+    except ValueError as exc:  # a variable that cannot be evaluated, a bad value met while building
+        case, error = None, f"cannot set up the case: {str(exc)[:300]}"
+    except (ArithmeticError, TypeError, LookupError, MemoryError, RecursionError) as exc:
+        case, error = None, f"cannot set up the case: {type(exc).__name__}: {str(exc)[:300]}"
+    return case, error, time.perf_counter() - t0
+
+
 def build_cases(plan: SweepPlan, seconds: list[float] | None = None) -> tuple[list[Case | None], dict[int, str]]:
-    """Build every case; a case that cannot be built (bad input, a variable that divides by zero,
-    anything raised while building) fails alone, its message kept. `seconds`, if given, receives
-    each case's build time."""
+    """Build every case at once (`wallbatch check`, tests, benchmarks; a run builds each window's
+    cases just before it runs); a case that cannot be built is None, its message in the errors.
+    `seconds`, if given, receives each case's build time."""
     built: list[Case | None] = []
     errors: dict[int, str] = {}
     for i, sc in enumerate(plan.cases):
-        t0 = time.perf_counter()
-        try:
-            case = build_case(sc.config, sc.seed_key)
-            structure_key(case)  # evaluates constant variables: a division by zero fails this case here
-            check_size(case)
-            built.append(case)
-        except CaseError as exc:
-            built.append(None)
-            errors[i] = str(exc)
-        except ValueError as exc:  # a variable that cannot be evaluated, a bad value met while building
-            built.append(None)
-            errors[i] = f"cannot set up the case: {str(exc)[:300]}"
-        except (ArithmeticError, TypeError, LookupError, MemoryError, RecursionError) as exc:
-            built.append(None)
-            errors[i] = f"cannot set up the case: {type(exc).__name__}: {str(exc)[:300]}"
+        case, error, sec = build_one(sc)
+        built.append(case)
+        if case is None:
+            errors[i] = error
         if seconds is not None:
-            seconds.append(time.perf_counter() - t0)
+            seconds.append(sec)
     return built, errors
 
 
@@ -130,8 +143,10 @@ def memory_available() -> int:
 
 
 def check_memory(plan: SweepPlan, jobs: int) -> None:
-    """Refuse, before building anything, a plan whose atoms cannot fit in memory: every case is
-    built first (HELD_BYTES_PER_ATOM each), then the running batches need RUN_BYTES_PER_ATOM."""
+    """Refuse, before building anything, a plan whose running windows cannot fit in memory: the
+    cases of a window are built just before it runs (HELD_BYTES_PER_ATOM each) and run as batches
+    (RUN_BYTES_PER_ATOM); `jobs` windows run at once. Finished cases go to the parts, so the
+    number of cases does not add up."""
     atoms = [estimate_atoms(sc.config) for sc in plan.cases]
     if not atoms:
         return
@@ -140,8 +155,8 @@ def check_memory(plan: SweepPlan, jobs: int) -> None:
         which = f"case {plan.cases[big].label}" if plan.dims else "the scene"
         raise RunError(f"{which} would create {atoms[big]:,} atoms, more than the limit of {MAX_ATOMS:,}")
     total = sum(atoms)
-    running = max(atoms[big], min(atoms[big] * MAX_BATCH, MAX_BATCH_ATOMS)) * max(1, jobs)  # tasks at once
-    need = HELD_BYTES_PER_ATOM * total + RUN_BYTES_PER_ATOM * min(total, running)
+    running = max(atoms[big], min(atoms[big] * MAX_BATCH, MAX_BATCH_ATOMS)) * max(1, jobs)  # windows at once
+    need = (HELD_BYTES_PER_ATOM + RUN_BYTES_PER_ATOM) * min(total, running)
     have = memory_available()
     if need > have:
         raise RunError(f"the {len(atoms)} case(s) create {total:,} atoms: about {_size(need)} in memory, more "
@@ -213,6 +228,82 @@ def make_tasks(cases: dict[int, Case], jobs: int) -> list[list[int]]:
     return tasks
 
 
+@dataclass
+class Outcome:
+    """What a window returns for one of its cases: the result; whether the case was built (a case
+    that cannot be built is not saved as a part); its results layout; for a case that dumps
+    frames, (box_lo, box_hi, units name, case name) for the trajectory file."""
+
+    result: CaseResult
+    built: bool
+    layout: tuple | None = None
+    dump: tuple | None = None
+
+
+_PLAN: SweepPlan | None = None  # the running plan: forked workers inherit it and build their own cases
+
+
+def make_windows(plan: SweepPlan, todo: list[int], jobs: int) -> list[list[int]]:
+    """Consecutive cases to build and run together (a task): at most MAX_BATCH cases and
+    MAX_BATCH_ATOMS atoms (as the config implies; atoms files count 1) and about len(todo)/jobs
+    cases, so every worker gets work and a running window's memory stays bounded."""
+    if not todo:
+        return []
+    size = min(MAX_BATCH, max(1, math.ceil(len(todo) / max(1, jobs))))
+    windows: list[list[int]] = []
+    cur: list[int] = []
+    atoms = 0
+    for i in todo:
+        n = max(1, estimate_atoms(plan.cases[i].config))
+        if cur and (len(cur) >= size or atoms + n > MAX_BATCH_ATOMS):
+            windows.append(cur)
+            cur, atoms = [], 0
+        cur.append(i)
+        atoms += n
+    windows.append(cur)
+    return windows
+
+
+def _run_window(items: list, plan: SweepPlan | None = None) -> list[Outcome]:
+    """Build a window's cases (items: indices into `plan`, or the running plan a forked worker
+    inherited, built here; or (case, error, seconds) built by the parent), run its same-structure
+    cases as batches, and return one Outcome per item; the built cases are freed on return."""
+    source = plan if plan is not None else _PLAN
+    built = [build_one(source.cases[it]) if isinstance(it, int) else it for it in items]  # type: ignore[union-attr]
+    out: list[Outcome | None] = [None] * len(items)
+    cases: dict[int, Case] = {}
+    for k, (case, error, sec) in enumerate(built):
+        if case is None:
+            out[k] = Outcome(CaseResult("failed", error, sec, {}), False)
+        else:
+            cases[k] = case
+    for task in make_tasks(cases, 1):
+        for k, res in zip(task, _run_task([cases[k] for k in task])):
+            c = cases[k]
+            res.seconds += built[k][2]
+            out[k] = Outcome(res, True, _layout(c), (c.box_lo, c.box_hi, c.units.name, c.name) if c.dump_every > 0
+                             else None)
+    return out  # type: ignore[return-value]
+
+
+def _warm_compiler() -> None:
+    """Initialise numba's compiler (its type and target contexts, ~1 s) in this process before
+    forking workers: they inherit it instead of each spending that second again, and only load
+    their kernels from the on-disk cache (~0.1 s)."""
+    if not compiled.enabled() or _fork_context() is None:
+        return
+    with contextlib.suppress(Exception):
+        from numba.core.registry import cpu_target
+
+        cpu_target.typing_context.refresh()
+        cpu_target.target_context.refresh()
+
+
+def _fork_context() -> Any:
+    """The fork start method where the platform has it (workers then inherit the plan), else None."""
+    return multiprocessing.get_context("fork") if "fork" in multiprocessing.get_all_start_methods() else None
+
+
 # ----------------------------------------------------------------------------- executors
 
 
@@ -269,16 +360,17 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
                 p.join(1.0)
 
 
-def execute(tasks: list[list[Case]], jobs: int = 1, executor: str = "local",
-            scheduler: str | None = None) -> Iterator[tuple[int, list[CaseResult]]]:
-    """Run tasks; yield (task index, results) as each finishes. Closing the generator early (an
-    interrupt) cancels the pending tasks and stops the workers."""
+def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
+            scheduler: str | None = None, plan: SweepPlan | None = None) -> Iterator[tuple[int, list[Outcome]]]:
+    """Run windows (see `_run_window`; in this process from `plan`); yield (window index, outcomes)
+    as each finishes. Closing the generator early (an interrupt) cancels the pending tasks and
+    stops the workers."""
     if executor == "dask":
         from distributed import Client
         from distributed import as_completed as dask_completed
 
         with Client(scheduler) as client:
-            futures = {client.submit(_run_task, t, pure=False): k for k, t in enumerate(tasks)}
+            futures = {client.submit(_run_window, t, pure=False): k for k, t in enumerate(tasks)}
             try:
                 for fut in dask_completed(futures):
                     yield futures[fut], fut.result()
@@ -287,12 +379,13 @@ def execute(tasks: list[list[Case]], jobs: int = 1, executor: str = "local",
                 raise
     elif jobs <= 1 or len(tasks) <= 1:
         for k, t in enumerate(tasks):
-            yield k, _run_task(t)
+            yield k, _run_window(t, plan)
     else:
-        pool = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), initializer=_worker_init,
-                                   initargs=(os.getpid(),))
+        _warm_compiler()
+        pool = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=_fork_context(),
+                                   initializer=_worker_init, initargs=(os.getpid(),))
         try:
-            futures = {pool.submit(_run_task, t): k for k, t in enumerate(tasks)}
+            futures = {pool.submit(_run_window, t): k for k, t in enumerate(tasks)}
             for fut in as_completed(futures):
                 yield futures[fut], fut.result()
         except BaseException:
@@ -353,10 +446,12 @@ def dump_path(output: Path, sc: SweepCase) -> Path:
     return output.with_name(output.stem + ".dump") / f"{safe}.nc"
 
 
-def write_dump(path: Path, case: Case, res: CaseResult) -> None:
+def write_dump(path: Path, box: tuple, res: CaseResult) -> None:
+    """The frames of a case as AMBER NetCDF; box = (box_lo, box_hi, units name, case name)."""
     if res.frames.get("time") is not None and len(res.frames["time"]):
-        write_amber(path, res.frames["time"], res.frames.get("x"), res.frames.get("v"), case.box_lo, case.box_hi,
-                    case.units.name, title=f"wallbatch {case.name}")
+        lo, hi, units, name = box
+        write_amber(path, res.frames["time"], res.frames.get("x"), res.frames.get("v"), lo, hi, units,
+                    title=f"wallbatch {name}")
 
 
 def _digest(key: str, status: str, error: str, seconds: float, data: dict[str, np.ndarray]) -> str:
@@ -563,72 +658,86 @@ def run_plan(plan: SweepPlan, output: str | Path | None = None, *, jobs: int = 1
 def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, scheduler: str | None, resume: bool,
          progress: bool | None, on_result: Callable[[int, CaseResult], None] | None,
          say: Callable[[str], None]) -> xr.Dataset:
+    global _PLAN
     total = len(plan.cases)
     parts = parts_dir(output) if output is not None else None
-    saved: set[int] = set()  # cases whose part exists
+    saved: set[int] = set()  # cases whose part exists (their results are read back at the end)
+    held: dict[int, CaseResult] = {}  # results not in a part: cases that cannot be built, runs without output
+    unbuilt: set[int] = set()  # cases that cannot be built
     finished = 0  # cases run (without an output file)
     try:
         with stop_on_signals():
             check_memory(plan, jobs if executor == "local" else 1)
-            build_seconds: list[float] = []
-            cases, errors = build_cases(plan, build_seconds)
-            good = [c for c in cases if c is not None]
-            if not good:
-                raise CaseError(_no_case_message(plan, errors))
-            check_layout(plan, cases)
-            results: list[CaseResult | None] = [None] * len(cases)
-            for i, msg in errors.items():
-                results[i] = CaseResult("failed", msg, build_seconds[i], {})
-            keys = [case_key(sc) for sc in plan.cases]
+            keys = [case_key(sc) for sc in plan.cases] if parts is not None else []
             if parts is not None and resume:
                 bad: dict[str, int] = {}
-                for i in range(len(cases)):
-                    if results[i] is None:
-                        res, why = read_part(parts, keys[i])
-                        if res is not None:
-                            results[i] = res
-                            saved.add(i)
-                        elif why:
-                            bad[why] = bad.get(why, 0) + 1
+                for i in range(total):
+                    res, why = read_part(parts, keys[i])  # checked, then dropped: read again at the end
+                    if res is not None:
+                        saved.add(i)
+                    elif why:
+                        bad[why] = bad.get(why, 0) + 1
                 note = "; ".join(f"{n} part(s) {why}: recomputed" for why, n in bad.items())
                 say(f"resuming: {len(saved)} of {total} case(s) reused from {parts}" + (f"; {note}" if note else ""))
-            todo = {i: c for i, c in enumerate(cases) if c is not None and results[i] is None}
-            bar = Progress(len(cases), progress)
-            bar.update([r for r in results if r is not None])
+            todo = [i for i in range(total) if i not in saved]
+            bar = Progress(total, progress)
+            bar.update([CaseResult("ok", "", 0.0, {})] * len(saved))
             cores = usable_cores()
             if executor == "local" and jobs > cores:
                 say(f"--jobs {jobs} capped at {cores} (the cores this machine lets the run use)")
                 jobs = cores
-            tasks = make_tasks(todo, jobs)
-            if executor == "local" and jobs > len(tasks) > 0:
-                jobs = len(tasks)
+            windows = make_windows(plan, todo, jobs)
+            if executor == "local" and jobs > len(windows) > 0:
+                jobs = len(windows)
             if todo and kernel_cache_cold():
                 say("compiling kernels (once, ~15 s)")
-            dumps = good[0].dump_every > 0 and output is not None
-            runs = execute([[todo[i] for i in t] for t in tasks], jobs, executor, scheduler)
+            # forked local workers build their own cases from the plan they inherit; elsewhere the
+            # cases travel to the workers
+            local = executor == "local" and (jobs <= 1 or len(windows) <= 1 or _fork_context() is not None)
+            tasks = [w if local else [build_one(plan.cases[i]) for i in w] for w in windows]
+            layout: tuple | None = None
+            built = len(saved)  # cases built (or reused)
+            _PLAN = plan  # for forked workers
+            runs = execute(tasks, jobs, executor, scheduler, plan=plan)
             try:
-                for k, batch in _worker_deaths(runs, parts, saved):
-                    for i, res in zip(tasks[k], batch):
-                        res.seconds += build_seconds[i]
-                        if dumps:
-                            write_dump(dump_path(output, plan.cases[i]), cases[i], res)
-                            res.frames = {}
-                        results[i] = res
-                        if parts is not None:
+                for k, outcomes in _worker_deaths(runs, parts, saved):
+                    for i, out in zip(windows[k], outcomes):
+                        res = out.result
+                        if not out.built:
+                            unbuilt.add(i)
+                        elif layout is None:
+                            layout = out.layout
+                        elif out.layout != layout:
+                            if parts is not None and not resume and parts.exists():
+                                shutil.rmtree(parts)  # an invalid sweep: leave nothing to resume
+                            raise CaseError(f"case {plan.cases[i].label} changes the sample instants, outputs or "
+                                            f"walls of the results (e.g. run.steps, run.thermo or a wall style): "
+                                            f"such values cannot be swept into one file")
+                        built += out.built
+                        if out.dump is not None and output is not None:
+                            write_dump(dump_path(output, plan.cases[i]), out.dump, res)
+                        res.frames = {}
+                        if parts is not None and out.built:
                             save_part(parts, keys[i], res)
                             saved.add(i)
+                        else:
+                            held[i] = res
                         finished += 1
                         if on_result is not None:
                             on_result(i, res)
-                    bar.update(batch)
+                    bar.update([o.result for o in outcomes])
             finally:
                 runs.close()
+                _PLAN = None
+            c0 = _first_case(plan, unbuilt)
+            if built == 0 or c0 is None:
+                raise CaseError(_no_case_message(plan, {i: held[i].error for i in sorted(unbuilt)}))
             paths = None
-            if dumps:
+            if c0.dump_every > 0 and output is not None:
                 paths = [str(dump_path(output, sc).relative_to(output.parent)) if (
                     dump_path(output, sc).exists()) else "" for sc in plan.cases]
-            ds = build_dataset(results, good[0], config_text=plan.base_text, sweep_text=plan.sweep_text,
-                               dims=plan.dims, dump_paths=paths)
+            ds = build_dataset(_results(total, held, parts, keys), c0, config_text=plan.base_text,
+                               sweep_text=plan.sweep_text, dims=plan.dims, dump_paths=paths)
             if output is not None:
                 try:
                     write_netcdf(ds, output)
@@ -649,8 +758,33 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
         raise Interrupted(len(saved) if parts is not None else finished, total, parts) from None
 
 
-def _worker_deaths(runs: Iterator[tuple[int, list[CaseResult]]], parts: Path | None,
-                   saved: set[int]) -> Iterator[tuple[int, list[CaseResult]]]:
+def _first_case(plan: SweepPlan, unbuilt: set[int]) -> Case | None:
+    """The first case that can be built (the results layout and units come from it): built again
+    here, one case; cases known not to build are skipped."""
+    for i, sc in enumerate(plan.cases):
+        if i in unbuilt:
+            continue
+        case, _, _ = build_one(sc)
+        if case is not None:
+            return case
+    return None
+
+
+def _results(total: int, held: dict[int, CaseResult], parts: Path | None, keys: list[str]) -> Iterator[CaseResult]:
+    """Every case's result in plan order, one at a time: from memory (released as it goes) or
+    read back from its part, so the results are never all in memory twice."""
+    for i in range(total):
+        res = held.pop(i, None)
+        if res is None and parts is not None:
+            res, why = read_part(parts, keys[i])
+            if res is None:
+                raise RunError(f"the part of case {i} in {parts} {why or 'is missing'} since it was written: rerun "
+                               f"with --resume to recompute it")
+        yield res if res is not None else CaseResult("failed", "no result", 0.0, {})
+
+
+def _worker_deaths(runs: Iterator[tuple[int, list[Outcome]]], parts: Path | None,
+                   saved: set[int]) -> Iterator[tuple[int, list[Outcome]]]:
     """Results as they come; a worker process that died (killed, out of memory) is a RunError
     that says what was kept."""
     try:

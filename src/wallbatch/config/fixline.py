@@ -57,7 +57,9 @@ __all__ = [
 ]
 
 FACES: tuple[str, ...] = ("xlo", "xhi", "ylo", "yhi", "zlo", "zhi")
-FLAT_STYLES: tuple[str, ...] = tuple(STYLES)
+# the registry's styles whose faces are numbers (the others build a style per face from words:
+# an expression, a table file); every registry style is read and written by the same code
+FLAT_STYLES: tuple[str, ...] = tuple(n for n, s in STYLES.items() if not s.per_face)
 REGION_POTENTIALS: tuple[str, ...] = region_styles()
 SUPPORTED_STYLES: tuple[str, ...] = tuple(f"wall/{s}" for s in FLAT_STYLES) + (
     "wall/reflect",
@@ -65,9 +67,7 @@ SUPPORTED_STYLES: tuple[str, ...] = tuple(f"wall/{s}" for s in FLAT_STYLES) + (
     "wall/region",
     "wall/region/ees",
     "wall/reflect/stochastic",
-    "wall/lepton",
-    "wall/table",
-)
+) + tuple(f"wall/{n}" for n, s in STYLES.items() if s.per_face)
 
 _FLAT_KEYWORDS = ("units", "pbc", "fld")
 _REFLECT_KEYWORDS = ("units",)
@@ -243,14 +243,12 @@ def parse_fix_line(text: str, fix_id: str) -> dict:
     if style not in SUPPORTED_STYLES:
         raise w.error(3, f"unknown or unsupported fix style; supported: {', '.join(SUPPORTED_STYLES)}")
     short = style[len("wall/"):]
-    if short in FLAT_STYLES:
+    if short in STYLES:
         return _parse_flat(w, short, group)
     if short == "reflect":
         return _parse_reflect(w, group)
     if short == "reflect/stochastic":
         return _parse_stochastic(w, group)
-    if short in ("lepton", "table"):
-        return _parse_custom(w, short, group)
     if short == "flow":
         return _parse_flow(w, group)
     if short == "region":
@@ -278,13 +276,36 @@ def _keyword_value(w: _Words, i: int, choices: tuple[str, ...]) -> str:
     return value
 
 
+def _wall_words(w: _Words, style: str, out: dict) -> int:
+    """The style's wall parameters (words before the first face, e.g. wall/table's tabstyle N)
+    into ``out``; returns the index of the first face."""
+    entry = STYLES[style]
+    names = [p.name for p in entry.wall_parameters]
+    for k, p in enumerate(entry.wall_parameters):
+        j = 4 + k
+        if j >= len(w):
+            raise w.missing(f"missing arguments: write 'fix {w[1]} {w[2]} wall/{style} {' '.join(names)} face "
+                            f"{' '.join(face_fields(style))} ...'")
+        if p.kind == "choice":
+            if w[j] not in p.choices:
+                raise w.error(j, f"{p.name} must be {' or '.join(p.choices)}")
+            out[p.name] = w[j]
+        elif p.kind == "integer":
+            out[p.name] = w.integer(j, f"{p.name} ({p.doc})" if p.doc else p.name)
+            if p.min is not None and out[p.name] < p.min:
+                raise w.error(j, f"{p.name} must be at least {p.min:g}")
+        else:
+            out[p.name] = w[j]
+    return 4 + len(entry.wall_parameters)
+
+
 def _parse_flat(w: _Words, style: str, group: str) -> dict:
     fields = face_fields(style)
     stops = FACES + _FLAT_KEYWORDS
     out: dict[str, Any] = {"style": style, "group": group}
     faces: dict[str, dict] = {}
     keywords: dict[str, Any] = {}
-    i = 4
+    i = _wall_words(w, style, out)
     while i < len(w):
         word = w[i]
         if word in FACES:
@@ -307,6 +328,8 @@ def _parse_flat(w: _Words, style: str, group: str) -> dict:
                 what = f"{word} {field}"
                 if field == "coord":
                     face[field] = w.coord(j, what)
+                elif not STYLES[style].param(field).numeric:
+                    face[field] = w[j]  # a word: an expression, a file name
                 elif _variable_field(style, field):
                     face[field] = w.number_or_variable(j, what)
                 else:
@@ -334,10 +357,14 @@ def _parse_flat(w: _Words, style: str, group: str) -> dict:
                 f"({' '.join(FACES)}) or one of the keywords units, pbc, fld",
             )
     if not faces:
+        entry = STYLES[style]
+        head = " ".join(str(out[p.name]) for p in entry.wall_parameters)
+        args = (" ".join(f.upper() for f in fields[1:]) if entry.per_face
+                else f"{' '.join(['1.0'] * (len(fields) - 2))} 2.5")
         raise w.error(
             3,
             f"no walls defined: give at least one face, e.g. "
-            f"'fix {w[1]} {group} wall/{style} zlo EDGE {' '.join(['1.0'] * (len(fields) - 2))} 2.5'",
+            f"'fix {w[1]} {group} wall/{style} {head + ' ' if head else ''}zlo EDGE {args}'",
         )
     out.update(faces)
     out.update(keywords)
@@ -547,11 +574,12 @@ def _as_mapping(wall: Any) -> dict:
 
 def _face_words(style: str, face: str, value: Any, where: str) -> list[str]:
     fields = face_fields(style)
+    entry = STYLES[style]
     if isinstance(value, Mapping):
-        unknown = set(value) - set(fields)
+        unknown = set(value) - set(fields) - set(entry.face_keys)
         if unknown:
             raise ValueError(f"{where}.{face}: unknown field(s) {sorted(unknown)}; expected {list(fields)}")
-        values = dict(value)
+        values = entry.fix_face({k: v for k, v in value.items() if v is not None})
     elif isinstance(value, Sequence) and not isinstance(value, str):
         items = list(value)
         optional = [k for k, f in enumerate(fields) if f != "coord" and not STYLES[style].param(f).required]
@@ -570,6 +598,9 @@ def _face_words(style: str, face: str, value: Any, where: str) -> list[str]:
     for field in fields:
         if values.get(field) is None:
             raise ValueError(f"{where}.{face}: missing {field}")
+        if field != "coord" and not entry.param(field).numeric:
+            words.append(_word(values[field], entry.param(field), f"{where}.{face}.{field}"))
+            continue
         words.append(
             _fmt_value(
                 values[field],
@@ -579,6 +610,17 @@ def _face_words(style: str, face: str, value: Any, where: str) -> list[str]:
             )
         )
     return words
+
+
+def _word(value: Any, param: Any, what: str) -> str:
+    """A face's word parameter as written in a fix line: an expression in double quotes, a file
+    name or keyword as it is."""
+    if param.quoted:
+        text = str(value)
+        if '"' in text:
+            raise ValueError(f"{what}: a double quote cannot be written in a LAMMPS fix line")
+        return f'"{text}"'
+    return _check_path(value, what)
 
 
 def _reject_unknown(wall: dict, allowed: set[str], where: str) -> None:
@@ -609,10 +651,17 @@ def to_fix_line(fix_id: str, wall: Any) -> str:
     group = _check_word(wall.get("group", "all"), f"{where}.group")
     words = ["fix", fix_id, group]
 
-    if style in FLAT_STYLES or style == "reflect":
+    if style in STYLES or style == "reflect":
         keywords = ("units", "pbc") if style != "reflect" else ("units",)
-        _reject_unknown(wall, {"style", "group", *FACES, *keywords, "fld"}, where)
+        head = STYLES[style].wall_parameters if style in STYLES else ()
+        _reject_unknown(wall, {"style", "group", *FACES, *keywords, "fld", *(p.name for p in head)}, where)
         words.append(f"wall/{style}")
+        for p in head:
+            if p.name not in wall:
+                raise ValueError(f"{where}: missing {p.name}")
+            words.append(_fmt_int(wall[p.name], f"{where}.{p.name}") if p.kind == "integer" else
+                         _choice(wall[p.name], p.choices, f"{where}.{p.name}") if p.kind == "choice" else
+                         _check_path(wall[p.name], f"{where}.{p.name}"))
         faces = [k for k in wall if k in FACES]
         if not faces:
             raise ValueError(f"{where}: no faces ({' '.join(FACES)}) given")
@@ -634,8 +683,6 @@ def to_fix_line(fix_id: str, wall: Any) -> str:
             raise ValueError(f"{where}.fld: fld yes (lubrication) is not supported")
     elif style == "reflect/stochastic":
         words += _stochastic_words(wall, where)
-    elif style in ("lepton", "table"):
-        words += _custom_words(wall, style, where)
     elif style == "flow":
         _reject_unknown(
             wall, {"style", "group", "axis", "vflow", "temperature", "seed", "coords", "units"}, where
@@ -714,7 +761,9 @@ def _parse_stochastic(w: _Words, group: str) -> dict:
         raise w.missing(f"missing arguments: write 'fix {w[1]} {group} {_STOCHASTIC_USAGE}'")
     rstyle = w[4]
     if rstyle not in _RSTYLE_ACCOM:
-        raise w.error(4, "the reflection style must be diffusive, maxwell or ccl")
+        hint = (" (LAMMPS spells the Cercignani-Lampis model ccl: it refuses the long name too)"
+                if rstyle.lower() in ("cercignanilampis", "cercignani-lampis", "cl") else "")
+        raise w.error(4, f"the reflection style must be diffusive, maxwell or ccl{hint}")
     seed = w.integer(5, "SEED (the random seed)")
     if seed <= 0:
         raise w.error(5, "the random seed must be a positive integer")
@@ -788,96 +837,6 @@ def _stochastic_words(wall: Mapping, where: str) -> list[str]:
             words += [_fmt_number(a, f"{at}.accom") for a in accom]
     if "units" in wall:
         words += ["units", _choice(wall["units"], ("lattice", "box"), f"{where}.units")]
-    return words
-
-
-# --------------------------------------------------------------------------------------------
-# wall/lepton and wall/table
-
-
-def _parse_custom(w: _Words, style: str, group: str) -> dict:
-    """``wall/lepton face coord expression cutoff ...`` and ``wall/table linear|spline N face
-    coord file keyword cutoff ...`` (keywords units, pbc, fld no) -> the mapping form."""
-    out: dict[str, Any] = {"style": style, "group": group}
-    i = 4
-    if style == "table":
-        if len(w) < 6:
-            raise w.missing(f"missing arguments: write 'fix {w[1]} {group} wall/table linear|spline N face coord "
-                            "file keyword cutoff'")
-        if w[4] not in ("linear", "spline"):
-            raise w.error(4, "the table style must be linear or spline")
-        out["tabstyle"] = w[4]
-        out["N"] = w.integer(5, "N (the number of table points)")
-        if out["N"] < 2:
-            raise w.error(5, "N must be at least 2")
-        i = 6
-    fields = ("coord", "expression", "cutoff") if style == "lepton" else ("coord", "file", "keyword", "cutoff")
-    stops = FACES + _FLAT_KEYWORDS
-    faces: dict[str, dict] = {}
-    while i < len(w):
-        word = w[i]
-        if word in FACES:
-            if word in faces:
-                raise w.error(i, f"{word} wall defined twice: give each face once per fix")
-            got = _face_arguments(w, i, len(fields), stops)
-            if got < len(fields):
-                raise w.error(i, f"missing arguments for the {word} wall: wall/{style} faces take "
-                                 f"{' '.join(fields)} ({len(fields)} words), found {got}")
-            face: dict[str, Any] = {"coord": w.coord(i + 1, f"{word} coord")}
-            for k, field in enumerate(fields[1:-1], start=2):
-                face[field] = w[i + k]
-            face["cutoff"] = w.number(i + len(fields), f"{word} cutoff")
-            faces[word] = face
-            i += 1 + len(fields)
-        elif word == "units":
-            out["units"] = _keyword_value(w, i, ("lattice", "box"))
-            i += 2
-        elif word == "pbc":
-            out["pbc"] = _keyword_value(w, i, ("yes", "no")) == "yes"
-            i += 2
-        elif word == "fld":
-            if _keyword_value(w, i, ("yes", "no")) == "yes":
-                raise w.error(i, "fld yes (lubrication) is not supported: remove 'fld yes' or write 'fld no'")
-            i += 2
-        else:
-            raise w.error(i, f"unknown face or keyword for wall/{style}: expected a face ({' '.join(FACES)}) or "
-                             "one of the keywords units, pbc, fld")
-    if not faces:
-        raise w.error(3, f"no walls defined: give at least one face, e.g. 'fix {w[1]} {group} wall/{style} "
-                         + ("zlo EDGE \"k*(r-4.0)^2; k=10.0\" 4.0'" if style == "lepton" else
-                            f"{out['tabstyle']} {out['N']} zlo EDGE wall.table WALL 2.5'"))
-    out.update(faces)
-    return out
-
-
-def _custom_words(wall: Mapping, style: str, where: str) -> list[str]:
-    keys = {"style", "group", "units", "pbc", *FACES} | ({"tabstyle", "N"} if style == "table" else set())
-    _reject_unknown(wall, keys, where)
-    words = [f"wall/{style}"]
-    if style == "table":
-        words += [_choice(wall.get("tabstyle"), ("linear", "spline"), f"{where}.tabstyle"),
-                  _fmt_int(wall.get("N"), f"{where}.N")]
-    faces = [k for k in wall if k in FACES]
-    if not faces:
-        raise ValueError(f"{where}: no faces ({' '.join(FACES)}) given")
-    for face in faces:
-        spec = _as_mapping(wall[face])
-        at = f"{where}.{face}"
-        words += [face, _fmt_value(spec.get("coord"), f"{at}.coord", edge=True, variable=True)]
-        if style == "lepton":
-            text = str(spec.get("expression", ""))
-            params = spec.get("params") or {}
-            text += "".join(f"; {k}={float(v)!r}" for k, v in params.items())
-            if '"' in text:
-                raise ValueError(f"{at}.expression: a double quote cannot be written in a LAMMPS fix line")
-            words.append(f'"{text}"')
-        else:
-            words += [_check_path(spec.get("file"), f"{at}.file"), _check_path(spec.get("keyword"), f"{at}.keyword")]
-        words.append(_fmt_number(spec.get("cutoff"), f"{at}.cutoff"))
-    if "units" in wall:
-        words += ["units", _choice(wall["units"], ("lattice", "box"), f"{where}.units")]
-    if "pbc" in wall:
-        words += ["pbc", "yes" if _flag(wall["pbc"], f"{where}.pbc") else "no"]
     return words
 
 

@@ -101,8 +101,6 @@ from wallbatch.config.ensemble import EnsembleFix, check_ensemble, drop_fix_tag
 from wallbatch.config.ensemble import expand_fix_lines as expand_ensemble_lines
 from wallbatch.config.fixline import FixLineError, parse_fix_line
 from wallbatch.expr import VariableError, Variables
-from wallbatch.styles.lepton import LeptonError, compile_expression
-from wallbatch.styles.table import TableError, read_table
 from wallbatch.units import lattice_constant
 
 # what the loader accepts, for the JSON schema: a number, or a string that is a number, v_name (or EDGE)
@@ -347,11 +345,25 @@ class SoftWall(_FaceWall):
 
 
 def _param_type(p: StyleParam) -> Any:
-    """The Pydantic type of one style parameter: a number or v_name (`variable`), else a number
-    (> 0 when `positive`; lower bounds of numbers are checked in check_scene)."""
+    """The Pydantic type of one style parameter by its kind: a number or v_name (`variable`), else
+    a number (> 0 when `positive`; lower bounds of numbers are checked in check_scene); a word
+    (non-empty text), one of `choices`, an integer (>= `min`), or a mapping of names to numbers."""
+    if p.kind == "word":
+        return Annotated[str, Field(min_length=1)]
+    if p.kind == "choice":
+        return Literal[p.choices]  # type: ignore[valid-type]
+    if p.kind == "integer":
+        return Annotated[int, Field(ge=int(p.min))] if p.min is not None else int
+    if p.kind == "mapping":
+        return dict[str, float]
     if p.variable:
         return Param
     return PositiveFloat if p.positive else float
+
+
+def _param_description(p: StyleParam) -> str:
+    unit = f" [{p.unit}]" if p.unit and p.numeric else ""
+    return f"{p.doc}{unit}" + (" (may be v_name)" if p.variable else "")
 
 
 def _optional_elsewhere(name: str) -> list[str]:
@@ -365,8 +377,10 @@ def _face_model(style: WallStyle) -> type[Model]:
     fields: dict[str, Any] = {"coord": (Coord, Field(description="wall position: a number, EDGE or v_name"))}
     late: list[str] = []
     for p in style.parameters:
-        desc = f"{p.doc} [{p.unit}]" + (" (may be v_name)" if p.variable else "")
-        if p.required and not _optional_elsewhere(p.name):
+        desc = _param_description(p)
+        if p.kind == "mapping":
+            fields[p.name] = (_param_type(p), Field(default={}, description=desc))
+        elif p.required and not _optional_elsewhere(p.name):
             fields[p.name] = (_param_type(p), Field(description=desc))
         else:
             fields[p.name] = (_param_type(p) | None, Field(default=None, description=desc))
@@ -394,6 +408,7 @@ def _wall_model(style: WallStyle) -> type[SoftWall]:
         f"{style.name.capitalize()}Wall", __base__=SoftWall,
         __doc__=f"fix {style.lammps}: {style.doc}",
         style=(Literal[style.name], Field(description=f"fix {style.lammps}")),  # type: ignore[valid-type]
+        **{p.name: (_param_type(p), Field(description=_param_description(p))) for p in style.wall_parameters},
         **{f: (face | None, Field(default=None, description=f"the {f} wall")) for f in FACES})
     model._style = style
     return model
@@ -421,52 +436,6 @@ class ReflectWall(_FaceWall):
         if isinstance(data, dict):
             data = {k: ({"coord": v} if k in FACES and not isinstance(v, dict) else v) for k, v in data.items()}
         return data
-
-
-class LeptonFace(Model):
-    """One face of wall/lepton: position, the energy as an expression of r (Lepton syntax, `;`
-    definitions allowed), the cut-off, and named parameters (numbers, sweepable)."""
-
-    coord: Coord
-    expression: Annotated[str, Field(min_length=1)]
-    cutoff: PositiveFloat
-    params: dict[str, float] = {}
-
-
-class LeptonWall(_FaceWall):
-    """fix wall/lepton face coord expression cutoff: E(r) from an expression, F = -dE/dr exactly."""
-
-    style: Literal["lepton"]
-    xlo: LeptonFace | None = None
-    xhi: LeptonFace | None = None
-    ylo: LeptonFace | None = None
-    yhi: LeptonFace | None = None
-    zlo: LeptonFace | None = None
-    zhi: LeptonFace | None = None
-
-
-class TableFace(Model):
-    """One face of wall/table: position, a LAMMPS table file (relative to the config) and the
-    keyword of its section, and the cut-off."""
-
-    coord: Coord
-    file: Annotated[str, Field(min_length=1)]
-    keyword: Annotated[str, Field(min_length=1)]
-    cutoff: PositiveFloat
-
-
-class TableWall(_FaceWall):
-    """fix wall/table tabstyle N face coord file keyword cutoff: a tabulated wall."""
-
-    style: Literal["table"]
-    tabstyle: Literal["linear", "spline"]
-    N: Annotated[int, Field(ge=2)]
-    xlo: TableFace | None = None
-    xhi: TableFace | None = None
-    ylo: TableFace | None = None
-    yhi: TableFace | None = None
-    zlo: TableFace | None = None
-    zhi: TableFace | None = None
 
 
 class StochasticFace(Model):
@@ -561,7 +530,7 @@ RegionWall = create_model(
     switch_on=(NonNegativeFloat | None, Field(None, description="smooth: where the switch starts [distance]")))
 
 Wall = Annotated[
-    Union[(*WALL_MODELS.values(), ReflectWall, StochasticWall, LeptonWall, TableWall, FlowWall, RegionWall,
+    Union[(*WALL_MODELS.values(), ReflectWall, StochasticWall, FlowWall, RegionWall,
            RegionEESWall)],  # type: ignore[valid-type]
     Field(discriminator="style"),
 ]
@@ -815,8 +784,8 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
         if wall.style == "flow":
             _check_flow_wall(cfg, fid, wall, add)
             continue
-        if wall.style in ("lepton", "table"):
-            _check_custom_wall(cfg, fid, wall, add)
+        if entry is not None and entry.per_face:
+            _check_per_face_wall(cfg, fid, wall, entry, add)
         if wall.units == "lattice" and cfg.lattice is None:
             add(("walls", fid), _LATTICE_MSG)
         for face, spec in wall.faces():
@@ -826,8 +795,9 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
                     f"cannot use a {face} wall in periodic {face[0]} dimension: make box.boundary "
                     f"{face[0]} 'f', or set pbc: true on this wall")
             for key, value in spec.model_dump().items():
-                check_var(("walls", fid, face, key), value)
-                _check_min(entry, key, value, ("walls", fid, face, key), add)
+                if key == "coord" or entry is None or entry.param(key).numeric:
+                    check_var(("walls", fid, face, key), value)
+                    _check_min(entry, key, value, ("walls", fid, face, key), add)
     if cfg.dt_reset is not None:
         if cfg.dt_reset.group not in groups:
             add(("dt_reset", "group"), f"unknown group '{cfg.dt_reset.group}'")
@@ -923,31 +893,13 @@ def _check_region_wall(cfg: "Config", fid: str, wall: Any, add: Any, check_var: 
             _check_min(entry, k, value, ("walls", fid, k), add)
 
 
-def _check_custom_wall(cfg: "Config", fid: str, wall: Any, add: Any) -> None:
-    """wall/lepton: each expression parses, uses only r, its definitions and its params, is
-    finite at the cut-off and divides by zero nowhere in (0, rc]. wall/table: each file and
-    section reads, and the cut-off lies inside the table."""
+def _check_per_face_wall(cfg: "Config", fid: str, wall: Any, entry: WallStyle, add: Any) -> None:
+    """A style built per face (wall/lepton, wall/table): the entry's own checks of each face
+    (an expression parses and is finite, a table file reads, ...)."""
+    values = wall.model_dump()
     for face, spec in wall.faces():
-        if wall.style == "lepton":
-            if "cutoff" in spec.params:
-                add(("walls", fid, face, "params", "cutoff"), "'cutoff' is the face's cut-off, not a parameter name")
-                continue
-            try:
-                expr = compile_expression(spec.expression, tuple(spec.params))
-                expr.check(spec.cutoff, spec.params)
-            except LeptonError as exc:
-                add(("walls", fid, face, "expression"), str(exc))
-        else:
-            path = Path(spec.file)
-            path = path if path.is_absolute() else cfg._base_dir / path
-            try:
-                data = read_table(path, spec.keyword)
-            except TableError as exc:
-                add(("walls", fid, face, "file"), str(exc))
-                continue
-            if spec.cutoff > data.r[-1]:
-                add(("walls", fid, face, "cutoff"), f"cutoff {spec.cutoff:g} is beyond the table's last distance "
-                    f"{data.r[-1]:g} (LAMMPS: Fix wall/table wall cutoff is larger than table outer cutoff)")
+        for key, message in entry.check_face(spec.model_dump(), values, str(cfg._base_dir)):
+            add(("walls", fid, face, *key.split(".")), message)
 
 
 def _check_flow_wall(cfg: "Config", fid: str, wall: Any, add: Any) -> None:

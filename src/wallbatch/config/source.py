@@ -13,7 +13,7 @@ from wallbatch.styles import STYLES
 
 FACES = ("xlo", "xhi", "ylo", "yhi", "zlo", "zhi")
 # wall styles without per-face potential parameters (their models live in config.models)
-OTHER_WALLS = ("reflect", "flow", "region", "region/ees", "reflect/stochastic", "lepton", "table")
+OTHER_WALLS = ("reflect", "flow", "region", "region/ees", "reflect/stochastic")
 WALL_TAGS = tuple(STYLES) + OTHER_WALLS  # the `style:` values (the discriminator tags of the wall models)
 
 

@@ -57,6 +57,7 @@ import os
 import types
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -74,7 +75,8 @@ from wallbatch.styles import STYLES, WallStyle
 from wallbatch.styles import cutoff as _cutoff
 from wallbatch.styles.cutoff import CUTOFF_MODES, FORCE_SHIFT, SHIFT, SMOOTH, cutoff_functions
 from wallbatch.styles.cutoff import supported as cutoff_supported
-from wallbatch.styles.lepton import LeptonWallStyle, positional_kernels
+from wallbatch.styles.lepton import HELPERS_IMPORT, generated_module, generated_path
+from wallbatch.styles.lepton import _helpers as _lepton_helpers
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
@@ -90,6 +92,8 @@ WINDOW = 64  # steps per speculative window under dt/reset
 # wall/region geometries in the kernel (rg_meta's kind column)
 REGION_KINDS: dict[tuple[str, str], int] = {("block", "in"): 0, ("block", "out"): 1, ("sphere", "in"): 2,
                                             ("sphere", "out"): 3, ("cylinder", "in"): 4, ("cylinder", "out"): 5}
+# this file's code and the generated kernels' helpers: part of the key of the generated lepton chunk kernels
+_SOURCE_DIGEST = hashlib.sha256(Path(__file__).read_bytes() + inspect.getsource(_lepton_helpers).encode()).hexdigest()[:16]
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
 # fixes of `fixes:` in the kernel (fx_meta's kind column); nve is the kernel's own integrator
 FIX_LANGEVIN, FIX_NVT, FIX_BERENDSEN, FIX_RESCALE, FIX_ENFORCE2D = 0, 1, 2, 3, 4
@@ -923,9 +927,10 @@ if njit is not None:
                         stepwise -= 1
                     if time_mode:
                         new_base = dt[c] if dt[c] != sdt else base
-                        now = atime[c] + (step[c] - atimestep[c]) * dt[c]
-                        atime[c] = target if landing else now
-                        atimestep[c] = step[c]
+                        if landing or new_base != dt[c]:  # at a fixed dt: time = atime + n dt (no sum)
+                            now = atime[c] + (step[c] - atimestep[c]) * dt[c]
+                            atime[c] = target if landing else now
+                            atimestep[c] = step[c]
                         dt[c] = new_base
                         if landing:
                             break
@@ -947,41 +952,61 @@ if njit is not None:
 
     _run_chunk = _make_run_chunk(_fingerprint(COMPILED_STYLES))
 
-    def _relink(dispatcher: Any, **replace: Any) -> Any:
+    def _relink(dispatcher: Any, filename: str | None = None, **replace: Any) -> Any:
         """The Python function of a jitted `dispatcher` with some of its globals replaced (the same
-        code, closure and defaults), ready to be jitted again."""
+        code, closure and defaults), ready to be jitted again. `filename`: the file the code is
+        attributed to, so that numba's on-disk cache of the result lives with (and is keyed by)
+        that file instead of this one (numba keys a cached function by its file, name and code,
+        not by its globals)."""
         fn = dispatcher.py_func
         namespace = dict(fn.__globals__)
         namespace.update(replace)
-        out = types.FunctionType(fn.__code__, namespace, fn.__name__, fn.__defaults__, fn.__closure__)
+        code = fn.__code__ if filename is None else fn.__code__.replace(co_filename=filename)
+        out = types.FunctionType(code, namespace, fn.__name__, fn.__defaults__, fn.__closure__)
         out.__kwdefaults__ = fn.__kwdefaults__
         return out
 
     @functools.lru_cache(maxsize=32)
-    def _chunk_kernel(extra: tuple[Any, ...]) -> Any:
-        """The chunk kernel with the generated forces `extra` (wall/lepton expressions, jitted
-        force(r, p0, p1, p2, rc, radius), cut-off mode shift) as styles len(COMPILED_STYLES) + j:
-        the registry's dispatch with one more branch each, inlined like the built-in styles, and
-        the block step and chunk kernel re-linked to it. Compiled on first use in each process (no
-        on-disk cache: the expressions are not in a source file); the built-in styles keep
+    def _chunk_kernel(extra: tuple[str, ...]) -> Any:
+        """The chunk kernel with the generated forces `extra` (wall/lepton expressions: the source
+        of force(r, p0, p1, p2, rc, radius) from styles.lepton.force_source, cut-off mode shift) as
+        styles len(COMPILED_STYLES) + j: the registry's dispatch with one more branch each, inlined
+        like the built-in styles, and the block step and chunk kernel re-linked to it. The forces
+        and the dispatch are written to a module file (styles.lepton.generated_module, keyed by a
+        hash of its source, which names the numba version, this file's digest and the styles'
+        fingerprint), and the chunk kernel is attributed to that file, so numba caches it on disk:
+        the first process compiles it (~20 s), later ones load it. The built-in styles keep
         `_run_chunk`."""
         if not extra:
             return _run_chunk
-        n = len(COMPILED_STYLES)
-        src = _dispatch_source(COMPILED_STYLES).replace("    return 0\n", "".join(
-            f"    elif style == {n + j} and mode == {SHIFT}:  # wall/lepton\n        return _face(_EXTRA_{j}, False, "
-            "X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, u0, u1)\n" for j in range(len(extra)))
-            + "    return 0\n")
-        namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}_{m}": f for (i, m), f in MODE_FORCES.items()},
-                                     **{f"_EXTRA_{j}": njit(nogil=True, error_model="numpy")(
-                                         cutoff_functions(f, f, SHIFT, _switch)[0]) for j, f in enumerate(extra)}}
-        exec(compile(src, "<wallbatch soft-face dispatch + lepton>", "exec"), namespace)  # noqa: S102 - generated here
+        module = generated_module(_chunk_module_source(extra), "lepton_chunk")
+        namespace = vars(module)
+        namespace.update({"_face": _face, **{f"_FORCE_{i}_{m}": f for (i, m), f in MODE_FORCES.items()}})
+        for j in range(len(extra)):
+            force = njit(nogil=True, error_model="numpy", inline="always")(namespace[f"_LEPTON_{j}"])
+            namespace[f"_EXTRA_{j}"] = njit(nogil=True, error_model="numpy")(cutoff_functions(force, force, SHIFT,
+                                                                                                _switch)[0])
         soft_face = njit(nogil=True, error_model="numpy", inline="always")(namespace["_soft_face"])
         block_step = njit(nogil=True, error_model="numpy", inline="always")(_relink(_block_step, _soft_face=soft_face))
-        return njit(nogil=True, error_model="numpy")(_relink(_run_chunk, _block_step=block_step))
+        return njit(cache=True, nogil=True, error_model="numpy")(
+            _relink(_run_chunk, filename=module.__file__, _block_step=block_step))
 
 
 # ----------------------------------------------------------------------------- the Python side
+
+
+def _chunk_module_source(extra: tuple[str, ...]) -> str:
+    """The generated module of `_chunk_kernel(extra)`: the lepton forces `_LEPTON_j` and the
+    soft-face dispatch with one more branch per force (calling `_EXTRA_j`, its cut-off wrapper)."""
+    n = len(COMPILED_STYLES)
+    dispatch = _dispatch_source(COMPILED_STYLES).replace("    return 0\n", "".join(
+        f"    elif style == {n + j} and mode == {SHIFT}:  # wall/lepton\n        return _face(_EXTRA_{j}, False, "
+        "X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, u0, u1)\n" for j in range(len(extra)))
+        + "    return 0\n")
+    header = ('"""wall/lepton chunk kernel dispatch, generated by wallbatch.engine.compiled: do not edit."""\n'
+              f"# key: compiled.py {_SOURCE_DIGEST}, styles {_fingerprint(COMPILED_STYLES)}\n")
+    forces = "".join(f"\n\n{src.replace('def kernel(', f'def _LEPTON_{j}(', 1)}" for j, src in enumerate(extra))
+    return header + HELPERS_IMPORT + forces + "\n\n" + dispatch
 
 # the wall/flow arguments of a chunk without flow walls (same types: one compiled signature)
 _NO_FLOW = (np.zeros(3, np.int64), np.zeros(4), np.zeros(0), np.zeros(0, np.uint8), np.zeros(0, np.int64),
@@ -1028,36 +1053,67 @@ def _face_styles(w: SoftWallKernel) -> list[WallStyle]:
     return list(w.face_styles) if isinstance(w, CustomWallKernel) else [w.style] * len(w.faces)
 
 
-def _generated_force(style: WallStyle) -> Any | None:
-    """The jitted force of a wall/lepton face (at most 3 parameters), else None."""
-    if isinstance(style, LeptonWallStyle) and style.expression is not None:
-        kernels = positional_kernels(style.expression)
-        return None if kernels is None else kernels[0]
-    return None
+def _generated_force(style: WallStyle) -> str | None:
+    """The generated source of a face's force (wall/lepton with at most 3 parameters, wall/table:
+    WallStyle.generated_force), else None."""
+    return style.generated_force()
 
 
-# wall/lepton kernels are compiled per expression in each process (~15-25 s, no on-disk cache):
-# WALLBATCH_LEPTON_COMPILED=always|never|auto (default auto: when the run has at least
-# LEPTON_MIN_ATOM_STEPS atom-steps over its cases: about where the ~20 s compile pays for itself
-# against the NumPy path, ~25 ns/atom-step slower; benchmarks/lepton.md)
-LEPTON_MIN_ATOM_STEPS = 1e9
+# wall/lepton faces run in a chunk kernel generated for the batch's expressions (`_chunk_kernel`):
+# compiled once (~20 s), then cached on disk and loaded by later processes (~0.5 s, like the
+# built-in kernel). WALLBATCH_LEPTON_COMPILED=always|never|auto; auto (the default) uses it when
+# the batch has at least LEPTON_CACHED_MIN_ATOM_STEPS atom-steps over its cases and the kernel is
+# on disk (a load of ~0.5 s against >= 27 ns/atom-step saved on the NumPy path), or at least
+# LEPTON_MIN_ATOM_STEPS when it must be compiled first (where the compile pays for itself in this
+# run; benchmarks/lepton.py)
+LEPTON_MIN_ATOM_STEPS = 5e8
+LEPTON_CACHED_MIN_ATOM_STEPS = 1e7
 
 
-def lepton_compiled_wanted(state: BatchState) -> bool:
-    """Whether wall/lepton faces run on the compiled path for this batch (see above)."""
+def _lepton_extra(plan: ChunkPlan) -> tuple[str, ...]:
+    """The generated forces of the plan's wall/lepton faces, each once, in face order (the
+    numbering of `_chunk_kernel`)."""
+    out: dict[str, None] = {}
+    for w in plan.soft:
+        for st in _face_styles(w):
+            if not (STYLE_IDS.get(st.name) is not None and COMPILED_STYLES[STYLE_IDS[st.name]] == st):
+                src = _generated_force(st)
+                if src is not None:
+                    out.setdefault(src)
+    return tuple(out)
+
+
+def _compiled_marker(extra: tuple[str, ...]) -> Path:
+    """A file beside the generated module, written once its chunk kernel has been compiled (and so
+    cached on disk by numba)."""
+    return generated_path(_chunk_module_source(extra), "lepton_chunk").with_suffix(".compiled")
+
+
+@functools.lru_cache(maxsize=64)
+def _mark_compiled(extra: tuple[str, ...]) -> None:
+    marker = _compiled_marker(extra)
+    if not marker.exists():
+        marker.write_text("")
+
+
+def lepton_compiled_wanted(state: BatchState, extra: tuple[str, ...] = ()) -> bool:
+    """Whether wall/lepton faces (generated forces `extra`) run on the compiled path for this batch
+    (see above)."""
     mode = os.environ.get("WALLBATCH_LEPTON_COMPILED", "auto").strip().lower()
     if mode in ("always", "1", "yes"):
         return True
     if mode in ("never", "0", "no"):
         return False
-    remaining = np.maximum(state.end_step - state.step, 0).sum()
-    return float(remaining) * state.x.shape[1] >= LEPTON_MIN_ATOM_STEPS
+    atom_steps = float(np.maximum(state.end_step - state.step, 0).sum()) * state.x.shape[1]
+    if atom_steps >= LEPTON_MIN_ATOM_STEPS:
+        return True
+    return atom_steps >= LEPTON_CACHED_MIN_ATOM_STEPS and _compiled_marker(extra).exists()
 
 
-def _compiled_face(w: SoftWallKernel, style: WallStyle, state: BatchState) -> bool:
+def _compiled_face(w: SoftWallKernel, style: WallStyle) -> bool:
     if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] == style:
         return w.cutoff.mode_id in _modes(style)
-    return _generated_force(style) is not None and w.cutoff.mode_id == SHIFT and lepton_compiled_wanted(state)
+    return _generated_force(style) is not None and w.cutoff.mode_id == SHIFT
 
 
 def eligible(plan: ChunkPlan) -> bool:
@@ -1067,7 +1123,10 @@ def eligible(plan: ChunkPlan) -> bool:
     if plan.others:
         return False
     if any(type(w) not in (SoftWallKernel, CustomWallKernel) or
-           not all(_compiled_face(w, st, plan.state) for st in _face_styles(w)) for w in plan.soft):
+           not all(_compiled_face(w, st) for st in _face_styles(w)) for w in plan.soft):
+        return False
+    extra = _lepton_extra(plan)
+    if extra and not lepton_compiled_wanted(plan.state, extra):
         return False
     if any(not region_eligible(w) for w in plan.region):
         return False
@@ -1317,15 +1376,12 @@ class FastPath:
                 setattr(s, name, np.ascontiguousarray(getattr(s, name)))
 
         soft_faces = [(w, st, face) for w in plan.soft for st, face in zip(_face_styles(w), w.faces)]
-        extra: list[Any] = []  # generated forces (wall/lepton), numbered after the registry's styles
+        extra = _lepton_extra(plan)  # generated forces (wall/lepton), numbered after the registry's styles
 
         def style_id(style: WallStyle) -> int:
             if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] == style:
                 return STYLE_IDS[style.name]
-            force = _generated_force(style)
-            if force not in extra:
-                extra.append(force)
-            return len(COMPILED_STYLES) + extra.index(force)
+            return len(COMPILED_STYLES) + extra.index(_generated_force(style))
 
         groups: list[np.ndarray] = [np.ones(s.x.shape[1], np.uint8)]
 
@@ -1366,7 +1422,7 @@ class FastPath:
             self._spare = tuple(np.empty_like(s.x) for _ in range(3))
         xo, vo, fo = self._spare
         backup = {k: getattr(s, k).copy() for k in ("dt", "atime", "atimestep", "step")}
-        kernel = _chunk_kernel(tuple(extra))
+        kernel = _chunk_kernel(extra)
         sf_val, rf_val, rf_stat = (np.ascontiguousarray(a) for a in (sf_val, rf_val, rf_stat))
         lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)
         args = (int(nsteps), time_mode, float(target if time_mode else 0.0),
@@ -1406,6 +1462,8 @@ class FastPath:
                     break
         s.ctx = None
         s.var_step = {}
+        if extra:  # compiled (and cached on disk by numba) by now: later processes load it
+            _mark_compiled(extra)
         if status != 0:
             for k, arr in backup.items():
                 getattr(s, k)[...] = arr

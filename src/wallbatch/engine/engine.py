@@ -376,10 +376,13 @@ class Engine:
             done_after = ~np.any(active & ~landing)
             s.set_dt(step_dt)
             out = self.step(s.dt, outputs=done_after, active=active.astype(np.int64))
-            # land exactly, then restore the dt in force (dt/reset may have changed it)
+            # land exactly, then restore the dt in force (dt/reset may have changed it). The time
+            # accumulator closes only where the run lands or dt changes: at a fixed dt the time is
+            # atime + n dt from the step count, as in step-based runs, not a sum of n additions
             new_base = np.where(s.dt != step_dt, s.dt, base)
-            s.atime = np.where(landing, target, s.time)
-            s.atimestep = s.step.copy()
+            close = landing | (new_base != s.dt)
+            s.atime = np.where(landing, target, np.where(close, s.time, s.atime))
+            s.atimestep = np.where(close, s.step, s.atimestep)
             s.dt = new_base
             self.finish_step(out, sample=done_after)
             if done_after:

@@ -168,17 +168,16 @@ class CustomWallKernel(SoftWallKernel):
         return (energy, vector) if outputs else None
 
     def _fail_inside(self, state: "BatchState", ci: np.ndarray, ai: np.ndarray, r: np.ndarray, face: str) -> None:
-        if self.style.name != "table":
+        nearer = self.style.too_close_message()
+        if nearer is None:
             super()._fail_inside(state, ci, ai, r, face)
             return
         first: dict[int, tuple[int, float]] = {}
         for c, a, d in zip(ci.tolist(), ai.tolist(), r.tolist()):
             first.setdefault(c, (a, d))
-        lo = self.style.lo
         state.fail(np.array(sorted(first)), lambda c: (
-            f"walls.{self.fix_id} (wall/table {face}): atom {first[c][0]} at distance {first[c][1]:.6g} from the "
-            f"wall at step {int(state.step[c])} is nearer than the table's first distance {lo:g} "
-            f"(LAMMPS: Particle / wall distance < table inner cutoff)"))
+            f"walls.{self.fix_id} ({self.style.lammps} {face}): atom {first[c][0]} at distance {first[c][1]:.6g} "
+            f"from the wall at step {int(state.step[c])} is {nearer}"))
 
 
 class ReflectKernel:

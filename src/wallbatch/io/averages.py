@@ -49,8 +49,10 @@ def profile_units(case: Case, quantity: str) -> str:
 
 
 def profile_variables(results: Sequence[Any], case: Case, shape: tuple[int, ...],
-                      sweep_dims: tuple[str, ...]) -> tuple[dict, dict]:
-    """Data variables and coords of every profile window, stacked over the cases (C order)."""
+                      sweep_dims: tuple[str, ...], filled: dict[str, np.ndarray] | None = None) -> tuple[dict, dict]:
+    """Data variables and coords of every profile window, stacked over the cases (C order);
+    `filled` (name -> (cases, window, bin) array) gives arrays already stacked (then `results`
+    is not read)."""
     data_vars: dict = {}
     coords: dict = {}
     steps = int(case.steps or 0)
@@ -64,10 +66,13 @@ def profile_variables(results: Sequence[Any], case: Case, shape: tuple[int, ...]
             "units": "1", "long_name": "timestep at which the window's average is taken (LAMMPS Nfreq step)"})
         for q in p.quantities:
             name = output_name(p.name, q)
-            arr = np.full((len(results), len(wins), p.nbins), np.nan)
-            for i, r in enumerate(results):
-                if name in r.data:
-                    arr[i] = r.data[name]
+            if filled is not None:
+                arr = filled[name]
+            else:
+                arr = np.full((len(results), len(wins), p.nbins), np.nan)
+                for i, r in enumerate(results):
+                    if name in r.data:
+                        arr[i] = r.data[name]
             data_vars[name] = xr.Variable(sweep_dims + ("window", bdim), arr.reshape(shape + arr.shape[1:]), attrs={
                 "units": profile_units(case, q),
                 "long_name": f"{PROFILE_LONG[q]} along {'xyz'[p.axis]}",

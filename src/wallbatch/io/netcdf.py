@@ -10,7 +10,7 @@ import datetime as _dt
 import os
 import sys
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 import xarray as xr
@@ -18,6 +18,7 @@ import xarray as xr
 from wallbatch.version import __version__
 from wallbatch.config.sweep import SweepDim
 from wallbatch.engine.engine import CaseResult, sample_instants
+from wallbatch.engine.profiles import output_name
 from wallbatch.io.averages import add_averages, profile_variables
 from wallbatch.scene.case import Case
 
@@ -114,15 +115,18 @@ def _units(case: Case) -> dict[str, str]:
             "ecouple": u.energy, "econserve": u.energy}
 
 
-def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
+def build_dataset(results: Iterable[CaseResult], c0: Case, *, config_text: str = "",
                   sweep_text: str = "", dims: Sequence[SweepDim] = (),
                   dump_paths: Sequence[str] | None = None) -> xr.Dataset:
     """Stack per-case results (in C order over `dims`) into the outputs.md layout; `c0` is any
-    case of the plan (they share sample instants, fixes and faces)."""
+    case of the plan (they share sample instants, fixes and faces).
+
+    `results` may be an iterator (e.g. reading parts back one at a time): it is consumed once,
+    each result copied into the output arrays and released, so the results are never all in
+    memory twice."""
     shape = tuple(len(d.values) for d in dims)
     sweep_dims = tuple(d.name for d in dims)
-    if int(np.prod(shape, dtype=int)) != len(results):
-        raise ValueError(f"{len(results)} results do not fill a sweep grid of shape {shape}")
+    ncase = int(np.prod(shape, dtype=int))
     units = _units(c0)
     if c0.run_time is None:
         instants = np.asarray(sample_instants(c0), dtype=np.int64)
@@ -155,48 +159,75 @@ def build_dataset(results: list[CaseResult], c0: Case, *, config_text: str = "",
         for k, (vals, paths) in d.extra.items():  # a zip's parameters along its dimension
             coords[k] = xr.Variable((d.name,), np.asarray(vals), attrs={"path": ", ".join(paths)})
 
-    def gather(name: str, tail: tuple[int, ...]) -> np.ndarray:
-        out = np.full((len(results), nsamp) + tail, np.nan)
-        for i, r in enumerate(results):
-            if name in r.data:
-                out[i] = r.data[name]
-        return out.reshape(shape + (nsamp,) + tail)
-
-    data_vars: dict = {}
     wanted = [k for k in per_sample if k in c0.outputs or k in ("time", "dt", "step")]
     if "step" in wanted and c0.run_time is None:
         wanted.remove("step")
-    for name in wanted:
-        data_vars[name] = (sweep_dims + ("sample",), gather(name, ()))
+    tails: dict[str, tuple[int, ...]] = {name: () for name in wanted}
     if fixes:
-        data_vars["wall_energy"] = (sweep_dims + ("sample", "fix"), gather("wall_energy", (len(fixes),)))
+        tails["wall_energy"] = (len(fixes),)
     if rfixes:
-        data_vars["region_force"] = (sweep_dims + ("sample", "rfix", "spatial"),
-                                     gather("region_force", (len(rfixes), 3)))
+        tails["region_force"] = (len(rfixes), 3)
     if faces:
-        wf = gather("wall_force", (len(faces),))
+        tails["wall_force"] = (len(faces),)
+    if stats:
+        for name in ("reflect_count", "reflect_impulse"):
+            if name in c0.outputs:
+                tails[name] = (len(rfaces),)
+    arrays = {name: np.full((ncase, nsamp) + tail, np.nan) for name, tail in tails.items()}
+    for p in c0.profiles:  # output.profiles: (window, bin) per case
+        for q in p.quantities:
+            arrays[output_name(p.name, q)] = np.full((ncase, len(p.window_steps(int(c0.steps or 0))), p.nbins), np.nan)
+    status = np.empty(ncase, dtype=object)
+    error = np.empty(ncase, dtype=object)
+    seconds = np.zeros(ncase)
+    minimized = {name: ([""] * ncase if name == "min_stop_reason" else np.full(ncase, np.nan)) for name in MIN_OUTPUTS}
+    n = 0
+    for i, r in enumerate(results):  # one pass: each result copied in place, then released
+        if i >= ncase:
+            raise ValueError(f"more than {ncase} results for a sweep grid of shape {shape}")
+        for name, arr in arrays.items():
+            if name in r.data:
+                arr[i] = r.data[name]
+        if c0.minimize is not None:
+            for name, vals in minimized.items():
+                vals[i] = str(r.data.get(name, "")) if name == "min_stop_reason" else float(r.data.get(name, np.nan))
+        status[i], error[i], seconds[i] = r.status, r.error, r.seconds
+        n = i + 1
+    if n != ncase:
+        raise ValueError(f"{n} results do not fill a sweep grid of shape {shape}")
+
+    def stacked(name: str) -> np.ndarray:
+        arr = arrays.pop(name)
+        return arr.reshape(shape + arr.shape[1:])
+
+    data_vars: dict = {}
+    for name in wanted:
+        data_vars[name] = (sweep_dims + ("sample",), stacked(name))
+    if fixes:
+        data_vars["wall_energy"] = (sweep_dims + ("sample", "fix"), stacked("wall_energy"))
+    if rfixes:
+        data_vars["region_force"] = (sweep_dims + ("sample", "rfix", "spatial"), stacked("region_force"))
+    if faces:
+        wf = stacked("wall_force")
         if len(all_faces) > len(faces):
             wf = np.concatenate([wf, np.full(wf.shape[:-1] + (len(all_faces) - len(faces),), np.nan)], axis=-1)
         data_vars["wall_force"] = (sweep_dims + ("sample", "face"), wf)
     if stats:
         for name in ("reflect_count", "reflect_impulse"):
             if name in c0.outputs:
-                arr = gather(name, (len(rfaces),))
+                arr = stacked(name)
                 pad = np.full(arr.shape[:-1] + (len(faces),), np.nan)
                 data_vars[name] = (sweep_dims + ("sample", "face"), np.concatenate([pad, arr], axis=-1))
     if c0.minimize is not None:
-        for name in MIN_OUTPUTS:
-            if name == "min_stop_reason":
-                vals = np.asarray([str(r.data.get(name, "")) for r in results], dtype=object)
-            else:
-                vals = np.asarray([float(r.data.get(name, np.nan)) for r in results], float)
+        for name, vals in minimized.items():
+            vals = np.asarray(vals, dtype=object) if name == "min_stop_reason" else vals
             data_vars[name] = (sweep_dims, vals.reshape(shape))
-    data_vars["status"] = (sweep_dims, np.asarray([r.status for r in results], dtype=object).reshape(shape))
-    data_vars["error"] = (sweep_dims, np.asarray([r.error for r in results], dtype=object).reshape(shape))
-    data_vars["seconds"] = (sweep_dims, np.asarray([r.seconds for r in results], float).reshape(shape))
+    data_vars["status"] = (sweep_dims, status.reshape(shape))
+    data_vars["error"] = (sweep_dims, error.reshape(shape))
+    data_vars["seconds"] = (sweep_dims, seconds.reshape(shape))
     if dump_paths is not None:
         data_vars["dump_path"] = (sweep_dims, np.asarray(dump_paths, dtype=object).reshape(shape))
-    pvars, pcoords = profile_variables(results, c0, shape, sweep_dims)  # output.profiles
+    pvars, pcoords = profile_variables((), c0, shape, sweep_dims, filled=arrays)  # output.profiles
     data_vars.update(pvars)
     coords.update(pcoords)
     ds = xr.Dataset(data_vars, coords=coords)

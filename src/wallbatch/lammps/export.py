@@ -41,8 +41,7 @@ from wallbatch.expr import Binary, Call, Keyword, Node, Num, Unary, to_lammps
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import Case, ReflectSpec, RegionWallSpec, SoftWallSpec
 from wallbatch.styles.cutoff import CutoffStyle
-from wallbatch.styles.lepton import compile_expression
-from wallbatch.styles.table import TableData, WallTable
+from wallbatch.styles.table import TABLE, TableData, WallTable
 from wallbatch.styles import STYLES
 from wallbatch.units import UNIT_SYSTEMS
 
@@ -500,7 +499,7 @@ def _cutoff_table_wall(fid: str, wall: Any, spec: SoftWallSpec, s: _Script) -> N
     written = dict(wall.faces())
     treated = CutoffStyle(spec.style, spec.cutoff_mode)
     n = TABLE_N[spec.cutoff_mode]
-    mapping: dict[str, Any] = {"style": "table", "group": s.group(wall.group), "units": "box",
+    mapping: dict[str, Any] = {"style": TABLE.name, "group": s.group(wall.group), "units": "box",
                                "tabstyle": "spline", "N": n}
     if wall.pbc:
         mapping["pbc"] = True
@@ -551,7 +550,7 @@ def _cutoff_table_wall(fid: str, wall: Any, spec: SoftWallSpec, s: _Script) -> N
              f"offers: it is written as fix wall/table spline {n} reading {s.table_name}, the treated energy "
              f"and force sampled on {n} points over {', '.join(ranges)} (an atom nearer to the wall than the "
              f"first point stops LAMMPS). LAMMPS interpolates the table, so it agrees with wallbatch only to the "
-             f"table's interpolation error ({error:.2g} relative: docs/howto/validate.md)")
+             f"interpolation error of the table ({error:.2g} relative: docs/howto/validate.md)")
     s.table_rtol = max(s.table_rtol, error)
     s.fixes.append(to_fix_line(lid, mapping))
     if spec.energy:
@@ -659,27 +658,22 @@ def _flow_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
         s.notes.append(f"walls.{fid}: coords {list(wall.coords)} lattice spacings written in box units")
 
 
-def _custom_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
-    """fix wall/lepton (the face's expression, its parameters as Lepton `;` definitions with this
-    case's values) or fix wall/table (the table file by absolute path), in box units; energy and
-    wall_force columns as for the other soft walls. LAMMPS's wall/lepton vector is the force on
-    the atoms: the wall_force column compares with its negative."""
+def _per_face_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
+    """A style built per face (fix wall/lepton: the face's expression, its parameters as Lepton
+    `;` definitions with this case's values; fix wall/table: the table file by absolute path), in
+    box units, each face's words from the registry entry's lammps_face; energy and wall_force
+    columns as for the other soft walls. Where LAMMPS's vector is the force on the atoms
+    (entry.lammps_force_sign -1, wall/lepton) the wall_force column compares with its negative."""
+    entry = STYLES[wall.style]
     lid = s.fix_id(fid)
     written = dict(wall.faces())
-    mapping: dict[str, Any] = {"style": wall.style, "group": s.group(wall.group), "units": "box"}
-    if wall.style == "table":
-        mapping.update(tabstyle=wall.tabstyle, N=int(wall.N))
+    mapping: dict[str, Any] = {"style": wall.style, "group": s.group(wall.group), "units": "box",
+                               **{p.name: getattr(wall, p.name) for p in entry.wall_parameters}}
     if wall.pbc:
         mapping["pbc"] = True
-    for face, style, sig in zip(spec.faces, spec.face_styles, spec.signature):
-        values: dict[str, Any] = {"coord": _coord_word(face, written[face.name].coord, s),
-                                  "cutoff": float(face.params["cutoff"])}
-        if wall.style == "lepton":
-            expr = compile_expression(sig, tuple(written[face.name].params))
-            values["expression"] = expr.lammps_text({k: float(v) for k, v in face.params.items() if k != "cutoff"})
-        else:
-            values.update(file=sig[0], keyword=sig[1])
-        mapping[face.name] = values
+    for face, sig in zip(spec.faces, spec.signature):
+        values = {**written[face.name].model_dump(), "coord": _coord_word(face, written[face.name].coord, s)}
+        mapping[face.name] = entry.lammps_face(values, face.params, sig)
     s.fixes.append(to_fix_line(lid, mapping))
     if spec.energy:
         s.fixes.append(f"fix_modify {lid} energy yes")
@@ -688,15 +682,16 @@ def _custom_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
     s.energy_column(fid, lid)
     first = sum(len(w.faces) for w in s.soft_written)
     s.soft_written.append(spec)
+    flipped = entry.lammps_force_sign < 0
     for i, face in enumerate(spec.faces):
         keyword = f"f_{lid}[{i + 1}]"
-        if wall.style == "lepton":
+        if flipped:
             helper = _lammps_id(f"wb_{lid}_{face.name}_force", set(s.variables) | set(s.case.variables.names()))
             s.variables[helper] = f"-{keyword}"
             keyword = f"v_{helper}"
         s.columns.append(Column(f"wall_force[{face.label}]", keyword, "wall_force", first + i))
-    if wall.style == "lepton":
-        s.notes.append(f"walls.{fid}: LAMMPS's wall/lepton vector is the force on the atoms, the opposite of "
+    if flipped:
+        s.notes.append(f"walls.{fid}: LAMMPS's {entry.lammps} vector is the force on the atoms, the opposite of "
                        "wallbatch's wall_force (the force on the wall): compared through v_wb_..._force = -f_ID[i]")
 
 
@@ -720,9 +715,7 @@ def _stochastic_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
 
 WALL_WRITERS: dict[str, WallWriter] = {
     "reflect/stochastic": _stochastic_wall,
-    "lepton": _custom_wall,
-    "table": _custom_wall,
-    **{style: _soft_wall for style in STYLES},
+    **{name: _per_face_wall if style.per_face else _soft_wall for name, style in STYLES.items()},
     "reflect": _reflect_wall,
     "region": _region_wall,
     "region/ees": _region_wall,

@@ -5,9 +5,10 @@ masses, radii and initial velocities.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
-import functools
 import warnings
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -36,14 +37,34 @@ from wallbatch.scene.case import (
     Value,
 )
 from wallbatch.scene.ensemble import build_fixes
-from wallbatch.styles import STYLES
-from wallbatch.styles.lepton import compile_expression, lepton_style
-from wallbatch.styles.table import TableError, WallTable, read_table, table_style
+from wallbatch.styles import STYLES, WallStyle
 from wallbatch.units import LATTICE_CELL, LATTICE_POSITIONS, LATTICES_2D, UNIT_SYSTEMS, UnitSystem
 
 
 def _fail(path: str, msg: str) -> CaseError:
     return CaseError(f"{path}: {msg}")
+
+
+def _fail_at(cfg: Config, path: str, msg: str) -> CaseError:
+    """A CaseError at the config field `path` (dotted), with the config's file:line:col when the
+    config came from a file."""
+    srcmap = getattr(cfg, "_srcmap", None)
+    if srcmap is not None:
+        loc = tuple(int(p) if p.isdigit() else p for p in path.split("."))
+        with contextlib.suppress(Exception):
+            return CaseError(srcmap.format(loc, msg))
+    return _fail(path, msg)
+
+
+def _check_finite_rows(cfg: Config, path: str, file: Path, name: str, arr: np.ndarray) -> None:
+    """Every value of an atoms-file array finite: else name the file, the array and the atom."""
+    if arr.size == 0:
+        return
+    bad = ~np.isfinite(arr.reshape(len(arr), -1)).all(axis=1)
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        raise _fail_at(cfg, path, f"{file}: array {name} has a non-finite value (inf or nan) at row {i} "
+                                  f"(atom {i + 1} of the file): {str(arr[i].tolist())[:200]}")
 
 
 # ----------------------------------------------------------------------------- atoms
@@ -134,7 +155,7 @@ def _data_file_atoms(cfg: Config, g: Any, file: Path, path: str) -> dict[str, np
     try:
         df = read_data_file(file, periodic=periodic)
     except DataFileError as exc:
-        raise _fail(f"{path}.file", str(exc)) from None
+        raise _fail_at(cfg, f"{path}.file", str(exc)) from None
     select = None
     if g.create.ids is not None:
         select = select_ids(df.ids, g.create.ids)
@@ -195,16 +216,29 @@ def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]
         else:
             file = Path(c.file)
             file = file if file.is_absolute() else cfg._base_dir / file
+            where = f"{path}.create.file"
             if not _is_npz(file):  # a LAMMPS data file (any name: data.NAME, NAME.data, ...)
                 data = _data_file_atoms(cfg, g, file, f"{path}.create")
             else:
                 try:
-                    with np.load(file) as npz:
+                    with np.load(file, allow_pickle=False) as npz:
                         data = {k: np.asarray(npz[k], float) for k in npz.files}
-                except (OSError, ValueError) as exc:
-                    raise _fail(f"{path}.create.file", f"cannot read {file}: {exc}") from None
+                except (OSError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+                    raise _fail_at(cfg, where, f"cannot read {file} as a NumPy .npz archive: "
+                                               f"{str(exc)[:200] or type(exc).__name__}") from None
             if "x" not in data or data["x"].ndim != 2 or data["x"].shape[1] != 3:
-                raise _fail(f"{path}.create.file", f"{file} needs an array x of shape (N, 3)")
+                got = f"shape {data['x'].shape}" if "x" in data else f"arrays {sorted(data)[:10]}"
+                raise _fail_at(cfg, where, f"{file} needs an array x of shape (N, 3), got {got}")
+            nfile = len(data["x"])  # 0 is allowed: a group may be empty (a scene with no atoms fails)
+            for key, width in (("x", 3), ("v", 3), ("mass", 0), ("radius", 0), ("shape", 3), ("quat", 4),
+                               ("angmom", 3)):
+                if key not in data:
+                    continue
+                want = (nfile, width) if width else (nfile,)
+                if data[key].shape != want:
+                    raise _fail_at(cfg, where, f"{file}: array {key} has shape {data[key].shape}, expected {want} "
+                                               f"(one row per atom of x)")
+                _check_finite_rows(cfg, where, file, key, data[key])
             x = data["x"]
         n = len(x)
         for key, given in (("mass", g.mass), ("radius", g.radius)):
@@ -349,8 +383,8 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
                 raise CaseError(f"walls.{fid}: wall/{wall.style} requires extended particles: every atom of group "
                                 f"{wall.group} needs a shape (ellipsoid semi-axes)")
         fix_order.append(fid)
-        if wall.style in ("lepton", "table"):
-            soft.append(_custom_spec(cfg, fid, wall, group))
+        if entry is not None and entry.per_face:
+            soft.append(_per_face_spec(cfg, fid, wall, entry, group))
             continue
         if wall.style in ("region", "region/ees"):
             region = cfg.regions[wall.region]
@@ -404,36 +438,22 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
     )
 
 
-def _custom_spec(cfg: Config, fid: str, wall: Any, group: np.ndarray) -> CustomWallSpec:
-    """wall/lepton (a compiled expression per face; params: cutoff and the expression's names)
-    or wall/table (a resampled table per face, files relative to the config; params: cutoff)."""
+def _per_face_spec(cfg: Config, fid: str, wall: Any, entry: WallStyle, group: np.ndarray) -> CustomWallSpec:
+    """A style built per face (wall/lepton: a compiled expression per face, params the cutoff and
+    the expression's names; wall/table: a resampled table per face, files relative to the config,
+    params the cutoff): the registry entry's face_style for each face."""
     faces, styles, signature = [], [], []
+    values = wall.model_dump()
     for face, (_, spec) in zip(_faces(cfg, fid, wall, ()), wall.faces()):
-        if wall.style == "lepton":
-            expr = compile_expression(spec.expression, tuple(spec.params))
-            style = lepton_style(expr)
-            params = {"cutoff": spec.cutoff, **{n: float(spec.params.get(n, expr.defaults.get(n, 0.0)))
-                                                for n in expr.params}}
-            signature.append(spec.expression)
-        else:
-            path = Path(spec.file)
-            path = path if path.is_absolute() else cfg._base_dir / path
-            try:
-                table = _table(str(path.resolve()), spec.keyword, wall.tabstyle, wall.N)
-            except TableError as exc:
-                raise CaseError(f"walls.{fid}.{face.name}.file: {exc}") from None
-            style = table_style(table)
-            params = {"cutoff": spec.cutoff}
-            signature.append((str(path.resolve()), spec.keyword, wall.tabstyle, wall.N))
+        try:
+            style, params, sig = entry.face_style(spec.model_dump(), values, str(cfg._base_dir))
+        except ValueError as exc:
+            raise CaseError(f"walls.{fid}.{face.name}.{getattr(exc, 'key', 'expression')}: {exc}") from None
         styles.append(style)
+        signature.append(sig)
         faces.append(Face(face.label, face.name, face.dim, face.side, face.coord, face.scale, params))
     return CustomWallSpec(fid, styles[0], group, wall.energy, tuple(faces), virial=wall.virial,
                           face_styles=tuple(styles), signature=tuple(signature))
-
-
-@functools.lru_cache(maxsize=64)
-def _table(path: str, keyword: str, tabstyle: str, n: int) -> WallTable:
-    return WallTable.build(read_table(path, keyword), tabstyle, n)
 
 
 def _stochastic_spec(cfg: Config, fid: str, wall: Any, group: np.ndarray, seed: tuple[int, ...]) -> StochasticSpec:

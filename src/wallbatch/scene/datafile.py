@@ -300,9 +300,13 @@ def _table(rows: list[tuple[int, str]], widths: tuple[int, ...], where, section:
             raise DataFileError(f"{where(line_no)}: a {section} line of atom_style {style} has "
                                 f"{' or '.join(map(str, widths))} values, got {len(words)}: {text!r}")
         try:
-            out.append([float(w) for w in words])
+            vals = [float(w) for w in words]
         except ValueError:
-            raise DataFileError(f"{where(line_no)}: not a number in {text!r}") from None
+            raise DataFileError(f"{where(line_no)}: not a number in {text[:200]!r}") from None
+        if not all(math.isfinite(v) for v in vals):
+            raise DataFileError(f"{where(line_no)}: a non-finite value (inf or nan) in the {section} line "
+                                f"{text[:200]!r}")
+        out.append(vals)
     width = max(len(r) for r in out) if out else widths[0]
     if out and any(len(r) != width for r in out):
         raise DataFileError(f"{where(rows[0][0])}: {section} lines mix rows with and without image flags")

@@ -40,6 +40,17 @@ class Param:
     placeholder: float | None = None  # written for an omitted optional argument (LAMMPS reads a word)
     doc: str = ""
     lammps_variable_note: str | None = None  # LAMMPS does not use a variable here: the export's decision row
+    # what the value is: ``number`` (the default; a float, or v_name where ``variable``), ``word``
+    # (a string: an expression, a file name; ``quoted``: written in double quotes in a fix line),
+    # ``choice`` (one of ``choices``), ``integer`` (>= ``min``), or ``mapping`` (names -> numbers,
+    # a config key with no word of its own in the fix line, e.g. wall/lepton's params)
+    kind: str = "number"
+    choices: tuple[str, ...] = ()
+    quoted: bool = False
+
+    @property
+    def numeric(self) -> bool:
+        return self.kind == "number"
 
 
 def cutoff_param() -> Param:
@@ -88,6 +99,15 @@ class WallStyle:
     compiled_shifted: bool = True
     doc: str = ""
     lammps: str = field(default="")
+    # words of the fix line between the style and the first face, also keys of the wall's config
+    # mapping (wall/table: tabstyle N)
+    wall_parameters: tuple[Param, ...] = ()
+    # the style of each face is built from the face's own values (an expression, a table file):
+    # see face_style, check_face, fix_face, lammps_face, example (wall/lepton, wall/table)
+    per_face: bool = False
+    # the sign of LAMMPS's per-face fix vector against wallbatch's wall_force (the force on the
+    # wall): -1 where LAMMPS reports the force on the atoms (wall/lepton)
+    lammps_force_sign: float = 1.0
 
     def __post_init__(self) -> None:
         if not self.lammps:
@@ -99,13 +119,19 @@ class WallStyle:
 
     @property
     def params(self) -> tuple[str, ...]:
-        """Per-face argument names after coord, in LAMMPS order (cutoff last)."""
+        """Per-face argument names after coord, in LAMMPS order (cutoff last): the words of a face
+        in a fix line (parameters of kind ``mapping`` have none)."""
+        return tuple(p.name for p in self.parameters if p.kind != "mapping")
+
+    @property
+    def face_keys(self) -> tuple[str, ...]:
+        """Every key of a face's config mapping besides coord (``params`` and the mappings)."""
         return tuple(p.name for p in self.parameters)
 
     @property
     def args_names(self) -> tuple[str, ...]:
-        """The parameters passed as p0, p1, p2 (all but the cutoff)."""
-        return tuple(p.name for p in self.parameters if p.name != "cutoff")
+        """The parameters passed as p0, p1, p2 (the numbers, but the cutoff)."""
+        return tuple(p.name for p in self.parameters if p.name != "cutoff" and p.numeric)
 
     @property
     def positional(self) -> tuple[str, ...]:
@@ -113,7 +139,35 @@ class WallStyle:
         return ("coord",) + self.params
 
     def param(self, name: str) -> Param:
-        return next(p for p in self.parameters if p.name == name)
+        return next(p for p in self.parameters + self.wall_parameters if p.name == name)
+
+    # -- styles built per face (per_face: wall/lepton, wall/table) -------------------------------
+
+    def face_style(self, face: Mapping, wall: Mapping, base_dir: str) -> tuple[WallStyle, dict, object]:
+        """(the face's own style, its numeric parameters (cutoff included), a signature: what
+        decides which cases share a batch) from the face's config values ``face`` (coord and the
+        parameters), the wall's (``wall``: its wall_parameters) and the config's folder (relative
+        files). Raises ValueError (a message for the user) when the face cannot be built."""
+        raise NotImplementedError(f"wall/{self.name} has one style for every face")
+
+    def check_face(self, face: Mapping, wall: Mapping, base_dir: str) -> list[tuple[str, str]]:
+        """Problems of one face before anything runs, as (face key, message) pairs."""
+        return []
+
+    def fix_face(self, face: Mapping) -> dict:
+        """A face's config values -> the values of its fix-line words (``params`` and the other
+        mappings folded into the words they belong to)."""
+        return {k: v for k, v in face.items() if k == "coord" or k in self.params}
+
+    def lammps_face(self, face: Mapping, params: Mapping[str, float], signature: object) -> dict:
+        """A face's fix-line values for a LAMMPS script of one case: ``face`` its config values,
+        ``params`` this case's numbers, ``signature`` as from face_style (a table's absolute path)."""
+        return self.fix_face({**face, **params})
+
+    def example(self, directory: str) -> tuple[dict, dict]:
+        """(wall keys, face values besides coord) of a working wall of this style for the tests
+        parametrised over the registry (files written into ``directory``)."""
+        raise NotImplementedError
 
     # -- evaluation on a parameter mapping (the NumPy engine, tests) ------------------------------
 
@@ -134,6 +188,19 @@ class WallStyle:
         0, or the particle radius for styles that need one (colloid).
         """
         return p["radius"] if self.needs_radius else 0.0
+
+    def generated_force(self) -> str | None:
+        """Python source of ``kernel(r, p0, p1, p2, rc, radius)``, this style's force F(r)
+        [force] for the compiled path, for styles made per face from an expression or a table
+        (wall/lepton, wall/table); None for the registry's built-in styles (compiled from
+        ``force`` itself) and for faces the compiled path cannot run."""
+        return None
+
+    def too_close_message(self) -> str | None:
+        """How a case that fails because an atom is "on or inside" the wall (too_close) is
+        described after "atom A at distance D from the wall at step S is", or None for the
+        engine's usual message."""
+        return None
 
     def shifted_energy(self, r, p: Params) -> np.ndarray:
         """The reported energy: E(r) - E(rc), rc = p["cutoff"] (E(r) if ``shifted`` is False). [energy]

@@ -28,8 +28,15 @@ NumPy's own exp/log/tanh use SIMD code that differs from the C library by an ulp
 from __future__ import annotations
 
 import functools
+import hashlib
+import importlib.util
 import math
+import os
 import re
+import sys
+import tempfile
+from pathlib import Path
+from types import ModuleType
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
@@ -53,7 +60,13 @@ __all__ = [
     "kernel_source",
     "lepton_style",
     "LeptonWallStyle",
+    "LeptonEntry",
+    "LEPTON",
     "positional_kernels",
+    "force_source",
+    "kernel_cache_dir",
+    "generated_module",
+    "generated_path",
 ]
 
 
@@ -893,6 +906,76 @@ def _jit_positional(source: str) -> Callable:
     return njit(nogil=True, error_model="numpy", inline="always")(namespace["kernel"])
 
 
+def force_source(expr: LeptonExpression, name: str = "kernel") -> str | None:
+    """Python source of ``name(r, p0, p1, p2, rc, radius)``, the force F = -dE/dr [force] of an
+    expression with at most 3 parameters (None with more): the function :func:`positional_kernels`
+    jits, for a generated module (:func:`generated_module`). It calls ``_div``, ``_sqrt``,
+    ``_log``, ``_pow``, ``math`` and ``np``: a module imports them with ``HELPERS_IMPORT``."""
+    if len(expr.params) > POSITIONAL_PARAMS:
+        return None
+    return _codegen((expr.force,), expr.params, positional=True).replace("def kernel(", f"def {name}(", 1)
+
+
+# the first lines of a generated module that calls the helpers of the generated kernels
+HELPERS_IMPORT = ("from wallbatch.styles.lepton import _helpers as _lepton_helpers\n"
+                  "globals().update(_lepton_helpers())\n")
+
+
+def kernel_cache_dir() -> Path:
+    """Where generated kernel modules are written (and numba caches their compiled code, in the
+    ``__pycache__`` beside them): ``$WALLBATCH_CACHE_DIR``, else ``$XDG_CACHE_HOME/wallbatch``,
+    else ``~/.cache/wallbatch``; a fresh temporary directory when that is not writable (then
+    nothing outlives the process)."""
+    env = os.environ.get("WALLBATCH_CACHE_DIR")
+    base = Path(env) if env else Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "wallbatch"
+    path = base / "kernels"
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / f".probe-{os.getpid()}"
+        probe.write_text("")
+        probe.unlink()
+    except OSError:
+        path = _temporary_dir()
+    return path
+
+
+@functools.lru_cache(maxsize=1)
+def _temporary_dir() -> Path:
+    return Path(tempfile.mkdtemp(prefix="wallbatch-kernels-"))
+
+
+def generated_module(source: str, prefix: str = "wb") -> ModuleType:
+    """Import generated Python ``source`` as a real module file, so that numba's ``cache=True``
+    can cache what is compiled from it across processes (numba caches only functions with a
+    source file). The file is ``kernel_cache_dir()/PREFIX_HASH.py``, HASH a digest of the
+    source and the numba version, written once (atomically); the same source gives the same
+    file, hence the same numba cache entries. Cached per process."""
+    return _generated_module(source, prefix, str(kernel_cache_dir()))
+
+
+def generated_path(source: str, prefix: str = "wb") -> Path:
+    """The file :func:`generated_module` writes ``source`` to (whether or not it exists yet)."""
+    import numba  # noqa: PLC0415 - heavy optional import, only where kernels are generated
+
+    digest = hashlib.sha256(f"numba {numba.__version__}\n{source}".encode()).hexdigest()[:24]
+    return kernel_cache_dir() / f"{prefix}_{digest}.py"
+
+
+@functools.lru_cache(maxsize=64)
+def _generated_module(source: str, prefix: str, directory: str) -> ModuleType:
+    path = generated_path(source, prefix)
+    digest = path.stem.rpartition("_")[2]
+    if not path.exists() or path.read_text(encoding="utf-8") != source:
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(source, encoding="utf-8")
+        os.replace(tmp, path)  # atomic: another process sees the whole file or none
+    spec = importlib.util.spec_from_file_location(f"wallbatch_generated_{prefix}_{digest}", path)
+    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+    sys.modules[spec.name] = module  # type: ignore[union-attr]  # numba finds a cached function's module by name
+    spec.loader.exec_module(module)  # type: ignore[union-attr]
+    return module
+
+
 def kernel_source(expr: LeptonExpression) -> str:
     """The generated source of the scalar kernel (E, F) = kernel(r, p)."""
     return _codegen((expr.energy, expr.force), expr.params)
@@ -951,3 +1034,64 @@ class LeptonWallStyle(WallStyle):
     kernel (:func:`positional_kernels`)."""
 
     expression: LeptonExpression | None = None
+
+    def generated_force(self) -> str | None:
+        """The generated force source (:func:`force_source`; None with more than 3 parameters)."""
+        return None if self.expression is None else force_source(self.expression)
+
+
+# ---------------------------------------------------------------------------------------------
+# The registry entry
+
+
+@dataclass(frozen=True)
+class LeptonEntry(WallStyle):
+    """The registry entry of wall/lepton: each face's style is built from its expression
+    (:func:`lepton_style`); the face's ``params`` are folded into the expression as Lepton ``;``
+    definitions in a fix line."""
+
+    def face_style(self, face: Mapping, wall: Mapping, base_dir: str) -> tuple[WallStyle, dict, object]:
+        params = dict(face.get("params") or {})
+        expr = compile_expression(face["expression"], tuple(params))
+        values = {"cutoff": float(face["cutoff"]),
+                  **{n: float(params.get(n, expr.defaults.get(n, 0.0))) for n in expr.params}}
+        return lepton_style(expr), values, face["expression"]
+
+    def check_face(self, face: Mapping, wall: Mapping, base_dir: str) -> list[tuple[str, str]]:
+        """The expression parses, uses only r, its definitions and its params, is finite at the
+        cut-off and divides by zero nowhere in (0, rc]."""
+        params = dict(face.get("params") or {})
+        if "cutoff" in params:
+            return [("params.cutoff", "'cutoff' is the face's cut-off, not a parameter name")]
+        try:
+            compile_expression(face["expression"], tuple(params)).check(face["cutoff"], params)
+        except LeptonError as exc:
+            return [("expression", str(exc))]
+        return []
+
+    def fix_face(self, face: Mapping) -> dict:
+        text = str(face.get("expression", ""))
+        text += "".join(f"; {k}={float(v)!r}" for k, v in (face.get("params") or {}).items())
+        return {"coord": face.get("coord"), "expression": text, "cutoff": face.get("cutoff")}
+
+    def lammps_face(self, face: Mapping, params: Mapping[str, float], signature: object) -> dict:
+        """The expression with this case's parameter values as ``;`` definitions."""
+        expr = compile_expression(str(signature), tuple(face.get("params") or {}))
+        values = {k: float(v) for k, v in params.items() if k != "cutoff"}
+        return {"coord": face["coord"], "expression": expr.lammps_text(values), "cutoff": float(params["cutoff"])}
+
+    def example(self, directory: str) -> tuple[dict, dict]:
+        return {}, {"expression": "eps*(2/15*(sig/r)^9-(sig/r)^3); eps=1.3; sig=0.9", "cutoff": 2.5}
+
+
+LEPTON = LeptonEntry(
+    "lepton",
+    (Param("expression", "energy", variable=False, kind="word", quoted=True,
+           doc="the wall energy E(r) as a Lepton expression of r, the distance to the wall; `;` definitions "
+               "allowed (F = -dE/dr is derived exactly; E is shifted to 0 at the cut-off)"),
+     Param("params", "energy", variable=False, required=False, kind="mapping",
+           doc="named numbers used by the expression (sweepable; written as `; name=value` definitions in "
+               "the LAMMPS fix line)"),
+     cutoff_param()),
+    region=False, compiled=False, per_face=True, lammps_force_sign=-1.0,
+    doc="E(r) from an expression, F = -dE/dr exactly")

@@ -20,19 +20,25 @@ A distance outside [r_1, r_n] is an error (the table does not cover it).
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import math
 import os
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from wallbatch.styles.base import WallStyle, cutoff_param
+from wallbatch.styles.base import Param, WallStyle, cutoff_param
 from wallbatch.styles.flat import STYLES
-from wallbatch.styles.lepton import LeptonError, compile_expression, derivative, evaluate, simplify
+from wallbatch.styles.lepton import LeptonError, compile_expression, derivative, evaluate, kernel_cache_dir, simplify
 
 __all__ = [
     "TableWallStyle",
+    "TableEntry",
+    "TABLE",
+    "FaceError",
     "table_style",
     "TableError",
     "TableData",
@@ -41,6 +47,8 @@ __all__ = [
     "WallTable",
     "spline_coefficients",
     "spline_eval",
+    "linear_lookup",
+    "spline_lookup",
     "tabulate",
     "table_source",
     "write_source_table",
@@ -222,6 +230,26 @@ def spline_eval(x: np.ndarray, y: np.ndarray, y2: np.ndarray, xv: np.ndarray) ->
 # The resampled table and its lookups
 
 
+def linear_lookup(r, i, grid, y, dy, invdelta):
+    """y(r) by linear interpolation on the grid's interval i (grid[i] <= r), dy[i] = y[i+1] - y[i],
+    invdelta = 1 / grid spacing. Plain arithmetic: NumPy arrays (r, i) or scalars in numba."""
+    fraction = (r - grid[i]) * invdelta
+    return y[i] + fraction * dy[i]
+
+
+def spline_lookup(r, i, grid, y, y2, invdelta, deltasq6):
+    """y(r) by the cubic spline (grid values y, second derivatives y2) on interval i;
+    deltasq6 = spacing^2 / 6. Plain arithmetic, as :func:`linear_lookup`."""
+    b = (r - grid[i]) * invdelta
+    a = 1.0 - b
+    ca = a * a * a - a
+    cb = b * b * b - b
+    return a * y[i] + b * y[i + 1] + (ca * y2[i] + cb * y2[i + 1]) * deltasq6
+
+
+_FORCE_SOURCES: dict[int, tuple] = {}  # id(WallTable) -> (the table, its generated force source)
+
+
 @dataclass(frozen=True)
 class WallTable:
     """A table resampled onto N equally spaced points, ready for linear or spline lookups.
@@ -282,18 +310,49 @@ class WallTable:
                 f"distance {bad!r} from the wall is outside the table [{self.lo!r}, {self.hi!r}]"
             )
         n = len(self.r)
-        fraction_all = (r - self.lo) * self.invdelta
-        i = np.minimum(fraction_all.astype(np.int64), n - 2)
+        i = np.minimum(((r - self.lo) * self.invdelta).astype(np.int64), n - 2)  # as int() in the kernel
         if style == "linear":
-            fraction = (r - self.r[i]) * self.invdelta
-            return self.e[i] + fraction * self.de[i], self.f[i] + fraction * self.df[i]
-        b = (r - self.r[i]) * self.invdelta
-        a = 1.0 - b
-        ca = a * a * a - a
-        cb = b * b * b - b
-        e = a * self.e[i] + b * self.e[i + 1] + (ca * self.e2[i] + cb * self.e2[i + 1]) * self.deltasq6
-        f = a * self.f[i] + b * self.f[i + 1] + (ca * self.f2[i] + cb * self.f2[i + 1]) * self.deltasq6
-        return e, f
+            return (linear_lookup(r, i, self.r, self.e, self.de, self.invdelta),
+                    linear_lookup(r, i, self.r, self.f, self.df, self.invdelta))
+        return (spline_lookup(r, i, self.r, self.e, self.e2, self.invdelta, self.deltasq6),
+                spline_lookup(r, i, self.r, self.f, self.f2, self.invdelta, self.deltasq6))
+
+    def force_source(self) -> str:
+        """Python source of ``kernel(r, p0, p1, p2, rc, radius)``, the force F(r) [force] by this
+        table's interpolation, for the compiled path (a generated module, see
+        wallbatch.styles.lepton.generated_module): the grid arrays are saved once to a ``.npy``
+        file in the kernel cache directory, named by their digest, and the lookup calls the same
+        :func:`linear_lookup` / :func:`spline_lookup` as :meth:`lookup` (jitted), so the two agree
+        bit for bit. NaN below the table's first distance (the compiled chunk then falls back to
+        NumPy, which reports the atom)."""
+        key = id(self)
+        if key not in _FORCE_SOURCES or _FORCE_SOURCES[key][0] is not self:
+            _FORCE_SOURCES[key] = (self, self._force_source())
+        return _FORCE_SOURCES[key][1]
+
+    def _force_source(self) -> str:
+        linear = self.tabstyle == "linear"
+        rows = np.ascontiguousarray(np.stack([self.r, self.f, np.append(self.df, 0.0) if linear else self.f2]))
+        digest = hashlib.sha256(rows.tobytes() + self.tabstyle.encode()).hexdigest()[:24]
+        path = kernel_cache_dir() / f"table_{digest}.npy"
+        if not path.exists():
+            tmp = path.with_suffix(f".{os.getpid()}.tmp.npy")
+            np.save(tmp, rows)
+            os.replace(tmp, path)
+        name = f"_TAB_{digest}"
+        n2 = len(self.r) - 2
+        call = (f"_table_linear(r, i, {name}_R, {name}_F, {name}_D, {self.invdelta!r})" if linear else
+                f"_table_spline(r, i, {name}_R, {name}_F, {name}_D, {self.invdelta!r}, {self.deltasq6!r})")
+        return ("from numba import njit as _tab_njit\n"
+                "from wallbatch.styles.table import linear_lookup as _tl, spline_lookup as _ts\n"
+                "_table_linear = _tab_njit(inline='always', error_model='numpy')(_tl)\n"
+                "_table_spline = _tab_njit(inline='always', error_model='numpy')(_ts)\n"
+                f"{name}_R, {name}_F, {name}_D = (row.copy() for row in np.load({str(path)!r}))\n"
+                "def kernel(r, p0, p1, p2, rc, radius):\n"
+                f"    if not r >= {self.lo!r}:\n"
+                "        return math.nan\n"
+                f"    i = min(int((r - {self.lo!r}) * {self.invdelta!r}), {n2})\n"
+                f"    return {call}\n")
 
     def offset(self, cutoff: float) -> float:
         """E_lin(rc): the energy subtracted so the wall energy is 0 at the cut-off [energy]."""
@@ -320,9 +379,18 @@ class TableWallStyle(WallStyle):
     """A face's table as a wall style; an atom nearer than the table's first r is refused."""
 
     lo: float = 0.0
+    table: WallTable | None = field(default=None, compare=False)  # arrays: not part of ==, hash
 
     def too_close(self, p) -> float:  # r <= this  <=>  r < lo
         return float(np.nextafter(self.lo, -np.inf))
+
+    def too_close_message(self) -> str | None:
+        return (f"nearer than the table's first distance {self.lo:g} (LAMMPS: Particle / wall distance < table "
+                "inner cutoff)")
+
+    def generated_force(self) -> str | None:
+        """The table's force for the compiled path (:meth:`WallTable.force_source`)."""
+        return None if self.table is None else self.table.force_source()
 
 
 def table_style(table: WallTable) -> TableWallStyle:
@@ -339,7 +407,7 @@ def table_style(table: WallTable) -> TableWallStyle:
         return table.lookup(r)[0] - table.lookup(a[-2], "linear")[0]
 
     return TableWallStyle("table", (cutoff_param(),), force=force, energy=energy, shifted_fn=shifted,
-                          region=False, compiled=False, doc="wall/table", lo=table.lo)
+                          region=False, compiled=False, doc="wall/table", lo=table.lo, table=table)
 
 
 def table_source(source: str, params: dict[str, float]):
@@ -381,3 +449,75 @@ def write_source_table(path, source: str, params: dict[str, float], lo: float, h
     text = ", ".join(f"{k}={v!r}" for k, v in params.items())
     write_table(path, keyword, r, e, f, fp=fp, append=append,
                 comment=f"wallbatch table: {source}{' with ' + text if text else ''}, {n} points on [{lo!r}, {hi!r}]")
+
+
+# ---------------------------------------------------------------------------------------------
+# The registry entry
+
+
+class FaceError(ValueError):
+    """A face that cannot be built: ``key`` names its config key."""
+
+    def __init__(self, key: str, message: str) -> None:
+        super().__init__(message)
+        self.key = key
+
+
+@functools.lru_cache(maxsize=64)
+def _table(path: str, keyword: str, tabstyle: str, n: int) -> WallTable:
+    return WallTable.build(read_table(path, keyword), tabstyle, n)
+
+
+def _file(face: Mapping, base_dir: str) -> Path:
+    path = Path(face["file"])
+    return (path if path.is_absolute() else Path(base_dir) / path).resolve()
+
+
+@dataclass(frozen=True)
+class TableEntry(WallStyle):
+    """The registry entry of wall/table: each face's style is its table file's section, resampled
+    (:class:`WallTable`) for the wall's tabstyle and N; files are relative to the config."""
+
+    def face_style(self, face: Mapping, wall: Mapping, base_dir: str) -> tuple[WallStyle, dict, object]:
+        path = str(_file(face, base_dir))
+        try:
+            table = _table(path, face["keyword"], wall["tabstyle"], int(wall["N"]))
+        except TableError as exc:
+            raise FaceError("file", str(exc)) from None
+        return table_style(table), {"cutoff": float(face["cutoff"])}, (path, face["keyword"], wall["tabstyle"],
+                                                                        int(wall["N"]))
+
+    def check_face(self, face: Mapping, wall: Mapping, base_dir: str) -> list[tuple[str, str]]:
+        """The file and its section read, and the cut-off lies inside the table."""
+        try:
+            data = read_table(_file(face, base_dir), face["keyword"])
+        except TableError as exc:
+            return [("file", str(exc))]
+        if face["cutoff"] > data.r[-1]:
+            return [("cutoff", f"cutoff {face['cutoff']:g} is beyond the table's last distance {data.r[-1]:g} "
+                               "(LAMMPS: Fix wall/table wall cutoff is larger than table outer cutoff)")]
+        return []
+
+    def lammps_face(self, face: Mapping, params: Mapping[str, float], signature: object) -> dict:
+        """The table file by its absolute path."""
+        path, keyword = signature[0], signature[1]  # type: ignore[index]
+        return {"coord": face["coord"], "file": path, "keyword": keyword, "cutoff": float(params["cutoff"])}
+
+    def example(self, directory: str) -> tuple[dict, dict]:
+        path = Path(directory) / "example.table"
+        lj93 = compile_expression("eps*(2/15*(sig/r)^9-(sig/r)^3); eps=1.3; sig=0.9")
+        r, e, f = tabulate(lambda r: lj93.energy_force(r, {}), 0.05, 3.0, 600)
+        write_table(path, "LJ93", r, e, f)
+        return {"tabstyle": "linear", "N": 1000}, {"file": str(path), "keyword": "LJ93", "cutoff": 2.5}
+
+
+TABLE = TableEntry(
+    "table",
+    (Param("file", "", variable=False, kind="word", doc="a LAMMPS table file (relative to the config)"),
+     Param("keyword", "", variable=False, kind="word", doc="the keyword of the file's section"),
+     cutoff_param()),
+    wall_parameters=(Param("tabstyle", "", variable=False, kind="choice", choices=("linear", "spline"),
+                           doc="interpolation: linear or spline (as LAMMPS)"),
+                     Param("N", "", variable=False, kind="integer", min=2,
+                           doc="the number of points the table is resampled onto (as LAMMPS)")),
+    region=False, compiled=False, per_face=True, doc="a tabulated wall")
