@@ -320,19 +320,6 @@ def stop_on_signals() -> Iterator[None]:
             signal.signal(sig, handler)
 
 
-def kernel_cache_cold() -> bool:
-    """True if the compiled kernels have no on-disk cache yet (numba's NUMBA_CACHE_DIR if set,
-    else the __pycache__ beside the kernels): the first run then compiles them, ~15 s."""
-    if not compiled.enabled():
-        return False
-    env = os.environ.get("NUMBA_CACHE_DIR")
-    place = Path(env) if env else Path(compiled.__file__).parent / "__pycache__"
-    with contextlib.suppress(OSError):
-        if place.is_dir() and next(place.rglob("compiled.*.nbi"), None) is not None:
-            return False
-    return True
-
-
 # ----------------------------------------------------------------------------- resume
 
 
@@ -602,8 +589,6 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
             tasks = make_tasks(todo, jobs)
             if executor == "local" and jobs > len(tasks) > 0:
                 jobs = len(tasks)
-            if todo and kernel_cache_cold():
-                say("compiling kernels (once, ~15 s)")
             dumps = good[0].dump_every > 0 and output is not None
             runs = execute([[todo[i] for i in t] for t in tasks], jobs, executor, scheduler)
             try:

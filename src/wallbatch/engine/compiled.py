@@ -59,7 +59,6 @@ from typing import Any
 import numpy as np
 
 from wallbatch.engine import dt_reset as _dtr
-from wallbatch.engine import flow_compiled
 from wallbatch.engine.dt_reset import BIG, dt_candidate
 from wallbatch.engine.state import BatchState
 from wallbatch.engine.region_walls import RegionWallKernel
@@ -86,6 +85,7 @@ WINDOW = 64  # steps per speculative window under dt/reset
 # wall/region geometries in the kernel (rg_meta's kind column)
 REGION_KINDS: dict[tuple[str, str], int] = {("block", "in"): 0, ("block", "out"): 1, ("sphere", "in"): 2,
                                             ("sphere", "out"): 3, ("cylinder", "in"): 4, ("cylinder", "out"): 5}
+COMPILE_SECONDS = 5  # typical compile of one scene kernel on a 2-core machine (the message's estimate)
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
 
 
@@ -98,35 +98,39 @@ def enabled() -> bool:
 # ----------------------------------------------------------------------------- compiled kernels
 
 
-def _dispatch_source(styles: tuple[WallStyle, ...]) -> str:
-    """Python source of `_soft_face(style, mode, ...)`: one branch per compiled style and cut-off
-    mode (wallbatch.styles.cutoff), each a literal call of the generic face loop with that pair's
-    force function and radius flag, so every pair gets its own loop with its force inlined."""
+def _branches(pairs: tuple[tuple[int, int], ...], extra: int) -> list[tuple[str, str, bool, str]]:
+    """(condition, force name, radius flag, comment) of each branch of a generated dispatch: the
+    (style number, cut-off mode) pairs of a scene, then `extra` generated wall/lepton forces
+    (styles len(COMPILED_STYLES) + j, mode shift)."""
+    n = len(COMPILED_STYLES)
+    out = [(f"style == {i} and mode == {m}", f"_FORCE_{i}_{m}", bool(COMPILED_STYLES[i].needs_radius),
+             f"{COMPILED_STYLES[i].name} {CUTOFF_MODES[m]}") for i, m in pairs]
+    out += [(f"style == {n + j} and mode == {SHIFT}", f"_EXTRA_{j}", False, "wall/lepton") for j in range(extra)]
+    return out
+
+
+def _dispatch_source(pairs: tuple[tuple[int, int], ...], extra: int = 0) -> str:
+    """Python source of `_soft_face(style, mode, ...)`: one branch per (style number, cut-off mode)
+    pair of the scene (wallbatch.styles.cutoff) and per generated force, each a literal call of the
+    generic face loop with that pair's force function and radius flag, so every pair gets its own
+    loop with its force inlined. Only the scene's pairs: each branch costs compile time."""
     lines = ["def _soft_face(style, mode, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, u0, u1):"]
-    first = True
-    for i, st in enumerate(styles):
-        for m in _modes(st):
-            lines.append(f"    {'if' if first else 'elif'} style == {i} and mode == {m}:  # {st.name} "
-                         f"{CUTOFF_MODES[m]}")
-            lines.append(f"        return _face(_FORCE_{i}_{m}, {bool(st.needs_radius)}, X, F, RAD, groups, g, d, "
-                         "side, coord, p0, p1, p2, cut, ron, u0, u1)")
-            first = False
+    for k, (cond, force, rad, note) in enumerate(_branches(pairs, extra)):
+        lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
+        lines.append(f"        return _face({force}, {rad}, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, "
+                     "ron, u0, u1)")
     lines.append("    return 0")
     return "\n".join(lines) + "\n"
 
 
-def _region_dispatch_source(styles: tuple[WallStyle, ...]) -> str:
+def _region_dispatch_source(pairs: tuple[tuple[int, int], ...]) -> str:
     """Python source of `_region_force(style, mode, ...)`: as `_dispatch_source`, one branch per
-    compiled style and cut-off mode calling the region-contact force loop with that force inlined."""
+    (style, cut-off mode) pair of the scene's wall/region fixes calling the region-contact force
+    loop with that force inlined."""
     lines = ["def _region_force(style, mode, F, RAD, RB, nslot, u0, u1, p0, p1, p2, cut, ron):"]
-    first = True
-    for i, st in enumerate(styles):
-        for m in _modes(st):
-            lines.append(f"    {'if' if first else 'elif'} style == {i} and mode == {m}:  # {st.name} "
-                         f"{CUTOFF_MODES[m]}")
-            lines.append(f"        return _rface(_FORCE_{i}_{m}, {bool(st.needs_radius)}, F, RAD, RB, nslot, u0, u1, "
-                         "p0, p1, p2, cut, ron)")
-            first = False
+    for k, (cond, force, rad, note) in enumerate(_branches(pairs, 0)):
+        lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
+        lines.append(f"        return _rface({force}, {rad}, F, RAD, RB, nslot, u0, u1, p0, p1, p2, cut, ron)")
     lines.append("    return 0")
     return "\n".join(lines) + "\n"
 
@@ -138,19 +142,25 @@ def _modes(st: WallStyle) -> tuple[int, ...]:
     return (SHIFT, FORCE_SHIFT, SMOOTH) if st.compiled_shifted else (SHIFT, FORCE_SHIFT)
 
 
-def _fingerprint(styles: tuple[WallStyle, ...]) -> int:
-    """A number that changes with the compiled styles and the source of every function compiled
-    from outside this file (forces, dt_candidate): part of the on-disk cache key of `_run_chunk`
-    (numba keys a cached function by its own file only)."""
+def _fingerprint(pairs: tuple[tuple[int, int], ...], flow: bool, parallel: bool, source: str) -> int:
+    """A number that changes with a scene kernel's specialisation (its generated `source`, the
+    pairs, flow, parallel) and the source of every function compiled into it from outside this
+    file (forces, cut-offs, dt_candidate, the flow solver): the closure value of `_run_chunk`, so
+    part of its on-disk cache key (numba keys a cached function by its own file only)."""
     h = hashlib.sha256()
-    for st in styles:
-        h.update(f"{st.name}:{st.needs_radius}:{_modes(st)}:".encode())
+    h.update(f"{source}:{flow}:{parallel}:".encode())
+    for i, m in pairs:
+        st = COMPILED_STYLES[i]
+        h.update(f"{st.name}:{st.needs_radius}:{m}:".encode())
         h.update(inspect.getsource(st.force).encode())
         if len(_modes(st)) > 1:
             h.update(inspect.getsource(st.shifted_fn).encode())
     h.update(inspect.getsource(_cutoff).encode())
     h.update(inspect.getsource(dt_candidate).encode())
-    h.update(inspect.getsource(flow_compiled).encode())
+    if flow:
+        from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
+
+        h.update(inspect.getsource(flow_compiled).encode())
     return int(h.hexdigest()[:15], 16)
 
 
@@ -214,9 +224,6 @@ if njit is not None:
             F[d, i] = fi
         return nbad
 
-    _namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}_{m}": f for (i, m), f in MODE_FORCES.items()}}
-    exec(compile(_dispatch_source(COMPILED_STYLES), "<wallbatch soft-face dispatch>", "exec"), _namespace)
-    _soft_face = njit(nogil=True, error_model="numpy", inline="always")(_namespace["_soft_face"])
 
     # -- fix wall/region (region_walls.RegionWallKernel.apply; geometry of regions.RegionGeom) ------
     # A region's contacts of one block of atoms go into RB[slot, :, i - u0] = (flag, r, delta x, y, z)
@@ -364,14 +371,10 @@ if njit is not None:
                     F[2, i] = F[2, i] + s * RB[j, 4, b]
         return nbad
 
-    _namespace["_rface"] = _rface
-    exec(compile(_region_dispatch_source(COMPILED_STYLES), "<wallbatch region dispatch>", "exec"), _namespace)
-    _region_force = njit(nogil=True, error_model="numpy", inline="always")(_namespace["_region_force"])
-
-    @jit
     def _region_walls(c, u0, u1, X, F, RAD, groups, rg_meta, rg_geo, rg_val, RB):
         """Every wall/region fix on atoms u0..u1-1 of case c, in order; returns the number of
-        atoms on the wrong side or too close (the NumPy loop then reports them)."""
+        atoms on the wrong side or too close (the NumPy loop then reports them). Compiled per
+        scene by `kernel_for`, with the scene's `_region_force` dispatch."""
         nbad = 0
         for k in range(rg_meta.shape[0]):
             cut = rg_val[c, k, 3]
@@ -500,12 +503,12 @@ if njit is not None:
             new = _nmin(new, par[3])
         return new
 
-    @jit
     def _flow_step(X, V, M, fl_int, fl_f, walls, grp, phys, pend, prev, cross, rng, CI, DIR):
         """fix wall/flow's end_of_step (flow.FlowKernel.end_of_step) for the one case of the chunk,
         on its buffers: crossings (segments of the wrapped axis coordinate, pending returns), then
         the draws from the case's generator in the NumPy order (u1, u2, g (n, 2)) and the redraws
-        (flow_compiled.apply's arithmetic). fl_int: on, axis, exact; fl_f: lo, length, vflow, kT."""
+        (flow_compiled.apply's arithmetic). fl_int: on, axis, exact; fl_f: lo, length, vflow, kT.
+        Compiled by `kernel_for` for scenes with a flow wall (`flow_compiled` is linked then)."""
         ax = fl_int[1]
         lo, length = fl_f[0], fl_f[1]
         n = 0
@@ -561,9 +564,9 @@ if njit is not None:
         cross[0] += n
 
     def _make_run_chunk(fingerprint: int) -> Any:
-        """The chunk kernel; `fingerprint` (see _fingerprint) joins its on-disk cache key."""
+        """The chunk kernel's Python function (compiled by `kernel_for`); `fingerprint` (see
+        _fingerprint) joins its on-disk cache key."""
 
-        @jit
         def _run_chunk(nsteps, time_mode, target, tol, x, v, f, mass, radius, dt, atime, atimestep,
                        step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
                        stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo, rg_meta, rg_geo, rg_val,
@@ -732,40 +735,67 @@ if njit is not None:
             return 0
         return _run_chunk
 
-    _run_chunk = _make_run_chunk(_fingerprint(COMPILED_STYLES))
+    @jit
+    def _no_region_walls(c, u0, u1, X, F, RAD, groups, rg_meta, rg_geo, rg_val, RB):
+        """`_region_walls` of a scene without wall/region fixes: nothing."""
+        return 0
 
-    def _relink(dispatcher: Any, **replace: Any) -> Any:
-        """The Python function of a jitted `dispatcher` with some of its globals replaced (the same
-        code, closure and defaults), ready to be jitted again."""
-        fn = dispatcher.py_func
+    @jit
+    def _no_flow_step(X, V, M, fl_int, fl_f, walls, grp, phys, pend, prev, cross, rng, CI, DIR):
+        """`_flow_step` of a scene without wall/flow fixes: nothing."""
+        return
+
+    def _relink(fn: Any, name: str | None = None, **replace: Any) -> Any:
+        """The Python function `fn` (or a jitted dispatcher's) with some of its globals replaced
+        (the same code, closure and defaults), ready to be jitted again; `name` sets its
+        __qualname__, which names numba's on-disk cache files (one index per scene kernel)."""
+        fn = getattr(fn, "py_func", fn)
         namespace = dict(fn.__globals__)
         namespace.update(replace)
         out = types.FunctionType(fn.__code__, namespace, fn.__name__, fn.__defaults__, fn.__closure__)
         out.__kwdefaults__ = fn.__kwdefaults__
+        if name is not None:
+            out.__qualname__ = name
         return out
 
-    @functools.lru_cache(maxsize=32)
-    def _chunk_kernel(extra: tuple[Any, ...]) -> Any:
-        """The chunk kernel with the generated forces `extra` (wall/lepton expressions, jitted
-        force(r, p0, p1, p2, rc, radius), cut-off mode shift) as styles len(COMPILED_STYLES) + j:
-        the registry's dispatch with one more branch each, inlined like the built-in styles, and
-        the block step and chunk kernel re-linked to it. Compiled on first use in each process (no
-        on-disk cache: the expressions are not in a source file); the built-in styles keep
-        `_run_chunk`."""
-        if not extra:
-            return _run_chunk
-        n = len(COMPILED_STYLES)
-        src = _dispatch_source(COMPILED_STYLES).replace("    return 0\n", "".join(
-            f"    elif style == {n + j} and mode == {SHIFT}:  # wall/lepton\n        return _face(_EXTRA_{j}, False, "
-            "X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, u0, u1)\n" for j in range(len(extra)))
-            + "    return 0\n")
-        namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}_{m}": f for (i, m), f in MODE_FORCES.items()},
+    @functools.lru_cache(maxsize=64)
+    def kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
+                   extra: tuple[Any, ...] = (), parallel: bool = False) -> Any:
+        """The chunk kernel of one kind of scene, specialised to what it has: the (style number,
+        cut-off mode) pairs of its flat soft faces (`soft`) and of its wall/region fixes
+        (`region`, none: no region code), a wall/flow fix (`flow`), generated wall/lepton forces
+        (`extra`: jitted force(r, p0, p1, p2, rc, radius), mode shift, styles
+        len(COMPILED_STYLES) + j) and the two-thread variant (`parallel`: blocks of atoms in a
+        numba prange). Only those branches are generated and compiled (a few seconds instead of
+        every style x mode), and the kernel is cached on disk by numba under its own name (not
+        with `extra`: generated expressions are not in a source file). The dispatch, region walls,
+        flow step, block step and chunk kernel are this module's functions re-linked (the same
+        code objects, new globals) to the scene's generated dispatch."""
+        pairs = tuple(sorted(set(soft) | set(region)))
+        namespace: dict[str, Any] = {"_face": _face, "_rface": _rface,
+                                     **{f"_FORCE_{i}_{m}": MODE_FORCES[(i, m)] for i, m in pairs},
                                      **{f"_EXTRA_{j}": njit(nogil=True, error_model="numpy")(
                                          cutoff_functions(f, f, SHIFT, _switch)[0]) for j, f in enumerate(extra)}}
-        exec(compile(src, "<wallbatch soft-face dispatch + lepton>", "exec"), namespace)  # noqa: S102 - generated here
+        source = _dispatch_source(soft, len(extra))
+        exec(compile(source, "<wallbatch soft-face dispatch>", "exec"), namespace)  # noqa: S102 - generated here
         soft_face = njit(nogil=True, error_model="numpy", inline="always")(namespace["_soft_face"])
-        block_step = njit(nogil=True, error_model="numpy", inline="always")(_relink(_block_step, _soft_face=soft_face))
-        return njit(nogil=True, error_model="numpy")(_relink(_run_chunk, _block_step=block_step))
+        region_walls = _no_region_walls
+        if region:
+            rsource = _region_dispatch_source(region)
+            source += rsource
+            exec(compile(rsource, "<wallbatch region dispatch>", "exec"), namespace)  # noqa: S102 - generated here
+            region_force = njit(nogil=True, error_model="numpy", inline="always")(namespace["_region_force"])
+            region_walls = njit(nogil=True, error_model="numpy")(_relink(_region_walls, _region_force=region_force))
+        flow_step = _no_flow_step
+        if flow:
+            from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
+
+            flow_step = njit(nogil=True, error_model="numpy")(_relink(_flow_step, flow_compiled=flow_compiled))
+        block_step = njit(nogil=True, error_model="numpy", inline="always")(
+            _relink(_block_step, _soft_face=soft_face, _region_walls=region_walls))
+        fp = _fingerprint(pairs, flow, parallel, source)
+        fn = _relink(_make_run_chunk(fp), name=f"_run_chunk_{fp:015x}", _block_step=block_step, _flow_step=flow_step)
+        return njit(cache=not extra, nogil=True, error_model="numpy", parallel=parallel)(fn)
 
 
 # ----------------------------------------------------------------------------- the Python side
@@ -869,6 +899,41 @@ def region_eligible(w: Any) -> bool:
     if (w.geom.style, w.geom.side) not in REGION_KINDS or any(isinstance(v, str) for v in w.params.values()):
         return False
     return True
+
+
+_ANNOUNCED: set[str] = set()
+
+
+def _cached_on_disk(kernel: Any) -> bool:
+    """Whether numba's on-disk cache holds a fresh build of `kernel` (its index file exists, for
+    this numba and this version of the source). False when that cannot be told."""
+    try:
+        return bool(kernel._cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 - numba internals: unknown means "say it compiles"
+        return False
+
+
+def cache_dir(kernel: Any = None) -> str:
+    """Where numba keeps the compiled kernels: NUMBA_CACHE_DIR if set, else beside this file (or a
+    user cache directory when that is not writable)."""
+    try:
+        return str(kernel._cache._cache_path)
+    except Exception:  # noqa: BLE001
+        return os.environ.get("NUMBA_CACHE_DIR") or os.path.join(os.path.dirname(__file__), "__pycache__")
+
+
+def announce_compile(kernel: Any) -> None:
+    """Say on stderr, once per process and kernel, that a scene kernel is being compiled (it is
+    not in the on-disk cache yet): the run is silent for a few seconds otherwise."""
+    import sys
+
+    name = kernel.py_func.__qualname__
+    if name in _ANNOUNCED or (kernel._cache.__class__.__name__ != "NullCache" and _cached_on_disk(kernel)):
+        return
+    _ANNOUNCED.add(name)
+    where = f", cached in {cache_dir(kernel)}" if kernel._cache.__class__.__name__ != "NullCache" else ""
+    print(f"wallbatch: compiling kernels for this scene, once, ~{COMPILE_SECONDS} s{where}", file=sys.stderr,
+          flush=True)
 
 
 class FastPath:
@@ -1064,7 +1129,12 @@ class FastPath:
             self._spare = tuple(np.empty_like(s.x) for _ in range(3))
         xo, vo, fo = self._spare
         backup = {k: getattr(s, k).copy() for k in ("dt", "atime", "atimestep", "step")}
-        kernel = _chunk_kernel(tuple(extra))
+        fk = plan.flow[0] if plan.flow else None
+        n = len(COMPILED_STYLES)
+        kernel = kernel_for(tuple(sorted({(int(r[0]), int(r[4])) for r in sf_meta if r[0] < n})),
+                            tuple(sorted({(int(r[2]), int(r[4])) for r in rg[0]})), fk is not None, tuple(extra))
+        if not kernel.signatures:
+            announce_compile(kernel)
         sf_val, rf_val, rf_stat = (np.ascontiguousarray(a) for a in (sf_val, rf_val, rf_stat))
         lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)
         args = (int(nsteps), time_mode, float(target if time_mode else 0.0),
@@ -1079,7 +1149,6 @@ class FastPath:
                               rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
                               rg[0], rg[1], rg[2][c], *fl)
 
-        fk = plan.flow[0] if plan.flow else None
         if fk is None:
             status = run(slice(None), _NO_FLOW)
         else:  # one case per call: each case draws from its own generator
