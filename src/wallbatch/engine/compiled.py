@@ -40,8 +40,9 @@ several flow fixes) runs in NumPy. A chunk that
 meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a variable error or a
 negative variable parameter) leaves the state as it was at its start and is handed back to the
 NumPy loop, which re-runs it and reports exactly as always. `WALLBATCH_NUMBA=0` (or numba not
-importable) selects the NumPy path everywhere. Kernels are cached on disk (numba cache=True): a
-cold compile takes ~15 s once, a cached load ~0.5 s per process.
+importable) selects the NumPy path everywhere. Kernels are built per kind of scene (`kernel_for`:
+only the styles, cut-off modes, region and flow code it has) and cached on disk by numba under
+their own names; a kernel not yet cached is announced on stderr before it compiles.
 """
 
 from __future__ import annotations
@@ -765,8 +766,8 @@ if njit is not None:
         cut-off mode) pairs of its flat soft faces (`soft`) and of its wall/region fixes
         (`region`, none: no region code), a wall/flow fix (`flow`), generated wall/lepton forces
         (`extra`: jitted force(r, p0, p1, p2, rc, radius), mode shift, styles
-        len(COMPILED_STYLES) + j) and the two-thread variant (`parallel`: blocks of atoms in a
-        numba prange). Only those branches are generated and compiled (a few seconds instead of
+        len(COMPILED_STYLES) + j) and `parallel` (compiled with numba parallel=True: reserved for
+        a two-thread variant, not used by the engine yet). Only those branches are generated and compiled (a few seconds instead of
         every style x mode), and the kernel is cached on disk by numba under its own name (not
         with `extra`: generated expressions are not in a source file). The dispatch, region walls,
         flow step, block step and chunk kernel are this module's functions re-linked (the same
