@@ -759,9 +759,15 @@ if njit is not None:
             out.__qualname__ = name
         return out
 
-    @functools.lru_cache(maxsize=64)
     def kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
                    extra: tuple[Any, ...] = (), parallel: bool = False) -> Any:
+        """The chunk kernel of one kind of scene (`_kernel_for`), one per specialisation and process."""
+        return _kernel_for(tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow), tuple(extra),
+                           bool(parallel))
+
+    @functools.lru_cache(maxsize=64)
+    def _kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
+                    extra: tuple[Any, ...], parallel: bool) -> Any:
         """The chunk kernel of one kind of scene, specialised to what it has: the (style number,
         cut-off mode) pairs of its flat soft faces (`soft`) and of its wall/region fixes
         (`region`, none: no region code), a wall/flow fix (`flow`), generated wall/lepton forces
