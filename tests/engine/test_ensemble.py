@@ -15,6 +15,7 @@ from wallbatch.config.ensemble import parse_ensemble_line, to_ensemble_line
 from wallbatch.config.fixline import FixLineError
 from wallbatch.config.models import config_from_dict, load_config_text
 from wallbatch.config.source import ConfigError
+from wallbatch.engine import compiled as fast
 from wallbatch.engine.engine import Engine, run_cases
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import CaseError
@@ -211,7 +212,8 @@ def test_temperature_by_damp_sweep_is_one_batch_and_bit_identical_to_single_runs
     cases, errors = build_cases(plan)
     assert not errors and len(cases) == 4
     engine = Engine(cases)  # raises nothing: all four share one structure
-    assert engine.fast is None and engine.ensemble is not None
+    assert engine.ensemble is not None  # the thermostats run in the compiled chunks when numba is on
+    assert (engine.fast is not None) == fast.enabled()
     together = engine.run()
     for c, res in zip(cases, together):
         alone = run_cases([c])[0]

@@ -230,3 +230,46 @@ def test_broadcasting(name):
             assert force[c, i] == pytest.approx(f_ci, rel=1e-15, abs=1e-300)
     if style.needs_radius:
         np.testing.assert_array_equal(style.too_close(p), p["radius"])
+
+
+def _lj1043_mp(r: float, eps: float, sigma: float, rc: float) -> tuple[mpmath.mpf, mpmath.mpf]:
+    """lj1043 E(r) - E(rc) and F(r) in 50-digit arithmetic (the textbook form, physics §4.3)."""
+    with mpmath.workdps(50):
+        r, eps, sigma, rc = (mpmath.mpf(v) for v in (r, eps, sigma, rc))
+        shift = mpmath.mpf("0.61") / mpmath.sqrt(2) * sigma
+
+        def energy(x):
+            return 2 * mpmath.pi * eps * (mpmath.mpf(2) / 5 * (sigma / x) ** 10 - (sigma / x) ** 4
+                                          - mpmath.sqrt(2) * sigma ** 3 / (3 * (x + shift) ** 3))
+
+        force = 2 * mpmath.pi * eps * (4 * sigma ** 10 / r ** 11 - 4 * sigma ** 4 / r ** 5
+                                       - mpmath.sqrt(2) * sigma ** 3 / (r + shift) ** 4)
+        return energy(r) - energy(rc), force
+
+
+@pytest.mark.parametrize("r, eps, sigma", [(1e-33, 1e-70, 1.0), (1e-33, 1e-40, 1e-3), (1e-20, 1e-100, 2.0)])
+def test_lj1043_no_overflow_where_finite(r, eps, sigma):
+    """Intermediate powers of sigma/r stay finite wherever the result is: at r = 1e-33 sigma the
+    force is 2.5e294 (eps = 1e-70), not inf; energy, force and shifted energy within 1e-13."""
+    st = STYLES["lj1043"]
+    p = {"epsilon": eps, "sigma": sigma, "cutoff": 2.5 * sigma}
+    e_ref, f_ref = _lj1043_mp(r, eps, sigma, 2.5 * sigma)
+    with np.errstate(all="raise"):
+        energy, force = shifted_energy_force(st, r, p)
+    assert math.isfinite(force) and math.isfinite(energy)
+    assert force == pytest.approx(float(f_ref), rel=1e-13)
+    assert energy == pytest.approx(float(e_ref), rel=1e-13)
+    if (r, eps, sigma) == (1e-33, 1e-70, 1.0):
+        assert force == pytest.approx(2.5132741228718346e294, rel=1e-13)  # 8 pi 1e293
+
+
+def test_lj1043_normal_range_unchanged():
+    """Across the usual range the reordered arithmetic agrees with the exact values to round-off."""
+    st = STYLES["lj1043"]
+    p = {"epsilon": 1.3, "sigma": 0.9, "cutoff": 2.5}
+    for r in np.linspace(0.45, 2.49, 205):
+        e_ref, f_ref = _lj1043_mp(float(r), 1.3, 0.9, 2.5)
+        energy, force = shifted_energy_force(st, float(r), p)
+        scale = 1.0 + abs(float(f_ref))
+        assert abs(force - float(f_ref)) <= 4e-15 * scale * 10, r
+        assert abs(energy - float(e_ref)) <= 4e-14 * (1.0 + abs(float(e_ref))), r

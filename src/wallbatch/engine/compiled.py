@@ -35,7 +35,10 @@ wall/region fixes of compiled styles with constant parameters run in the kernel 
 per atom as RegionGeom.contacts lists them, the force the registry's function; `_region_contacts`).
 One wall/flow fix (step-based runs without dt/reset) runs in the kernel as well, one case per call
 with the case's own generator (`_flow_step`; numba's Generator draws NumPy's streams), step by
-step over all atoms. Anything else (pair forces, ees, wall/region/ees, ellipsoids, thermostats,
+step over all atoms. `fixes:` (nvt, langevin, temp/berendsen, temp/rescale, enforce2d;
+`fixes_eligible`) run in the kernel with engine/thermostats.py's functions (`_fix_pre`,
+`_fix_post_force`, `_fix_end`; step by step when a thermostat couples the atoms, one case per call
+with fix langevin's generator). Anything else (pair forces, ees, wall/region/ees, ellipsoids,
 several flow fixes) runs in NumPy. A chunk that
 meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a variable error or a
 negative variable parameter) leaves the state as it was at its start and is handed back to the
@@ -60,6 +63,7 @@ from typing import Any
 import numpy as np
 
 from wallbatch.engine import dt_reset as _dtr
+from wallbatch.engine import thermostats as _th
 from wallbatch.engine.dt_reset import BIG, dt_candidate
 from wallbatch.engine.state import BatchState
 from wallbatch.engine.region_walls import RegionWallKernel
@@ -88,6 +92,10 @@ REGION_KINDS: dict[tuple[str, str], int] = {("block", "in"): 0, ("block", "out")
                                             ("sphere", "out"): 3, ("cylinder", "in"): 4, ("cylinder", "out"): 5}
 COMPILE_SECONDS = 5  # typical compile of one scene kernel on a 2-core machine (the message's estimate)
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
+# fixes of `fixes:` in the kernel (fx_meta's kind column); nve is the kernel's own integrator
+FIX_LANGEVIN, FIX_NVT, FIX_BERENDSEN, FIX_RESCALE, FIX_ENFORCE2D = 0, 1, 2, 3, 4
+FIX_KINDS: dict[str, int] = {"langevin": FIX_LANGEVIN, "nvt": FIX_NVT, "temp/berendsen": FIX_BERENDSEN,
+                             "temp/rescale": FIX_RESCALE, "enforce2d": FIX_ENFORCE2D}
 
 
 
@@ -158,6 +166,7 @@ def _fingerprint(pairs: tuple[tuple[int, int], ...], flow: bool, parallel: bool,
             h.update(inspect.getsource(st.shifted_fn).encode())
     h.update(inspect.getsource(_cutoff).encode())
     h.update(inspect.getsource(dt_candidate).encode())
+    h.update(inspect.getsource(_th).encode())
     if flow:
         from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
 
@@ -174,6 +183,11 @@ if njit is not None:
     def _select_scalar(cond, a, b):  # noqa: ANN001, ANN202
         """dt_reset.select for scalars: a if cond else b (np.where's value, without an array)."""
         return lambda cond, a, b: a if cond else b
+
+    @overload(_th.libm_exp)
+    def _libm_exp(x):  # noqa: ANN001, ANN202
+        """thermostats.libm_exp for a scalar: math.exp (the C library's exp)."""
+        return lambda x: math.exp(x)
 
     @inline
     def _nmin(a: float, b: float) -> float:
@@ -386,9 +400,167 @@ if njit is not None:
                                   rg_val[c, k, 1], rg_val[c, k, 2], cut, rg_val[c, k, 4])
         return nbad
 
+    # -- thermostats and enforce2d (engine/ensemble.py; arithmetic of engine/thermostats.py) ---------
+    # fx_meta rows (K, 4): kind (FIX_KINDS), group row, every, flags (1: zero, 2: tally);
+    # fx_val (C, K, 6): t_start, t_stop, damp, window, fraction, dof; fx_acc (C, K, 4) (in and out):
+    # removed energy, tally work, last power, last dt. At most one nvt and one langevin (eligible).
+    _th_mv2 = inline(_th.atom_mv2)
+    _th_dot3 = inline(_th.dot3)
+    _th_ramped = inline(_th.ramped)
+    _th_drag = inline(_th.langevin_drag)
+    _th_amp = inline(_th.langevin_amplitude)
+    _th_random = inline(_th.langevin_random)
+    _th_berendsen = jit(_th.berendsen_factor)
+    _th_rescale = jit(_th.rescale_factor)
+    _th_nh = jit(_th.nh_half_step)
+    _th_pairwise = jit(_th.pairwise_sum)
+
+    @inline
+    def _fix_post_force(u0, u1, V, F, groups, fxp):
+        """Engine.step's post_force fixes (Ensemble.post_force) on atoms u0..u1-1: the Langevin
+        force G1 v + FR (kept in FL for the tally), then enforce2d (z force and velocity zeroed)."""
+        fx_meta, G1, FR, FL = fxp
+        for k in range(fx_meta.shape[0]):
+            if fx_meta[k, 0] == FIX_LANGEVIN:
+                g = fx_meta[k, 1]
+                for d in range(3):
+                    for i in range(u0, u1):
+                        fl = G1[i] * V[d, i] + FR[d, i] if groups[g, i] != 0 else 0.0
+                        FL[d, i] = fl
+                        F[d, i] = F[d, i] + fl
+        for k in range(fx_meta.shape[0]):
+            if fx_meta[k, 0] == FIX_ENFORCE2D:
+                g = fx_meta[k, 1]
+                for i in range(u0, u1):
+                    if groups[g, i] != 0:
+                        F[2, i] = 0.0
+                        V[2, i] = 0.0
+
+    @jit
+    def _group_temperature(V, M, groups, g, dof, mvv2e, boltz, KB):
+        """thermostats.temperature of one case's group g: sum m v^2 (NumPy's pairwise order)."""
+        n = V.shape[1]
+        if dof <= 0:
+            return 0.0
+        for i in range(n):
+            KB[i] = _th_mv2(M[i], V[0, i], V[1, i], V[2, i]) if groups[g, i] != 0 else 0.0
+        return (0.0 + _th_pairwise(KB, 0, n)) * (mvv2e / (dof * boltz))
+
+    @jit
+    def _scale_group(V, groups, g, factor):
+        """thermostats.scale_group for one case: v *= factor on the group atoms."""
+        for d in range(3):
+            for i in range(V.shape[1]):
+                if groups[g, i] != 0:
+                    V[d, i] = V[d, i] * factor
+
+    @jit
+    def _fix_pre(c, stepn, dtc, V, M, groups, fx, rng, SQM, FR, KB):
+        """Before the step's atoms move: fix nvt's first chain half step and velocity scaling
+        (Ensemble.initial_integrate), and fix langevin's random forces of the step (the case's
+        generator, drawn as rng.random((n_group, 3)) in Ensemble.post_force)."""
+        fx_meta, fx_val, fx_acc, eta, ed, edd, Q, tc, tt, tf, drag, fx_int, fx_f, _fo = fx
+        n = V.shape[1]
+        frac = float(stepn) / fx_int[1] if fx_int[1] > 0 else 0.0
+        boltz = fx_f[0]
+        for k in range(fx_meta.shape[0]):
+            kind = fx_meta[k, 0]
+            g = fx_meta[k, 1]
+            target = _th_ramped(fx_val[c, k, 0], fx_val[c, k, 1], frac)
+            if kind == FIX_NVT:
+                tt[c] = target
+                total, tc[c] = _th_nh(eta[c], ed[c], edd[c], Q[c], tc[c], target, tf[c], fx_val[c, k, 5], boltz,
+                                      fx_int[0], drag[c], dtc)
+                _scale_group(V, groups, g, total)
+            elif kind == FIX_LANGEVIN:
+                amp = _th_amp(fx_val[c, k, 2], dtc, fx_f[1], fx_f[2], boltz)
+                st = np.sqrt(target)
+                m0 = 0.0
+                m1 = 0.0
+                m2 = 0.0
+                count = 0
+                for i in range(n):
+                    if groups[g, i] != 0:
+                        r0 = _th_random(SQM[i], amp, st, rng.random())
+                        r1 = _th_random(SQM[i], amp, st, rng.random())
+                        r2 = _th_random(SQM[i], amp, st, rng.random())
+                        count += 1
+                    else:
+                        r0 = _th_random(SQM[i], amp, st, 0.5)
+                        r1 = _th_random(SQM[i], amp, st, 0.5)
+                        r2 = _th_random(SQM[i], amp, st, 0.5)
+                    FR[0, i] = r0
+                    FR[1, i] = r1
+                    FR[2, i] = r2
+                    if groups[g, i] != 0:
+                        m0 += r0
+                        m1 += r1
+                        m2 += r2
+                    else:
+                        m0 += 0.0
+                        m1 += 0.0
+                        m2 += 0.0
+                if fx_meta[k, 3] & 1 and count > 0:  # zero yes: the group's random forces sum to zero
+                    m0 /= count
+                    m1 /= count
+                    m2 /= count
+                    for i in range(n):
+                        FR[0, i] = FR[0, i] - m0
+                        FR[1, i] = FR[1, i] - m1
+                        FR[2, i] = FR[2, i] - m2
+        return 0
+
+    @jit
+    def _fix_end(c, stepn, dtc, V, M, groups, fx, KB, FL):
+        """After the step's final kick: fix nvt's second half step (Ensemble.final_integrate), then
+        Ensemble.end_of_step: temp/berendsen, temp/rescale (every N), the Langevin tally. Returns 6
+        when a rescaling fix meets a zero temperature (the NumPy loop reports it)."""
+        fx_meta, fx_val, fx_acc, eta, ed, edd, Q, tc, tt, tf, drag, fx_int, fx_f, _fo = fx
+        n = V.shape[1]
+        frac = float(stepn) / fx_int[1] if fx_int[1] > 0 else 0.0
+        boltz, mvv2e = fx_f[0], fx_f[2]
+        for k in range(fx_meta.shape[0]):
+            if fx_meta[k, 0] == FIX_NVT:
+                g = fx_meta[k, 1]
+                target = _th_ramped(fx_val[c, k, 0], fx_val[c, k, 1], frac)
+                tc[c] = _group_temperature(V, M, groups, g, fx_val[c, k, 5], mvv2e, boltz, KB)
+                tt[c] = target
+                total, tc[c] = _th_nh(eta[c], ed[c], edd[c], Q[c], tc[c], target, tf[c], fx_val[c, k, 5], boltz,
+                                      fx_int[0], drag[c], dtc)
+                _scale_group(V, groups, g, total)
+        for k in range(fx_meta.shape[0]):
+            kind = fx_meta[k, 0]
+            if kind != FIX_BERENDSEN and kind != FIX_RESCALE:
+                continue
+            if kind == FIX_RESCALE and stepn % fx_meta[k, 2] != 0:
+                continue
+            g = fx_meta[k, 1]
+            dof = fx_val[c, k, 5]
+            t_now = _group_temperature(V, M, groups, g, dof, mvv2e, boltz, KB)
+            if dof < 1:
+                continue
+            if t_now == 0.0:
+                return 6
+            target = _th_ramped(fx_val[c, k, 0], fx_val[c, k, 1], frac)
+            if kind == FIX_BERENDSEN:
+                factor, removed = _th_berendsen(t_now, target, dtc, fx_val[c, k, 2], dof, boltz)
+            else:
+                factor, removed = _th_rescale(t_now, target, fx_val[c, k, 3], fx_val[c, k, 4], dof, boltz)
+            _scale_group(V, groups, g, factor)
+            fx_acc[c, k, 0] = fx_acc[c, k, 0] + removed
+        for k in range(fx_meta.shape[0]):
+            if fx_meta[k, 0] == FIX_LANGEVIN and fx_meta[k, 3] & 2:
+                for i in range(n):
+                    KB[i] = _th_dot3(FL[0, i], FL[1, i], FL[2, i], V[0, i], V[1, i], V[2, i])
+                power = 0.0 + _th_pairwise(KB, 0, n)
+                fx_acc[c, k, 3] = dtc
+                fx_acc[c, k, 2] = power
+                fx_acc[c, k, 1] = fx_acc[c, k, 1] + power * dtc
+        return 0
+
     @inline
     def _block_step(c, u0, u1, si, row, dtc, due, X, V, F, M, RAD, DTFM, CAND, groups, box,
-                    sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg):
+                    sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp):
         """One velocity-Verlet step (engine.Engine.step) of atoms u0..u1-1 of case c, as simple
         passes over the structure-of-arrays buffers: kick-drift, reflect faces (wall velocities
         vw[row], statistics into rstat[row]), periodic wrap, force clear, soft faces, lost test,
@@ -440,6 +612,8 @@ if njit is not None:
             nbad += _region_walls(c, u0, u1, X, F, RAD, groups, rg[0], rg[1], rg[2], rg[3])
         if nbad:
             return 1, 0.0
+        if fxp[0].shape[0]:  # post_force fixes: langevin, enforce2d (Ensemble.post_force)
+            _fix_post_force(u0, u1, V, F, groups, fxp)
         nlost = 0
         for d in range(3):  # lost atoms
             if box[2, d] == 0.0:
@@ -571,7 +745,7 @@ if njit is not None:
         def _run_chunk(nsteps, time_mode, target, tol, x, v, f, mass, radius, dt, atime, atimestep,
                        step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
                        stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo, rg_meta, rg_geo, rg_val,
-                       fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng):
+                       fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng, fx, fx_rng):
             """Advance every case by nsteps steps (or, with time_mode, to the time `target` as
             Engine.advance_to_time does), reading x, v, f and writing xo, vo, fo. Returns 0, or the
             nonzero status of the first trouble met (1: an atom on/behind a soft wall, 2: a lost atom,
@@ -616,6 +790,25 @@ if njit is not None:
             # wall/flow (fl_int[0] != 0; the chunk then holds one case): step by step over all blocks
             CI = np.empty(natom if fl_int[0] != 0 else 0, np.int64)
             DIR = np.empty(natom if fl_int[0] != 0 else 0)
+            # fixes (fx: see _fix_pre; fx[0] = fx_meta): thermostats couple the atoms every step, so
+            # a chunk with one goes step by step over all blocks; enforce2d alone keeps the windows
+            fx_meta = fx[0]
+            thermo = False
+            langevin = -1
+            rescale_only = True  # temp/rescale alone: windows up to its next due step
+            for k in range(fx_meta.shape[0]):
+                thermo = thermo or fx_meta[k, 0] != FIX_ENFORCE2D
+                if fx_meta[k, 0] == FIX_LANGEVIN:
+                    langevin = k
+                if fx_meta[k, 0] != FIX_ENFORCE2D and fx_meta[k, 0] != FIX_RESCALE:
+                    rescale_only = False
+            nfx = natom if fx_meta.shape[0] else 0
+            SQM = np.empty(nfx)  # sqrt(m): the Langevin random force's per-atom factor
+            G1 = np.empty(nfx)  # the Langevin drag per atom
+            FR = np.zeros((3, nfx))  # this step's Langevin random forces
+            FL = np.zeros((3, nfx))  # this step's Langevin forces (the tally's)
+            KB = np.empty(nfx)  # per-atom terms of a sum over atoms
+            fxp = (fx_meta, G1, FR, FL)
             for c in range(ncase):
                 for a in range(natom):
                     for d in range(3):
@@ -624,6 +817,10 @@ if njit is not None:
                         F[d, a] = f[c, a, d]
                     M[a] = mass[c, a]
                     RAD[a] = radius[c, a]
+                if langevin >= 0:
+                    for a in range(natom):
+                        SQM[a] = np.sqrt(M[a])
+                        G1[a] = _th_drag(M[a], fx[1][c, langevin, 2], ftm2v)
                 done = 0  # steps done for this case
                 stepwise = 0  # steps to run one at a time before the next window
                 backoff = 0
@@ -641,10 +838,16 @@ if njit is not None:
                         break
                     # a window of nwin steps at one dt, block by block; or one step (time-based runs, and
                     # dt/reset while dt changes), which is a window of one step followed by its dt update
-                    window = not time_mode and (dtr_every == 0 or stepwise == 0) and fl_int[0] == 0
+                    window = (not time_mode and (dtr_every == 0 or stepwise == 0) and fl_int[0] == 0
+                              and (rescale_only or not thermo))
                     nwin = 1
                     if window:
                         nwin = nsteps - done if dtr_every == 0 else min(WINDOW, nsteps - done)
+                        if thermo:  # temp/rescale only (its atoms are coupled on due steps only)
+                            for k in range(fx_meta.shape[0]):
+                                if fx_meta[k, 0] == FIX_RESCALE:
+                                    every = fx_meta[k, 2]
+                                    nwin = min(nwin, every - step[c] % every)
                     if time_mode:
                         base = dt[c]
                         rem = target - now
@@ -669,6 +872,8 @@ if njit is not None:
                             vw[s, k] = (rf_val[c, (done + s) * vary, k] - prev) / dtc if dtc > 0 else 0.0
                             rstat[s, k, 0] = 0.0
                             rstat[s, k, 1] = 0.0
+                    if thermo:  # fix nvt's first half step, the Langevin random forces
+                        _fix_pre(c, step[c] + 1, dtc, V, M, groups, fx, fx_rng, SQM, FR, KB)
                     for b in range(nblock):
                         u0 = np.uint64(b * BLOCK)  # unsigned: no negative-index wraparound, loops vectorise
                         u1 = np.uint64(min(b * BLOCK + BLOCK, natom))
@@ -676,11 +881,15 @@ if njit is not None:
                             due = dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
                             st, m = _block_step(c, u0, u1, (done + s) * vary, s, dtc, due, X, V, F, M, RAD, DTFM,
                                                 CAND, groups, box, sf_meta, sf_val, rf_meta, rf_val,
-                                                vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg)
+                                                vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp)
                             if st != 0:
                                 return st
                             if due:
                                 low[s] = _nmin(low[s], m)
+                    if thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
+                        st = _fix_end(c, step[c] + nwin, dtc, V, M, groups, fx, KB, FL)
+                        if st != 0:
+                            return st
                     if fl_int[0] != 0:  # fix wall/flow (end_of_step)
                         _flow_step(X, V, M, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross,
                                    fl_rng, CI, DIR)
@@ -733,6 +942,10 @@ if njit is not None:
                         xo[c, a, d] = X[d, a]
                         vo[c, a, d] = V[d, a]
                         fo[c, a, d] = F[d, a]
+                if langevin >= 0:
+                    for a in range(natom):
+                        for d in range(3):
+                            fx[13][c, a, d] = FL[d, a]
             return 0
         return _run_chunk
 
@@ -823,8 +1036,11 @@ class ChunkPlan:
     * ``dt_reset`` and ``dt_reset_params`` (C, 4): xmax, emax, tmin, tmax (NaN: no bound);
     * ``region``: wall/region kernels (and wall/region/ees ones, which `eligible` refuses);
     * ``flow``: the wall/flow kernels (`eligible` takes at most one, without dt/reset);
-    * ``others``: what else the scene has (pair, ellipsoids, fixes): the compiled
-      path runs only plans where this is empty;
+    * ``others``: what else the scene has (pair, ellipsoids): the compiled path runs only
+      plans where this is empty;
+    * ``ensemble``: the `fixes:` of the batch (engine.ensemble.Ensemble) or None; `fixes_eligible`
+      says which the kernel runs (nve on every atom, one nvt, one langevin, temp/berendsen,
+      temp/rescale, enforce2d; thermostats not with dt/reset, wall/flow or runs to a time);
     * ``compute_outputs()``: the NumPy forces and outputs at the current positions,
       ``finish_step(out, sample)``: drop failed cases and sample, ``advance_numpy(n, sample)``: the
       NumPy loop (for the rest of a split chunk).
@@ -841,6 +1057,7 @@ class ChunkPlan:
     advance_numpy: Callable[[int, bool], None]
     region: tuple[RegionWallKernel, ...] = ()
     flow: tuple = ()  # flow.FlowKernel: at most one, without dt/reset (`eligible`)
+    ensemble: Any = None  # ensemble.Ensemble (fixes: nve on all, thermostats, enforce2d) or None
 
 
 def _face_styles(w: SoftWallKernel) -> list[WallStyle]:
@@ -893,7 +1110,89 @@ def eligible(plan: ChunkPlan) -> bool:
         return False
     if len(plan.flow) > 1 or (plan.flow and plan.dt_reset is not None):
         return False
+    if not fixes_eligible(plan):
+        return False
     return all(type(w) is ReflectKernel and w.frame in ("lab", "wall") for w in plan.reflect)
+
+
+def _thermostats(ensemble: Any) -> bool:
+    """True when the batch has a fix that couples its atoms every step (not only enforce2d)."""
+    return ensemble is not None and any(f.style in FIX_KINDS and f.style != "enforce2d" for f in ensemble.fixes)
+
+
+def fixes_eligible(plan: ChunkPlan) -> bool:
+    """The batch's `fixes:` the kernel runs: every atom integrated (nve or nvt), at most one nvt
+    and one langevin, temp/berendsen, temp/rescale, enforce2d; thermostats not with dt/reset or
+    wall/flow (their end_of_step order is not the kernel's)."""
+    ens = plan.ensemble
+    if ens is None:
+        return True
+    if ens.moving is not None:
+        return False
+    styles = [f.style for f in ens.fixes]
+    if any(st not in FIX_KINDS and st != "nve" for st in styles):
+        return False
+    if styles.count("nvt") > 1 or styles.count("langevin") > 1:
+        return False
+    if _thermostats(ens) and (plan.dt_reset is not None or plan.flow):
+        return False
+    return True
+
+
+def _fix_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]) -> tuple[tuple, list[Any], list[Any]]:
+    """The kernel's `fx` tuple for the batch's fixes (see _fix_pre), the fixes in its rows, and the
+    Langevin fix's generators per case ([] without one). The chain arrays are copies: the caller
+    keeps them only when the chunk succeeds."""
+    s = plan.state
+    C, N = s.ncases, s.x.shape[1]
+    ens = plan.ensemble
+    fixes = [f for f in ens.fixes if f.style in FIX_KINDS] if ens is not None else []
+    K = len(fixes)
+    meta = np.zeros((K, 4), np.int64)
+    val = np.zeros((C, K, 6))
+    acc = np.zeros((C, K, 4))
+    rngs: list[Any] = []
+    for k, f in enumerate(fixes):
+        meta[k] = (FIX_KINDS[f.style], group(f.group, f.all), f.every, (1 if f.zero else 0) | (2 if f.tally else 0))
+        for j, name in enumerate(("t_start", "t_stop", "damp", "window", "fraction")):
+            val[:, k, j] = getattr(f, name)
+        val[:, k, 5] = float(f.dof)
+        acc[:, k, 0], acc[:, k, 1], acc[:, k, 2], acc[:, k, 3] = f.removed, f.work, f.power, f.last_dt
+        if f.style == "langevin":
+            rngs = list(f.rngs)
+    nvt = [f for f in fixes if f.style == "nvt"]
+    if nvt:
+        ch = nvt[0].chain
+        chain = tuple(np.array(a, float, order="C") for a in (ch.eta, ch.eta_dot, ch.eta_dotdot, ch.eta_mass))
+        per_case = tuple(np.array(np.broadcast_to(np.asarray(a, float), (C,)), order="C")
+                         for a in (ch.t_current, ch.t_target, ch.t_freq, ch.drag))
+        tloop = ch.tloop
+    else:
+        chain = (np.zeros((C, 1)), np.zeros((C, 2)), np.zeros((C, 1)), np.zeros((C, 1)))
+        per_case = tuple(np.zeros(C) for _ in range(4))
+        tloop = 1
+    u = s.units
+    fx = (meta, val, acc, *chain, *per_case, np.array([tloop, s.end_step], np.int64),
+          np.array([float(u.boltz), float(u.ftm2v), float(u.mvv2e)]), np.zeros((C, N, 3)))
+    return fx, fixes, rngs
+
+
+def _fix_slice(fx: tuple, c: slice) -> tuple:
+    """The `fx` arrays of cases c (views; meta, fx_int and fx_f are shared)."""
+    return tuple(a if j in (0, 11, 12) else a[c] for j, a in enumerate(fx))
+
+
+def _fix_store(fx: tuple, fixes: list[Any], plan: ChunkPlan) -> None:
+    """Write a successful chunk's fix state back to the Ensemble (ecouple's terms, the chain)."""
+    acc = fx[2]
+    for k, f in enumerate(fixes):
+        f.removed, f.work, f.power, f.last_dt = (acc[:, k, j].copy() for j in range(4))
+        if f.style == "nvt":
+            ch = f.chain
+            ch.eta, ch.eta_dot, ch.eta_dotdot, ch.eta_mass = fx[3:7]
+            ch.t_current, ch.t_target = fx[7].copy(), fx[8].copy()
+        if f.style == "langevin":
+            f.force = fx[13]
 
 
 def region_eligible(w: Any) -> bool:
@@ -1059,6 +1358,8 @@ class FastPath:
         time_mode = target is not None
         if time_mode and plan.flow:
             return False
+        if time_mode and _thermostats(plan.ensemble):
+            return False  # the thermostats' ramp follows the time, which the kernel does not give them
         if not time_mode and nsteps <= 0:
             return False
         varying = self._uses_time(plan)
@@ -1120,6 +1421,7 @@ class FastPath:
         else:
             dtr_group, dtr_par = 0, np.zeros((C, 4))
         rg = self._regions(plan, group)
+        fx, fx_fixes, fx_rngs = _fix_arrays(plan, group)
         groups_arr = np.stack(groups)
         rf_prev = np.ascontiguousarray(np.stack([p for w in plan.reflect for p in w.previous], axis=1),
                                        dtype=float) if plan.reflect else np.zeros((C, 0))
@@ -1149,14 +1451,21 @@ class FastPath:
         consts = (stats, int(dtr.every if dtr is not None else 0), dtr_group)
         units = (float(s.units.ftm2v), float(s.units.mvv2e))
 
-        def run(c: slice, fl: tuple) -> int:
+        def run(c: slice, fl: tuple, fx_rng: Any = _NO_FLOW[-1]) -> int:
             """The kernel on cases c (a slice: views, so the kernel writes through)."""
             return kernel(*args, s.x[c], s.v[c], s.f[c], s.mass[c], s.radius[c], s.dt[c], s.atime[c],
                               s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
                               rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
-                              rg[0], rg[1], rg[2][c], *fl)
+                              rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng)
 
-        if fk is None:
+        if fx_rngs:  # fix langevin: one case per call, each with its own generator
+            rng_states = [r.bit_generator.state for r in fx_rngs]
+            status = 0
+            for c in range(C):
+                status = run(slice(c, c + 1), _NO_FLOW, fx_rngs[c])
+                if status != 0:
+                    break
+        elif fk is None:
             status = run(slice(None), _NO_FLOW)
         else:  # one case per call: each case draws from its own generator
             rng_states = [r.bit_generator.state for r in fk.rngs]
@@ -1179,9 +1488,13 @@ class FastPath:
             if fk is not None:  # the NumPy loop re-runs the chunk with the same random numbers
                 for r, st in zip(fk.rngs, rng_states):
                     r.bit_generator.state = st
+            for r, st in zip(fx_rngs, rng_states if fx_rngs else []):
+                r.bit_generator.state = st
             self.fallbacks += 1
             return False
         self.compiled_chunks += 1
+        if fx_fixes:
+            _fix_store(fx, fx_fixes, plan)
         if fk is not None:
             fk.phys, fk.pend, fk.prev = phys.astype(np.intp), pend.astype(np.int8), prev
             fk.crossings += cross[:, 0]

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from wallbatch.engine.asphere_compiled import attach_asphere_path
 from wallbatch.engine.compiled import ChunkPlan, attach_fast_path
 from wallbatch.engine.dt_reset import dt_candidate
 from wallbatch.engine.ensemble import Ensemble
@@ -72,7 +73,8 @@ class Engine:
         self.frames: list[tuple] = []  # (rows, time, x, v) per dump instant
         self.samples: list[dict[str, np.ndarray]] = []  # per sample: name -> (C_total, ...) arrays
         self.sample_rows: list[np.ndarray] = []
-        # the compiled path (compiled.py) runs only scenes without pair, ees, wall/region/ees, ellipsoids
+        # the compiled path (compiled.py) runs only scenes without pair, ees, wall/region/ees, ellipsoids;
+        # asphere_compiled.py runs ellipsoids between wall/ees faces
         self.pair = None  # pair.PairLJCut
         if c0.pair is not None:
             self.pair = PairLJCut(np.array([c.pair.epsilon for c in cases]), np.array([c.pair.sigma for c in cases]),
@@ -89,8 +91,9 @@ class Engine:
         # fixes: integrator groups, thermostats, 2-D (None: fix nve on all atoms, 3-D)
         self.ensemble = Ensemble(cases, self.state) if Ensemble.needed(c0) else None
         self.profiles = ProfileSampler(cases) if c0.profiles else None  # output.profiles
-        # compiled chunks of steps, or None; scenes with fixes: beyond nve on all run on NumPy
-        self.fast = attach_fast_path(self.compiled_plan)
+        # compiled chunks of steps, or None (compiled.eligible: which scenes and fixes; ellipsoids
+        # between wall/ees faces: asphere_compiled.eligible)
+        self.fast = attach_fast_path(self.compiled_plan) or attach_asphere_path(self.compiled_plan)
 
     def compiled_plan(self) -> ChunkPlan:
         """What the compiled path would run now: the flat walls, reflect walls and dt/reset with
@@ -98,15 +101,14 @@ class Engine:
         s = self.state
         others = tuple(name for name, present in (
             ("pair", self.pair is not None),
-            ("ellipsoids", s.quat is not None or s.angmom is not None or s.torque is not None),
-            ("fixes", self.ensemble is not None)) if present)
+            ("ellipsoids", s.quat is not None or s.angmom is not None or s.torque is not None)) if present)
         dtr = None
         if self.dt_reset is not None:
             dtr = np.stack([self.dtr_xmax, self.dtr_emax, self.dtr_tmin, self.dtr_tmax], axis=1)
         return ChunkPlan(state=s, soft=tuple(self.soft), reflect=tuple(self.reflect), dt_reset=self.dt_reset,
                          dt_reset_params=dtr, others=others, compute_outputs=lambda: self.compute_forces(True),
                          finish_step=self.finish_step, advance_numpy=self.advance_numpy,
-                         region=tuple(self.region_walls), flow=tuple(self.flow))
+                         region=tuple(self.region_walls), flow=tuple(self.flow), ensemble=self.ensemble)
 
     # -- the step ----------------------------------------------------------------------------
 

@@ -24,6 +24,7 @@ from wallbatch.engine.thermostats import (
     group_dof,
     langevin_force,
     langevin_power,
+    ramped,
     rescale_factor,
     scale_group,
     temperature,
@@ -59,7 +60,7 @@ class _Fix:
 
     def target(self, s: BatchState) -> np.ndarray:
         """Ramped target temperature at the current step (LAMMPS: (n - begin) / (end - begin))."""
-        return self.t_start + s.context().ramp_fraction * (self.t_stop - self.t_start)
+        return ramped(self.t_start, self.t_stop, s.context().ramp_fraction)
 
     def mask(self) -> np.ndarray | None:
         return None if self.all else self.group

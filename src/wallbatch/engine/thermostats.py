@@ -16,13 +16,103 @@ What each LAMMPS fix does and where in the step (velocity Verlet):
   fix temp/rescale   end_of_step, every `every` steps: if |T - T_target| > window,
                      v *= sqrt(T_new / T) with T_new = T - fraction (T - T_target).
 Temperatures of a fix are those of its group with dof = dim * N_group - dim (compute temp).
+
+The per-atom and per-case arithmetic is written as plain functions (`atom_mv2`, `dot3`, `ramped`,
+`langevin_drag`, `langevin_amplitude`, `langevin_random`, `nh_half_step`, `berendsen_factor`,
+`rescale_factor`; branches through `select`, np.where for arrays) that the compiled chunk path
+(wallbatch.engine.compiled) compiles as they are, and sums over atoms are NumPy's own pairwise
+sums (`pairwise_sum` is their order, for the compiled path), so both paths agree bit for bit.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from wallbatch.engine.dt_reset import select
+
+# ----------------------------------------------------------------------------- shared arithmetic
+
+
+def atom_mv2(m, v0, v1, v2):
+    """m |v|^2 of one atom (or elementwise), components summed x, y, z in that order."""
+    return m * (v0 * v0 + v1 * v1 + v2 * v2)
+
+
+def dot3(a0, a1, a2, b0, b1, b2):
+    """a . b of 3-vectors given by components (elementwise), summed x, y, z in that order."""
+    return a0 * b0 + a1 * b1 + a2 * b2
+
+
+def pairwise_sum(a, lo, n):
+    """sum(a[lo:lo + n]) in the order of NumPy's np.add.reduce over a contiguous float64 axis
+    (its pairwise summation: runs of at most 128 values summed with 8 partial sums, longer runs
+    split in two halves summed separately), so a compiled loop reproduces `x.sum(axis=-1)` bit for
+    bit. NumPy's recursion is written with an explicit stack (numba caches it that way)."""
+    slo = np.empty(64, np.int64)  # the recursion's frames: start, length, state, left half's sum
+    sn = np.empty(64, np.int64)
+    sst = np.empty(64, np.int64)
+    sval = np.empty(64)
+    top = 0
+    slo[0], sn[0], sst[0] = lo, n, 0
+    ret = 0.0
+    while top >= 0:
+        lo1, m, state = slo[top], sn[top], sst[top]
+        if m < 8:
+            ret = 0.0
+            for i in range(lo1, lo1 + m):
+                ret += a[i]
+            top -= 1
+        elif m <= 128:
+            r0, r1, r2, r3 = a[lo1], a[lo1 + 1], a[lo1 + 2], a[lo1 + 3]
+            r4, r5, r6, r7 = a[lo1 + 4], a[lo1 + 5], a[lo1 + 6], a[lo1 + 7]
+            i = lo1 + 8
+            end8 = lo1 + m - m % 8
+            while i < end8:
+                r0 += a[i]
+                r1 += a[i + 1]
+                r2 += a[i + 2]
+                r3 += a[i + 3]
+                r4 += a[i + 4]
+                r5 += a[i + 5]
+                r6 += a[i + 6]
+                r7 += a[i + 7]
+                i += 8
+            ret = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+            while i < lo1 + m:
+                ret += a[i]
+                i += 1
+            top -= 1
+        else:
+            n2 = m // 2
+            n2 -= n2 % 8
+            if state == 0:  # first the left half
+                sst[top] = 1
+                top += 1
+                slo[top], sn[top], sst[top] = lo1, n2, 0
+            elif state == 1:  # keep its sum, then the right half
+                sval[top] = ret
+                sst[top] = 2
+                top += 1
+                slo[top], sn[top], sst[top] = lo1 + n2, m - n2, 0
+            else:
+                ret = sval[top] + ret
+                top -= 1
+    return ret
+
+
+def libm_exp(x: np.ndarray) -> np.ndarray:
+    """exp of a 1-D array by the C library's exp (math.exp), not NumPy's SIMD exp, so the chain
+    agrees bit for bit with the compiled path (which calls math.exp); for the few values (C,) of
+    a chain step."""
+    return np.array([math.exp(v) for v in x.tolist()], dtype=float)
+
+
+def ramped(t_start, t_stop, fraction):
+    """Target temperature t_start + fraction (t_stop - t_start) (fraction: of the run done)."""
+    return t_start + fraction * (t_stop - t_start)
 
 # ----------------------------------------------------------------------------- temperature
 
@@ -35,7 +125,7 @@ def group_dof(count: int, dimension: int = 3) -> int:
 
 def kinetic_sum(v: np.ndarray, mass: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
     """sum_i m_i |v_i|^2 over the group atoms (mass * velocity^2 units), shape (C,)."""
-    mv2 = mass * np.einsum("cni,cni->cn", v, v)
+    mv2 = atom_mv2(mass, v[..., 0], v[..., 1], v[..., 2])
     if mask is not None and not mask.all():
         mv2 = np.where(mask, mv2, 0.0)
     return mv2.sum(axis=1)
@@ -135,35 +225,11 @@ class NHChain:
         (C,) that scales the group velocities; t_current is updated for that scaling. The caller
         scales v (see scale_group); the factor is the product over the sub-steps."""
         self.t_target = np.array(t_target, float)
-        self._masses()
-        M = self.eta.shape[1]
-        ed, edd, Q = self.eta_dot, self.eta_dotdot, self.eta_mass
-        kt = self.boltz * self.t_target
-        ke_target = self.dof * kt
-        nc = 1.0 / self.tloop
-        dt4, dt8, dthalf = 0.25 * dt, 0.125 * dt, 0.5 * dt
-        drag = 1.0 - dt * self.t_freq * self.drag / self.tloop
+        drag = np.broadcast_to(np.asarray(self.drag, float), self.t_current.shape)
         with np.errstate(divide="ignore", invalid="ignore"):
-            edd[:, 0] = np.where(Q[:, 0] > 0, (self.dof * self.boltz * self.t_current - ke_target) / Q[:, 0], 0.0)
-        total = np.ones_like(self.t_current)
-        for _ in range(self.tloop):
-            for k in range(M - 1, 0, -1):  # from the chain's end down to member 1
-                e = np.exp(-nc * dt8 * ed[:, k + 1])
-                ed[:, k] = (ed[:, k] * e + edd[:, k] * nc * dt4) * drag * e
-            e = np.exp(-nc * dt8 * ed[:, 1])
-            ed[:, 0] = (ed[:, 0] * e + edd[:, 0] * nc * dt4) * drag * e
-            factor = np.exp(-nc * dthalf * ed[:, 0])
-            total = total * factor
-            self.t_current = self.t_current * factor * factor
-            with np.errstate(divide="ignore", invalid="ignore"):
-                edd[:, 0] = np.where(Q[:, 0] > 0,
-                                     (self.dof * self.boltz * self.t_current - ke_target) / Q[:, 0], 0.0)
-            self.eta += (nc * dthalf)[:, None] * ed[:, :M]
-            ed[:, 0] = (ed[:, 0] * e + edd[:, 0] * nc * dt4) * e
-            for k in range(1, M):  # back up the chain
-                e = np.exp(-nc * dt8 * ed[:, k + 1])
-                edd[:, k] = (Q[:, k - 1] * ed[:, k - 1] ** 2 - kt) / Q[:, k]
-                ed[:, k] = (ed[:, k] * e + edd[:, k] * nc * dt4) * e
+            total, self.t_current = nh_half_step(self.eta.T, self.eta_dot.T, self.eta_dotdot.T, self.eta_mass.T,
+                                                 np.asarray(self.t_current, float), self.t_target, self.t_freq,
+                                                 self.dof, self.boltz, self.tloop, drag, np.asarray(dt, float))
         return total
 
     def energy(self) -> np.ndarray:
@@ -178,6 +244,44 @@ class NHChain:
         return e
 
 
+def nh_half_step(eta, ed, edd, Q, t_current, t_target, t_freq, dof, boltz, tloop, drag, dt):
+    """One half step dt/2 of Nose-Hoover chains (NHChain.half_step; LAMMPS fix nvt's
+    nhc_temp_integrate). The chain member is the FIRST index: eta, edd, Q (M, ...), ed (M + 1, ...);
+    the rest are per-case values: NumPy passes the (C, M) arrays transposed and (C,) values, the
+    compiled path one case's (M,) rows and scalars. Chain arrays are updated in place; returns
+    (velocity factor, the new t_current). The masses Q follow t_target (NHChain._masses)."""
+    M = eta.shape[0]
+    w2 = t_freq * t_freq
+    Q[0] = dof * boltz * t_target / w2
+    for k in range(1, M):
+        Q[k] = boltz * t_target / w2
+    kt = boltz * t_target
+    ke_target = dof * kt
+    nc = 1.0 / tloop
+    dt4, dt8, dthalf = 0.25 * dt, 0.125 * dt, 0.5 * dt
+    drag = 1.0 - dt * t_freq * drag / tloop
+    edd[0] = select(Q[0] > 0, (dof * boltz * t_current - ke_target) / Q[0], 0.0)
+    total = 1.0
+    for _ in range(tloop):
+        for k in range(M - 1, 0, -1):  # from the chain's end down to member 1
+            e = libm_exp(-nc * dt8 * ed[k + 1])
+            ed[k] = (ed[k] * e + edd[k] * nc * dt4) * drag * e
+        e = libm_exp(-nc * dt8 * ed[1])
+        ed[0] = (ed[0] * e + edd[0] * nc * dt4) * drag * e
+        factor = libm_exp(-nc * dthalf * ed[0])
+        total = total * factor
+        t_current = t_current * factor * factor
+        edd[0] = select(Q[0] > 0, (dof * boltz * t_current - ke_target) / Q[0], 0.0)
+        for k in range(M):
+            eta[k] += (nc * dthalf) * ed[k]
+        ed[0] = (ed[0] * e + edd[0] * nc * dt4) * e
+        for k in range(1, M):  # back up the chain
+            e = libm_exp(-nc * dt8 * ed[k + 1])
+            edd[k] = (Q[k - 1] * ed[k - 1] ** 2 - kt) / Q[k]
+            ed[k] = (ed[k] * e + edd[k] * nc * dt4) * e
+    return total, t_current
+
+
 # ----------------------------------------------------------------------------- velocity rescaling
 
 
@@ -186,9 +290,7 @@ def berendsen_factor(t_current: np.ndarray, t_target: np.ndarray, dt: np.ndarray
     """fix temp/berendsen: lambda = sqrt(1 + dt/damp (T_target/T - 1)) from the group's current
     temperature T, and the energy it removes, (1 - lambda^2) T dof kB / 2 (C,). Rows with T = 0
     get lambda = 1 (the caller refuses them: LAMMPS errors)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lam = np.sqrt(1.0 + dt / damp * (t_target / t_current - 1.0))
-    lam = np.where(t_current > 0, lam, 1.0)
+    lam = select(t_current > 0, np.sqrt(1.0 + dt / damp * (t_target / t_current - 1.0)), 1.0)
     removed = t_current * (1.0 - lam * lam) * (0.5 * boltz * dof)
     return lam, removed
 
@@ -200,9 +302,8 @@ def rescale_factor(t_current: np.ndarray, t_target: np.ndarray, window: np.ndarr
     factor (1 inside the window) and the energy removed, (T - T_new) dof kB / 2 (C,)."""
     outside = np.abs(t_current - t_target) > window
     t_new = t_current - fraction * (t_current - t_target)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        factor = np.where(outside & (t_current > 0), np.sqrt(t_new / t_current), 1.0)
-    removed = np.where(outside & (t_current > 0), (t_current - t_new) * (0.5 * boltz * dof), 0.0)
+    factor = select(outside & (t_current > 0), np.sqrt(t_new / t_current), 1.0)
+    removed = select(outside & (t_current > 0), (t_current - t_new) * (0.5 * boltz * dof), 0.0)
     return factor, removed
 
 
@@ -218,10 +319,10 @@ def langevin_force(v: np.ndarray, mass: np.ndarray, mask: np.ndarray | None, t_t
     value for a force held over one step. With `zero`, the random forces of the group sum to zero
     (their mean over the group atoms is removed), so the thermostat conserves the momentum."""
     damp = np.asarray(damp, float)[:, None]
-    g1 = -mass / damp / ftm2v  # (C, N)
-    g2 = np.sqrt(mass) * (np.sqrt(24.0 * boltz / damp / np.asarray(dt, float)[:, None] / mvv2e) / ftm2v)
-    g2 = g2 * np.sqrt(np.asarray(t_target, float))[:, None]
-    fran = g2[:, :, None] * (uniform - 0.5)
+    g1 = langevin_drag(mass, damp, ftm2v)  # (C, N)
+    amp = langevin_amplitude(damp, np.asarray(dt, float)[:, None], ftm2v, mvv2e, boltz)
+    fran = langevin_random(np.sqrt(mass)[:, :, None], amp[:, :, None],
+                           np.sqrt(np.asarray(t_target, float))[:, None, None], uniform)
     sel = np.ones(v.shape[1], bool) if mask is None else mask
     if zero:
         count = int(sel.sum())
@@ -234,6 +335,21 @@ def langevin_force(v: np.ndarray, mass: np.ndarray, mask: np.ndarray | None, t_t
     return force
 
 
+def langevin_drag(mass, damp, ftm2v):
+    """fix langevin's drag coefficient -m / (damp ftm2v) [force / velocity], elementwise."""
+    return -mass / damp / ftm2v
+
+
+def langevin_amplitude(damp, dt, ftm2v, mvv2e, boltz):
+    """sqrt(24 kB / (damp dt mvv2e)) / ftm2v: the random force's amplitude per sqrt(m T)."""
+    return np.sqrt(24.0 * boltz / damp / dt / mvv2e) / ftm2v
+
+
+def langevin_random(sqrt_mass, amplitude, sqrt_t, u):
+    """One random force component sqrt(m) amplitude sqrt(T) (u - 1/2), u uniform in [0, 1)."""
+    return sqrt_mass * amplitude * sqrt_t * (u - 0.5)
+
+
 def langevin_power(force: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Power the Langevin force puts into the group, sum_i F_i . v_i (C,) [energy/time]."""
-    return np.einsum("cni,cni->c", force, v)
+    return dot3(force[..., 0], force[..., 1], force[..., 2], v[..., 0], v[..., 1], v[..., 2]).sum(axis=1)

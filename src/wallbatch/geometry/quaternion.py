@@ -35,11 +35,95 @@ __all__ = [
     "normalize",
     "random_quaternions",
     "richardson",
+    "richardson_step",
     "rotation_matrix",
+    "rotation_rows",
     "rotational_energy",
+    "select",
+    "to_body",
+    "to_space",
 ]
 
 INERTIA = 0.2  # moment of inertia prefactor of a uniform solid ellipsoid, I = (m/5)(b^2 + c^2), ...
+
+
+# --------------------------------------------------------------------------------------------
+# plain arithmetic on components: floats or arrays alike (the NumPy path passes arrays, the
+# compiled path of engine/asphere_compiled.py compiles these very functions for floats). A
+# rotation matrix is the 9-tuple of its entries row by row (a00, a01, a02, a10, ..., a22).
+
+
+def select(cond, a, b):
+    """np.where(cond, a, b); the compiled path gives scalars `a if cond else b`."""
+    return np.where(cond, a, b)
+
+
+def rotation_rows(w, i, j, k):
+    """The entries of A(q) row by row (see :func:`rotation_matrix`), q = (w, i, j, k) unit."""
+    w2, i2, j2, k2 = w * w, i * i, j * j, k * k
+    ij, ik, jk = 2.0 * i * j, 2.0 * i * k, 2.0 * j * k
+    wi, wj, wk = 2.0 * w * i, 2.0 * w * j, 2.0 * w * k
+    return (w2 + i2 - j2 - k2, ij - wk, ik + wj,
+            ij + wk, w2 - i2 + j2 - k2, jk - wi,
+            ik - wj, jk + wi, w2 - i2 - j2 + k2)
+
+
+def to_body(a, v0, v1, v2):
+    """A^T v: a space-frame vector in the body frame (a: the 9 entries of A), summed in index order."""
+    return (a[0] * v0 + a[3] * v1 + a[6] * v2,
+            a[1] * v0 + a[4] * v1 + a[7] * v2,
+            a[2] * v0 + a[5] * v1 + a[8] * v2)
+
+
+def to_space(a, v0, v1, v2):
+    """A v: a body-frame vector in the space frame (a: the 9 entries of A), summed in index order."""
+    return (a[0] * v0 + a[1] * v1 + a[2] * v2,
+            a[3] * v0 + a[4] * v1 + a[5] * v2,
+            a[6] * v0 + a[7] * v1 + a[8] * v2)
+
+
+def body_omega(a, l0, l1, l2, m0, m1, m2):
+    """Body-frame angular velocity diag(1/I) A^T L [1/time], 0 where a moment I is 0."""
+    b0, b1, b2 = to_body(a, l0, l1, l2)
+    return (select(m0 != 0.0, b0 / select(m0 != 0.0, m0, 1.0), 0.0),
+            select(m1 != 0.0, b1 / select(m1 != 0.0, m1, 1.0), 0.0),
+            select(m2 != 0.0, b2 / select(m2 != 0.0, m2, 1.0), 0.0))
+
+
+def omega_quat(o0, o1, o2, w, i, j, k):
+    """(0, ω) ⊗ q, the pure-vector Hamilton product of §11.2."""
+    return (-o0 * i - o1 * j - o2 * k,
+            w * o0 + o1 * k - o2 * j,
+            w * o1 + o2 * i - o0 * k,
+            w * o2 + o0 * j - o1 * i)
+
+
+def normalized(w, i, j, k):
+    """q / |q| as q * (1/sqrt(w^2+i^2+j^2+k^2))."""
+    inv = 1.0 / np.sqrt(w * w + i * i + j * j + k * k)
+    return w * inv, i * inv, j * inv, k * inv
+
+
+def _omega_of(w, i, j, k, l0, l1, l2, m0, m1, m2):
+    """(0, ω) ⊗ q with ω = A diag(1/I) A^T L the space-frame angular velocity."""
+    a = rotation_rows(w, i, j, k)
+    b0, b1, b2 = body_omega(a, l0, l1, l2, m0, m1, m2)
+    o0, o1, o2 = to_space(a, b0, b1, b2)
+    return omega_quat(o0, o1, o2, w, i, j, k)
+
+
+def richardson_step(w, i, j, k, l0, l1, l2, m0, m1, m2, dtq):
+    """One Richardson step of q = (w, i, j, k) over dt = 2 dtq (see :func:`richardson`), on
+    components: returns the new (w, i, j, k). L = (l0, l1, l2) space frame, I = (m0, m1, m2)."""
+    half = 0.5 * dtq
+    q0, q1, q2, q3 = _omega_of(w, i, j, k, l0, l1, l2, m0, m1, m2)
+    f0, f1, f2, f3 = normalized(w + dtq * q0, i + dtq * q1, j + dtq * q2, k + dtq * q3)
+    h0, h1, h2, h3 = normalized(w + half * q0, i + half * q1, j + half * q2, k + half * q3)
+    q0, q1, q2, q3 = _omega_of(h0, h1, h2, h3, l0, l1, l2, m0, m1, m2)
+    h0, h1, h2, h3 = normalized(h0 + half * q0, h1 + half * q1, h2 + half * q2, h3 + half * q3)
+    n0, n1, n2, n3 = normalized(2.0 * h0 - f0, 2.0 * h1 - f1, 2.0 * h2 - f2, 2.0 * h3 - f3)
+    point = (m0 == 0.0) & (m1 == 0.0) & (m2 == 0.0)
+    return select(point, w, n0), select(point, i, n1), select(point, j, n2), select(point, k, n3)
 
 
 # --------------------------------------------------------------------------------------------
@@ -79,21 +163,16 @@ def rotation_matrix(q: np.ndarray) -> np.ndarray:
          [2(ik-wj),     2(jk+wi),     w²-i²-j²+k²]]
     """
     q = np.asarray(q, dtype=np.float64)
-    w, i, j, k = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    w2, i2, j2, k2 = w * w, i * i, j * j, k * k
-    ij, ik, jk = 2.0 * i * j, 2.0 * i * k, 2.0 * j * k
-    wi, wj, wk = 2.0 * w * i, 2.0 * w * j, 2.0 * w * k
+    rows = rotation_rows(q[..., 0], q[..., 1], q[..., 2], q[..., 3])
     a = np.empty(q.shape[:-1] + (3, 3))  # filled in place: no stacked copies (the ees profile's 30%)
-    a[..., 0, 0] = w2 + i2 - j2 - k2
-    a[..., 0, 1] = ij - wk
-    a[..., 0, 2] = ik + wj
-    a[..., 1, 0] = ij + wk
-    a[..., 1, 1] = w2 - i2 + j2 - k2
-    a[..., 1, 2] = jk - wi
-    a[..., 2, 0] = ik - wj
-    a[..., 2, 1] = jk + wi
-    a[..., 2, 2] = w2 - i2 - j2 + k2
+    for n, entry in enumerate(rows):
+        a[..., n // 3, n % 3] = entry
     return a
+
+
+def entries(a: np.ndarray) -> tuple:
+    """The 9-tuple of a (..., 3, 3) matrix's entries row by row (views)."""
+    return tuple(a[..., n // 3, n % 3] for n in range(9))
 
 
 def from_axis_angle(axis: np.ndarray, angle: np.ndarray, *, degrees: bool = False,
@@ -145,39 +224,27 @@ def inertia(mass: np.ndarray, shape: np.ndarray) -> np.ndarray:
     return m * np.stack([b2 + c2, a2 + c2, a2 + b2], axis=-1)
 
 
-def _to_body(a: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """A^T v for (..., 3, 3) and (..., 3), summed in index order."""
-    return a[..., 0, :] * v[..., 0, None] + a[..., 1, :] * v[..., 1, None] + a[..., 2, :] * v[..., 2, None]
+def _stack(parts: tuple, shape: tuple) -> np.ndarray:
+    """Components -> one (*shape, len(parts)) array, filled in place."""
+    out = np.empty(shape + (len(parts),))
+    for n, part in enumerate(parts):
+        out[..., n] = part
+    return out
 
 
-def _to_space(a: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """A v for (..., 3, 3) and (..., 3), summed in index order."""
-    return a[..., :, 0] * v[..., 0, None] + a[..., :, 1] * v[..., 1, None] + a[..., :, 2] * v[..., 2, None]
-
-
-def _body_omega(a: np.ndarray, angmom: np.ndarray, moments: np.ndarray) -> np.ndarray:
-    """Body-frame angular velocity diag(1/I) A^T L, with 0 where I = 0."""
-    wbody = _to_body(a, angmom)
-    nonzero = moments != 0.0
-    return np.where(nonzero, wbody / np.where(nonzero, moments, 1.0), 0.0)
+def _components(v: np.ndarray, n: int) -> tuple:
+    return tuple(v[..., c] for c in range(n))
 
 
 def angular_velocity(q: np.ndarray, angmom: np.ndarray, inertia: np.ndarray) -> np.ndarray:
     """Space-frame angular velocity ω = A diag(1/I) A^T L [1/time], (..., 3); 0 where I = 0."""
-    a = rotation_matrix(q)
-    return _to_space(a, _body_omega(a, np.asarray(angmom, dtype=np.float64), np.asarray(inertia)))
-
-
-def _omega_quat(omega: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """(0, ω) ⊗ q, the pure-vector Hamilton product of §11.2."""
-    a0, a1, a2 = omega[..., 0], omega[..., 1], omega[..., 2]
-    b0, b1, b2, b3 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    out = np.empty(np.broadcast_shapes(omega.shape[:-1], q.shape[:-1]) + (4,))  # filled in place
-    out[..., 0] = -a0 * b1 - a1 * b2 - a2 * b3
-    out[..., 1] = b0 * a0 + a1 * b3 - a2 * b2
-    out[..., 2] = b0 * a1 + a2 * b1 - a0 * b3
-    out[..., 3] = b0 * a2 + a0 * b2 - a1 * b1
-    return out
+    q = np.asarray(q, dtype=np.float64)
+    angmom = np.asarray(angmom, dtype=np.float64)
+    moments = np.asarray(inertia, dtype=np.float64)
+    a = rotation_rows(*_components(q, 4))
+    omega = to_space(a, *body_omega(a, *_components(angmom, 3), *_components(moments, 3)))
+    shape = np.broadcast_shapes(q.shape[:-1], angmom.shape[:-1], moments.shape[:-1])
+    return _stack(omega, shape)
 
 
 def richardson(q: np.ndarray, angmom: np.ndarray, inertia: np.ndarray, dtq) -> np.ndarray:
@@ -185,7 +252,8 @@ def richardson(q: np.ndarray, angmom: np.ndarray, inertia: np.ndarray, dtq) -> n
 
     q (..., 4) unit, angmom L (..., 3) space frame, inertia (..., 3) principal moments; ``dtq``
     (= dt/2) a float or an array broadcastable against ``q.shape[:-1]`` (e.g. ``dtq[:, None]`` for
-    per-case values with (C, N, 4) quaternions). Same order of operations as LAMMPS:
+    per-case values with (C, N, 4) quaternions). Same order of operations as LAMMPS
+    (:func:`richardson_step` on the components):
 
         ω = ω(q, L);  wq = (0,ω) ⊗ q
         q_full = normalize(q + dtq wq);  q_half = normalize(q + ½ dtq wq)
@@ -197,16 +265,10 @@ def richardson(q: np.ndarray, angmom: np.ndarray, inertia: np.ndarray, dtq) -> n
     q = np.asarray(q, dtype=np.float64)
     angmom = np.asarray(angmom, dtype=np.float64)
     moments = np.asarray(inertia, dtype=np.float64)
-    dtq = np.asarray(dtq, dtype=np.float64)[..., None]
-    half = 0.5 * dtq
-    wq = _omega_quat(angular_velocity(q, angmom, moments), q)
-    q_full = normalize(q + dtq * wq)
-    q_half = normalize(q + half * wq)
-    wq = _omega_quat(angular_velocity(q_half, angmom, moments), q_half)
-    q_half = normalize(q_half + half * wq)
-    q_new = normalize(2.0 * q_half - q_full)
-    point = np.all(moments == 0.0, axis=-1)[..., None]
-    return np.where(point, q, q_new)
+    dtq = np.asarray(dtq, dtype=np.float64)
+    new = richardson_step(*_components(q, 4), *_components(angmom, 3), *_components(moments, 3), dtq)
+    shape = np.broadcast_shapes(q.shape[:-1], angmom.shape[:-1], moments.shape[:-1], dtq.shape)
+    return _stack(new, shape)
 
 
 def rotational_energy(q: np.ndarray, angmom: np.ndarray, inertia: np.ndarray) -> np.ndarray:
@@ -214,10 +276,8 @@ def rotational_energy(q: np.ndarray, angmom: np.ndarray, inertia: np.ndarray) ->
 
     Multiply by mvv2e for energy units (compute erotate/asphere). Components with I = 0 count 0.
     """
-    a = rotation_matrix(q)
+    q = np.asarray(q, dtype=np.float64)
     moments = np.asarray(inertia, dtype=np.float64)
-    wb = _body_omega(a, np.asarray(angmom, dtype=np.float64), moments)
-    iw2 = moments * wb * wb
-    return 0.5 * (iw2[..., 0] + iw2[..., 1] + iw2[..., 2])
-
-
+    m = _components(moments, 3)
+    wb = body_omega(rotation_rows(*_components(q, 4)), *_components(np.asarray(angmom, dtype=np.float64), 3), *m)
+    return 0.5 * (m[0] * wb[0] * wb[0] + m[1] * wb[1] * wb[1] + m[2] * wb[2] * wb[2])

@@ -7,11 +7,33 @@ from __future__ import annotations
 
 import numpy as np
 
-from wallbatch.geometry.quaternion import _to_body, _to_space, rotation_matrix
+from wallbatch.geometry.quaternion import entries, rotation_matrix, to_body, to_space
 from wallbatch.styles.base import Param, WallStyle, cutoff_param
 
 # --------------------------------------------------------------------------------------------
 # wall/ees (§4.7, §6)
+
+
+def sigma_n_of(a, s0, s1, s2, n0, n1, n2):
+    """sigma_n = |S A^T n̂| on components (a: the 9 entries of A, floats or arrays), see :func:`sigma_n`."""
+    b0, b1, b2 = to_body(a, n0, n1, n2)
+    u0, u1, u2 = s0 * b0, s1 * b1, s2 * b2
+    return np.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+
+
+def torque_of(a, s0, s1, s2, n0, n1, n2, tw):
+    """τ = T_w (n̂ × A S² A^T n̂) on components (see :func:`ees_torque`)."""
+    b0, b1, b2 = to_body(a, n0, n1, n2)
+    m0, m1, m2 = to_space(a, s0 * s0 * b0, s1 * s1 * b1, s2 * s2 * b2)
+    return tw * (n1 * m2 - n2 * m1), tw * (n2 * m0 - n0 * m2), tw * (n0 * m1 - n1 * m0)
+
+
+def _parts(q, shape, normal, a):
+    a = rotation_matrix(q) if a is None else np.asarray(a, dtype=np.float64)
+    n = np.asarray(normal, dtype=np.float64)
+    s = np.asarray(shape, dtype=np.float64)
+    lead = np.broadcast_shapes(a.shape[:-2], n.shape[:-1], s.shape[:-1])
+    return entries(a), tuple(s[..., c] for c in range(3)), tuple(n[..., c] for c in range(3)), lead
 
 
 def sigma_n(q: np.ndarray, shape: np.ndarray, normal: np.ndarray, a: np.ndarray | None = None) -> np.ndarray:
@@ -20,11 +42,8 @@ def sigma_n(q: np.ndarray, shape: np.ndarray, normal: np.ndarray, a: np.ndarray 
     sigma_n = |S A^T n̂| = sqrt(n̂^T A S² A^T n̂), S = diag(a, b, c); ``normal`` (..., 3) broadcasts.
     ``a``: rotation_matrix(q) if the caller already has it.
     """
-    a = rotation_matrix(q) if a is None else a
-    n = np.asarray(normal, dtype=np.float64)
-    a, n = np.broadcast_arrays(a, n[..., None, :])
-    u = np.asarray(shape, dtype=np.float64) * _to_body(a, n[..., 0, :])
-    return np.sqrt(u[..., 0] * u[..., 0] + u[..., 1] * u[..., 1] + u[..., 2] * u[..., 2])
+    ent, s, n, lead = _parts(q, shape, normal, a)
+    return sigma_n_of(ent, *s, *n)
 
 
 def ees_torque(q: np.ndarray, shape: np.ndarray, normal: np.ndarray, tw: np.ndarray,
@@ -35,13 +54,13 @@ def ees_torque(q: np.ndarray, shape: np.ndarray, normal: np.ndarray, tw: np.ndar
     the ellipsoid about space-fixed axes; a sphere (A S² A^T ∝ 1) gets none. Same for n̂ and -n̂.
     ``a``: rotation_matrix(q) if the caller already has it.
     """
-    a = rotation_matrix(q) if a is None else a
-    n = np.asarray(normal, dtype=np.float64)
-    a, n = np.broadcast_arrays(a, n[..., None, :])
-    n = n[..., 0, :]
-    s = np.asarray(shape, dtype=np.float64)
-    mn = _to_space(a, s * s * _to_body(a, n))
-    return np.asarray(tw, dtype=np.float64)[..., None] * np.cross(n, mn)
+    ent, s, n, lead = _parts(q, shape, normal, a)
+    tw = np.asarray(tw, dtype=np.float64)
+    parts = torque_of(ent, *s, *n, tw)
+    out = np.empty(np.broadcast_shapes(lead, tw.shape) + (3,))
+    for c in range(3):
+        out[..., c] = parts[c]
+    return out
 
 
 # Taylor coefficients in s = t², t = sn/r, of the two bracketed attractive terms:
@@ -54,11 +73,52 @@ _G_COEF = 1.0 / ((2 * _J + 1) * (2 * _J + 3))
 _K_COEF = 1.0 / ((2 * _J + 1) * (2 * _J + 3) * (2 * _J + 5))
 
 
-def _horner(coef: np.ndarray, s: np.ndarray) -> np.ndarray:
-    out = np.full_like(s, coef[-1])
-    for c in coef[-2::-1]:
-        out = out * s + c
+def _horner(coef: np.ndarray, s):
+    """Σ_j coef[j] s^j by Horner's rule (floats or arrays)."""
+    out = coef[-1] * s + coef[-2]
+    for j in range(coef.shape[0] - 3, -1, -1):
+        out = out * s + coef[j]
     return out
+
+
+# the pieces of ees_energy_force_torque, plain arithmetic on floats or arrays (the compiled path of
+# engine/asphere_compiled.py compiles these very functions)
+
+
+def ees_ratios(r, sn):
+    """t = sn/r, s = t², p = 1 - t² formed as ((r-sn)/r)((r+sn)/r) (exact near contact)."""
+    t = sn / r
+    return t, t * t, ((r - sn) / r) * ((r + sn) / r)
+
+
+def ees_series(s):
+    """G and K of the module notes as Taylor series in s = t² (all 28 terms; for t < 1/2)."""
+    return _horner(_G_COEF, s), _horner(_K_COEF, s)
+
+
+def ees_closed(t, p, ln):
+    """G and K in closed form, ln = ln((r-sn)/(r+sn)) (for t >= 1/2, where ~1 digit cancels)."""
+    t3 = t * t * t
+    return (2.0 * t + p * ln) / (4.0 * t3), -(6.0 * t - 10.0 * t3 + 3.0 * p * p * ln) / (48.0 * t3 * t * t)
+
+
+def ees_combine(r, s, p, g, k, eps, sig):
+    """E, F, T_w of :func:`ees_energy_force_torque` from the ratios and G, K."""
+    x = sig / r
+    x2 = x * x
+    x3 = x2 * x
+    x9 = x3 * x3 * x3
+    p2 = p * p
+    p4 = p2 * p2
+    p7 = p4 * p2 * p
+    p8 = p4 * p4
+    s2 = s * s
+    energy = eps * (sig * sig * sig) * (
+        -(1.0 / 3.0) * x3 * g / p + (2.0 / 945.0) * x9 * (7.0 + 14.0 * s + 3.0 * s2) / p7)
+    force = eps * (sig * sig) * (
+        -(1.0 / 3.0) * x3 * x / p2 + (2.0 / 315.0) * x9 * x * (21.0 + 63.0 * s + 27.0 * s2 + s2 * s) / p8)
+    torque = eps * sig * (-4.0 * x3 * x2 * k / p2 + (4.0 / 315.0) * x9 * x2 * (21.0 + 30.0 * s + 5.0 * s2) / p8)
+    return energy, force, torque
 
 
 def ees_energy_force_torque(r, sn, epsilon, sigma) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -87,38 +147,17 @@ def ees_energy_force_torque(r, sn, epsilon, sigma) -> tuple[np.ndarray, np.ndarr
     r, sn, eps, sig = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (r, sn, epsilon, sigma)))
     out_shape = r.shape
     r, sn, eps, sig = (v.reshape(-1) for v in (r, sn, eps, sig))
-    t = sn / r
-    s = t * t
-    p = ((r - sn) / r) * ((r + sn) / r)
-
+    t, s, p = ees_ratios(r, sn)
     far = t < _SERIES_T
     # always all 28 terms: each element's value must not depend on the others in the array, so a
     # case gives bit-identical numbers alone or in any batch
-    g = _horner(_G_COEF, s)
-    k = _horner(_K_COEF, s)
+    g, k = ees_series(s)
     if not np.all(far):
         near = ~far
-        tn, pn = t[near], p[near]
         with np.errstate(invalid="ignore", divide="ignore"):
             ln = np.log((r[near] - sn[near]) / (r[near] + sn[near]))
-        t3 = tn * tn * tn
-        g[near] = (2.0 * tn + pn * ln) / (4.0 * t3)
-        k[near] = -(6.0 * tn - 10.0 * t3 + 3.0 * pn * pn * ln) / (48.0 * t3 * tn * tn)
-
-    x = sig / r
-    x2 = x * x
-    x3 = x2 * x
-    x9 = x3 * x3 * x3
-    p2 = p * p
-    p4 = p2 * p2
-    p7 = p4 * p2 * p
-    p8 = p4 * p4
-    s2 = s * s
-    energy = eps * sig**3 * (-(1.0 / 3.0) * x3 * g / p + (2.0 / 945.0) * x9 * (7.0 + 14.0 * s + 3.0 * s2) / p7)
-    force = eps * sig**2 * (
-        -(1.0 / 3.0) * x3 * x / p2 + (2.0 / 315.0) * x9 * x * (21.0 + 63.0 * s + 27.0 * s2 + s2 * s) / p8
-    )
-    torque = eps * sig * (-4.0 * x3 * x2 * k / p2 + (4.0 / 315.0) * x9 * x2 * (21.0 + 30.0 * s + 5.0 * s2) / p8)
+        g[near], k[near] = ees_closed(t[near], p[near], ln)
+    energy, force, torque = ees_combine(r, s, p, g, k, eps, sig)
     return energy.reshape(out_shape), force.reshape(out_shape), torque.reshape(out_shape)
 
 

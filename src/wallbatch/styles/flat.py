@@ -112,25 +112,27 @@ def lj126_shifted(r, eps, sigma, p2, rc, radius):
 
 
 def lj1043_energy(r, eps, sigma, p2, rc, radius):
+    # eps (0.4 s^10 - s^4) as (eps s^4)(0.4 s^6 - 1): eps joins before the high powers, so that
+    # no intermediate overflows where the energy itself is finite
     sr = sigma / r
     sr2 = sr * sr
     sr4 = sr2 * sr2
-    sr10 = sr4 * sr4 * sr2
     rs = r + _LJ1043_SHIFT * sigma
     ss = sigma / rs
     ss3 = ss * ss * ss
-    return _TWO_PI * eps * (0.4 * sr10 - sr4 - (_SQRT2 / 3.0) * ss3)
+    return _TWO_PI * ((eps * sr4) * (0.4 * (sr4 * sr2) - 1.0) - eps * (_SQRT2 / 3.0) * ss3)
 
 
 def lj1043_force(r, eps, sigma, p2, rc, radius):
+    # 4 eps (s^10 - s^4)/r as 4 ((eps s^4)/r)(s^6 - 1): divide by r before multiplying by s^6,
+    # with eps first, so that intermediates stay finite wherever the force is (r = 1e-33 sigma)
     sr = sigma / r
     sr2 = sr * sr
     sr4 = sr2 * sr2
-    sr10 = sr4 * sr4 * sr2
     rs = r + _LJ1043_SHIFT * sigma
     ss = sigma / rs
     ss3 = ss * ss * ss
-    return _TWO_PI * eps * (4.0 * (sr10 - sr4) / r - _SQRT2 * ss3 / rs)
+    return _TWO_PI * (4.0 * ((eps * sr4) / r) * (sr4 * sr2 - 1.0) - eps * _SQRT2 * ss3 / rs)
 
 
 def lj1043_shifted(r, eps, sigma, p2, rc, radius):
@@ -144,7 +146,7 @@ def lj1043_shifted(r, eps, sigma, p2, rc, radius):
     h = rc - r
     s = sigma / r
     c = sigma / rc
-    ds = s * (h / rc)
+    ds = eps * (s * (h / rc))  # eps (s - c): eps first, so the powers below stay finite
     s2, c2, sc = s * s, c * c, s * c
     d4 = ds * (s + c) * (s2 + c2)
     d10 = ds * (s2 * s2 + c2 * c2 + sc * (s2 + c2) + sc * sc) * (s2 * s2 * s + c2 * c2 * c)
@@ -152,7 +154,7 @@ def lj1043_shifted(r, eps, sigma, p2, rc, radius):
     w = sigma / (r + shift)
     wc = sigma / (rc + shift)
     dw3 = w * (h / (rc + shift)) * (w * w + w * wc + wc * wc)
-    return _TWO_PI * eps * (0.4 * d10 - d4 - (_SQRT2 / 3.0) * dw3)
+    return _TWO_PI * (0.4 * d10 - d4 - eps * (_SQRT2 / 3.0) * dw3)
 
 
 # ---- harmonic (§4.4): a repulsive spring resting at the cut-off, epsilon = K [energy/length^2]

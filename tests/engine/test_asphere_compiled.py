@@ -1,0 +1,261 @@
+"""Ellipsoids between wall/ees faces on the compiled path (wallbatch.engine.asphere_compiled)
+against the NumPy engine, its reference.
+
+Each scene runs with WALLBATCH_NUMBA=0 and =1 (test_compiled.py's `run_both`): every sampled output
+of every case agrees to 1e-14 relative, with the same status and failure message, and the test
+asserts that chunks really ran compiled (or fell back, or were refused) so a silent fallback
+cannot pass. The kernel's pieces are the NumPy path's own functions compiled: checked directly.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from test_compiled import RTOL, assert_same, run_both
+
+from wallbatch.config.models import config_from_dict
+from wallbatch.engine import asphere_compiled as ac
+from wallbatch.engine.asphere_compiled import AspherePath
+from wallbatch.engine.engine import Engine
+from wallbatch.geometry import quaternion as quat
+from wallbatch.scene.build import build_case
+from wallbatch.scene.case import structure_key
+from wallbatch.styles import ees
+
+pytestmark = pytest.mark.skipif(ac.njit is None, reason="numba not importable")
+
+ROD = {"mass": 1.3, "shape": [1.0, 0.45, 0.6], "orientation": "random", "angmom": {"values": [0.1, -0.2, 0.3]}}
+
+
+def slit(*, n=70, eps=2.0, sigma=1.0, cutoff=5.0, steps=300, thermo=50, dt=0.002, seed=7, temperature=1.5,
+         walls=None, side=12.0, extra_atoms=(), boundary=("p", "p", "f")) -> dict:
+    """n ellipsoids (semi-axes 1, 0.45, 0.6; 70 per 12 x 12: 2 blocks of atoms and a partial one
+    beyond BLOCK) started in 2 < z < 6 between wall/ees faces at z = 0 and 8."""
+    face = {"coord": "EDGE", "epsilon": eps, "sigma": sigma, "cutoff": cutoff}
+    return {"units": "lj", "seed": seed,
+            "box": {"lo": [0, 0, 0], "hi": [side, side, 8], "boundary": list(boundary)},
+            "regions": {"mid": {"style": "block", "lo": [0, 0, 2], "hi": [side, side, 6], "units": "box"}},
+            "atoms": [{"group": "rods", "create": {"random": {"count": n, "region": "mid", "overlap": 1.2}},
+                       **ROD, "velocity": {"temperature": temperature}}, *extra_atoms],
+            "walls": walls if walls is not None else {
+                "slit": {"style": "ees", "units": "box", "energy": True, "zlo": face, "zhi": dict(face)}},
+            "timestep": dt, "run": {"steps": steps, "thermo": thermo},
+            "output": {"thermo": ["step", "time", "temp", "ke", "pe", "etot", "erot"]}}
+
+
+def check(monkeypatch, configs, *, compiled=True):
+    """Run the configs as one batch both ways; assert agreement and that chunks ran compiled."""
+    cases = [build_case(config_from_dict(d)) for d in configs]
+    assert len({structure_key(c) for c in cases}) == 1
+    ref, got, eng = run_both(monkeypatch, cases)
+    assert_same(ref, got)
+    if compiled:
+        assert isinstance(eng.fast, AspherePath) and eng.fast.compiled_chunks > 0
+    return ref, got, eng
+
+
+def test_ellipsoid_slit_matches_numpy_over_a_batch(monkeypatch):
+    """Three cases of one batch with different epsilon, sigma and seeds; both faces act on every
+    atom (the cut-off spans the slit), the energy exchange with the walls is real."""
+    configs = [slit(eps=2.0, seed=7), slit(eps=0.7, sigma=1.2, seed=8), slit(eps=3.5, sigma=0.8, seed=9)]
+    ref, got, eng = check(monkeypatch, configs)
+    assert eng.fast.fallbacks == 0
+    for r in ref:
+        assert np.all(r.data["wall_energy"] != 0.0)
+        assert np.ptp(r.data["erot"]) > 1e-3  # the torques turn the rods
+        assert np.ptp(r.data["pe"]) > 1e-3
+    # the compiled state itself, not only the sampled outputs
+    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
+    numpy_engine = Engine([build_case(config_from_dict(d)) for d in configs])
+    numpy_engine.run()
+    for name in ("x", "v", "f", "quat", "angmom", "torque"):
+        want, have = getattr(numpy_engine.state, name), getattr(eng.state, name)
+        np.testing.assert_allclose(have, want, rtol=0, atol=RTOL * np.abs(want).max(), err_msg=name)
+
+
+def test_contacts_near_the_wall_take_the_closed_form(monkeypatch):
+    """Rods started close to the walls (sigma_n / r >= 1/2: G and K from the closed forms with the
+    logarithm) and far from them (series), sampled every step."""
+    pos = [[2.0, 2.0, 1.05], [5.0, 5.0, 6.9], [8.0, 8.0, 4.0], [3.0, 8.0, 1.4]]
+    rods = {"group": "rods", "create": {"positions": pos}, **ROD, "orientation": "aligned",
+            "velocity": {"values": [[0.1, 0.0, -0.5], [0.0, 0.2, 0.6], [0.3, 0.1, 0.0], [0.0, 0.0, -0.3]]}}
+    d = slit(steps=120, thermo=1, eps=1.0)
+    d["atoms"] = [rods]
+    ref, got, eng = check(monkeypatch, [d])
+    assert eng.fast.fallbacks == 0 and eng.fast.compiled_chunks == 120
+    # the closed form really was taken: sigma_n / r >= 1/2 at the start (aligned: sigma_n = 0.6)
+    assert 0.6 / 1.05 >= ac.SERIES_T and 0.6 / (8.0 - 6.9) >= ac.SERIES_T
+
+
+def test_groups_and_point_atoms(monkeypatch):
+    """wall/ees on the rods only, slow point atoms (no orientation: moments 0) between them, and
+    the faces along x with y and z periodic."""
+    dots = {"group": "dots", "create": {"positions": [[4.0, 3.0, 3.0], [4.5, 9.0, 5.0], [3.5, 6.0, 7.0]]},
+            "mass": 2.0, "velocity": {"values": [[0.01, 0.02, 0.0], [-0.01, 0.0, 0.03], [0.0, 0.01, -0.02]]}}
+    face = {"coord": "EDGE", "epsilon": 1.5, "sigma": 1.0, "cutoff": 3.0}
+    d = slit(n=40, extra_atoms=(dots,), boundary=("f", "p", "p"),
+             walls={"xw": {"style": "ees", "units": "box", "group": "rods", "energy": True,
+                           "xlo": face, "xhi": {**face, "coord": 12.0}}})
+    d["regions"]["mid"] = {"style": "block", "lo": [2, 0, 0], "hi": [10, 12, 8], "units": "box"}
+    ref, got, eng = check(monkeypatch, [d])
+    assert eng.fast.fallbacks == 0
+    assert np.any(ref[0].data["wall_force"] != 0.0)
+
+
+def test_an_ellipsoid_inside_a_wall_falls_back_and_fails_as_numpy(monkeypatch):
+    """A fast rod driven into a weak wall: the chunk falls back, NumPy fails the case with its
+    message; the other case of the batch runs on (compiled again after the failure)."""
+    fast_rod = slit(n=20, eps=0.05, steps=400, thermo=100)
+    fast_rod["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 4.0]]}, **ROD,
+                              "velocity": {"values": [[0.0, 0.0, -30.0]]}})
+    calm = slit(n=20, eps=0.05, steps=400, thermo=100, seed=8)
+    calm["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 4.0]]}, **ROD,
+                          "velocity": {"values": [[0.0, 0.0, 0.1]]}})
+    ref, got, eng = check(monkeypatch, [fast_rod, calm])
+    assert [r.status for r in got] == ["failed", "ok"]
+    assert "Particle on or inside fix wall surface" in got[0].error
+    assert eng.fast.fallbacks >= 1 and eng.fast.compiled_chunks >= 1
+
+
+def test_a_lost_ellipsoid_falls_back_and_fails_as_numpy(monkeypatch):
+    d = slit(n=10, boundary=("f", "p", "f"), steps=200, thermo=50)
+    d["atoms"].append({"group": "bullet", "create": {"positions": [[11.5, 6.0, 4.0]]}, **ROD,
+                       "velocity": {"values": [[20.0, 0.0, 0.0]]}})
+    d["regions"]["mid"]["hi"] = [10, 12, 6]
+    ref, got, eng = check(monkeypatch, [d], compiled=False)
+    assert got[0].status == "failed" and "left the box" in got[0].error
+    assert eng.fast.fallbacks >= 1
+
+
+@pytest.mark.parametrize("what", ["variable", "pair", "lj93"])
+def test_scenes_the_kernel_refuses_run_on_numpy(monkeypatch, what):
+    d = slit(n=12, steps=20, thermo=10)
+    if what == "variable":
+        d["variables"] = {"top": "8.0 - 0.001*step"}
+        d["walls"]["slit"]["zhi"]["coord"] = "v_top"
+    elif what == "pair":
+        d["pair"] = {"style": "lj/cut", "epsilon": 0.1, "sigma": 1.0, "cutoff": 2.5}
+    else:
+        d["walls"]["flat"] = {"style": "lj93", "units": "box", "xlo": {"coord": "EDGE", "epsilon": 1.0,
+                                                                         "sigma": 1.0, "cutoff": 2.5}}
+        d["box"]["boundary"] = ["f", "p", "f"]
+    cases = [build_case(config_from_dict(d))]
+    ref, got, eng = run_both(monkeypatch, cases)
+    assert eng.fast is None
+    assert_same(ref, got)
+
+
+# ----------------------------------------------------------------------------- the pieces
+
+
+def test_compiled_richardson_is_the_numpy_one_bit_for_bit():
+    rng = np.random.default_rng(3)
+    q = quat.random_quaternions(rng, 200)
+    ang = rng.normal(size=(200, 3))
+    moments = rng.uniform(0.1, 2.0, size=(200, 3))
+    moments[:5] = 0.0  # point particles keep q
+    moments[5:10, 0] = 0.0  # a rod's vanishing moment
+    want = quat.richardson(q, ang, moments, 0.004)
+    for i in range(200):
+        got = ac._richardson(*q[i], *ang[i], *moments[i], 0.004)
+        assert np.array_equal(np.array(got), want[i]), i
+    np.testing.assert_array_equal(want[:5], q[:5])
+
+
+def test_compiled_ees_pieces_are_the_numpy_ones():
+    """r from just above sigma_n (closed forms) to far (series): E, F, T_w and the torque and
+    sigma_n of the compiled pieces equal ees_energy_force_torque / ees_torque / sigma_n."""
+    rng = np.random.default_rng(5)
+    q = quat.random_quaternions(rng, 300)
+    semi = np.array([1.0, 0.45, 0.6])
+    normal = np.array([0.0, 0.0, -1.0])
+    sn = ees.sigma_n(q, semi, normal)
+    r = sn * np.geomspace(1.0005, 12.0, 300)
+    e, f, tw = ees.ees_energy_force_torque(r, sn, 1.7, 0.9)
+    tau = ees.ees_torque(q, semi, normal, tw)
+    closed = 0
+    for i in range(300):
+        a = ac._rotation(*q[i])
+        s_n = ac._sigma_n(a, *semi, *normal)
+        assert s_n == sn[i]
+        t, s, p = ac._ratios(r[i], s_n)
+        if t < ac.SERIES_T:
+            g, k = ac._series(s)
+        else:
+            g, k = ac._closed(t, p, math.log((r[i] - s_n) / (r[i] + s_n)))
+            closed += 1
+        got = ac._combine(r[i], s, p, g, k, 1.7, 0.9)
+        np.testing.assert_allclose(got, (e[i], f[i], tw[i]), rtol=1e-14, atol=0)
+        np.testing.assert_allclose(ac._torque(a, *semi, *normal, got[2]), tau[i], rtol=1e-14,
+                                   atol=1e-14 * np.abs(tau[i]).max())
+    assert 30 < closed < 270
+
+
+# ----------------------------------------------------------------------------- wall/region/ees
+
+
+def region_scene(region: dict, *, start: dict, n=40, boundary=("f", "f", "f"), eps=2.0, cutoff=3.0, steps=300,
+                 thermo=50, seed=4, group=None, extra_atoms=()) -> dict:
+    """n ellipsoids started in `start`, held by a wall/region/ees of `region` in a 12^3 box."""
+    wall = {"style": "region/ees", "region": "R", "epsilon": eps, "sigma": 1.0, "cutoff": cutoff, "energy": True}
+    if group:
+        wall["group"] = group
+    return {"units": "lj", "seed": seed,
+            "box": {"lo": [0, 0, 0], "hi": [12, 12, 12], "boundary": list(boundary)},
+            "regions": {"R": {**region, "units": "box"}, "start": {**start, "units": "box"}},
+            "atoms": [{"group": "rods", "create": {"random": {"count": n, "region": "start", "overlap": 1.2}},
+                       **ROD, "velocity": {"temperature": 1.5}}, *extra_atoms],
+            "walls": {"cage": wall}, "timestep": 0.002, "run": {"steps": steps, "thermo": thermo},
+            "output": {"thermo": ["step", "time", "temp", "ke", "pe", "etot", "erot"]}}
+
+
+REGIONS = {
+    "sphere in": ({"style": "sphere", "center": [6, 6, 6], "radius": 5.5},
+                  {"style": "sphere", "center": [6, 6, 6], "radius": 3.5}, ("f", "f", "f")),
+    "block in": ({"style": "block", "lo": [0.5, 0.5, 0.5], "hi": [11.5, 11.5, 11.5]},
+                 {"style": "block", "lo": [2.5, 2.5, 2.5], "hi": [9.5, 9.5, 9.5]}, ("f", "f", "f")),
+    "cylinder in": ({"style": "cylinder", "axis": "y", "center": [6, 6], "radius": 5.5, "lo": 0.5, "hi": 11.5},
+                    {"style": "cylinder", "axis": "y", "center": [6, 6], "radius": 3.5, "lo": 2.5, "hi": 9.5},
+                    ("f", "f", "f")),
+    "sphere out": ({"style": "sphere", "center": [6, 6, 6], "radius": 2.5, "side": "out"},
+                   {"style": "block", "lo": [0, 0, 0], "hi": [12, 12, 2.5]}, ("p", "p", "p")),
+    "cylinder out": ({"style": "cylinder", "axis": "z", "center": [6, 6], "radius": 2.0, "lo": 3.0, "hi": 9.0,
+                      "side": "out"}, {"style": "block", "lo": [0, 0, 0], "hi": [12, 3.0, 12]}, ("p", "p", "p")),
+}
+
+
+@pytest.mark.parametrize("name", sorted(REGIONS))
+def test_region_ees_matches_numpy(monkeypatch, name):
+    region, start, boundary = REGIONS[name]
+    configs = [region_scene(region, start=start, boundary=boundary),
+               region_scene(region, start=start, boundary=boundary, eps=0.8, seed=5)]
+    ref, got, eng = check(monkeypatch, configs)
+    assert eng.fast.fallbacks == 0
+    for r in ref:
+        assert r.status == "ok" and np.any(r.data["region_force"] != 0.0)  # the region wall acts
+        assert np.ptp(r.data["pe"]) > 1e-4
+
+
+def test_region_ees_and_flat_ees_on_groups(monkeypatch):
+    """A flat wall/ees on one group of rods and a wall/region/ees sphere on another, together."""
+    region, start, _ = REGIONS["sphere in"]
+    more = {"group": "others", "create": {"random": {"count": 15, "region": "start", "overlap": 1.2}}, **ROD,
+            "velocity": {"temperature": 1.0}}
+    d = region_scene(region, start=start, group="rods", extra_atoms=(more,), n=25)
+    d["walls"]["floor"] = {"style": "ees", "units": "box", "group": "others", "energy": True,
+                           "zlo": {"coord": 0.4, "epsilon": 1.0, "sigma": 1.0, "cutoff": 6.0}}
+    ref, got, eng = check(monkeypatch, [d])
+    assert eng.fast.fallbacks == 0
+    assert np.any(ref[0].data["wall_force"] != 0.0) and np.any(ref[0].data["region_force"] != 0.0)
+
+
+def test_region_ees_too_close_falls_back_and_fails_as_numpy(monkeypatch):
+    region, start, boundary = REGIONS["sphere in"]
+    d = region_scene(region, start=start, boundary=boundary, eps=0.02, n=10, steps=300, thermo=100)
+    d["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 6.0]]}, **ROD,
+                       "velocity": {"values": [[0.0, 0.0, 400.0]]}})
+    ref, got, eng = check(monkeypatch, [d], compiled=False)
+    assert got[0].status == "failed" and "wall/region/ees" in got[0].error
+    assert eng.fast.fallbacks >= 1

@@ -1,0 +1,202 @@
+"""Thermostats and 2-D (`fixes:`, `dimension: 2`) on the compiled path against the NumPy engine.
+
+Each scene runs with WALLBATCH_NUMBA=0 and =1; every sampled output of every case must agree bit
+for bit (Langevin: the same random stream, drawn in the kernel by numba's Generator), except fix
+nvt, whose chain uses exp (NumPy's SIMD exp vs the C library's): 1e-14 relative there. Each test
+checks that the chunks really ran compiled, so a silent fallback cannot pass.
+"""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+from factories import slab_gas
+
+from wallbatch.config.models import config_from_dict
+from wallbatch.engine import compiled as fast
+from wallbatch.engine import thermostats as th
+from wallbatch.engine.engine import Engine
+from wallbatch.scene.build import build_case
+from wallbatch.scene.case import structure_key
+
+pytestmark = pytest.mark.skipif(fast.njit is None, reason="numba not importable")
+
+OUT = ["step", "temp", "ke", "pe", "etot", "ecouple", "econserve", "press"]
+WALLS = {"w": {"style": "lj93", "units": "box", "energy": True,
+               "zlo": {"coord": 0.0, "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
+               "zhi": {"coord": 8.0, "epsilon": 1.5, "sigma": 1.0, "cutoff": 2.5}}}
+
+
+def gas(fixes, *, n=300, steps=400, thermo=50, seed=5, temperature=1.5, **extra):
+    """n atoms of an ideal gas between lj93 walls (x, y periodic) with the given fixes."""
+    return slab_gas(copy.deepcopy(WALLS), n=n, hi=(6.0, 6.0, 8.0), margin=1.6, temperature=temperature, seed=seed, dt=0.005,
+                    steps=steps, thermo=thermo, output=OUT, fixes=fixes, **extra)
+
+
+def run_both(monkeypatch, configs):
+    cases = [build_case(config_from_dict(d)) for d in configs]
+    assert len({structure_key(c) for c in cases}) == 1
+    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
+    ref_engine = Engine(cases)
+    assert ref_engine.fast is None
+    ref = ref_engine.run()
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    eng = Engine(cases)
+    got = eng.run()
+    return ref, got, eng
+
+
+def assert_same(ref, got, rtol=0.0):
+    assert [r.status for r in got] == [r.status for r in ref]
+    assert [r.error for r in got] == [r.error for r in ref]
+    for a, b in zip(ref, got):
+        assert a.data.keys() == b.data.keys()
+        for name in a.data:
+            x, y = a.data[name], b.data[name]
+            if rtol == 0.0:
+                np.testing.assert_array_equal(y, x, err_msg=name)
+            else:
+                scale = np.nanmax(np.abs(x)) if np.isfinite(x).any() else 0.0
+                np.testing.assert_allclose(y, x, rtol=0, atol=rtol * max(scale, 1e-300), err_msg=name)
+
+
+def check(monkeypatch, configs, rtol=0.0):
+    ref, got, eng = run_both(monkeypatch, configs)
+    assert eng.fast is not None and eng.fast.compiled_chunks > 0 and eng.fast.fallbacks == 0
+    assert_same(ref, got, rtol)
+    return ref, got, eng
+
+
+# ----------------------------------------------------------------------------- shared arithmetic
+
+
+@pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 127, 128, 129, 136, 1000, 1003, 4099, 10000, 65537])
+def test_pairwise_sum_is_numpys_order(n):
+    a = np.random.default_rng(n).standard_normal(n + 3) * 1e3
+    assert th.pairwise_sum(a, 1, n) == a[1:n + 1].sum()
+    assert fast._th_pairwise(a, 1, n) == a[1:n + 1].sum()
+
+
+def test_chain_half_step_compiled_equals_numpy():
+    """nh_half_step: NumPy on (M, C) columns of two cases, numba on one case's rows and scalars."""
+    r = np.random.default_rng(1)
+    eta, ed, edd = r.random((2, 3)), r.random((2, 4)) * 0.1, r.random((2, 3))
+    Q = np.zeros((2, 3))
+    vals = (np.array([1.2, 0.9]), np.array([1.0, 1.1]), np.array([10.0, 5.0]))
+    tail = (np.array([0.1, 0.0]), np.array([0.005, 0.002]))
+    ref = [a.copy() for a in (eta, ed, edd, Q)]
+    with np.errstate(all="ignore"):
+        t1, c1 = th.nh_half_step(*(a.T for a in ref), *vals, 30.0, 1.0, 2, *tail)
+    for c in range(2):
+        rows = [a[c] for a in (eta, ed, edd, Q)]
+        t2, c2 = fast._th_nh(*rows, vals[0][c], vals[1][c], vals[2][c], 30.0, 1.0, 2, tail[0][c], tail[1][c])
+        assert t2 == t1[c] and c2 == c1[c] and t2 != 1.0
+    for a, b in zip(ref, (eta, ed, edd, Q)):
+        np.testing.assert_array_equal(a, b)
+
+
+# ----------------------------------------------------------------------------- thermostats
+
+
+def test_langevin_same_stream_bit_for_bit(monkeypatch):
+    fixes = {"a": "fix a all nve", "b": "fix b all langevin 1.0 2.0 0.5 48279"}
+    ref, got, eng = check(monkeypatch, [gas(fixes), gas(fixes, seed=6)])
+    assert eng.fast.compiled_chunks == 8
+    t = got[0].data["temp"]
+    assert t[-1] > 1.2 and np.all(got[0].data["ecouple"] == 0.0)  # heated towards 2; no tally: no ecouple
+    assert not np.array_equal(got[0].data["temp"], got[1].data["temp"])
+
+
+def test_langevin_zero_tally_on_a_group(monkeypatch):
+    d = gas({"a": "fix a all nve", "b": "fix b hot langevin 2.0 2.0 0.2 9 zero yes tally yes"})
+    d["atoms"].append({**d["atoms"][0], "group": "hot", "create": {"random": {"count": 100, "region": "mid"}}})
+    ref, got, eng = check(monkeypatch, [d])
+    ec = got[0].data["ecouple"]
+    assert np.all(ec[1:] != 0.0)
+    # tally: etot + ecouple stays close to its start (the thermostat's work is accounted)
+    econ = got[0].data["econserve"]
+    assert np.ptp(econ) < 0.05 * np.ptp(got[0].data["etot"]) + 1e-3 * abs(econ[0])
+
+
+def test_berendsen_and_rescale_bit_for_bit(monkeypatch):
+    fixes = {"a": "fix a all nve", "b": "fix b all temp/berendsen 1.0 0.8 0.1",
+             "c": "fix c all temp/rescale 7 0.9 0.9 0.01 0.5"}
+    ref, got, eng = check(monkeypatch, [gas(fixes), gas(fixes, temperature=2.0)])
+    t = got[1].data["temp"]
+    assert abs(t[-1] - 0.8) < 0.1 and np.all(got[1].data["ecouple"][1:] > 0.0)
+
+
+def test_rescale_alone_runs_in_windows_bit_for_bit(monkeypatch):
+    """temp/rescale every 7 steps (samples every 50): windows end on its due steps."""
+    fixes = {"a": "fix a all nve", "c": "fix c all temp/rescale 7 0.9 0.9 0.01 0.5"}
+    ref, got, eng = check(monkeypatch, [gas(fixes), gas(fixes, temperature=2.0)])
+    assert abs(got[1].data["temp"][-1] - 0.9) < 0.1 and got[1].data["ecouple"][-1] > 0.0
+
+
+def test_nvt_matches_numpy(monkeypatch):
+    """Bit for bit: the chain's exp is the C library's on both paths (thermostats.libm_exp)."""
+    ramp = {"a": "fix a all nvt temp 1.0 1.2 0.1 tchain 3 tloop 2 drag 0.1"}
+    plain = {"a": "fix a all nvt temp 1.0 1.0 0.1 tchain 3 tloop 2"}
+    ref, got, eng = check(monkeypatch, [gas(ramp), gas(plain, temperature=0.7)])
+    econ = got[1].data["econserve"]
+    assert np.ptp(econ) < 1e-3 * abs(econ[0])  # the chain's energy balances the exchange
+    assert np.ptp(got[1].data["etot"]) > 0.1 * abs(econ[0])
+
+
+def test_thermostats_on_groups(monkeypatch):
+    """nvt on one group, nve + berendsen on the other: group temperatures (masked pairwise sums)
+    and group scaling."""
+    d = gas({"a": "fix a hot nvt temp 2.0 2.0 0.1", "b": "fix b gas nve",
+             "c": "fix c gas temp/berendsen 0.5 0.5 0.2"})
+    d["atoms"].append({**d["atoms"][0], "group": "hot", "create": {"random": {"count": 120, "region": "mid"}}})
+    ref, got, eng = check(monkeypatch, [d])
+    assert got[0].data["temp"][-1] != got[0].data["temp"][0]
+
+
+def test_sampling_every_step_with_langevin(monkeypatch):
+    fixes = {"a": "fix a all nve", "b": "fix b all langevin 1.0 1.0 0.5 5"}
+    _, got, eng = check(monkeypatch, [gas(fixes, steps=30, thermo=1, n=50)])
+    assert eng.fast.compiled_chunks == 30
+
+
+def test_fallback_restores_the_langevin_stream(monkeypatch):
+    """An atom pushed behind the wall: the chunk is handed back and the NumPy loop, re-running it
+    with the restored generator, reports exactly what the NumPy path reports."""
+    fixes = {"a": "fix a all nve", "b": "fix b all langevin 30.0 30.0 0.01 5"}
+    d = gas(fixes, steps=2000, thermo=500, n=40)
+    d["walls"]["w"]["zlo"]["cutoff"] = 0.3
+    calm = gas({"a": "fix a all nve", "b": "fix b all langevin 1.0 1.0 0.5 5"}, steps=2000, thermo=500, n=40,
+               seed=9)
+    ref, got, eng = run_both(monkeypatch, [calm, d])
+    assert eng.fast.fallbacks > 0 and eng.fast.compiled_chunks > 0
+    assert [r.status for r in got] == ["ok", "failed"] and "behind the wall" in got[1].error
+    assert_same(ref, got)
+
+
+def test_refused_fix_combinations_run_in_numpy(monkeypatch):
+    d = gas({"a": "fix a all nve", "b": "fix b all langevin 1.0 1.0 0.5 5"}, steps=40, thermo=20)
+    d["dt_reset"] = {"every": 1, "xmax": 0.05, "units": "box"}
+    _, got, eng = run_both(monkeypatch, [d])
+    assert eng.fast is None
+
+
+# ----------------------------------------------------------------------------- 2-D
+
+
+def test_two_dimensional_scene_runs_compiled(monkeypatch):
+    xy = np.random.default_rng(4).random((200, 2)) * [10.0, 5.0] + [0.0, 1.5]
+    d = {"units": "lj", "seed": 3, "dimension": 2,
+         "box": {"lo": [0, 0, -0.5], "hi": [10, 8, 0.5], "boundary": ["p", "f", "p"]},
+         "atoms": [{"group": "gas", "create": {"positions": [[a, b, 0.0] for a, b in xy.tolist()]}, "mass": 1.0,
+                    "velocity": {"temperature": 1.0}}],
+         "walls": {"w": {"style": "lj93", "units": "box", "energy": True,
+                         "ylo": {"coord": 0.0, "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
+                         "yhi": {"coord": 8.0, "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5}}},
+         "timestep": 0.005, "run": {"steps": 300, "thermo": 100}, "output": {"thermo": OUT}}
+    _, got, eng = check(monkeypatch, [d])
+    _, got2, eng2 = check(monkeypatch, [{**d, "fixes": {"a": "fix a all nve",
+                                                         "t": "fix t all langevin 1.5 1.5 0.3 7"}}])
+    assert eng.fast.compiled_chunks == 3 and eng2.fast.compiled_chunks == 3
+    assert np.all(got[0].data["wall_force"][1:] != 0.0)  # atoms reached the y walls
