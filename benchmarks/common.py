@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from wallbatch.config.models import config_from_dict
+from wallbatch.config.models import Config, config_from_dict
 from wallbatch.engine.engine import Engine, run_cases
 from wallbatch.scene.case import Case
 from wallbatch.scene.build import build_case
@@ -144,6 +144,137 @@ def lj_slit(n: int = 4000, *, steps: int = 1000, thermo: int = 100, seed: int = 
             "output": {"thermo": ["step", "time", "dt", "ke", "pe", "etot"]}}
 
 
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+TABLE_FILE = os.path.join(ROOT, "configs", "tables", "walls.table")
+
+
+def with_fixes(cfg: dict, fixes: dict, tag: str) -> dict:
+    """The scene with `fixes:` (integrators, thermostats) replacing the default fix nve."""
+    return dict(cfg, name=f"{cfg['name']}-{tag}", fixes=fixes)
+
+
+THERMOSTATS = {  # LAMMPS fix lines as a user writes them; langevin and berendsen need an integrator
+    "langevin": {"nve": "fix nve all nve", "bath": "fix bath all langevin 1.0 1.0 0.5 48279"},
+    "nvt": {"nh": "fix nh all nvt temp 1.0 1.0 0.5"},
+    "berendsen": {"nve": "fix nve all nve", "ber": "fix ber all temp/berendsen 1.0 1.0 0.5"},
+}
+
+
+def thermostat_slit(n: int, kind: str, **kw: Any) -> dict:
+    """The lj93 gas slit held at T = 1 by fix langevin, nvt (Nose-Hoover) or temp/berendsen (damp 0.5)."""
+    return with_fixes(gas_slit(n, "lj93", **kw), THERMOSTATS[kind], kind)
+
+
+def gas_2d(n: int, *, steps: int = 1000, thermo: int = 100, dt: float = 0.005, density: float = 0.1,
+           seed: int = 7) -> dict:
+    """A 2-D ideal gas (dimension 2, enforce2d) of n atoms at area density `density` in a channel
+    4:1 (x periodic) between lj93 walls at the y edges (z periodic, thin)."""
+    ly = math.sqrt(n / (density * 4.0))
+    lx = 4.0 * ly
+    face = {"coord": "EDGE", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5}
+    rng = np.random.default_rng(seed)  # positions in the plane z = 0 (as LAMMPS requires in 2-D)
+    x = np.column_stack([rng.uniform(0.0, lx, n), rng.uniform(1.5, ly - 1.5, n), np.zeros(n)])
+    return {"name": f"gas2d-{n}", "units": "lj", "seed": seed, "dimension": 2,
+            "box": {"lo": [0, 0, -0.5], "hi": [lx, ly, 0.5], "boundary": ["p", "f", "p"]},
+            "atoms": [{"group": "gas", "create": {"positions": x.tolist()}, "mass": 1.0,
+                       "velocity": {"temperature": 1.0}}],
+            "walls": {"w": {"style": "lj93", "units": "box", "energy": True, "ylo": face, "yhi": dict(face)}},
+            "timestep": dt, "run": {"steps": steps, "thermo": thermo},
+            "output": {"thermo": ["step", "time", "dt", "ke", "pe", "etot"]}}
+
+
+def ellipsoid_slit(n: int, *, steps: int = 1000, thermo: int = 100, seed: int = 7) -> dict:
+    """configs/ellipsoids-ees-slit.yaml scaled to n ellipsoids: prolate ellipsoids (semi-axes 1,
+    0.5, 0.5, random orientations, T = 1) between two flat wall/ees walls (eps 2, sigma 1, cutoff
+    7.99) in a slit of height 8, the box widened in x and y (20 per 10 x 10, a little below the
+    example's 30, so that random placement with overlap 2.1 fits every ellipsoid)."""
+    side = 10.0 * math.sqrt(n / 20.0)
+    return {"name": f"ellipsoids-ees-{n}", "units": "lj", "seed": seed,
+            "box": {"lo": [0, 0, 0], "hi": [side, side, 8], "boundary": ["p", "p", "f"]},
+            "regions": {"middle": {"style": "block", "lo": [0, 0, 2], "hi": [side, side, 6], "units": "box"}},
+            "atoms": [{"group": "rods", "create": {"random": {"count": n, "region": "middle", "overlap": 2.1}},
+                       "mass": 1.0, "shape": [1.0, 0.5, 0.5], "orientation": "random",
+                       "angmom": {"values": [0.0, 0.0, 0.3]}, "velocity": {"temperature": 1.0}}],
+            "walls": {"slit": {"style": "ees", "units": "box", "energy": True,
+                               "zlo": ["EDGE", 2.0, 1.0, 7.99], "zhi": ["EDGE", 2.0, 1.0, 7.99]}},
+            "timestep": 0.002, "run": {"steps": steps, "thermo": thermo},
+            "output": {"thermo": ["step", "time", "dt", "temp", "ke", "pe", "etot", "erot"]}}
+
+
+def region_ees(n: int, *, steps: int = 1000, thermo: int = 100, density: float = 0.02, seed: int = 7) -> dict:
+    """n small ellipsoids (semi-axes 0.5, 0.35, 0.25, random orientations, T = 1) in a spherical
+    cavity held by wall/region/ees (eps 2, sigma 1, cutoff 3), number density ~`density`."""
+    radius = (3.0 * n / (4.0 * math.pi * density)) ** (1.0 / 3.0) + 1.0
+    c = [radius + 1.0] * 3
+    return {"name": f"region-ees-{n}", "units": "lj", "seed": seed,
+            "box": {"lo": [0, 0, 0], "hi": [2.0 * radius + 2.0] * 3, "boundary": ["f", "f", "f"]},
+            "regions": {"R": {"style": "sphere", "center": c, "radius": radius, "units": "box"},
+                        "core": {"style": "sphere", "center": c, "radius": radius - 2.4, "units": "box"}},
+            "atoms": [{"group": "ell", "create": {"random": {"count": n, "region": "core"}}, "mass": 1.0,
+                       "shape": [0.5, 0.35, 0.25], "orientation": "random", "velocity": {"temperature": 1.0}}],
+            "walls": {"shell": {"style": "region/ees", "region": "R", "epsilon": 2.0, "sigma": 1.0, "cutoff": 3.0,
+                                "energy": True}},
+            "timestep": 0.002, "run": {"steps": steps, "thermo": thermo},
+            "output": {"thermo": ["step", "time", "dt", "temp", "ke", "pe", "etot", "erot"]}}
+
+
+def table_slit(n: int, **kw: Any) -> dict:
+    """The lj93 gas slit with both faces as wall/table (spline, N 2000) read from
+    configs/tables/walls.table: keyword LJ93 (eps 1, sigma 1, cut-off 2.5) below, HARMONIC above."""
+    cfg = gas_slit(n, "lj93", **kw)
+    cfg["name"] += "-table"
+    cfg["walls"] = {"tab": {"style": "table", "tabstyle": "spline", "N": 2000, "units": "box", "energy": True,
+                            "zlo": {"coord": "EDGE", "file": TABLE_FILE, "keyword": "LJ93", "cutoff": 2.5},
+                            "zhi": {"coord": "EDGE", "file": TABLE_FILE, "keyword": "HARMONIC", "cutoff": 2.5}}}
+    return cfg
+
+
+LEPTON_LJ93 = "eps*(2/15*(sig/r)^9-(sig/r)^3)"
+
+
+def lepton_slit(n: int, **kw: Any) -> dict:
+    """The lj93 gas slit with its two faces written as wall/lepton expressions of lj93."""
+    cfg = gas_slit(n, "lj93", **kw)
+    cfg["name"] += "-lepton"
+    wall = cfg["walls"]["w"]
+    for face in ("zlo", "zhi"):
+        f = wall[face]
+        wall[face] = {"coord": f["coord"], "cutoff": f["cutoff"], "expression": LEPTON_LJ93,
+                      "params": {"eps": f["epsilon"], "sig": f["sigma"]}}
+    wall["style"] = "lepton"
+    return cfg
+
+
+def stochastic_slit(n: int, **kw: Any) -> dict:
+    """The gas slit between two diffusive thermal walls (wall/reflect/stochastic, T = 1 both)."""
+    cfg = gas_slit(n, "lj93", **kw)
+    cfg["name"] += "-stochastic"
+    cfg["walls"] = {"th": {"style": "reflect/stochastic", "rstyle": "diffusive", "seed": 2024, "units": "box",
+                           "zlo": {"coord": "EDGE", "temp": 1.0}, "zhi": {"coord": "EDGE", "temp": 1.0}}}
+    return cfg
+
+
+def lj_fcc_slit(n: int, *, steps: int = 1000, thermo: int = 100, seed: int = 7) -> dict:
+    """The LJ liquid slit of benchmarks/pair_lj.py (fcc at rho 0.8 melted at T = 2, lj/cut 2.5
+    shifted, lj93 walls, dt 0.005) with about n atoms."""
+    from pair_lj import config as pair_config, slit  # noqa: PLC0415 - the script's own scene
+
+    x, v, lo, hi = slit(n, seed)
+    cfg = pair_config(x, v, lo, hi, steps)
+    cfg["run"] = {"steps": steps, "thermo": thermo}
+    cfg["name"] = f"lj-fcc-slit-{len(x)}"
+    return cfg
+
+
+def flow_lj(n: int, *, steps: int = 1000, thermo: int = 100) -> dict:
+    """The LJ fluid with four wall/flow walls of benchmarks/flow_scene.py (rule exact, wallbatch's default)."""
+    from flow_scene import flow_config  # noqa: PLC0415 - the script's own scene
+
+    cfg = flow_config(n, steps, "exact")
+    cfg["run"] = {"steps": steps, "thermo": thermo}
+    return cfg
+
+
 def build(cfg: dict) -> Case:
     return build_case(config_from_dict(cfg))
 
@@ -264,6 +395,38 @@ def lammps_run(case: Case, steps: int | None = None) -> tuple[float, dict[str, n
     return seconds, _thermo(text)
 
 
+def lammps_script(cfg: dict | Config, case: Case | None = None, folder: str | None = None) -> tuple[list[str], int, Any]:
+    """The case as written by `wallbatch export-lammps` (script, data file and tables in `folder`),
+    with LAMMPS's default neighbor settings (the export's `neigh_modify every 1 delay 0 check no`,
+    which matches wallbatch's wrapping every step, is dropped): (the script's commands before its
+    final `run`, the run's steps, the export)."""
+    from wallbatch.lammps.export import export_case, write_export  # noqa: PLC0415 - only the LAMMPS rows
+
+    conf = cfg if isinstance(cfg, Config) else config_from_dict(cfg)
+    case = case if case is not None else build_case(conf)
+    exp = export_case(conf, case, data_dir=folder)
+    write_export(exp, folder)
+    lines = [ln for ln in exp.script.splitlines() if not ln.startswith("neigh_modify")]
+    last = max(i for i, ln in enumerate(lines) if ln.split()[:1] == ["run"])
+    return lines[:last], int(lines[last].split()[1]), exp
+
+
+def lammps_export_run(cfg: dict | Config, case: Case | None = None) -> float:
+    """Seconds of LAMMPS's `run` of the case exported by wallbatch (see `lammps_script`), run by
+    LAMMPS's Python module in this process, serially; setup and reading the data file not timed."""
+    lammps = lammps_module()
+    with tempfile.TemporaryDirectory(prefix="wb_bench_") as tmp:
+        setup, steps, _ = lammps_script(cfg, case, tmp)
+        lmp = lammps.lammps(cmdargs=["-log", "none", "-screen", "none", "-nocite"])
+        try:
+            lmp.commands_list(setup)
+            t0 = CLOCK()
+            lmp.command(f"run {steps}")
+            return CLOCK() - t0
+        finally:
+            lmp.close()
+
+
 def _thermo(text: str) -> dict[str, np.ndarray]:
     rows, names = [], None
     for line in text.splitlines():
@@ -288,5 +451,7 @@ def fmt(x: float | None, spec: str) -> str:
     return "n/a" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
 
 
-__all__ = ["set_clock", "gas_slit", "with_dt_reset", "lj_slit", "build", "time_wallbatch", "lammps_module", "lammps_run",
+__all__ = ["set_clock", "gas_slit", "region_gas", "flow_gas", "thermostat_slit", "gas_2d", "ellipsoid_slit",
+           "region_ees", "table_slit", "lepton_slit", "stochastic_slit", "lj_fcc_slit", "flow_lj", "lammps_script",
+           "lammps_export_run", "with_dt_reset", "lj_slit", "build", "time_wallbatch", "lammps_module", "lammps_run",
            "lammps_commands", "numba_state", "fmt", "Engine"]

