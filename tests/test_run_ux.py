@@ -13,7 +13,7 @@ import pytest
 from typer.testing import CliRunner
 
 from wallbatch.batch import runner
-from wallbatch.batch.runner import kernel_cache_cold, run_plan
+from wallbatch.batch.runner import run_plan
 from wallbatch.cli import app
 from wallbatch.config.sweep import load_plan
 
@@ -61,28 +61,6 @@ def test_xarray_still_handles_dask_after_a_run(tmp_path):
     with xr.open_dataset(tmp_path / "o.nc", chunks={}) as lazy:
         assert type(lazy["pe"].data).__module__.startswith("dask")
         np.testing.assert_array_equal(lazy["pe"].values, ds["pe"].values)
-
-
-def test_kernel_cache_cold(tmp_path, monkeypatch):
-    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
-    monkeypatch.setattr(runner.compiled, "enabled", lambda: True)
-    assert kernel_cache_cold()
-    (tmp_path / "x").mkdir()
-    (tmp_path / "x" / "compiled._chunk-300.py311.nbi").write_bytes(b"")
-    assert not kernel_cache_cold()
-    monkeypatch.setattr(runner.compiled, "enabled", lambda: False)
-    (tmp_path / "x" / "compiled._chunk-300.py311.nbi").unlink()
-    assert not kernel_cache_cold()  # the NumPy path compiles nothing
-
-
-def test_compile_message_is_printed_once_when_cold(tmp_path, monkeypatch):
-    (tmp_path / "scene.yaml").write_text(SCENE.replace("steps: 4000", "steps: 40"))
-    monkeypatch.setattr(runner, "kernel_cache_cold", lambda: True)
-    res = cli.invoke(app, ["run", str(tmp_path / "scene.yaml"), "-o", str(tmp_path / "a.nc")])
-    assert res.exit_code == 0 and res.output.count("compiling kernels (once, ~15 s)") == 1
-    monkeypatch.setattr(runner, "kernel_cache_cold", lambda: False)
-    res = cli.invoke(app, ["run", str(tmp_path / "scene.yaml"), "-o", str(tmp_path / "b.nc")])
-    assert res.exit_code == 0 and "compiling" not in res.output
 
 
 def test_jobs_capped_by_cores(tmp_path, monkeypatch):

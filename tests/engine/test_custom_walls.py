@@ -386,7 +386,7 @@ def test_lepton_chunk_kernel_is_loaded_from_disk_by_a_second_process(tmp_path):
              "engine = Engine([build_case(load_config_text(sys.stdin.read()))])\n"
              "res = engine.run()[0]\n"
              "assert res.status == 'ok' and engine.fast.compiled_chunks > 0 and engine.fast.fallbacks == 0\n"
-             "kernel = compiled._chunk_kernel(compiled._lepton_extra(engine.compiled_plan()))\n"
+             "kernel = engine.fast.kernel\n"
              "print(json.dumps({'hits': sum(kernel.stats.cache_hits.values()),\n"
              "                  'misses': sum(kernel.stats.cache_misses.values()),\n"
              "                  'etot': res.data['etot'].tolist()}))\n")

@@ -27,7 +27,7 @@ d = {"seed": 3, "box": {"lo": [0, 0, 0], "hi": [5, 5, 9], "boundary": ["p", "p",
 engine = Engine([build_case(config_from_dict(d))])
 res = engine.run()[0]
 assert res.status == "ok" and engine.fast.compiled_chunks > 0 and engine.fast.fallbacks == 0
-k = compiled._run_chunk
+k = engine.fast.kernel  # the scene kernel (kernel_for)
 print(json.dumps({"hits": sum(k.stats.cache_hits.values()), "etot": res.data["etot"].tolist()}))
 """
 

@@ -413,19 +413,6 @@ def stop_on_signals() -> Iterator[None]:
             signal.signal(sig, handler)
 
 
-def kernel_cache_cold() -> bool:
-    """True if the compiled kernels have no on-disk cache yet (numba's NUMBA_CACHE_DIR if set,
-    else the __pycache__ beside the kernels): the first run then compiles them, ~15 s."""
-    if not compiled.enabled():
-        return False
-    env = os.environ.get("NUMBA_CACHE_DIR")
-    place = Path(env) if env else Path(compiled.__file__).parent / "__pycache__"
-    with contextlib.suppress(OSError):
-        if place.is_dir() and next(place.rglob("compiled.*.nbi"), None) is not None:
-            return False
-    return True
-
-
 # ----------------------------------------------------------------------------- resume
 
 
@@ -689,8 +676,6 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
             windows = make_windows(plan, todo, jobs)
             if executor == "local" and jobs > len(windows) > 0:
                 jobs = len(windows)
-            if todo and kernel_cache_cold():
-                say("compiling kernels (once, ~15 s)")
             # forked local workers build their own cases from the plan they inherit; elsewhere the
             # cases travel to the workers
             local = executor == "local" and (jobs <= 1 or len(windows) <= 1 or _fork_context() is not None)

@@ -43,8 +43,9 @@ several flow fixes) runs in NumPy. A chunk that
 meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a variable error or a
 negative variable parameter) leaves the state as it was at its start and is handed back to the
 NumPy loop, which re-runs it and reports exactly as always. `WALLBATCH_NUMBA=0` (or numba not
-importable) selects the NumPy path everywhere. Kernels are cached on disk (numba cache=True): a
-cold compile takes ~15 s once, a cached load ~0.5 s per process.
+importable) selects the NumPy path everywhere. Kernels are built per kind of scene (`kernel_for`:
+only the styles, cut-off modes, region and flow code it has) and cached on disk by numba under
+their own names; a kernel not yet cached is announced on stderr before it compiles.
 """
 
 from __future__ import annotations
@@ -63,7 +64,6 @@ from typing import Any
 import numpy as np
 
 from wallbatch.engine import dt_reset as _dtr
-from wallbatch.engine import flow_compiled
 from wallbatch.engine import thermostats as _th
 from wallbatch.engine.dt_reset import BIG, dt_candidate
 from wallbatch.engine.state import BatchState
@@ -94,6 +94,7 @@ REGION_KINDS: dict[tuple[str, str], int] = {("block", "in"): 0, ("block", "out")
                                             ("sphere", "out"): 3, ("cylinder", "in"): 4, ("cylinder", "out"): 5}
 # this file's code and the generated kernels' helpers: part of the key of the generated lepton chunk kernels
 _SOURCE_DIGEST = hashlib.sha256(Path(__file__).read_bytes() + inspect.getsource(_lepton_helpers).encode()).hexdigest()[:16]
+COMPILE_SECONDS = 5  # typical compile of one scene kernel on a 2-core machine (the message's estimate)
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
 # fixes of `fixes:` in the kernel (fx_meta's kind column); nve is the kernel's own integrator
 FIX_LANGEVIN, FIX_NVT, FIX_BERENDSEN, FIX_RESCALE, FIX_ENFORCE2D = 0, 1, 2, 3, 4
@@ -110,35 +111,39 @@ def enabled() -> bool:
 # ----------------------------------------------------------------------------- compiled kernels
 
 
-def _dispatch_source(styles: tuple[WallStyle, ...]) -> str:
-    """Python source of `_soft_face(style, mode, ...)`: one branch per compiled style and cut-off
-    mode (wallbatch.styles.cutoff), each a literal call of the generic face loop with that pair's
-    force function and radius flag, so every pair gets its own loop with its force inlined."""
+def _branches(pairs: tuple[tuple[int, int], ...], extra: int) -> list[tuple[str, str, bool, str]]:
+    """(condition, force name, radius flag, comment) of each branch of a generated dispatch: the
+    (style number, cut-off mode) pairs of a scene, then `extra` generated wall/lepton forces
+    (styles len(COMPILED_STYLES) + j, mode shift)."""
+    n = len(COMPILED_STYLES)
+    out = [(f"style == {i} and mode == {m}", f"_FORCE_{i}_{m}", bool(COMPILED_STYLES[i].needs_radius),
+             f"{COMPILED_STYLES[i].name} {CUTOFF_MODES[m]}") for i, m in pairs]
+    out += [(f"style == {n + j} and mode == {SHIFT}", f"_EXTRA_{j}", False, "wall/lepton") for j in range(extra)]
+    return out
+
+
+def _dispatch_source(pairs: tuple[tuple[int, int], ...], extra: int = 0) -> str:
+    """Python source of `_soft_face(style, mode, ...)`: one branch per (style number, cut-off mode)
+    pair of the scene (wallbatch.styles.cutoff) and per generated force, each a literal call of the
+    generic face loop with that pair's force function and radius flag, so every pair gets its own
+    loop with its force inlined. Only the scene's pairs: each branch costs compile time."""
     lines = ["def _soft_face(style, mode, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, u0, u1):"]
-    first = True
-    for i, st in enumerate(styles):
-        for m in _modes(st):
-            lines.append(f"    {'if' if first else 'elif'} style == {i} and mode == {m}:  # {st.name} "
-                         f"{CUTOFF_MODES[m]}")
-            lines.append(f"        return _face(_FORCE_{i}_{m}, {bool(st.needs_radius)}, X, F, RAD, groups, g, d, "
-                         "side, coord, p0, p1, p2, cut, ron, u0, u1)")
-            first = False
+    for k, (cond, force, rad, note) in enumerate(_branches(pairs, extra)):
+        lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
+        lines.append(f"        return _face({force}, {rad}, X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, "
+                     "ron, u0, u1)")
     lines.append("    return 0")
     return "\n".join(lines) + "\n"
 
 
-def _region_dispatch_source(styles: tuple[WallStyle, ...]) -> str:
+def _region_dispatch_source(pairs: tuple[tuple[int, int], ...]) -> str:
     """Python source of `_region_force(style, mode, ...)`: as `_dispatch_source`, one branch per
-    compiled style and cut-off mode calling the region-contact force loop with that force inlined."""
+    (style, cut-off mode) pair of the scene's wall/region fixes calling the region-contact force
+    loop with that force inlined."""
     lines = ["def _region_force(style, mode, F, RAD, RB, nslot, u0, u1, p0, p1, p2, cut, ron):"]
-    first = True
-    for i, st in enumerate(styles):
-        for m in _modes(st):
-            lines.append(f"    {'if' if first else 'elif'} style == {i} and mode == {m}:  # {st.name} "
-                         f"{CUTOFF_MODES[m]}")
-            lines.append(f"        return _rface(_FORCE_{i}_{m}, {bool(st.needs_radius)}, F, RAD, RB, nslot, u0, u1, "
-                         "p0, p1, p2, cut, ron)")
-            first = False
+    for k, (cond, force, rad, note) in enumerate(_branches(pairs, 0)):
+        lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
+        lines.append(f"        return _rface({force}, {rad}, F, RAD, RB, nslot, u0, u1, p0, p1, p2, cut, ron)")
     lines.append("    return 0")
     return "\n".join(lines) + "\n"
 
@@ -150,20 +155,26 @@ def _modes(st: WallStyle) -> tuple[int, ...]:
     return (SHIFT, FORCE_SHIFT, SMOOTH) if st.compiled_shifted else (SHIFT, FORCE_SHIFT)
 
 
-def _fingerprint(styles: tuple[WallStyle, ...]) -> int:
-    """A number that changes with the compiled styles and the source of every function compiled
-    from outside this file (forces, dt_candidate): part of the on-disk cache key of `_run_chunk`
-    (numba keys a cached function by its own file only)."""
+def _fingerprint(pairs: tuple[tuple[int, int], ...], flow: bool, parallel: bool, source: str) -> int:
+    """A number that changes with a scene kernel's specialisation (its generated `source`, the
+    pairs, flow, parallel) and the source of every function compiled into it from outside this
+    file (forces, cut-offs, dt_candidate, the flow solver): the closure value of `_run_chunk`, so
+    part of its on-disk cache key (numba keys a cached function by its own file only)."""
     h = hashlib.sha256()
-    for st in styles:
-        h.update(f"{st.name}:{st.needs_radius}:{_modes(st)}:".encode())
+    h.update(f"{source}:{flow}:{parallel}:".encode())
+    for i, m in pairs:
+        st = COMPILED_STYLES[i]
+        h.update(f"{st.name}:{st.needs_radius}:{m}:".encode())
         h.update(inspect.getsource(st.force).encode())
         if len(_modes(st)) > 1:
             h.update(inspect.getsource(st.shifted_fn).encode())
     h.update(inspect.getsource(_cutoff).encode())
     h.update(inspect.getsource(dt_candidate).encode())
-    h.update(inspect.getsource(flow_compiled).encode())
     h.update(inspect.getsource(_th).encode())
+    if flow:
+        from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
+
+        h.update(inspect.getsource(flow_compiled).encode())
     return int(h.hexdigest()[:15], 16)
 
 
@@ -232,9 +243,6 @@ if njit is not None:
             F[d, i] = fi
         return nbad
 
-    _namespace: dict[str, Any] = {"_face": _face, **{f"_FORCE_{i}_{m}": f for (i, m), f in MODE_FORCES.items()}}
-    exec(compile(_dispatch_source(COMPILED_STYLES), "<wallbatch soft-face dispatch>", "exec"), _namespace)
-    _soft_face = njit(nogil=True, error_model="numpy", inline="always")(_namespace["_soft_face"])
 
     # -- fix wall/region (region_walls.RegionWallKernel.apply; geometry of regions.RegionGeom) ------
     # A region's contacts of one block of atoms go into RB[slot, :, i - u0] = (flag, r, delta x, y, z)
@@ -382,14 +390,10 @@ if njit is not None:
                     F[2, i] = F[2, i] + s * RB[j, 4, b]
         return nbad
 
-    _namespace["_rface"] = _rface
-    exec(compile(_region_dispatch_source(COMPILED_STYLES), "<wallbatch region dispatch>", "exec"), _namespace)
-    _region_force = njit(nogil=True, error_model="numpy", inline="always")(_namespace["_region_force"])
-
-    @jit
     def _region_walls(c, u0, u1, X, F, RAD, groups, rg_meta, rg_geo, rg_val, RB):
         """Every wall/region fix on atoms u0..u1-1 of case c, in order; returns the number of
-        atoms on the wrong side or too close (the NumPy loop then reports them)."""
+        atoms on the wrong side or too close (the NumPy loop then reports them). Compiled per
+        scene by `kernel_for`, with the scene's `_region_force` dispatch."""
         nbad = 0
         for k in range(rg_meta.shape[0]):
             cut = rg_val[c, k, 3]
@@ -678,12 +682,12 @@ if njit is not None:
             new = _nmin(new, par[3])
         return new
 
-    @jit
     def _flow_step(X, V, M, fl_int, fl_f, walls, grp, phys, pend, prev, cross, rng, CI, DIR):
         """fix wall/flow's end_of_step (flow.FlowKernel.end_of_step) for the one case of the chunk,
         on its buffers: crossings (segments of the wrapped axis coordinate, pending returns), then
         the draws from the case's generator in the NumPy order (u1, u2, g (n, 2)) and the redraws
-        (flow_compiled.apply's arithmetic). fl_int: on, axis, exact; fl_f: lo, length, vflow, kT."""
+        (flow_compiled.apply's arithmetic). fl_int: on, axis, exact; fl_f: lo, length, vflow, kT.
+        Compiled by `kernel_for` for scenes with a flow wall (`flow_compiled` is linked then)."""
         ax = fl_int[1]
         lo, length = fl_f[0], fl_f[1]
         n = 0
@@ -739,9 +743,9 @@ if njit is not None:
         cross[0] += n
 
     def _make_run_chunk(fingerprint: int) -> Any:
-        """The chunk kernel; `fingerprint` (see _fingerprint) joins its on-disk cache key."""
+        """The chunk kernel's Python function (compiled by `kernel_for`); `fingerprint` (see
+        _fingerprint) joins its on-disk cache key."""
 
-        @jit
         def _run_chunk(nsteps, time_mode, target, tol, x, v, f, mass, radius, dt, atime, atimestep,
                        step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
                        stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo, rg_meta, rg_geo, rg_val,
@@ -950,63 +954,142 @@ if njit is not None:
             return 0
         return _run_chunk
 
-    _run_chunk = _make_run_chunk(_fingerprint(COMPILED_STYLES))
+    @jit
+    def _no_region_walls(c, u0, u1, X, F, RAD, groups, rg_meta, rg_geo, rg_val, RB):
+        """`_region_walls` of a scene without wall/region fixes: nothing."""
+        return 0
 
-    def _relink(dispatcher: Any, filename: str | None = None, **replace: Any) -> Any:
-        """The Python function of a jitted `dispatcher` with some of its globals replaced (the same
-        code, closure and defaults), ready to be jitted again. `filename`: the file the code is
-        attributed to, so that numba's on-disk cache of the result lives with (and is keyed by)
-        that file instead of this one (numba keys a cached function by its file, name and code,
-        not by its globals)."""
-        fn = dispatcher.py_func
+    @jit
+    def _no_flow_step(X, V, M, fl_int, fl_f, walls, grp, phys, pend, prev, cross, rng, CI, DIR):
+        """`_flow_step` of a scene without wall/flow fixes: nothing."""
+        return
+
+    def _relink(fn: Any, name: str | None = None, filename: str | None = None, **replace: Any) -> Any:
+        """The Python function `fn` (or a jitted dispatcher's) with some of its globals replaced
+        (the same code, closure and defaults), ready to be jitted again. `name` sets its
+        __qualname__, which names numba's on-disk cache files (one index per scene kernel);
+        `filename`: the file the code is attributed to, so that numba's on-disk cache of the result
+        lives with (and is keyed by) that file instead of this one (numba keys a cached function by
+        its file, name, code and closure, not by its globals)."""
+        fn = getattr(fn, "py_func", fn)
         namespace = dict(fn.__globals__)
         namespace.update(replace)
         code = fn.__code__ if filename is None else fn.__code__.replace(co_filename=filename)
         out = types.FunctionType(code, namespace, fn.__name__, fn.__defaults__, fn.__closure__)
         out.__kwdefaults__ = fn.__kwdefaults__
+        if name is not None:
+            out.__qualname__ = name
         return out
 
-    @functools.lru_cache(maxsize=32)
-    def _chunk_kernel(extra: tuple[str, ...]) -> Any:
-        """The chunk kernel with the generated forces `extra` (wall/lepton expressions: the source
-        of force(r, p0, p1, p2, rc, radius) from styles.lepton.force_source, cut-off mode shift) as
-        styles len(COMPILED_STYLES) + j: the registry's dispatch with one more branch each, inlined
-        like the built-in styles, and the block step and chunk kernel re-linked to it. The forces
-        and the dispatch are written to a module file (styles.lepton.generated_module, keyed by a
-        hash of its source, which names the numba version, this file's digest and the styles'
-        fingerprint), and the chunk kernel is attributed to that file, so numba caches it on disk:
-        the first process compiles it (~20 s), later ones load it. The built-in styles keep
-        `_run_chunk`."""
-        if not extra:
-            return _run_chunk
-        module = generated_module(_chunk_module_source(extra), "lepton_chunk")
-        namespace = vars(module)
-        namespace.update({"_face": _face, **{f"_FORCE_{i}_{m}": f for (i, m), f in MODE_FORCES.items()}})
-        for j in range(len(extra)):
-            force = njit(nogil=True, error_model="numpy", inline="always")(namespace[f"_LEPTON_{j}"])
-            namespace[f"_EXTRA_{j}"] = njit(nogil=True, error_model="numpy")(cutoff_functions(force, force, SHIFT,
-                                                                                                _switch)[0])
+    @dataclass(frozen=True)
+    class ScenePieces:
+        """The compiled pieces of one kind of scene (`pieces_for`): the soft-face dispatch, the
+        region walls, the flow step and the block step linked to them, the generated `source`
+        they come from, the file a kernel built on them is attributed to (the generated module
+        of wall/lepton and wall/table forces, else None: this file) and a `fingerprint` of it all."""
+
+        soft_face: Any
+        region_walls: Any
+        flow_step: Any
+        block_step: Any
+        source: str
+        filename: str | None
+        fingerprint: int
+
+    def _scene_args(soft: Any, region: Any, flow: Any, extra: Any) -> tuple:
+        return tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow), tuple(extra)
+
+    def pieces_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
+                   extra: tuple[str, ...] = ()) -> ScenePieces:
+        """The compiled pieces of one kind of scene (`_pieces_for`), one per specialisation and
+        process: what `kernel_for` and the fused pair chunks (engine/pair_compiled.py) link in."""
+        return _pieces_for(*_scene_args(soft, region, flow, extra))
+
+    @functools.lru_cache(maxsize=64)
+    def _pieces_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
+                    extra: tuple[str, ...]) -> ScenePieces:
+        """The face dispatch, region walls, flow step and block step of one kind of scene,
+        specialised to what it has: the (style number, cut-off mode) pairs of its flat soft faces
+        (`soft`) and of its wall/region fixes (`region`, none: no region code), a wall/flow fix
+        (`flow`) and generated forces (`extra`: wall/lepton and wall/table, the source of
+        force(r, p0, p1, p2, rc, radius) from WallStyle.generated_force, mode shift, styles
+        len(COMPILED_STYLES) + j). Only those branches are generated and compiled. With `extra`
+        the forces and the dispatch are written to a module file (styles.lepton.generated_module,
+        `_chunk_module_source`) that a kernel built on them is attributed to, so numba caches it
+        on disk. The pieces are this module's functions re-linked (the same code objects, new
+        globals) to the scene's generated dispatch."""
+        pairs = tuple(sorted(set(soft) | set(region)))
+        base: dict[str, Any] = {"_face": _face, "_rface": _rface,
+                                **{f"_FORCE_{i}_{m}": MODE_FORCES[(i, m)] for i, m in pairs}}
+        filename = None
+        if extra:
+            source = _chunk_module_source(soft, extra)
+            module = generated_module(source, "lepton_chunk")
+            namespace = vars(module)
+            namespace.update(base)
+            for j in range(len(extra)):
+                force = njit(nogil=True, error_model="numpy", inline="always")(namespace[f"_LEPTON_{j}"])
+                namespace[f"_EXTRA_{j}"] = njit(nogil=True, error_model="numpy")(
+                    cutoff_functions(force, force, SHIFT, _switch)[0])
+            filename = module.__file__
+        else:
+            namespace = base
+            source = _dispatch_source(soft)
+            exec(compile(source, "<wallbatch soft-face dispatch>", "exec"), namespace)  # noqa: S102 - generated here
         soft_face = njit(nogil=True, error_model="numpy", inline="always")(namespace["_soft_face"])
-        block_step = njit(nogil=True, error_model="numpy", inline="always")(_relink(_block_step, _soft_face=soft_face))
-        return njit(cache=True, nogil=True, error_model="numpy")(
-            _relink(_run_chunk, filename=module.__file__, _block_step=block_step))
+        region_walls = _no_region_walls
+        if region:
+            rsource = _region_dispatch_source(region)
+            source += rsource
+            exec(compile(rsource, "<wallbatch region dispatch>", "exec"), namespace)  # noqa: S102 - generated here
+            region_force = njit(nogil=True, error_model="numpy", inline="always")(namespace["_region_force"])
+            region_walls = njit(nogil=True, error_model="numpy")(_relink(_region_walls, _region_force=region_force))
+        flow_step = _no_flow_step
+        if flow:
+            from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
+
+            flow_step = njit(nogil=True, error_model="numpy")(_relink(_flow_step, flow_compiled=flow_compiled))
+        block_step = njit(nogil=True, error_model="numpy", inline="always")(
+            _relink(_block_step, _soft_face=soft_face, _region_walls=region_walls))
+        return ScenePieces(soft_face, region_walls, flow_step, block_step, source, filename,
+                           _fingerprint(pairs, flow, False, source))
+
+    def kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
+                   extra: tuple[str, ...] = (), parallel: bool = False) -> Any:
+        """The chunk kernel of one kind of scene (`_kernel_for`), one per specialisation and process."""
+        return _kernel_for(*_scene_args(soft, region, flow, extra), bool(parallel))
+
+    @functools.lru_cache(maxsize=64)
+    def _kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
+                    extra: tuple[str, ...], parallel: bool) -> Any:
+        """The chunk kernel of one kind of scene (`pieces_for`; `parallel`: compiled with numba
+        parallel=True, reserved for a two-thread variant, not used by the engine yet): this
+        module's chunk kernel re-linked to the scene's block and flow steps, named
+        `_run_chunk_<fingerprint>` so numba caches it on disk in its own index file (beside this
+        file, or with `extra` beside the generated module it is attributed to: compiled once,
+        loaded by later processes)."""
+        p = _pieces_for(soft, region, flow, extra)
+        fp = _fingerprint(tuple(sorted(set(soft) | set(region))), flow, parallel, p.source)
+        fn = _relink(_make_run_chunk(fp), name=f"_run_chunk_{fp:015x}", filename=p.filename,
+                     _block_step=p.block_step, _flow_step=p.flow_step)
+        return njit(cache=True, nogil=True, error_model="numpy", parallel=parallel)(fn)
 
 
 # ----------------------------------------------------------------------------- the Python side
 
 
-def _chunk_module_source(extra: tuple[str, ...]) -> str:
-    """The generated module of `_chunk_kernel(extra)`: the lepton forces `_LEPTON_j` and the
-    soft-face dispatch with one more branch per force (calling `_EXTRA_j`, its cut-off wrapper)."""
-    n = len(COMPILED_STYLES)
-    dispatch = _dispatch_source(COMPILED_STYLES).replace("    return 0\n", "".join(
-        f"    elif style == {n + j} and mode == {SHIFT}:  # wall/lepton\n        return _face(_EXTRA_{j}, False, "
-        "X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, u0, u1)\n" for j in range(len(extra)))
-        + "    return 0\n")
-    header = ('"""wall/lepton chunk kernel dispatch, generated by wallbatch.engine.compiled: do not edit."""\n'
-              f"# key: compiled.py {_SOURCE_DIGEST}, styles {_fingerprint(COMPILED_STYLES)}\n")
+def _chunk_module_source(soft: tuple[tuple[int, int], ...], extra: tuple[str, ...]) -> str:
+    """The generated module of a scene kernel with generated forces (`pieces_for`): the forces
+    `_LEPTON_j` (wall/lepton, wall/table) and the scene's soft-face dispatch with one more branch
+    per force (calling `_EXTRA_j`, its cut-off wrapper). Its header names a digest of this file and
+    the lepton helpers and the fingerprint of the scene's styles, so the file (named by a hash of
+    its source) and numba's cache beside it change when any of them does."""
     forces = "".join(f"\n\n{src.replace('def kernel(', f'def _LEPTON_{j}(', 1)}" for j, src in enumerate(extra))
-    return header + HELPERS_IMPORT + forces + "\n\n" + dispatch
+    body = HELPERS_IMPORT + forces + "\n\n" + _dispatch_source(soft, len(extra))
+    header = ('"""wall/lepton chunk kernel dispatch, generated by wallbatch.engine.compiled: do not edit."""\n'
+              f"# key: compiled.py {_SOURCE_DIGEST}, styles {_fingerprint(soft, False, False, body):015x}\n")
+    return header + body
+
 
 # the wall/flow arguments of a chunk without flow walls (same types: one compiled signature)
 _NO_FLOW = (np.zeros(3, np.int64), np.zeros(4), np.zeros(0), np.zeros(0, np.uint8), np.zeros(0, np.int64),
@@ -1059,7 +1142,7 @@ def _generated_force(style: WallStyle) -> str | None:
     return style.generated_force()
 
 
-# wall/lepton faces run in a chunk kernel generated for the batch's expressions (`_chunk_kernel`):
+# wall/lepton faces run in the scene's chunk kernel with the batch's expressions (`kernel_for`):
 # compiled once (~20 s), then cached on disk and loaded by later processes (~0.5 s, like the
 # built-in kernel). WALLBATCH_LEPTON_COMPILED=always|never|auto; auto (the default) uses it when
 # the batch has at least LEPTON_CACHED_MIN_ATOM_STEPS atom-steps over its cases and the kernel is
@@ -1072,7 +1155,7 @@ LEPTON_CACHED_MIN_ATOM_STEPS = 1e7
 
 def _lepton_extra(plan: ChunkPlan) -> tuple[str, ...]:
     """The generated forces of the plan's wall/lepton faces, each once, in face order (the
-    numbering of `_chunk_kernel`)."""
+    numbering of `kernel_for`'s `extra`)."""
     out: dict[str, None] = {}
     for w in plan.soft:
         for st in _face_styles(w):
@@ -1086,7 +1169,8 @@ def _lepton_extra(plan: ChunkPlan) -> tuple[str, ...]:
 def _compiled_marker(extra: tuple[str, ...]) -> Path:
     """A file beside the generated module, written once its chunk kernel has been compiled (and so
     cached on disk by numba)."""
-    return generated_path(_chunk_module_source(extra), "lepton_chunk").with_suffix(".compiled")
+    forces = "".join(extra)
+    return generated_path(f"# compiled.py {_SOURCE_DIGEST}\n{forces}", "lepton_chunk").with_suffix(".compiled")
 
 
 @functools.lru_cache(maxsize=64)
@@ -1229,6 +1313,41 @@ def region_eligible(w: Any) -> bool:
     return True
 
 
+_ANNOUNCED: set[str] = set()
+
+
+def _cached_on_disk(kernel: Any) -> bool:
+    """Whether numba's on-disk cache holds a fresh build of `kernel` (its index file exists, for
+    this numba and this version of the source). False when that cannot be told."""
+    try:
+        return bool(kernel._cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 - numba internals: unknown means "say it compiles"
+        return False
+
+
+def cache_dir(kernel: Any = None) -> str:
+    """Where numba keeps the compiled kernels: NUMBA_CACHE_DIR if set, else beside this file (or a
+    user cache directory when that is not writable)."""
+    try:
+        return str(kernel._cache._cache_path)
+    except Exception:  # noqa: BLE001
+        return os.environ.get("NUMBA_CACHE_DIR") or os.path.join(os.path.dirname(__file__), "__pycache__")
+
+
+def announce_compile(kernel: Any, seconds: float = COMPILE_SECONDS) -> None:
+    """Say on stderr, once per process and kernel, that a scene kernel is being compiled (it is
+    not in the on-disk cache yet): the run is silent for a few seconds otherwise."""
+    import sys
+
+    name = kernel.py_func.__qualname__
+    if name in _ANNOUNCED or (kernel._cache.__class__.__name__ != "NullCache" and _cached_on_disk(kernel)):
+        return
+    _ANNOUNCED.add(name)
+    where = f", cached in {cache_dir(kernel)}" if kernel._cache.__class__.__name__ != "NullCache" else ""
+    print(f"wallbatch: compiling kernels for this scene, once, ~{seconds:g} s{where}", file=sys.stderr,
+          flush=True)
+
+
 class FastPath:
     """The compiled path of one Engine (see module docstring): `plan_source()` gives the plan of
     the next chunk."""
@@ -1236,6 +1355,7 @@ class FastPath:
     def __init__(self, plan_source: Callable[[], ChunkPlan]):
         self.plan_source = plan_source
         self.compiled_chunks = 0  # chunks run compiled (tests and benchmarks read these)
+        self.kernel: Any = None  # the scene kernel of the last chunk (kernel_for)
         self.fallbacks = 0  # chunks handed back to NumPy
         self._spare: tuple[np.ndarray, ...] = ()  # output buffers for x, v, f (swapped with the state's)
 
@@ -1422,7 +1542,13 @@ class FastPath:
             self._spare = tuple(np.empty_like(s.x) for _ in range(3))
         xo, vo, fo = self._spare
         backup = {k: getattr(s, k).copy() for k in ("dt", "atime", "atimestep", "step")}
-        kernel = _chunk_kernel(extra)
+        fk = plan.flow[0] if plan.flow else None
+        n = len(COMPILED_STYLES)
+        kernel = kernel_for(tuple(sorted({(int(r[0]), int(r[4])) for r in sf_meta if r[0] < n})),
+                            tuple(sorted({(int(r[2]), int(r[4])) for r in rg[0]})), fk is not None, tuple(extra))
+        self.kernel = kernel  # the last chunk's kernel (tests read its cache statistics)
+        if not kernel.signatures:
+            announce_compile(kernel, 20 if extra else COMPILE_SECONDS)  # generated forces: ~20 s
         sf_val, rf_val, rf_stat = (np.ascontiguousarray(a) for a in (sf_val, rf_val, rf_stat))
         lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)
         args = (int(nsteps), time_mode, float(target if time_mode else 0.0),
@@ -1437,7 +1563,6 @@ class FastPath:
                               rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
                               rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng)
 
-        fk = plan.flow[0] if plan.flow else None
         if fx_rngs:  # fix langevin: one case per call, each with its own generator
             rng_states = [r.bit_generator.state for r in fx_rngs]
             status = 0

@@ -28,6 +28,7 @@ C-contiguous arrays (float64 positions, int32/int64 lists, bool flags: one compi
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
 from collections.abc import Callable
@@ -347,7 +348,12 @@ if njit is not None:
     import hashlib
     import inspect
 
-    from wallbatch.engine.compiled import BLOCK, _flow_step, _region_walls, _soft_face
+    from wallbatch.engine.compiled import BLOCK
+
+    def _soft_face(*args):  # noqa: ANN002, ANN202 - placeholders: pair_chunk_for links the scene's pieces
+        raise NotImplementedError
+
+    _region_walls = _flow_step = _soft_face
 
     @jit
     def _moved(xc: np.ndarray, xref: np.ndarray, length: np.ndarray, periodic: np.ndarray, limit2: float) -> bool:
@@ -451,13 +457,24 @@ if njit is not None:
 
         return pair_chunk
 
-    def _chunk_fingerprint() -> int:
-        h = hashlib.sha256()
-        h.update(str(_compiled._fingerprint(_compiled.COMPILED_STYLES)).encode())
-        h.update(inspect.getsource(_compiled).encode())
-        return int(h.hexdigest()[:15], 16)
+    def pair_chunk_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (),
+                       flow: bool = False) -> Any:
+        """The fused chunk kernel of one kind of pair scene: `pair_chunk` linked to the scene's
+        soft-face dispatch, region walls and flow step from compiled.pieces_for (the same
+        specialised pieces as the scene's chunk kernel), named by their fingerprint so numba
+        caches each on disk in its own index file."""
+        return _pair_chunk_for(tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow))
 
-    pair_chunk = _make_pair_chunk(_chunk_fingerprint())
+    @functools.lru_cache(maxsize=32)
+    def _pair_chunk_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool) -> Any:
+        p = _compiled.pieces_for(soft, region, flow)
+        h = hashlib.sha256()
+        h.update(str(p.fingerprint).encode())
+        h.update(inspect.getsource(_compiled).encode())
+        fp = int(h.hexdigest()[:15], 16)
+        fn = _compiled._relink(_make_pair_chunk(fp).py_func, name=f"pair_chunk_{fp:015x}", _soft_face=p.soft_face,
+                               _region_walls=p.region_walls, _flow_step=p.flow_step)
+        return njit(cache=True, nogil=True, error_model="numpy")(fn)
 
 
 def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
@@ -535,6 +552,11 @@ class PairChunks:
             rng_states = [r.bit_generator.state for r in fk.rngs]
             phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
             prev, cross = np.ascontiguousarray(fk.prev, dtype=float).copy(), np.zeros((C, 1))
+        n = len(_compiled.COMPILED_STYLES)
+        kernel = pair_chunk_for(tuple({(int(r[0]), int(r[4])) for r in sf_meta if r[0] < n}),
+                                tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None)
+        if not kernel.signatures:
+            _compiled.announce_compile(kernel)
         done = []
         for c in range(C):
             x, v, f = s.x[c].copy(), s.v[c].copy(), s.f[c].copy()
@@ -547,7 +569,7 @@ class PairChunks:
                       np.array([fk.lo[c], fk.length[c], fk.vflow[c], fk.kT[c]]),
                       np.ascontiguousarray(fk.walls[c][np.isfinite(fk.walls[c])]), fk.group[c].astype(np.uint8),
                       phys[c], pend[c], prev[c], cross[c], fk.rngs[c])
-            status, builds, neigh = pair_chunk(
+            status, builds, neigh = kernel(
                 int(nsteps), x, v, f, np.ascontiguousarray(s.mass[c], dtype=float),
                 np.ascontiguousarray(s.radius[c], dtype=float), float(s.dt[c]), float(s.units.ftm2v), lo, hi, box_per,
                 pair.length, pair.periodic, float(pair.cutoff[c] + pair.skin), (0.5 * pair.skin) ** 2,
