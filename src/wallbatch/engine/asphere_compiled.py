@@ -471,17 +471,7 @@ class AspherePath:
         s.step += nsteps
         s.ctx = None
         s.var_step = {}
-        out: dict = {}
-        if sample:
-            # the outputs of the last step by the NumPy code itself, at these very positions and
-            # orientations (the final half-kicks move only v and L); the compiled forces are kept
-            forces, torques = s.f.copy(), s.torque.copy()
-            out = plan.compute_outputs()
-            s.f[...] = forces
-            s.torque[...] = torques
-            s.ctx = None
-            s.var_step = {}
-        plan.finish_step(out, sample)
+        _compiled.finish_chunk(plan, s, sample, keep=("f", "torque"))
         return True
 
 

@@ -1616,17 +1616,24 @@ class FastPath:
                     w.count[:, j] = rf_stat[:, k, 0]
                     w.impulse[:, j] = rf_stat[:, k, 1]
                 k += 1
-        out: dict = {}
-        if sample:
-            # the outputs of the last step, by the NumPy code itself: it computed them at these very
-            # positions (the final half-kick moves only v); the compiled forces are kept
-            forces = s.f.copy()
-            out = plan.compute_outputs()
-            s.f[...] = forces
-            s.ctx = None
-            s.var_step = {}
-        plan.finish_step(out, sample)
+        finish_chunk(plan, s, sample)
         return True
+
+
+def finish_chunk(plan: ChunkPlan, s: BatchState, sample: bool, keep: tuple[str, ...] = ("f",)) -> None:
+    """End a compiled chunk as the NumPy loop ends its last step. On a sample step the outputs
+    (energies, wall forces, virial) come from the NumPy code itself, at these very positions (the
+    final half-kick moves only v, and L for ellipsoids); the compiled arrays named in `keep`
+    (forces, torques) are kept, not the NumPy pass's."""
+    out: dict = {}
+    if sample:
+        kept = {name: getattr(s, name).copy() for name in keep}
+        out = plan.compute_outputs()
+        for name, values in kept.items():
+            getattr(s, name)[...] = values
+        s.ctx = None
+        s.var_step = {}
+    plan.finish_step(out, sample)
 
 
 def attach_fast_path(plan_source: Callable[[], ChunkPlan]) -> FastPath | None:

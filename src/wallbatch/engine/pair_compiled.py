@@ -597,14 +597,7 @@ class PairChunks:
             fk.phys, fk.pend, fk.prev = phys.astype(np.intp), pend.astype(np.int8), prev
             fk.crossings += cross[:, 0]
         self.compiled_chunks += 1
-        out: dict = {}
-        if sample:
-            forces = s.f.copy()
-            out = plan.compute_outputs()
-            s.f[...] = forces
-            s.ctx = None
-            s.var_step = {}
-        plan.finish_step(out, sample)
+        _compiled.finish_chunk(plan, s, sample)
         return True
 
 
