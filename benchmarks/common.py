@@ -286,6 +286,19 @@ def time_wallbatch(case: Case) -> tuple[float, Any]:
     return CLOCK() - t0, res
 
 
+def time_engine(cfg: dict, numpy: bool) -> tuple[float, Engine]:
+    """Wall seconds of one engine run of the scene `cfg` (setup, steps, samples) on the compiled
+    path, or with `numpy` on the NumPy path, and the engine (its `fast` tells which path ran)."""
+    case = build(cfg)
+    t0 = time.perf_counter()
+    engine = Engine([case])
+    if numpy:
+        engine.fast = None
+    res = engine.run()[0]
+    assert res.status == "ok", res.error
+    return time.perf_counter() - t0, engine
+
+
 def numba_state() -> str:
     """'numba' if the compiled path is on, else 'numpy'."""
     from wallbatch.engine import compiled as fast

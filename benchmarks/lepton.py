@@ -24,10 +24,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import build, gas_slit  # noqa: E402
+from common import gas_slit  # noqa: E402
+from common import time_engine as run  # noqa: E402
 
 from wallbatch.engine import compiled  # noqa: E402
-from wallbatch.engine.engine import Engine  # noqa: E402
 
 EXPR = "eps*(2/15*(sig/r)^9-(sig/r)^3)"
 
@@ -42,17 +42,6 @@ def lepton_scene(cfg: dict) -> dict:
     wall["style"] = "lepton"
     out["name"] += "-lepton"
     return out
-
-
-def run(cfg: dict, numpy: bool) -> tuple[float, Engine]:
-    case = build(cfg)
-    t0 = time.perf_counter()
-    engine = Engine([case])
-    if numpy:
-        engine.fast = None
-    res = engine.run()[0]
-    assert res.status == "ok", res.error
-    return time.perf_counter() - t0, engine
 
 
 def main() -> None:

@@ -28,9 +28,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import build, gas_slit, lammps_module, lammps_run  # noqa: E402
+from common import time_engine as run  # noqa: E402
 
 from wallbatch.engine import compiled  # noqa: E402
-from wallbatch.engine.engine import Engine  # noqa: E402
 from wallbatch.styles import STYLES  # noqa: E402
 from wallbatch.styles.table import tabulate, write_table  # noqa: E402
 
@@ -45,17 +45,6 @@ def table_scene(cfg: dict, path: str, tabstyle: str) -> dict:
     wall.update(style="table", tabstyle=tabstyle, N=N_TABLE)
     out["name"] += f"-table-{tabstyle}"
     return out
-
-
-def run(cfg: dict, numpy: bool) -> tuple[float, Engine]:
-    case = build(cfg)
-    t0 = time.perf_counter()
-    engine = Engine([case])
-    if numpy:
-        engine.fast = None
-    res = engine.run()[0]
-    assert res.status == "ok", res.error
-    return time.perf_counter() - t0, engine
 
 
 def lammps_table(cfg: dict, path: str, tabstyle: str) -> float:
