@@ -393,6 +393,27 @@ class _Script:
         """f_ID, the fix's global scalar: wall_energy in config order of the fixes that have one."""
         self.columns.append(Column(f"wall_energy[{fid}]", f"f_{lid}", "wall_energy", self.case.fix_order.index(fid)))
 
+    def soft_fix(self, fid: str, lid: str, mapping: dict, spec: SoftWallSpec, force_sign: int = 1) -> None:
+        """Write a soft wall fix: its fix line from `mapping`, fix_modify energy/virial as the spec
+        asks, its wall_energy column and one wall_force column per face (indices after the soft walls
+        written before). `force_sign` -1: LAMMPS's vector is the force on the atoms, so each column
+        reads a helper variable of the opposite sign."""
+        self.fixes.append(to_fix_line(lid, mapping))
+        if spec.energy:
+            self.fixes.append(f"fix_modify {lid} energy yes")
+        if spec.virial:
+            self.fixes.append(f"fix_modify {lid} virial yes")
+        self.energy_column(fid, lid)
+        first = sum(len(w.faces) for w in self.soft_written)
+        self.soft_written.append(spec)
+        for i, face in enumerate(spec.faces):
+            keyword = f"f_{lid}[{i + 1}]"
+            if force_sign < 0:
+                helper = _lammps_id(f"wb_{lid}_{face.name}_force", set(self.variables) | set(self.case.variables.names()))
+                self.variables[helper] = f"-{keyword}"
+                keyword = f"v_{helper}"
+            self.columns.append(Column(f"wall_force[{face.label}]", keyword, "wall_force", first + i))
+
     def scaled_variable(self, name: str, scale: float, label: str) -> str:
         """A helper variable `name * scale` (a variable wall coordinate in lattice units)."""
         helper = _lammps_id(f"wb_{label.replace('/', '_')}", set(self.variables) | set(self.case.variables.names()))
@@ -444,18 +465,9 @@ def _soft_wall(fid: str, wall: Any, spec: SoftWallSpec, s: _Script) -> None:
         mapping[face.name] = values
     if style.decision:
         s.decide(style.name, style.decision)
-    s.fixes.append(to_fix_line(lid, mapping))
-    if spec.energy:
-        s.fixes.append(f"fix_modify {lid} energy yes")
-    if spec.virial:
-        s.fixes.append(f"fix_modify {lid} virial yes")
-    elif getattr(wall, "virial", False):
+    if not spec.virial and getattr(wall, "virial", False):
         s.notes.append(f"walls.{fid}: virial: true has no effect on wall/{wall.style} (it has no virial)")
-    s.energy_column(fid, lid)
-    first = sum(len(w.faces) for w in s.soft_written)
-    s.soft_written.append(spec)
-    for i, face in enumerate(spec.faces):
-        s.columns.append(Column(f"wall_force[{face.label}]", f"f_{lid}[{i + 1}]", "wall_force", first + i))
+    s.soft_fix(fid, lid, mapping, spec)
 
 
 # wall/table of a non-shift cut-off: N grid points per mode (smooth's force has a jump of d2F/dr2 at
@@ -552,16 +564,7 @@ def _cutoff_table_wall(fid: str, wall: Any, spec: SoftWallSpec, s: _Script) -> N
              f"first point stops LAMMPS). LAMMPS interpolates the table, so it agrees with wallbatch only to the "
              f"interpolation error of the table ({error:.2g} relative: docs/howto/validate.md)")
     s.table_rtol = max(s.table_rtol, error)
-    s.fixes.append(to_fix_line(lid, mapping))
-    if spec.energy:
-        s.fixes.append(f"fix_modify {lid} energy yes")
-    if spec.virial:
-        s.fixes.append(f"fix_modify {lid} virial yes")
-    s.energy_column(fid, lid)
-    first = sum(len(w.faces) for w in s.soft_written)
-    s.soft_written.append(spec)
-    for i, face in enumerate(spec.faces):
-        s.columns.append(Column(f"wall_force[{face.label}]", f"f_{lid}[{i + 1}]", "wall_force", first + i))
+    s.soft_fix(fid, lid, mapping, spec)
 
 
 def _reflect_wall(fid: str, wall: Any, spec: ReflectSpec, s: _Script) -> None:
@@ -674,23 +677,8 @@ def _per_face_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
     for face, sig in zip(spec.faces, spec.signature):
         values = {**written[face.name].model_dump(), "coord": _coord_word(face, written[face.name].coord, s)}
         mapping[face.name] = entry.lammps_face(values, face.params, sig)
-    s.fixes.append(to_fix_line(lid, mapping))
-    if spec.energy:
-        s.fixes.append(f"fix_modify {lid} energy yes")
-    if spec.virial:
-        s.fixes.append(f"fix_modify {lid} virial yes")
-    s.energy_column(fid, lid)
-    first = sum(len(w.faces) for w in s.soft_written)
-    s.soft_written.append(spec)
-    flipped = entry.lammps_force_sign < 0
-    for i, face in enumerate(spec.faces):
-        keyword = f"f_{lid}[{i + 1}]"
-        if flipped:
-            helper = _lammps_id(f"wb_{lid}_{face.name}_force", set(s.variables) | set(s.case.variables.names()))
-            s.variables[helper] = f"-{keyword}"
-            keyword = f"v_{helper}"
-        s.columns.append(Column(f"wall_force[{face.label}]", keyword, "wall_force", first + i))
-    if flipped:
+    s.soft_fix(fid, lid, mapping, spec, entry.lammps_force_sign)
+    if entry.lammps_force_sign < 0:
         s.notes.append(f"walls.{fid}: LAMMPS's {entry.lammps} vector is the force on the atoms, the opposite of "
                        "wallbatch's wall_force (the force on the wall): compared through v_wb_..._force = -f_ID[i]")
 
