@@ -73,6 +73,7 @@ from wallbatch.expr import VariableError
 from wallbatch.scene.case import DtResetSpec
 from wallbatch.styles import STYLES, WallStyle
 from wallbatch.styles import cutoff as _cutoff
+from wallbatch.styles import flat as _flat
 from wallbatch.styles.cutoff import CUTOFF_MODES, FORCE_SHIFT, SHIFT, SMOOTH, cutoff_functions
 from wallbatch.styles.cutoff import supported as cutoff_supported
 from wallbatch.styles.lepton import HELPERS_IMPORT, generated_module, generated_path
@@ -96,6 +97,8 @@ REGION_KINDS: dict[tuple[str, str], int] = {("block", "in"): 0, ("block", "out")
 _SOURCE_DIGEST = hashlib.sha256(Path(__file__).read_bytes() + inspect.getsource(_lepton_helpers).encode()).hexdigest()[:16]
 COMPILE_SECONDS = 20  # typical compile of one scene kernel on a 2-core machine (measured 14-26 s; the message's estimate)
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
+SAMPLE_BUDGET = 4_000_000  # sample outputs of a sampled chunk held at once (doubles): fewer samples per call
+MAX_CHAIN = 10  # the longest Nose-Hoover chain counted in that budget (longer ones only take more memory)
 # fixes of `fixes:` in the kernel (fx_meta's kind column); nve is the kernel's own integrator
 FIX_LANGEVIN, FIX_NVT, FIX_BERENDSEN, FIX_RESCALE, FIX_ENFORCE2D = 0, 1, 2, 3, 4
 FIX_KINDS: dict[str, int] = {"langevin": FIX_LANGEVIN, "nvt": FIX_NVT, "temp/berendsen": FIX_BERENDSEN,
@@ -148,6 +151,45 @@ def _region_dispatch_source(pairs: tuple[tuple[int, int], ...]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _outputs_dispatch_source(pairs: tuple[tuple[int, int], ...]) -> str:
+    """Python source of `_face_out(style, mode, ...)`: as `_dispatch_source`, one branch per
+    (style, cut-off mode) pair of the scene's flat soft faces whose energy the kernel computes
+    (`energy_compiled`), each calling the face's output loop `_eface` with that pair's force and
+    energy inlined; (NaN, NaN, NaN) for any other pair (`sampled_eligible` keeps those scenes out)."""
+    lines = ["def _face_out(style, mode, X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n):"]
+    k = 0
+    for (cond, force, rad, note), (i, m) in zip(_branches(pairs, 0), pairs):
+        if not energy_compiled(COMPILED_STYLES[i]):
+            continue
+        lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
+        lines.append(f"        return _eface({force}, _ENERGY_{i}_{m}, {rad}, X, RAD, groups, g, d, side, coord, p0, p1, "
+                     "p2, cut, ron, n)")
+        k += 1
+    lines.append("    return _nan, _nan, _nan")
+    return "\n".join(lines) + "\n"
+
+
+def _region_outputs_source(pairs: tuple[tuple[int, int], ...]) -> str:
+    """Python source of `_region_out(style, mode, ...)`: as `_outputs_dispatch_source`, for the
+    contacts of a wall/region fix (`_rout`)."""
+    lines = ["def _region_out(style, mode, RAD, RB, nslot, n, p0, p1, p2, cut, ron):"]
+    k = 0
+    for (cond, force, rad, note), (i, m) in zip(_branches(pairs, 0), pairs):
+        if not energy_compiled(COMPILED_STYLES[i]):
+            continue
+        lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
+        lines.append(f"        return _rout({force}, _ENERGY_{i}_{m}, {rad}, RAD, RB, nslot, n, p0, p1, p2, cut, ron)")
+        k += 1
+    lines.append("    return _nan, _nan, _nan, _nan, _nan")
+    return "\n".join(lines) + "\n"
+
+
+def energy_compiled(st: WallStyle) -> bool:
+    """Whether the kernel computes the style's reported energy (sampled chunks): a shifted
+    energy with a compiled E(r) - E(rc) (`shifted_fn`, `compiled_shifted`)."""
+    return st.shifted and st.shifted_fn is not None and st.compiled_shifted
+
+
 def _modes(st: WallStyle) -> tuple[int, ...]:
     """The cut-off modes the compiled path runs for a style (smooth needs a compiled shifted_fn)."""
     if not cutoff_supported(st):
@@ -166,8 +208,9 @@ def _fingerprint(pairs: tuple[tuple[int, int], ...], flow: bool, parallel: bool,
         st = COMPILED_STYLES[i]
         h.update(f"{st.name}:{st.needs_radius}:{m}:".encode())
         h.update(inspect.getsource(st.force).encode())
-        if len(_modes(st)) > 1:
+        if len(_modes(st)) > 1 or energy_compiled(st):
             h.update(inspect.getsource(st.shifted_fn).encode())
+        h.update(inspect.getsource(inspect.getmodule(st.force)).encode())  # helpers beside the style's functions
     h.update(inspect.getsource(_cutoff).encode())
     h.update(inspect.getsource(dt_candidate).encode())
     h.update(inspect.getsource(_th).encode())
@@ -192,6 +235,21 @@ if njit is not None:
     def _libm_exp(x):  # noqa: ANN001, ANN202
         """thermostats.libm_exp for a scalar: math.exp (the C library's exp)."""
         return lambda x: math.exp(x)
+
+    _dg_series = njit(nogil=True, error_model="numpy")(_flat._colloid_dg_series)
+    _dg_closed = njit(nogil=True, error_model="numpy")(_flat._colloid_dg_closed)
+
+    @overload(_flat.colloid_dg)
+    def _colloid_dg_scalar(r, big_r, rc, h, b, dct):  # noqa: ANN001, ANN202
+        """styles.flat.colloid_dg for floats: the same series / closed form choice, per value."""
+        def impl(r, big_r, rc, h, b, dct):  # noqa: ANN001, ANN202
+            x = big_r / r
+            dx = -x * h
+            if (x if x >= b else b) < _flat._G_SWITCH:
+                return _dg_series(x, b, dx)
+            d = (r - big_r) / r
+            return _dg_closed(x, b, dx, d * (1.0 + x), dct * (1.0 + b), d + x * dct)
+        return impl
 
     @inline
     def _nmin(a: float, b: float) -> float:
@@ -221,6 +279,13 @@ if njit is not None:
     MODE_FORCES = {(i, m): njit(nogil=True, error_model="numpy")(
         cutoff_functions(FORCES[i], _SHIFTED.get(i, FORCES[i]), m, _switch)[0])
         for i, st in enumerate(COMPILED_STYLES) for m in _modes(st)}
+    # each style's reported energy under each cut-off mode (sampled chunks): styles.cutoff's
+    # closures around the compiled force and E(r) - E(rc), as the NumPy CutoffStyle.energy
+    _SHIFTED_E = {i: _SHIFTED[i] if i in _SHIFTED else njit(nogil=True, error_model="numpy")(st.shifted_fn)
+                  for i, st in enumerate(COMPILED_STYLES) if energy_compiled(st)}
+    MODE_ENERGIES = {(i, m): njit(nogil=True, error_model="numpy")(
+        cutoff_functions(FORCES[i], _SHIFTED_E[i], m, _switch)[1])
+        for i, st in enumerate(COMPILED_STYLES) if i in _SHIFTED_E for m in _modes(st)}
     _dt_candidate = njit(nogil=True, error_model="numpy", inline="always")(dt_candidate)
 
     @inline
@@ -243,6 +308,80 @@ if njit is not None:
             F[d, i] = fi
         return nbad
 
+
+    @inline
+    def _eface(force, energy, use_radius, X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n):
+        """The outputs of one soft face over a case's n atoms (walls.SoftWallKernel.apply with
+        outputs): (sum of E(r) under the cut-off mode, sum of side F(r): the force on the wall,
+        sum of F(r) r: the virial), each summed atom by atom in atom order as np.bincount does."""
+        sidef = float(side)
+        sign = -sidef
+        e = 0.0
+        fs = 0.0
+        vir = 0.0
+        for i in range(n):
+            r = (X[d, i] - coord) * sign
+            if r < cut and groups[g, i] != 0:
+                rad = RAD[i] if use_radius else 0.0
+                fi = force(r, p0, p1, p2, cut, rad, ron)
+                e += energy(r, p0, p1, p2, cut, rad, ron)
+                fs += sidef * fi
+                vir += fi * r
+        return e, fs, vir
+
+    def _sample_faces(c, si, X, RAD, groups, sf_meta, sf_val, out):
+        """Every soft face's outputs (`_eface`) of case c at the current positions into out[k] =
+        (energy, force on the wall, virial). Compiled per scene by `kernel_for` with the scene's
+        `_face_out` dispatch."""
+        n = X.shape[1]
+        for k in range(sf_meta.shape[0]):
+            e, fs, vir = _face_out(sf_meta[k, 0], sf_meta[k, 4], X, RAD, groups, sf_meta[k, 3], sf_meta[k, 1],
+                                   sf_meta[k, 2], sf_val[c, si, k, 0], sf_val[c, si, k, 1], sf_val[c, si, k, 2],
+                                   sf_val[c, si, k, 3], sf_val[c, si, k, 4], sf_val[c, si, k, 5], n)
+            out[k, 0] = e
+            out[k, 1] = fs
+            out[k, 2] = vir
+
+    @inline
+    def _rout(force, energy, use_radius, RAD, RB, nslot, n, p0, p1, p2, cut, ron):
+        """The outputs of a wall/region fix from a case's contacts in RB (all n atoms, slot by
+        slot: RegionGeom.contacts' order), as RegionWallKernel.apply sums them with np.bincount:
+        (energy, sum of (F(r)/r) delta x, y, z, sum of F(r) r)."""
+        e = 0.0
+        f0 = 0.0
+        f1 = 0.0
+        f2 = 0.0
+        vir = 0.0
+        for j in range(nslot):
+            for i in range(n):
+                if RB[j, 0, i] != 0.0:
+                    r = RB[j, 1, i]
+                    rad = RAD[i] if use_radius else 0.0
+                    fi = force(r, p0, p1, p2, cut, rad, ron)
+                    s = fi / r
+                    e += energy(r, p0, p1, p2, cut, rad, ron)
+                    f0 += s * RB[j, 2, i]
+                    f1 += s * RB[j, 3, i]
+                    f2 += s * RB[j, 4, i]
+                    vir += fi * r
+        return e, f0, f1, f2, vir
+
+    def _sample_regions(c, X, RAD, groups, rg_meta, rg_geo, rg_val, RB, out):
+        """Every wall/region fix's outputs of case c at the current positions into out[k] =
+        (energy, force on the wall x, y, z, virial); RB (6, 5, N): the case's contacts. Compiled per
+        scene by `kernel_for` with the scene's `_region_out` dispatch."""
+        n = X.shape[1]
+        for k in range(rg_meta.shape[0]):
+            cut = rg_val[c, k, 3]
+            nslot, _ = _region_contacts(rg_meta[k, 0], rg_meta[k, 1], rg_geo[k], X, groups, rg_meta[k, 3], cut, 0, n,
+                                        RB)
+            e, f0, f1, f2, vir = _region_out(rg_meta[k, 2], rg_meta[k, 4], RAD, RB, nslot, n, rg_val[c, k, 0],
+                                             rg_val[c, k, 1], rg_val[c, k, 2], cut, rg_val[c, k, 4])
+            out[k, 0] = e
+            out[k, 1] = -f0
+            out[k, 2] = -f1
+            out[k, 3] = -f2
+            out[k, 4] = vir
 
     # -- fix wall/region (region_walls.RegionWallKernel.apply; geometry of regions.RegionGeom) ------
     # A region's contacts of one block of atoms go into RB[slot, :, i - u0] = (flag, r, delta x, y, z)
@@ -749,7 +888,7 @@ if njit is not None:
         def _run_chunk(nsteps, time_mode, target, tol, x, v, f, mass, radius, dt, atime, atimestep,
                        step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
                        stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo, rg_meta, rg_geo, rg_val,
-                       fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng, fx, fx_rng):
+                       fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng, fx, fx_rng, sm):
             """Advance every case by nsteps steps (or, with time_mode, to the time `target` as
             Engine.advance_to_time does), reading x, v, f and writing xo, vo, fo. Returns 0, or the
             nonzero status of the first trouble met (1: an atom on/behind a soft wall, 2: a lost atom,
@@ -760,7 +899,13 @@ if njit is not None:
             L1 cache), then the next block. Without dt/reset a window is the whole chunk. With dt/reset
             a window of WINDOW steps runs at the current dt and keeps each step's smallest candidate;
             if one of them would change dt, the window is undone and run step by step (all blocks per
-            step) up to that step, then windows resume. Time-based runs go step by step."""
+            step) up to that step, then windows resume. Time-based runs go step by step.
+
+            Sampled chunks (sm[0], the sample steps counted from the chunk's start, not empty; step-
+            based runs): windows end at sample steps, and after each sample step the outputs of
+            every case go into the sm arrays (`_sample_faces`; sum m v^2 in NumPy's pairwise order;
+            step, dt, atime, atimestep; reflect statistics and flow redraws since the last sample;
+            the fixes' accumulators and chain), as Engine.sample would record them."""
             if nsteps == -fingerprint:  # never: ties the on-disk cache to the styles (see _fingerprint)
                 return 5
             ncase, natom = x.shape[0], x.shape[1]
@@ -813,6 +958,10 @@ if njit is not None:
             FL = np.zeros((3, nfx))  # this step's Langevin forces (the tally's)
             KB = np.empty(nfx)  # per-atom terms of a sum over atoms
             fxp = (fx_meta, G1, FR, FL)
+            sm_at, sm_mv2, sm_clock, sm_face, sm_rstat, sm_fx, sm_chain, sm_cross, sm_reg = sm
+            nsm = sm_at.shape[0]
+            KS = np.empty(natom if nsm else 0)  # m v^2 per atom at a sample
+            RBS = np.empty((6, 5, natom if nsm and rg_meta.shape[0] else 0))  # a case's region contacts
             for c in range(ncase):
                 for a in range(natom):
                     for d in range(3):
@@ -826,6 +975,7 @@ if njit is not None:
                         SQM[a] = np.sqrt(M[a])
                         G1[a] = _th_drag(M[a], fx[1][c, langevin, 2], ftm2v)
                 done = 0  # steps done for this case
+                ism = 0  # the case's next sample
                 stepwise = 0  # steps to run one at a time before the next window
                 backoff = 0
                 while True:
@@ -852,6 +1002,8 @@ if njit is not None:
                                 if fx_meta[k, 0] == FIX_RESCALE:
                                     every = fx_meta[k, 2]
                                     nwin = min(nwin, every - step[c] % every)
+                        if ism < nsm:  # a window ends at a sample step
+                            nwin = min(nwin, sm_at[ism] - done)
                     if time_mode:
                         base = dt[c]
                         rem = target - now
@@ -919,25 +1071,58 @@ if njit is not None:
                     for k in range(nrf):
                         rf_prev[c, k] = rf_val[c, (done + nwin - 1) * vary, k]
                     done += nwin
-                    if window:
-                        continue
-                    if dtr_every > 0 and step[c] % dtr_every == 0:  # fix dt/reset (end_of_step)
-                        new = _clamp(low[0], natom, dtr_par[c])
-                        if new != dt[c]:
-                            atime[c] = atime[c] + (step[c] - atimestep[c]) * dt[c]
-                            atimestep[c] = step[c]
-                            dt[c] = new
-                    if stepwise > 0:
-                        stepwise -= 1
-                    if time_mode:
-                        new_base = dt[c] if dt[c] != sdt else base
-                        if landing or new_base != dt[c]:  # at a fixed dt: time = atime + n dt (no sum)
-                            now = atime[c] + (step[c] - atimestep[c]) * dt[c]
-                            atime[c] = target if landing else now
-                            atimestep[c] = step[c]
-                        dt[c] = new_base
-                        if landing:
-                            break
+                    if not window:
+                        if dtr_every > 0 and step[c] % dtr_every == 0:  # fix dt/reset (end_of_step)
+                            new = _clamp(low[0], natom, dtr_par[c])
+                            if new != dt[c]:
+                                atime[c] = atime[c] + (step[c] - atimestep[c]) * dt[c]
+                                atimestep[c] = step[c]
+                                dt[c] = new
+                        if stepwise > 0:
+                            stepwise -= 1
+                        if time_mode:
+                            new_base = dt[c] if dt[c] != sdt else base
+                            if landing or new_base != dt[c]:  # at a fixed dt: time = atime + n dt (no sum)
+                                now = atime[c] + (step[c] - atimestep[c]) * dt[c]
+                                atime[c] = target if landing else now
+                                atimestep[c] = step[c]
+                            dt[c] = new_base
+                            if landing:
+                                break
+                    if ism < nsm and done == sm_at[ism]:  # a sample step: the outputs of Engine.sample
+                        _sample_faces(c, (done - 1) * vary, X, RAD, groups, sf_meta, sf_val, sm_face[c, ism])
+                        if rg_meta.shape[0]:
+                            _sample_regions(c, X, RAD, groups, rg_meta, rg_geo, rg_val, RBS, sm_reg[c, ism])
+                        for a in range(natom):
+                            KS[a] = _th_mv2(M[a], V[0, a], V[1, a], V[2, a])
+                        sm_mv2[c, ism] = 0.0 + _th_pairwise(KS, 0, natom)
+                        sm_clock[c, ism, 0] = step[c]
+                        sm_clock[c, ism, 1] = dt[c]
+                        sm_clock[c, ism, 2] = atime[c]
+                        sm_clock[c, ism, 3] = atimestep[c]
+                        for k in range(nrf):  # reflect statistics since the last sample (take_stats)
+                            sm_rstat[c, ism, k, 0] = rf_stat[c, k, 0]
+                            sm_rstat[c, ism, k, 1] = rf_stat[c, k, 1]
+                            rf_stat[c, k, 0] = 0.0
+                            rf_stat[c, k, 1] = 0.0
+                        for k in range(fx_meta.shape[0]):  # the fixes' accumulators (ecouple)
+                            for j in range(4):
+                                sm_fx[c, ism, k, j] = fx[2][c, k, j]
+                        if sm_chain.shape[2]:  # fix nvt's chain: eta, eta_dot, eta_mass, t_target
+                            j = 0
+                            for m in range(fx[3].shape[1]):
+                                sm_chain[c, ism, j] = fx[3][c, m]
+                                j += 1
+                            for m in range(fx[4].shape[1]):
+                                sm_chain[c, ism, j] = fx[4][c, m]
+                                j += 1
+                            for m in range(fx[6].shape[1]):
+                                sm_chain[c, ism, j] = fx[6][c, m]
+                                j += 1
+                            sm_chain[c, ism, j] = fx[8][c]
+                        sm_cross[c, ism] = fl_cross[0]  # flow redraws since the last sample (take_crossings)
+                        fl_cross[0] = 0.0
+                        ism += 1
                 if not math.isfinite(dt[c]):
                     return 3
                 for a in range(natom):
@@ -958,6 +1143,11 @@ if njit is not None:
     def _no_region_walls(c, u0, u1, X, F, RAD, groups, rg_meta, rg_geo, rg_val, RB):
         """`_region_walls` of a scene without wall/region fixes: nothing."""
         return 0
+
+    @jit
+    def _no_sample_regions(c, X, RAD, groups, rg_meta, rg_geo, rg_val, RB, out):
+        """`_sample_regions` of a scene without wall/region fixes: nothing."""
+        return
 
     @jit
     def _no_flow_step(X, V, M, fl_int, fl_f, walls, grp, phys, pend, prev, cross, rng, CI, DIR):
@@ -995,6 +1185,8 @@ if njit is not None:
         source: str
         filename: str | None
         fingerprint: int
+        sample_faces: Any = None  # the soft faces' outputs at a sample step (sampled chunks)
+        sample_regions: Any = None  # and the wall/region fixes'
 
     def _scene_args(soft: Any, region: Any, flow: Any, extra: Any) -> tuple:
         return tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow), tuple(extra)
@@ -1019,8 +1211,10 @@ if njit is not None:
         on disk. The pieces are this module's functions re-linked (the same code objects, new
         globals) to the scene's generated dispatch."""
         pairs = tuple(sorted(set(soft) | set(region)))
-        base: dict[str, Any] = {"_face": _face, "_rface": _rface,
-                                **{f"_FORCE_{i}_{m}": MODE_FORCES[(i, m)] for i, m in pairs}}
+        base: dict[str, Any] = {"_face": _face, "_rface": _rface, "_eface": _eface, "_nan": math.nan,
+                                **{f"_FORCE_{i}_{m}": MODE_FORCES[(i, m)] for i, m in pairs},
+                                **{f"_ENERGY_{i}_{m}": MODE_ENERGIES[(i, m)] for i, m in soft
+                                   if (i, m) in MODE_ENERGIES}}
         filename = None
         if extra:
             source = _chunk_module_source(soft, extra)
@@ -1037,13 +1231,23 @@ if njit is not None:
             source = _dispatch_source(soft)
             exec(compile(source, "<wallbatch soft-face dispatch>", "exec"), namespace)  # noqa: S102 - generated here
         soft_face = njit(nogil=True, error_model="numpy", inline="always")(namespace["_soft_face"])
+        osource = _outputs_dispatch_source(soft)
+        source += osource
+        exec(compile(osource, "<wallbatch soft-face outputs dispatch>", "exec"), namespace)  # noqa: S102 - generated here
+        face_out = njit(nogil=True, error_model="numpy", inline="always")(namespace["_face_out"])
+        sample_faces = njit(nogil=True, error_model="numpy")(_relink(_sample_faces, _face_out=face_out))
         region_walls = _no_region_walls
+        sample_regions = _no_sample_regions
         if region:
-            rsource = _region_dispatch_source(region)
+            namespace.update({f"_ENERGY_{i}_{m}": MODE_ENERGIES[(i, m)] for i, m in region if (i, m) in MODE_ENERGIES})
+            namespace["_rout"] = _rout
+            rsource = _region_dispatch_source(region) + _region_outputs_source(region)
             source += rsource
             exec(compile(rsource, "<wallbatch region dispatch>", "exec"), namespace)  # noqa: S102 - generated here
             region_force = njit(nogil=True, error_model="numpy", inline="always")(namespace["_region_force"])
             region_walls = njit(nogil=True, error_model="numpy")(_relink(_region_walls, _region_force=region_force))
+            region_out = njit(nogil=True, error_model="numpy", inline="always")(namespace["_region_out"])
+            sample_regions = njit(nogil=True, error_model="numpy")(_relink(_sample_regions, _region_out=region_out))
         flow_step = _no_flow_step
         if flow:
             from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
@@ -1052,7 +1256,7 @@ if njit is not None:
         block_step = njit(nogil=True, error_model="numpy", inline="always")(
             _relink(_block_step, _soft_face=soft_face, _region_walls=region_walls))
         return ScenePieces(soft_face, region_walls, flow_step, block_step, source, filename,
-                           _fingerprint(pairs, flow, False, source))
+                           _fingerprint(pairs, flow, False, source), sample_faces, sample_regions)
 
     def kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
                    extra: tuple[str, ...] = (), parallel: bool = False) -> Any:
@@ -1071,7 +1275,8 @@ if njit is not None:
         p = _pieces_for(soft, region, flow, extra)
         fp = _fingerprint(tuple(sorted(set(soft) | set(region))), flow, parallel, p.source)
         fn = _relink(_make_run_chunk(fp), name=f"_run_chunk_{fp:015x}", filename=p.filename,
-                     _block_step=p.block_step, _flow_step=p.flow_step)
+                     _block_step=p.block_step, _flow_step=p.flow_step, _sample_faces=p.sample_faces,
+                     _sample_regions=p.sample_regions)
         return njit(cache=True, nogil=True, error_model="numpy", parallel=parallel)(fn)
 
 
@@ -1129,6 +1334,10 @@ class ChunkPlan:
     region: tuple[RegionWallKernel, ...] = ()
     flow: tuple = ()  # flow.FlowKernel: at most one, without dt/reset (`eligible`)
     ensemble: Any = None  # ensemble.Ensemble (fixes: nve on all, thermostats, enforce2d) or None
+    # Engine.record's arguments -> the samples of a sampled chunk appended (Engine.record_block);
+    # None: the engine takes samples one at a time only
+    record_samples: Callable[..., None] | None = None
+    outputs: tuple[str, ...] = ()  # the thermo outputs (press needs the virial)
 
 
 def _face_styles(w: SoftWallKernel) -> list[WallStyle]:
@@ -1355,9 +1564,13 @@ class FastPath:
     def __init__(self, plan_source: Callable[[], ChunkPlan]):
         self.plan_source = plan_source
         self.compiled_chunks = 0  # chunks run compiled (tests and benchmarks read these)
+        self.sampled_calls = 0  # kernel calls that recorded samples themselves (advance_sampled)
         self.kernel: Any = None  # the scene kernel of the last chunk (kernel_for)
         self.fallbacks = 0  # chunks handed back to NumPy
         self._spare: tuple[np.ndarray, ...] = ()  # output buffers for x, v, f (swapped with the state's)
+        self._sampled_refused = False  # the scene's samples are not recorded in the kernel (sampled_eligible)
+        self._sampled_count = 0  # samples of the last sampled chunk
+        self._sampled_progress = 0  # after trouble in a sampled chunk: the samples completed before it
 
     # -- packing ---------------------------------------------------------------------------
 
@@ -1455,10 +1668,40 @@ class FastPath:
         """Engine.advance_to_time compiled; False: let the NumPy loop do it."""
         return self._chunk(0, True, target)
 
-    def _chunk(self, nsteps: int, sample: bool, target: float | None) -> bool:
+    def advance_sampled(self, at: np.ndarray) -> int:
+        """Run to the sample steps `at` (counted from now, increasing), recording every sample
+        inside the kernel (plan.record_samples); returns how many of them were run (the first ones;
+        0: nothing done, let the caller go sample by sample). `sampled_eligible` says which scenes
+        run here; one that does not is not asked again."""
+        at = np.asarray(at, np.int64)
+        if self._sampled_refused or at.size == 0 or at[0] <= 0 or np.any(np.diff(at) <= 0):
+            return 0
+        plan = self.plan_source()
+        if not (enabled() and eligible(plan) and sampled_eligible(plan)):
+            self._sampled_refused = True
+            return 0
+        # the sample arrays (C, S, ...) within SAMPLE_BUDGET doubles: fewer samples per call
+        nfix = len(plan.ensemble.fixes) if plan.ensemble is not None else 0
+        width = 6 + 5 * len(plan.region) + 3 * sum(len(w.faces) for w in plan.soft) + 2 * sum(len(w.faces) for w in plan.reflect) \
+            + 4 * nfix + (3 * MAX_CHAIN + 2 if nfix else 0)
+        at = at[:max(1, SAMPLE_BUDGET // (width * max(1, plan.state.ncases)))]
+        while True:
+            self._sampled_count = at.size
+            self._sampled_progress = 0
+            if self._chunk(int(at[-1]), True, None, at):
+                return self._sampled_count
+            if self._sampled_progress <= 0:
+                return 0
+            # trouble after some samples (of the case that met it; the cases before it ran them all):
+            # run to the last sample before it in the kernel, the step with trouble then in NumPy
+            at = at[:self._sampled_progress]
+
+    def _chunk(self, nsteps: int, sample: bool, target: float | None, at: np.ndarray | None = None) -> bool:
         plan = self.plan_source()
         s = plan.state
         if s.ncases == 0 or s.failed or not enabled() or not eligible(plan):
+            return False
+        if at is not None and not sampled_eligible(plan):
             return False
         if any(w.style.needs_radius and not w._radius_checked for w in plan.region):
             return False  # colloid's radius check (the NumPy setup step makes it) reports in NumPy
@@ -1475,6 +1718,12 @@ class FastPath:
         if varying and not time_mode:
             per_step = 6 * max(1, sum(len(w.faces) for w in plan.soft + plan.reflect)) * s.ncases
             most = max(1, VALUE_BUDGET // per_step)
+            if at is not None and nsteps > most:  # a sampled chunk: the samples within `most` steps
+                at = at[at <= most]
+                if at.size == 0:
+                    return False
+                nsteps = int(at[-1])
+                self._sampled_count = at.size
             if nsteps > most:  # split a long chunk: the values of fewer steps at a time
                 done = 0
                 while done < nsteps:
@@ -1555,13 +1804,15 @@ class FastPath:
                 float(1e-12 * max(1.0, abs(target))) if time_mode else 0.0)
         consts = (stats, int(dtr.every if dtr is not None else 0), dtr_group)
         units = (float(s.units.ftm2v), float(s.units.mvv2e))
+        sm = _sample_arrays(at, C, sf_meta.shape[0], rf_meta.shape[0], fx, rg[0].shape[0])
 
         def run(c: slice, fl: tuple, fx_rng: Any = _NO_FLOW[-1]) -> int:
             """The kernel on cases c (a slice: views, so the kernel writes through)."""
             return kernel(*args, s.x[c], s.v[c], s.f[c], s.mass[c], s.radius[c], s.dt[c], s.atime[c],
                               s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
                               rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
-                              rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng)
+                              rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng,
+                              (sm[0],) + tuple(a[c] for a in sm[1:]))
 
         if fx_rngs:  # fix langevin: one case per call, each with its own generator
             rng_states = [r.bit_generator.state for r in fx_rngs]
@@ -1590,6 +1841,10 @@ class FastPath:
         if extra:  # compiled (and cached on disk by numba) by now: later processes load it
             _mark_compiled(extra)
         if status != 0:
+            if at is not None:  # samples the case with trouble completed (cases run in order)
+                done = np.count_nonzero(sm[2][:, :, 0], axis=1)
+                short = np.nonzero(done < sm[0].size)[0]
+                self._sampled_progress = int(done[short[0]]) if short.size else 0
             for k, arr in backup.items():
                 getattr(s, k)[...] = arr
             if fk is not None:  # the NumPy loop re-runs the chunk with the same random numbers
@@ -1599,7 +1854,9 @@ class FastPath:
                 r.bit_generator.state = st
             self.fallbacks += 1
             return False
-        self.compiled_chunks += 1
+        # a sampled chunk counts once per sample (each the chunk it replaces: the steps up to a sample)
+        self.compiled_chunks += 1 if at is None else int(at.size)
+        self.sampled_calls += at is not None
         if fx_fixes:
             _fix_store(fx, fx_fixes, plan)
         if fk is not None:
@@ -1616,8 +1873,100 @@ class FastPath:
                     w.count[:, j] = rf_stat[:, k, 0]
                     w.impulse[:, j] = rf_stat[:, k, 1]
                 k += 1
+        if at is not None:
+            s.ctx = None
+            s.var_step = {}
+            plan.record_samples(**_sample_record(plan, sm, fx_fixes))
+            return True
         finish_chunk(plan, s, sample)
         return True
+
+
+def _sample_arrays(at: np.ndarray | None, C: int, nface: int, nrf: int, fx: tuple, nreg: int
+                   ) -> tuple[np.ndarray, ...]:
+    """The kernel's `sm` tuple: sample steps (S,) (none: a chunk without samples inside), sum m v^2
+    (C, S), clock (C, S, 4): step, dt, atime, atimestep; soft faces (C, S, faces, 3): energy,
+    force on the wall, virial; reflect statistics (C, S, reflect faces, 2); the fixes'
+    accumulators (C, S, K, 4); fix nvt's chain (C, S, 3 M + 2) (none without nvt); flow redraws
+    (C, S); wall/region fixes (C, S, fixes, 5): energy, force on the wall x y z, virial."""
+    at = np.zeros(0, np.int64) if at is None else np.ascontiguousarray(at, np.int64)
+    S = at.size
+    K = fx[0].shape[0]
+    nvt = bool(K) and bool(np.any(fx[0][:, 0] == FIX_NVT))
+    width = 3 * fx[3].shape[1] + 2 if nvt else 0
+    return (at, np.zeros((C, S)), np.zeros((C, S, 4)), np.zeros((C, S, nface, 3)), np.zeros((C, S, nrf, 2)),
+            np.zeros((C, S, K, 4)), np.zeros((C, S, width)), np.zeros((C, S)), np.zeros((C, S, nreg, 5)))
+
+
+def _sample_record(plan: ChunkPlan, sm: tuple, fixes: list[Any]) -> dict[str, Any]:
+    """The arguments of Engine.record (plan.record_samples) from a sampled chunk's `sm` arrays:
+    the fix outputs summed as compute_forces sums them (face by face from zero), the clock, the
+    reflect statistics, the flow redraws and the thermostats' ecouple (Ensemble.ecouple on the
+    samples' accumulators and chains, all samples at once)."""
+    _, mv2, clock, face, rstat, acc, chain, cross, reg = sm
+    C, S = mv2.shape
+    out: dict[str, tuple[np.ndarray, ...]] = {}
+    k = 0
+    virial = np.zeros((C, S))
+    for w in plan.soft:
+        energy = np.zeros((C, S))
+        vector = np.zeros((C, S, len(w.faces)))
+        last_virial = np.zeros((C, S))
+        for j in range(len(w.faces)):
+            energy += face[:, :, k, 0]
+            vector[:, :, j] = face[:, :, k, 1]
+            last_virial += face[:, :, k, 2]
+            k += 1
+        out[w.fix_id] = (energy, vector)
+        if w.virial:
+            virial += last_virial
+    for k, w in enumerate(plan.region):
+        out[w.fix_id] = (reg[:, :, k, 0], reg[:, :, k, 1:4])
+        if w.virial:
+            virial += reg[:, :, k, 4]
+    step, dt, atime, atimestep = (clock[:, :, j] for j in range(4))
+    args: dict[str, Any] = {"step": step.astype(np.int64), "time": atime + (step - atimestep) * dt, "dt": dt,
+                            "mv2": mv2, "out": out, "virial": virial if "press" in plan.outputs else None}
+    if plan.reflect and plan.reflect[0].stats:
+        args["reflect"] = (rstat[:, :, :, 0], rstat[:, :, :, 1])
+    if plan.flow:
+        args["crossings"] = cross
+    if plan.ensemble is not None:
+        args["ecouple"] = _ecouple_samples(plan.ensemble, fixes, acc, chain)
+    return args
+
+
+def _ecouple_samples(ensemble: Any, fixes: list[Any], acc: np.ndarray, chain: np.ndarray) -> np.ndarray:
+    """Ensemble.ecouple (C, S) of S samples: each fix's accumulators (and fix nvt's chain) set to
+    the samples' values flattened to C*S rows for the call, then put back."""
+    C, S = acc.shape[:2]
+    saved = []
+    try:
+        for k, f in enumerate(fixes):
+            saved.append((f, {name: getattr(f, name) for name in ("removed", "work", "power", "last_dt")}))
+            f.removed, f.work, f.power, f.last_dt = (acc[:, :, k, j].reshape(-1) for j in range(4))
+            if f.style == "nvt":
+                ch = f.chain
+                M = ch.eta.shape[1]
+                saved.append((ch, {name: getattr(ch, name) for name in ("eta", "eta_dot", "eta_mass", "t_target")}))
+                flat = chain.reshape(C * S, -1)
+                ch.eta, ch.eta_dot, ch.eta_mass = flat[:, :M], flat[:, M:2 * M + 1], flat[:, 2 * M + 1:3 * M + 1]
+                ch.t_target = flat[:, 3 * M + 1]
+        return ensemble.ecouple(C * S).reshape(C, S)
+    finally:
+        for obj, attrs in saved:
+            for name, value in attrs.items():
+                setattr(obj, name, value)
+
+
+def sampled_eligible(plan: ChunkPlan) -> bool:
+    """Scenes whose samples the kernel records itself (sampled chunks): `eligible` ones with
+    flat soft faces of registry styles whose energy it computes (`energy_compiled`), no
+    generated forces, wall/region fixes of such styles, and an engine that takes the records."""
+    if plan.record_samples is None or _lepton_extra(plan):
+        return False
+    return all(type(w) is SoftWallKernel and energy_compiled(w.style) for w in plan.soft) and \
+        all(energy_compiled(w.style) for w in plan.region)
 
 
 def finish_chunk(plan: ChunkPlan, s: BatchState, sample: bool, keep: tuple[str, ...] = ("f",)) -> None:

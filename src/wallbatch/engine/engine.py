@@ -34,6 +34,7 @@ from wallbatch.engine.pair import PairLJCut
 from wallbatch.engine.pair_compiled import attach_pair_chunks
 from wallbatch.engine.profiles import ProfileSampler
 from wallbatch.engine.state import BatchState
+from wallbatch.engine.thermostats import kinetic_sum
 from wallbatch.engine.walls import build_kernels, build_region_kernels
 from wallbatch.geometry.quaternion import richardson, rotational_energy
 from wallbatch.scene.case import Case, structure_key
@@ -41,6 +42,7 @@ from wallbatch.scene.case import Case, structure_key
 BIG = 1.0e20  # dt/reset's "no limit" (LAMMPS BIG)
 PAIR = "__pair__"  # key of the pair style's (energy, virial) among the force outputs
 VIRIAL = "__virial__"  # key of the total virial W (pair + walls with virial: true) for press
+SAMPLES_PER_CALL = 4096  # samples recorded by one compiled call at most (their arrays: (C, S, ...))
 
 
 @dataclass
@@ -72,8 +74,12 @@ class Engine:
         self.errors: dict[int, str] = {}
         self.dump_fields = c0.dump_fields
         self.frames: list[tuple] = []  # (rows, time, x, v) per dump instant
-        self.samples: list[dict[str, np.ndarray]] = []  # per sample: name -> (C_total, ...) arrays
-        self.sample_rows: list[np.ndarray] = []
+        self.samples: list[dict[str, np.ndarray]] = []  # per sample: name -> (C_live, ...) arrays
+        self.sample_rows: list[np.ndarray] = []  # the live rows of each of them
+        self.sample_index: list[int] = []  # and its index on the schedule
+        # samples recorded S at a time (compiled chunks): (first index, live rows, name -> (C_live, S, ...))
+        self.sample_blocks: list[tuple[int, np.ndarray, dict[str, np.ndarray]]] = []
+        self.nsampled = 0  # samples recorded so far
         # the compiled path (compiled.py) runs only scenes without pair, ees, wall/region/ees, ellipsoids;
         # asphere_compiled.py runs ellipsoids between wall/ees faces
         self.pair = None  # pair.PairLJCut
@@ -111,7 +117,8 @@ class Engine:
         return ChunkPlan(state=s, soft=tuple(self.soft), reflect=tuple(self.reflect), dt_reset=self.dt_reset,
                          dt_reset_params=dtr, others=others, compute_outputs=lambda: self.compute_forces(True),
                          finish_step=self.finish_step, advance_numpy=self.advance_numpy,
-                         region=tuple(self.region_walls), flow=tuple(self.flow), ensemble=self.ensemble)
+                         region=tuple(self.region_walls), flow=tuple(self.flow), ensemble=self.ensemble,
+                         record_samples=self.record_samples, outputs=tuple(self.outputs))
 
     # -- the step ----------------------------------------------------------------------------
 
@@ -249,54 +256,92 @@ class Engine:
     def sample(self, out: dict[str, tuple[np.ndarray, ...]]) -> None:
         """Record the thermo outputs of every live case at the current step (`out`: the force
         outputs of this step, see compute_forces)."""
-        s, u = self.state, self.state.units
+        s = self.state
         bad = ~(np.isfinite(s.x).all(axis=(1, 2)) & np.isfinite(s.v).all(axis=(1, 2)))
         if bad.any():
             s.fail(np.nonzero(bad)[0], lambda c: (
                 f"positions or velocities became NaN/inf by step {int(s.step[c])}: the timestep is too "
                 f"large for these forces (lower timestep, or add dt_reset)"))
-        n = s.x.shape[1]
-        mv2 = np.einsum("cn,cn->c", s.mass, np.einsum("cni,cni->cn", s.v, s.v))
+        erot = None
+        if s.quat is not None:  # compute erotate/asphere joins ke, so etot is the conserved total
+            erot = s.units.mvv2e * rotational_energy(s.quat, s.angmom, s.inertia).sum(axis=1)
+        reflect = None
+        if self.reflect and self.reflect[0].stats:
+            counts, impulses = zip(*(w.take_stats() for w in self.reflect))
+            reflect = (np.concatenate(counts, axis=1), np.concatenate(impulses, axis=1))
+        rec = self.record(
+            step=s.step, time=s.time, dt=s.dt.copy(), mv2=kinetic_sum(s.v, s.mass), out=out, reflect=reflect,
+            crossings=sum(w.take_crossings() for w in self.flow) if self.flow else None,
+            ecouple=self.ensemble.ecouple(s.ncases) if self.ensemble is not None else None, erot=erot)
+        self.samples.append(rec)
+        self.sample_rows.append(s.rows.copy())
+        self.sample_index.append(self.nsampled)
+        self.nsampled += 1
+
+    def record(self, step: np.ndarray, time: np.ndarray, dt: np.ndarray, mv2: np.ndarray,
+               out: dict[str, tuple[np.ndarray, ...]], reflect: tuple[np.ndarray, np.ndarray] | None = None,
+               crossings: np.ndarray | None = None, ecouple: np.ndarray | None = None,
+               erot: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """The thermo record of samples from their ingredients, arrays with a leading shape L: (C,)
+        for one sample (Engine.sample), (C, S) for S samples of a compiled chunk. mv2: sum m v^2
+        (translational); `out`: the force outputs (compute_forces: fix-ID -> (scalar L, vector
+        (L, faces) or (L, 3)), PAIR, VIRIAL); reflect: counts and impulses (L, faces); crossings:
+        flow redraws (L,); ecouple: the thermostats' exchanged energy (L,); erot: rotational ke."""
+        u = self.state.units
+        lead = np.shape(mv2)
+        n = self.state.x.shape[1]
         ke = 0.5 * u.mvv2e * mv2  # translational
         dim = self.cases[0].dimension
         dof = dim * n - dim  # compute temp: the centre of mass's dof removed
         rec: dict[str, np.ndarray] = {
-            "step": s.step.astype(float), "time": s.time, "dt": s.dt.copy(),
-            "temp": 2.0 * ke / (dof * u.boltz) if dof > 0 else np.zeros(s.ncases),
-            "atoms": np.full(s.ncases, float(n)),
+            "step": step.astype(float), "time": time, "dt": dt,
+            "temp": 2.0 * ke / (dof * u.boltz) if dof > 0 else np.zeros(lead),
+            "atoms": np.full(lead, float(n)),
         }
-        if s.quat is not None:  # compute erotate/asphere joins ke, so etot is the conserved total
-            rec["erot"] = u.mvv2e * rotational_energy(s.quat, s.angmom, s.inertia).sum(axis=1)
-            ke = ke + rec["erot"]
-        pe = out[PAIR][0].copy() if PAIR in out else np.zeros(s.ncases)
+        if erot is not None:
+            rec["erot"] = erot
+            ke = ke + erot
+        pe = out[PAIR][0].copy() if PAIR in out else np.zeros(lead)
         scalar_fixes = self.soft + self.region_walls
         if scalar_fixes:
             by_id = {w.fix_id: w for w in scalar_fixes}
-            rec["wall_energy"] = np.stack([out[fid][0] for fid in self.cases[0].fix_order], axis=1)
+            rec["wall_energy"] = np.stack([out[fid][0] for fid in self.cases[0].fix_order], axis=-1)
             for fid in self.cases[0].fix_order:
                 if by_id[fid].energy_to_pe:
                     pe = pe + out[fid][0]
         if self.soft:
-            rec["wall_force"] = np.concatenate([out[w.fix_id][1] for w in self.soft], axis=1)
+            rec["wall_force"] = np.concatenate([out[w.fix_id][1] for w in self.soft], axis=-1)
         if self.region_walls:
-            rec["region_force"] = np.stack([out[w.fix_id][1] for w in self.region_walls], axis=1)
-        if self.reflect and self.reflect[0].stats:
-            counts, impulses = zip(*(w.take_stats() for w in self.reflect))
-            rec["reflect_count"] = np.concatenate(counts, axis=1)
-            rec["reflect_impulse"] = np.concatenate(impulses, axis=1)
-        if self.flow:
-            rec["flow_crossings"] = sum(w.take_crossings() for w in self.flow)
+            rec["region_force"] = np.stack([out[w.fix_id][1] for w in self.region_walls], axis=-2)
+        if reflect is not None:
+            rec["reflect_count"], rec["reflect_impulse"] = reflect
+        if crossings is not None:
+            rec["flow_crossings"] = crossings
         if VIRIAL in out:  # LAMMPS compute pressure: (sum m v^2 + W) / (3 V), translational ke
-            volume = float(np.prod((s.box_hi - s.box_lo)[:dim]))  # 2-D: the area
+            volume = float(np.prod((self.state.box_hi - self.state.box_lo)[:dim]))  # 2-D: the area
             rec["press"] = (u.mvv2e * mv2 + out[VIRIAL][0]) / (dim * volume) * u.nktv2p
         rec["ke"] = ke
         rec["pe"] = pe
         rec["etot"] = pe + ke
         # thermostats' exchanged energy (LAMMPS ecouple) and etot + ecouple (econserve)
-        rec["ecouple"] = self.ensemble.ecouple(s.ncases) if self.ensemble is not None else np.zeros(s.ncases)
+        rec["ecouple"] = ecouple if ecouple is not None else np.zeros(lead)
         rec["econserve"] = rec["etot"] + rec["ecouple"]
-        self.samples.append(rec)
-        self.sample_rows.append(s.rows.copy())
+        return rec
+
+    def record_samples(self, out: dict[str, tuple[np.ndarray, ...]], virial: np.ndarray | None = None,
+                       **ingredients: np.ndarray) -> None:
+        """Append S samples of every live case computed by a compiled chunk: `record`'s
+        ingredients with a leading (C, S), the total virial W (C, S) when press is an output."""
+        if virial is not None:
+            out = {**out, VIRIAL: (virial,)}
+        self.record_block(self.record(out=out, **ingredients))
+
+    def record_block(self, rec: dict[str, np.ndarray]) -> None:
+        """Append S samples of every live case at once (rec: name -> (C, S, ...) arrays, from
+        `record`; the compiled path's sampled chunks)."""
+        nsamp = next(iter(rec.values())).shape[1]
+        self.sample_blocks.append((self.nsampled, self.state.rows.copy(), rec))
+        self.nsampled += nsamp
 
     def drop_failed(self) -> None:
         s = self.state
@@ -449,7 +494,25 @@ class Engine:
                 if 0 in dumps:
                     self.dump_frame()
                 done = 0
-                for target in sorted(samples | dumps | profile)[1:]:
+                instants = sorted(samples | dumps | profile)[1:]
+                i = 0
+                while i < len(instants):
+                    # a run of sample instants (no dump or profile) in one compiled call, if the fast
+                    # path records samples itself (compiled.sampled_eligible)
+                    j = i
+                    while j < len(instants) and j - i < SAMPLES_PER_CALL and instants[j] not in dumps \
+                            and instants[j] not in profile:
+                        j += 1
+                    sampled = getattr(self.fast, "advance_sampled", None)
+                    ran = 0
+                    if j > i and sampled is not None and self.state.ncases:
+                        ran = sampled(np.array(instants[i:j], np.int64) - done)
+                    if ran:
+                        done = instants[i + ran - 1]
+                        i += ran
+                        t = self._charge(t)
+                        continue
+                    target = instants[i]
                     self.advance(target - done, sample=target in samples)
                     done = target
                     if target in dumps and self.state.ncases:
@@ -457,6 +520,7 @@ class Engine:
                     if target in profile:
                         self.profiles.sample(self.state)
                     t = self._charge(t)
+                    i += 1
             else:
                 for target in sample_instants(c0)[1:]:
                     self.advance_to_time(target)
@@ -469,13 +533,20 @@ class Engine:
         c0 = self.cases[0]
         nsamp = len(sample_instants(c0))
         results = []
-        names = self.samples[0].keys() if self.samples else []
+        if self.samples:
+            names, shapes = self.samples[0].keys(), {k: v.shape[1:] for k, v in self.samples[0].items()}
+        elif self.sample_blocks:
+            names, shapes = self.sample_blocks[0][2].keys(), {k: v.shape[2:] for k, v in self.sample_blocks[0][2].items()}
+        else:
+            names, shapes = [], {}
         stacked = {}
         for name in names:
-            first = self.samples[0][name]
-            arr = np.full((C, nsamp) + first.shape[1:], np.nan)
-            for k, (rec, rows) in enumerate(zip(self.samples, self.sample_rows)):
+            arr = np.full((C, nsamp) + shapes[name], np.nan)
+            for k, rec, rows in zip(self.sample_index, self.samples, self.sample_rows):
                 arr[rows, k] = rec[name]
+            for k0, rows, rec in self.sample_blocks:
+                block = rec[name]
+                arr[rows, k0:k0 + block.shape[1]] = block
             stacked[name] = arr
         picks: list[list[tuple]] = [[] for _ in range(C)]  # per case: (time, x, v) of its frames
         for rows, t, x, v in self.frames:

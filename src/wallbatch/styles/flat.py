@@ -346,19 +346,26 @@ def colloid_shifted(r, eps, sigma, p2, rc, big_r):
     s2 = (sigma / rc) ** 2
     rep = (4.0 / 945.0) * s2 * s2 * s2 * b2 * b * dphi
 
+    return eps * (rep - colloid_dg(r, big_r, rc, h, b, dct) / 6.0)
+
+
+def colloid_dg(r, big_r, rc, h, b, dct):
+    """g(x) - g(x_c) of colloid_shifted (x = R/r, x_c = b = R/rc, h = (r - rc)/rc, dct = (rc - R)/rc):
+    the difference of the series where max(x, x_c) < 0.2 (far field), else the closed form, chosen
+    per element. The compiled path (wallbatch.engine.compiled) overloads this function for floats
+    with the same choice, so colloid_shifted compiles as it is. [1]"""
     shape = np.broadcast_shapes(np.shape(r), np.shape(big_r), np.shape(rc))
     x = np.broadcast_to(np.asarray(big_r / r, dtype=float), shape)
     dx = -x * h
     small = np.maximum(x, b) < _G_SWITCH
     if small.all():
-        dg = _colloid_dg_series(x, b, dx)
-    else:
-        d = (r - big_r) / r
-        dg = _colloid_dg_closed(x, b, dx, d * (1.0 + x), dct * (1.0 + b), d + x * dct)
-        if small.any():  # only reached for ndim >= 1
-            idx = np.nonzero(small)
-            dg[idx] = _colloid_dg_series(x[idx], np.broadcast_to(b, x.shape)[idx], dx[idx])
-    return eps * (rep - dg / 6.0)
+        return _colloid_dg_series(x, b, dx)
+    d = (r - big_r) / r
+    dg = _colloid_dg_closed(x, b, dx, d * (1.0 + x), dct * (1.0 + b), d + x * dct)
+    if small.any():  # only reached for ndim >= 1
+        idx = np.nonzero(small)
+        dg[idx] = _colloid_dg_series(x[idx], np.broadcast_to(b, x.shape)[idx], dx[idx])
+    return dg
 
 
 # ----------------------------------------------------------------------------- registry entries
@@ -379,7 +386,7 @@ LJ1043 = WallStyle(
              "style; LAMMPS silently skips the atom (and includes one exactly at the cut-off with E = 0, F != 0). "
              "A run that reaches such a state differs: wallbatch fails, LAMMPS goes on")
 COLLOID = WallStyle("colloid", _LJ, colloid_force, colloid_energy, colloid_shifted, needs_radius=True,
-                    region_quirk=True, compiled_shifted=False,  # colloid_shifted picks its form per element
+                    region_quirk=True,  # colloid_shifted's per-element choice: colloid_dg (overloaded for floats)
                     doc="finite-size sphere (radius R) against a flat wall; r is the centre distance")
 HARMONIC = WallStyle(
     "harmonic",

@@ -1,0 +1,319 @@
+"""Sampled chunks: the compiled kernel records many samples itself (compiled.FastPath.advance_sampled,
+Engine.record_block) against the NumPy engine sampling step by step.
+
+Every scene runs with WALLBATCH_NUMBA=0 (NumPy: Engine.sample at every sample step) and =1 (one
+kernel call runs many sample steps and writes each sample's sum m v^2, wall energies, forces on
+the walls, virial, reflect statistics, flow redraws and thermostat accumulators into arrays).
+Every output of every case must agree bit for bit (the same registry functions, summed in the
+same order), except where the arithmetic itself differs between NumPy and numba (morse's exp and
+expm1, fix nvt's chain exp, the flow solver): 1e-14 relative there. Each test checks that the
+samples really came from the kernel (sample blocks, only the step-0 sample taken by NumPy), or,
+for the scenes the kernel does not sample, that they did not.
+"""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+from factories import slab_gas
+
+from wallbatch.config.models import config_from_dict
+from wallbatch.engine import compiled as fast
+from wallbatch.engine.engine import Engine
+from wallbatch.scene.build import build_case
+from wallbatch.scene.case import structure_key
+
+pytestmark = pytest.mark.skipif(fast.njit is None, reason="numba not importable")
+
+OUT = ["step", "time", "dt", "temp", "ke", "pe", "etot", "press", "ecouple", "econserve"]
+REFLECT_OUT = OUT + ["reflect_count", "reflect_impulse"]
+
+
+def face(coord, eps=1.0, sigma=1.0, rc=2.5):
+    return {"coord": coord, "epsilon": eps, "sigma": sigma, "cutoff": rc}
+
+
+def gas(walls, *, n=120, steps=150, thermo=1, seed=5, temperature=1.5, output=OUT, **extra):
+    """n atoms of an ideal gas in a 6 x 6 x 8 slab (x, y periodic, z fixed) between `walls`."""
+    return slab_gas(copy.deepcopy(walls), n=n, hi=(6.0, 6.0, 8.0), margin=1.6, temperature=temperature, seed=seed,
+                    dt=0.005, steps=steps, thermo=thermo, output=list(output), **extra)
+
+
+def run_both(monkeypatch, configs):
+    cases = [build_case(config_from_dict(d)) for d in configs]
+    assert len({structure_key(c) for c in cases}) == 1  # one batch
+    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
+    ref_engine = Engine(cases)
+    assert ref_engine.fast is None
+    ref = ref_engine.run()
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    eng = Engine(cases)
+    got = eng.run()
+    return ref, got, eng
+
+
+def assert_same(ref, got, rtol=0.0):
+    assert [r.status for r in got] == [r.status for r in ref]
+    assert [r.error for r in got] == [r.error for r in ref]
+    for a, b in zip(ref, got):
+        assert a.data.keys() == b.data.keys()
+        for name in a.data:
+            x, y = a.data[name], b.data[name]
+            assert x.shape == y.shape, name
+            if rtol == 0.0:
+                np.testing.assert_array_equal(y, x, err_msg=name)
+            else:
+                scale = np.nanmax(np.abs(x)) if np.isfinite(x).any() else 0.0
+                np.testing.assert_allclose(y, x, rtol=0, atol=rtol * max(scale, 1e-300), equal_nan=True, err_msg=name)
+
+
+def check(monkeypatch, configs, rtol=0.0, *, sampled=True):
+    """Both ways; agreement; and whether the samples came from the kernel (`sampled`)."""
+    ref, got, eng = run_both(monkeypatch, configs)
+    assert_same(ref, got, rtol)
+    assert eng.fast is not None and eng.fast.compiled_chunks > 0
+    if sampled:
+        assert eng.sample_blocks, "no sampled chunk ran"
+        assert len(eng.samples) == 1  # NumPy sampled step 0 (setup) only
+    else:
+        assert not eng.sample_blocks
+    return ref, got, eng
+
+
+# ----------------------------------------------------------------------------- styles
+
+
+def lj93():
+    return {"w": {"style": "lj93", "units": "box", "energy": True, "virial": True,
+                  "zlo": face(0.0), "zhi": face(8.0, eps=2.0, sigma=0.9)}}
+
+
+def harmonic():
+    return {"w": {"style": "harmonic", "units": "box", "energy": True, "virial": True,
+                  "zlo": {"coord": 0.0, "epsilon": 20.0, "cutoff": 1.5},
+                  "zhi": {"coord": 8.0, "epsilon": 10.0, "cutoff": 1.5}}}
+
+
+def morse():
+    return {"w": {"style": "morse", "units": "box", "energy": True, "virial": True,
+                  "zlo": {"coord": 0.0, "D0": 1.0, "alpha": 2.0, "r0": 1.2, "cutoff": 3.0},
+                  "zhi": {"coord": 8.0, "D0": 0.5, "alpha": 1.5, "r0": 1.1, "cutoff": 2.5}}}
+
+
+def with_reflect(walls):
+    """A reflect wall on the slow group below the soft zhi face, so both act every few steps."""
+    return {**walls, "r": {"style": "reflect", "units": "box", "zhi": 6.2}}
+
+
+def swept(make, key, values):
+    """Configs of one batch that differ in the zlo face's parameter `key` (and the seed)."""
+    out = []
+    for k, value in enumerate(values):
+        walls = make()
+        walls["w"]["zlo"][key] = value
+        out.append(gas(with_reflect(walls), seed=5 + k, output=REFLECT_OUT))
+    return out
+
+
+@pytest.mark.parametrize("make, key, values, rtol", [
+    (lj93, "epsilon", [0.5, 1.0, 2.0], 0.0),
+    (harmonic, "epsilon", [5.0, 20.0, 40.0], 0.0),
+    (morse, "D0", [0.3, 1.0, 1.5], 1e-14),  # exp/expm1: NumPy's vs the C library's
+], ids=["lj93", "harmonic", "morse"])
+def test_every_step_samples_match_numpy(monkeypatch, make, key, values, rtol):
+    """Three cases with different wall parameters, sampled every step: every output (ke, temp,
+    press with the walls' virial, pe, each fix's energy, each face's force, reflect counts and
+    impulses per step) equals the NumPy engine's."""
+    ref, got, eng = check(monkeypatch, swept(make, key, values), rtol)
+    assert eng.fast.fallbacks == 0
+    for r in got:
+        assert r.status == "ok" and r.data["step"].tolist() == list(range(151))
+        assert np.count_nonzero(r.data["wall_force"][:, 0]) > 30  # atoms in the wall's range on many steps
+        assert np.count_nonzero(r.data["wall_energy"]) > 30
+        assert r.data["reflect_count"].sum() > 5
+    # the walls' virial is in press: press != the ideal-gas part alone
+    n, volume = 120, 6.0 * 6.0 * 8.0
+    ideal = got[0].data["temp"] * (3 * n - 3) / 3.0 / volume
+    assert np.abs(got[0].data["press"] - ideal).max() > 1e-3
+
+
+def test_energy_and_force_of_a_face_are_the_registry_sums(monkeypatch):
+    """One sample by hand: the recorded wall energy and force on the wall of the last step equal the
+    registry's E(r) - E(rc) and F(r) summed over the atoms within the cut-off of each face."""
+    from wallbatch.styles.flat import STYLES
+
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    d = gas(lj93(), steps=40, thermo=1, output=OUT)
+    d["output"]["dump"] = {"every": 40, "fields": ["x"]}
+    case = build_case(config_from_dict(d))
+    eng = Engine([case])
+    res = eng.run()[0]
+    assert eng.sample_blocks
+    z = res.frames["x"][-1][:, 2]
+    st = STYLES["lj93"]
+    energy, forces = 0.0, []
+    for r, p, side in ((z - 0.0, {"epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5}, -1.0),
+                       (8.0 - z, {"epsilon": 2.0, "sigma": 0.9, "cutoff": 2.5}, 1.0)):
+        r = r[r < 2.5]
+        energy += st.shifted_energy(r, p).sum()
+        forces.append(side * st.force(r, *st.args(p)).sum())
+    assert res.data["wall_energy"][-1, 0] == pytest.approx(energy, rel=1e-13, abs=1e-15)
+    np.testing.assert_allclose(res.data["wall_force"][-1], forces, rtol=1e-13, atol=1e-15)
+    assert res.data["pe"][-1] == res.data["wall_energy"][-1, 0]
+    assert abs(energy) > 1e-3  # atoms were in range
+
+
+@pytest.mark.parametrize("mode", ["shift", "smooth"])
+def test_colloid_slit_sampled_every_step(monkeypatch, mode):
+    """colloid (radius 0.6 particles; its E(r) - E(rc) picks the far-field series or the closed
+    form per atom, styles.flat.colloid_dg, compiled per value): two cases, sampled every step,
+    outputs equal to 1e-14 (atanh and log1p: NumPy's vs the C library's)."""
+    configs = []
+    for k, eps in enumerate((1.0, 2.5)):
+        walls = {"w": {"style": "colloid", "units": "box", "energy": True, "virial": True, "cutoff_mode": mode,
+                       "zlo": face(0.0, eps=eps, rc=3.0), "zhi": face(8.0, rc=3.0)}}
+        if mode == "smooth":
+            walls["w"]["switch_on"] = 2.0
+        d = gas(walls, seed=5 + k, steps=100)
+        d["atoms"][0]["radius"] = 0.6
+        configs.append(d)
+    _, got, eng = check(monkeypatch, configs, 1e-14)
+    assert eng.fast.fallbacks == 0
+    assert np.count_nonzero(got[1].data["wall_energy"]) > 30
+
+
+REGIONS = {
+    "block-in": ({"style": "block", "lo": [0.5, 0.5, 0.5], "hi": [9.5, 9.5, 9.5]},
+                 {"style": "block", "lo": [2.0, 2.0, 2.0], "hi": [8.0, 8.0, 8.0]}),
+    "sphere-out": ({"style": "sphere", "center": [5.0, 5.0, 5.0], "radius": 2.0, "side": "out"},
+                   {"style": "block", "lo": [0.0, 0.0, 0.0], "hi": [10.0, 10.0, 2.5]}),
+    "cylinder-in": ({"style": "cylinder", "axis": "z", "center": [5.0, 5.0], "radius": 4.0, "lo": 0.5, "hi": 9.5},
+                    {"style": "block", "lo": [3.0, 3.0, 2.0], "hi": [7.0, 7.0, 8.0]}),
+}
+
+
+@pytest.mark.parametrize("shape", sorted(REGIONS))
+def test_region_walls_sampled_every_step(monkeypatch, shape):
+    """wall/region (lj93 and harmonic, energy and virial) in a closed 10^3 box, two cases: each
+    fix's energy and force on the wall (summed contact by contact in RegionGeom.contacts' order),
+    pe and press at every step equal the NumPy engine's bit for bit."""
+    region, start = REGIONS[shape]
+    configs = []
+    for k, eps in enumerate((1.0, 1.8)):
+        d = gas({}, steps=100, n=60, seed=5 + k, temperature=2.0)
+        d["box"] = {"lo": [0, 0, 0], "hi": [10.0, 10.0, 10.0], "boundary": ["f", "f", "f"]}
+        d["regions"] = {"R": {**region, "units": "box"}, "mid": {**start, "units": "box"}}
+        d["walls"] = {
+            "a": {"style": "region", "region": "R", "potential": "lj93", "epsilon": eps, "sigma": 1.0,
+                  "cutoff": 2.5, "energy": True, "virial": True},
+            "b": {"style": "region", "region": "R", "potential": "harmonic", "epsilon": 50.0 * eps, "cutoff": 1.0,
+                  "energy": True}}
+        configs.append(d)
+    _, got, eng = check(monkeypatch, configs)
+    assert eng.fast.fallbacks == 0
+    for r in got:
+        assert r.status == "ok"
+        assert np.count_nonzero(r.data["region_force"][:, 0]) > 20  # the walls acted on many steps
+        assert np.count_nonzero(r.data["wall_energy"][:, 1]) > 5
+
+
+# ----------------------------------------------------------------------------- fixes, dt/reset, flow
+
+
+@pytest.mark.parametrize("fixes, rtol", [
+    ({"a": "fix a all nve", "b": "fix b all langevin 1.0 2.0 0.5 48279 tally yes"}, 0.0),
+    ({"a": "fix a all nve", "b": "fix b all temp/berendsen 1.0 0.8 0.1"}, 0.0),
+    ({"a": "fix a all nve", "c": "fix c all temp/rescale 7 0.9 0.9 0.01 0.5"}, 0.0),
+    ({"a": "fix a all nvt temp 1.0 1.2 0.1 tchain 3"}, 1e-14),  # the chain's exp: NumPy's vs libm's
+], ids=["langevin", "berendsen", "rescale", "nvt"])
+def test_thermostats_sampled_every_step(monkeypatch, fixes, rtol):
+    """Two cases with a thermostat, sampled every step: ecouple and econserve from the kernel's
+    accumulators (and chain) at each sample step equal the NumPy engine's."""
+    configs = [gas(lj93(), fixes=fixes, steps=60), gas(lj93(), fixes=fixes, steps=60, seed=6, temperature=2.0)]
+    _, got, eng = check(monkeypatch, configs, rtol)
+    assert eng.fast.fallbacks == 0
+    assert np.count_nonzero(np.diff(got[1].data["ecouple"])) > 5  # the thermostat exchanged energy (rescale: every 7 steps)
+
+
+def test_dt_reset_sampled_every_step(monkeypatch):
+    """dt/reset changes dt inside a sampled chunk: each sample's dt and time are the NumPy ones."""
+    d = gas(lj93(), steps=120)
+    d["atoms"].append({"group": "close", "create": {"positions": [[2.0, 2.0, 0.55], [4.0, 4.0, 7.5]]},
+                       "mass": 2.0})
+    d["dt_reset"] = {"every": 2, "tmin": 1.0e-5, "tmax": 0.01, "xmax": 0.02, "emax": 0.5, "units": "box"}
+    _, got, eng = check(monkeypatch, [d])
+    assert len(np.unique(got[0].data["dt"])) > 2
+
+
+def test_flow_crossings_per_sample(monkeypatch):
+    """wall/flow in the kernel, sampled every 2 steps: redraws per sample equal NumPy's; ke to 1e-12
+    (the flux solver's few ulp)."""
+    def cfg(seed, vflow):
+        return {"units": "lj", "seed": seed, "timestep": 0.005,
+                "box": {"lo": [0, 0, 0], "hi": [10.0, 3.0, 3.0], "boundary": ["p", "p", "p"]},
+                "atoms": [{"group": "gas", "create": {"random": {"count": 200}}, "mass": 1.0,
+                           "velocity": {"temperature": 1.5}}],
+                "walls": {"fl": {"style": "flow", "axis": "x", "vflow": vflow, "temperature": 1.5, "seed": 99 + seed,
+                                 "coords": [2.5, 5.0, 7.5], "units": "box"}},
+                "run": {"steps": 200, "thermo": 2},
+                "output": {"thermo": ["step", "ke", "temp", "flow_crossings"]}}
+    cases = [build_case(config_from_dict(cfg(3, 0.4))), build_case(config_from_dict(cfg(4, 1.2)))]
+    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
+    ref = Engine(cases).run()
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    eng = Engine(cases)
+    got = eng.run()
+    assert eng.sample_blocks and len(eng.samples) == 1 and eng.fast.fallbacks == 0
+    for r, g in zip(ref, got):
+        assert r.status == g.status == "ok"
+        assert r.data["flow_crossings"].sum() > 40
+        np.testing.assert_array_equal(g.data["flow_crossings"], r.data["flow_crossings"])
+        np.testing.assert_array_equal(g.data["step"], r.data["step"])
+        np.testing.assert_allclose(g.data["ke"], r.data["ke"], rtol=1e-12)
+
+
+# ----------------------------------------------------------------------------- schedules, variables, failures
+
+
+def test_dumps_between_samples_and_an_odd_last_step(monkeypatch):
+    """thermo 3 over 100 steps (the last sample at 100) with a dump every 7 steps: the sampled
+    chunks stop at each dump; samples and frames equal NumPy's."""
+    d = gas(with_reflect(lj93()), steps=100, thermo=3, output=REFLECT_OUT)
+    d["output"]["dump"] = {"every": 7, "fields": ["x", "v"]}
+    other = gas(with_reflect(lj93()), steps=100, thermo=3, seed=9, output=REFLECT_OUT)
+    other["output"] = copy.deepcopy(d["output"])
+    ref, got, eng = check(monkeypatch, [d, other])
+    assert got[0].data["step"][-1] == 100 and len(eng.sample_blocks) > 5
+    for a, b in zip(ref, got):
+        for key in ("time", "x", "v"):
+            np.testing.assert_array_equal(b.frames[key], a.frames[key])
+
+
+def test_moving_wall_and_ramped_parameter(monkeypatch):
+    """Per-step wall values (a wall moving with a variable, epsilon ramping): each sample's outputs
+    use that step's values."""
+    walls = {"w": {"style": "lj93", "units": "box", "energy": True, "virial": True,
+                   "zlo": {"coord": "v_lo", "epsilon": "v_eps", "sigma": 1.0, "cutoff": 2.5},
+                   "zhi": face(8.0)}}
+    d = gas(walls, variables={"lo": "vdisplace(0.0, 0.4)", "eps": "ramp(0.5, 2.0)"}, steps=120)
+    _, got, eng = check(monkeypatch, [d])
+    assert eng.fast.fallbacks == 0
+    assert np.count_nonzero(got[0].data["wall_force"][:, 0]) > 30
+
+
+def test_a_case_failing_mid_chunk(monkeypatch):
+    """A case of the batch crosses a zero-strength wall mid-run: the sampled chunk goes back to its
+    last sample before the trouble, NumPy runs the step with trouble (and fails the case with its
+    message), the others go on sampled. Same statuses, messages and numbers."""
+    def cfg(coord, eps=1.0):
+        return gas({"w": {"style": "lj93", "units": "box", "energy": True,
+                          "zlo": {"coord": coord, "epsilon": eps, "sigma": 1.0, "cutoff": 2.5}, "zhi": face(8.0)}},
+                   steps=200, thermo=2)
+    _, got, eng = check(monkeypatch, [cfg(0.0), cfg(1.5, eps=0.0), cfg(0.3)])
+    assert [r.status for r in got] == ["ok", "failed", "ok"]
+    step = int(got[1].error.split(" at step ")[1].split(":")[0])
+    assert step > 10  # mid-run
+    assert np.isnan(got[1].data["ke"]).all() and not np.isnan(got[0].data["ke"]).any()
+    assert eng.fast.fallbacks >= 1 and len(eng.sample_blocks) >= 2
