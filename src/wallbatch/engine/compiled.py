@@ -866,9 +866,9 @@ if njit is not None:
                     for a in range(natom):
                         DTFM[a] = hdt / M[a]
                     if window and speculate:
-                        XS[:] = X
-                        VS[:] = V
-                        FS[:] = F
+                        _copy3(XS, X)
+                        _copy3(VS, V)
+                        _copy3(FS, F)
                     for s in range(nwin):
                         low[s] = np.inf
                         for k in range(nrf):
@@ -904,9 +904,9 @@ if njit is not None:
                                 first = s
                                 break
                         if first >= 0:  # dt changes after step `first`: undo, go step by step up to there
-                            X[:] = XS
-                            V[:] = VS
-                            F[:] = FS
+                            _copy3(X, XS)
+                            _copy3(V, VS)
+                            _copy3(F, FS)
                             stepwise = first + 1 + backoff
                             backoff = min(2 * backoff + 8, 4096)
                             continue
@@ -963,6 +963,36 @@ if njit is not None:
     def _no_flow_step(X, V, M, fl_int, fl_f, walls, grp, phys, pend, prev, cross, rng, CI, DIR):
         """`_flow_step` of a scene without wall/flow fixes: nothing."""
         return
+
+    # stubs linked into the kernel of a scene without `fixes:` or without fix dt/reset (`kernel_for`):
+    # the chunk never calls them then (no fix rows; dtr_every == 0), and leaving the thermostat and
+    # dt/reset code out makes the first compile of such a scene's kernel several seconds shorter
+    @jit
+    def _no_fix_pre(c, stepn, dtc, V, M, groups, fx, rng, SQM, FR, KB):
+        """`_fix_pre` of a scene without fixes: nothing."""
+        return 0
+
+    @jit
+    def _no_fix_end(c, stepn, dtc, V, M, groups, fx, KB, FL):
+        """`_fix_end` of a scene without fixes: nothing."""
+        return 0
+
+    @inline
+    def _no_fix_post_force(u0, u1, V, F, groups, fxp):
+        """`_fix_post_force` of a scene without fixes: nothing."""
+        return
+
+    @inline
+    def _no_dt_candidate(vx, vy, vz, fx, fy, fz, m, ftm2v, mvv2e, xmax, emax):
+        """`_dt_candidate` of a scene without fix dt/reset: never called."""
+        return np.inf
+
+    @inline
+    def _copy3(dst, src):
+        """dst[:] = src for (3, N) buffers, as a plain loop (no broadcasting checks to compile)."""
+        for d in range(3):
+            for i in range(src.shape[1]):
+                dst[d, i] = src[d, i]
 
     def _relink(fn: Any, name: str | None = None, filename: str | None = None, **replace: Any) -> Any:
         """The Python function `fn` (or a jitted dispatcher's) with some of its globals replaced
@@ -1055,13 +1085,14 @@ if njit is not None:
                            _fingerprint(pairs, flow, False, source))
 
     def kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
-                   extra: tuple[str, ...] = (), parallel: bool = False) -> Any:
-        """The chunk kernel of one kind of scene (`_kernel_for`), one per specialisation and process."""
-        return _kernel_for(*_scene_args(soft, region, flow, extra), bool(parallel))
+                   extra: tuple[str, ...] = (), parallel: bool = False, fixes: bool = True, dtr: bool = True) -> Any:
+        """The chunk kernel of one kind of scene (`_kernel_for`), one per specialisation and process;
+        `fixes`/`dtr` False: a scene without `fixes:` / fix dt/reset (their code left out)."""
+        return _kernel_for(*_scene_args(soft, region, flow, extra), bool(parallel), bool(fixes), bool(dtr))
 
     @functools.lru_cache(maxsize=64)
     def _kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
-                    extra: tuple[str, ...], parallel: bool) -> Any:
+                    extra: tuple[str, ...], parallel: bool, fixes: bool = True, dtr: bool = True) -> Any:
         """The chunk kernel of one kind of scene (`pieces_for`; `parallel`: compiled with numba
         parallel=True, reserved for a two-thread variant, not used by the engine yet): this
         module's chunk kernel re-linked to the scene's block and flow steps, named
@@ -1069,9 +1100,19 @@ if njit is not None:
         file, or with `extra` beside the generated module it is attributed to: compiled once,
         loaded by later processes)."""
         p = _pieces_for(soft, region, flow, extra)
-        fp = _fingerprint(tuple(sorted(set(soft) | set(region))), flow, parallel, p.source)
+        fp = _fingerprint(tuple(sorted(set(soft) | set(region))), flow, parallel,
+                          p.source + ("" if fixes and dtr else f"\n# fixes {fixes}, dt/reset {dtr}"))
+        block_step, links = p.block_step, {}
+        if not (fixes and dtr):
+            gone = {}
+            if not fixes:
+                gone["_fix_post_force"] = _no_fix_post_force
+                links = {"_fix_pre": _no_fix_pre, "_fix_end": _no_fix_end}
+            if not dtr:
+                gone["_dt_candidate"] = _no_dt_candidate
+            block_step = njit(nogil=True, error_model="numpy", inline="always")(_relink(p.block_step, **gone))
         fn = _relink(_make_run_chunk(fp), name=f"_run_chunk_{fp:015x}", filename=p.filename,
-                     _block_step=p.block_step, _flow_step=p.flow_step)
+                     _block_step=block_step, _flow_step=p.flow_step, **links)
         return njit(cache=True, nogil=True, error_model="numpy", parallel=parallel)(fn)
 
 
@@ -1545,7 +1586,8 @@ class FastPath:
         fk = plan.flow[0] if plan.flow else None
         n = len(COMPILED_STYLES)
         kernel = kernel_for(tuple(sorted({(int(r[0]), int(r[4])) for r in sf_meta if r[0] < n})),
-                            tuple(sorted({(int(r[2]), int(r[4])) for r in rg[0]})), fk is not None, tuple(extra))
+                            tuple(sorted({(int(r[2]), int(r[4])) for r in rg[0]})), fk is not None, tuple(extra),
+                            fixes=bool(fx[0].shape[0]), dtr=dtr is not None)
         self.kernel = kernel  # the last chunk's kernel (tests read its cache statistics)
         if not kernel.signatures:
             announce_compile(kernel, 30 if extra else COMPILE_SECONDS)  # generated forces: ~30 s
