@@ -64,6 +64,7 @@ from typing import Any
 import numpy as np
 
 from wallbatch.engine import dt_reset as _dtr
+from wallbatch.engine import scalar as _scalar
 from wallbatch.engine import thermostats as _th
 from wallbatch.engine.dt_reset import BIG, dt_candidate
 from wallbatch.engine.state import BatchState
@@ -171,6 +172,7 @@ def _fingerprint(pairs: tuple[tuple[int, int], ...], flow: bool, parallel: bool,
     h.update(inspect.getsource(_cutoff).encode())
     h.update(inspect.getsource(dt_candidate).encode())
     h.update(inspect.getsource(_th).encode())
+    h.update(inspect.getsource(_scalar).encode())
     if flow:
         from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
 
@@ -193,23 +195,8 @@ if njit is not None:
         """thermostats.libm_exp for a scalar: math.exp (the C library's exp)."""
         return lambda x: math.exp(x)
 
-    @inline
-    def _nmin(a: float, b: float) -> float:
-        """np.minimum for two scalars (NaN propagates)."""
-        if a != a:
-            return a
-        if b != b:
-            return b
-        return a if a <= b else b
-
-    @inline
-    def _nmax(a: float, b: float) -> float:
-        """np.maximum for two scalars (NaN propagates)."""
-        if a != a:
-            return a
-        if b != b:
-            return b
-        return a if a >= b else b
+    _nmin = inline(_scalar.nmin)  # np.minimum / np.maximum of two floats (engine/scalar.py)
+    _nmax = inline(_scalar.nmax)
 
     # the registry's force functions, compiled as they are (the same function objects)
     FORCES = tuple(njit(nogil=True, error_model="numpy")(st.force) for st in COMPILED_STYLES)
@@ -684,42 +671,21 @@ if njit is not None:
 
     def _flow_step(X, V, M, fl_int, fl_f, walls, grp, phys, pend, prev, cross, rng, CI, DIR):
         """fix wall/flow's end_of_step (flow.FlowKernel.end_of_step) for the one case of the chunk,
-        on its buffers: crossings (segments of the wrapped axis coordinate, pending returns), then
-        the draws from the case's generator in the NumPy order (u1, u2, g (n, 2)) and the redraws
-        (flow_compiled.apply's arithmetic). fl_int: on, axis, exact; fl_f: lo, length, vflow, kT.
-        Compiled by `kernel_for` for scenes with a flow wall (`flow_compiled` is linked then)."""
+        on its buffers: crossings (flow_compiled.crossing per atom), then the draws from the case's
+        generator in the NumPy order (u1, u2, g (n, 2)) and the redraws (flow_compiled.redraw).
+        fl_int: on, axis, exact; fl_f: lo, length, vflow, kT. Compiled by `kernel_for` for scenes
+        with a flow wall (`flow_compiled` is linked then)."""
         ax = fl_int[1]
         lo, length = fl_f[0], fl_f[1]
         n = 0
         for i in range(X.shape[1]):
             xi = X[ax, i]
-            t = xi - lo
-            if not (t >= 0.0 and t < length):  # t % length is t itself there (positions are wrapped)
-                t = t % length
-            xw = lo + t
-            sg = 0
-            for k in range(walls.shape[0]):
-                sg += xw >= walls[k]
-            if grp[i] != 0:
-                moved = sg != phys[i]
-                pe = float(pend[i])
-                if moved or pe != 0.0:
-                    va = V[ax, i]
-                    dx = xi - prev[i]
-                    dx -= length * np.rint(dx / length)
-                    d = np.sign(dx)
-                    if d == 0.0:
-                        d = np.sign(va)
-                    if d == 0.0:
-                        d = 1.0
-                    returned = (pe != 0.0) & moved & (d == pe)
-                    turned = (pe != 0.0) & (not moved) & (va * pe <= 0.0)
-                    if returned:
-                        pend[i] = 0
-                    if (moved & (not returned)) | turned:
-                        CI[n] = i
-                        DIR[n] = -pe if turned else d
-                        n += 1
+            sg, d, pe = flow_compiled.crossing(xi, V[ax, i], prev[i], lo, length, walls, phys[i], pend[i], grp[i] != 0)
+            pend[i] = pe
+            if d != 0.0:
+                CI[n] = i
+                DIR[n] = d
+                n += 1
             phys[i] = sg
             prev[i] = xi
         if n == 0:
@@ -731,14 +697,9 @@ if njit is not None:
         for k in range(n):
             i = CI[k]
             gamma = 1.0 / math.sqrt(2.0 * kT / M[i])
-            delta = gamma * vflow
-            pplus = flow_compiled._expit(flow_compiled.log_tail(0.0, delta) - flow_compiled.log_tail(0.0, -delta), 0)
-            side = -1.0 if u1[k] > pplus else 1.0
-            v_axis = side * flow_compiled.solve_flux_speed(side * delta, 1.0 - u2[k], 100) / gamma
-            scale = gamma * flow_compiled._SQRT2
+            v_axis, V[(ax + 1) % 3, i], V[(ax + 2) % 3, i] = flow_compiled.redraw(u1[k], u2[k], g[k, 0], g[k, 1],
+                                                                                  gamma, vflow)
             V[ax, i] = v_axis
-            V[(ax + 1) % 3, i] = g[k, 0] / scale
-            V[(ax + 2) % 3, i] = g[k, 1] / scale
             pend[i] = -DIR[k] if fl_int[2] != 0 and v_axis * DIR[k] < 0.0 else 0
         cross[0] += n
 
