@@ -17,13 +17,15 @@ import copy
 
 import numpy as np
 import pytest
-from factories import slab_gas
+from factories import assert_same_results, run_numpy_and_compiled, slab_gas
 
 from wallbatch.config.models import config_from_dict
 from wallbatch.engine import compiled as fast
 from wallbatch.engine.engine import Engine
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import structure_key
+from wallbatch.styles import STYLES
+from wallbatch.styles.cutoff import CUTOFF_MODES, CutoffStyle
 
 pytestmark = pytest.mark.skipif(fast.njit is None, reason="numba not importable")
 
@@ -44,39 +46,18 @@ def gas(walls, *, n=120, steps=150, thermo=1, seed=5, temperature=1.5, output=OU
 def run_both(monkeypatch, configs):
     cases = [build_case(config_from_dict(d)) for d in configs]
     assert len({structure_key(c) for c in cases}) == 1  # one batch
-    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
-    ref_engine = Engine(cases)
-    assert ref_engine.fast is None
-    ref = ref_engine.run()
-    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
-    eng = Engine(cases)
-    got = eng.run()
-    return ref, got, eng
+    return run_numpy_and_compiled(monkeypatch, cases)
 
 
-def assert_same(ref, got, rtol=0.0):
-    assert [r.status for r in got] == [r.status for r in ref]
-    assert [r.error for r in got] == [r.error for r in ref]
-    for a, b in zip(ref, got):
-        assert a.data.keys() == b.data.keys()
-        for name in a.data:
-            x, y = a.data[name], b.data[name]
-            assert x.shape == y.shape, name
-            if rtol == 0.0:
-                np.testing.assert_array_equal(y, x, err_msg=name)
-            else:
-                scale = np.nanmax(np.abs(x)) if np.isfinite(x).any() else 0.0
-                np.testing.assert_allclose(y, x, rtol=0, atol=rtol * max(scale, 1e-300), equal_nan=True, err_msg=name)
-
-
-def check(monkeypatch, configs, rtol=0.0, *, sampled=True):
-    """Both ways; agreement; and whether the samples came from the kernel (`sampled`)."""
+def check(monkeypatch, configs, rtol=0.0, *, sampled=True, numpy_samples=1):
+    """Both ways; agreement; and whether the samples came from the kernel (`sampled`; NumPy takes
+    `numpy_samples` of them: step 0, and the instant of a step with trouble)."""
     ref, got, eng = run_both(monkeypatch, configs)
-    assert_same(ref, got, rtol)
+    assert_same_results(ref, got, rtol)
     assert eng.fast is not None and eng.fast.compiled_chunks > 0
     if sampled:
         assert eng.sample_blocks, "no sampled chunk ran"
-        assert len(eng.samples) == 1  # NumPy sampled step 0 (setup) only
+        assert len(eng.samples) == numpy_samples
     else:
         assert not eng.sample_blocks
     return ref, got, eng
@@ -139,11 +120,37 @@ def test_every_step_samples_match_numpy(monkeypatch, make, key, values, rtol):
     assert np.abs(got[0].data["press"] - ideal).max() > 1e-3
 
 
+ENERGY_PARAMS = {  # per style: parameters, the closest distance tested
+    "lj93": ({"epsilon": 1.3, "sigma": 0.9}, 0.09), "lj126": ({"epsilon": 1.3, "sigma": 0.9}, 0.3),
+    "lj1043": ({"epsilon": 1.3, "sigma": 0.9}, 0.2), "harmonic": ({"epsilon": 2.0, "sigma": 1.0}, 0.05),
+    "morse": ({"D0": 1.3, "alpha": 2.0, "r0": 0.9}, 0.05), "colloid": ({"epsilon": 1.3, "sigma": 0.9, "radius": 0.5}, 0.6),
+}
+
+
+@pytest.mark.parametrize("mode", [0, 1, 2], ids=["shift", "force-shift", "smooth"])
+@pytest.mark.parametrize("name", sorted(ENERGY_PARAMS))
+def test_compiled_energy_is_the_numpy_energy(name, mode):
+    """The kernel's energy of each (style, cut-off mode) is the NumPy CutoffStyle.energy: bit for
+    bit, or to 1e-14 where the style's functions call libm (morse: exp, expm1; colloid: log1p, atanh)."""
+    style = STYLES[name]
+    assert fast.energy_compiled(style)
+    assert (fast.STYLE_IDS[name], mode) in fast.MODE_ENERGIES  # every style runs every mode compiled
+    p = {**ENERGY_PARAMS[name][0], "cutoff": 2.5, "switch_on": 1.0}
+    cs = CutoffStyle(style, CUTOFF_MODES[mode])
+    r = np.linspace(ENERGY_PARAMS[name][1], p["cutoff"], 301)
+    want = cs.energy(r, {k: (np.full_like(r, v) if k == "radius" else v) for k, v in p.items()})
+    args = [float(a) for a in (*style.args(p), p["switch_on"])]
+    got = np.array([fast.MODE_ENERGIES[(fast.STYLE_IDS[name], mode)](float(ri), *args) for ri in r])
+    if name in ("morse", "colloid"):
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-14 * np.abs(want).max())
+    else:
+        np.testing.assert_array_equal(got, want)
+    assert np.abs(want).max() > 0.0
+
+
 def test_energy_and_force_of_a_face_are_the_registry_sums(monkeypatch):
     """One sample by hand: the recorded wall energy and force on the wall of the last step equal the
     registry's E(r) - E(rc) and F(r) summed over the atoms within the cut-off of each face."""
-    from wallbatch.styles.flat import STYLES
-
     monkeypatch.setenv("WALLBATCH_NUMBA", "1")
     d = gas(lj93(), steps=40, thermo=1, output=OUT)
     d["output"]["dump"] = {"every": 40, "fields": ["x"]}
@@ -196,14 +203,15 @@ REGIONS = {
 
 @pytest.mark.parametrize("shape", sorted(REGIONS))
 def test_region_walls_sampled_every_step(monkeypatch, shape):
-    """wall/region (lj93 and harmonic, energy and virial) in a closed 10^3 box, two cases: each
+    """wall/region (lj93 and harmonic, energy and virial) in a 10^3 box, two cases: each
     fix's energy and force on the wall (summed contact by contact in RegionGeom.contacts' order),
     pe and press at every step equal the NumPy engine's bit for bit."""
     region, start = REGIONS[shape]
     configs = []
     for k, eps in enumerate((1.0, 1.8)):
         d = gas({}, steps=100, n=60, seed=5 + k, temperature=2.0)
-        d["box"] = {"lo": [0, 0, 0], "hi": [10.0, 10.0, 10.0], "boundary": ["f", "f", "f"]}
+        closed = region.get("side", "in") == "in"  # an obstacle (side out) sits in a periodic box
+        d["box"] = {"lo": [0, 0, 0], "hi": [10.0, 10.0, 10.0], "boundary": ["f" if closed else "p"] * 3}
         d["regions"] = {"R": {**region, "units": "box"}, "mid": {**start, "units": "box"}}
         d["walls"] = {
             "a": {"style": "region", "region": "R", "potential": "lj93", "epsilon": eps, "sigma": 1.0,
@@ -259,12 +267,7 @@ def test_flow_crossings_per_sample(monkeypatch):
                                  "coords": [2.5, 5.0, 7.5], "units": "box"}},
                 "run": {"steps": 200, "thermo": 2},
                 "output": {"thermo": ["step", "ke", "temp", "flow_crossings"]}}
-    cases = [build_case(config_from_dict(cfg(3, 0.4))), build_case(config_from_dict(cfg(4, 1.2)))]
-    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
-    ref = Engine(cases).run()
-    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
-    eng = Engine(cases)
-    got = eng.run()
+    ref, got, eng = run_both(monkeypatch, [cfg(3, 0.4), cfg(4, 1.2)])
     assert eng.sample_blocks and len(eng.samples) == 1 and eng.fast.fallbacks == 0
     for r, g in zip(ref, got):
         assert r.status == g.status == "ok"
@@ -311,7 +314,7 @@ def test_a_case_failing_mid_chunk(monkeypatch):
         return gas({"w": {"style": "lj93", "units": "box", "energy": True,
                           "zlo": {"coord": coord, "epsilon": eps, "sigma": 1.0, "cutoff": 2.5}, "zhi": face(8.0)}},
                    steps=200, thermo=2)
-    _, got, eng = check(monkeypatch, [cfg(0.0), cfg(1.5, eps=0.0), cfg(0.3)])
+    _, got, eng = check(monkeypatch, [cfg(0.0), cfg(1.5, eps=0.0), cfg(0.3)], numpy_samples=2)
     assert [r.status for r in got] == ["ok", "failed", "ok"]
     step = int(got[1].error.split(" at step ")[1].split(":")[0])
     assert step > 10  # mid-run

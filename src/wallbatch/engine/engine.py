@@ -497,12 +497,15 @@ class Engine:
                 instants = sorted(samples | dumps | profile)[1:]
                 i = 0
                 while i < len(instants):
-                    # a run of sample instants (no dump or profile) in one compiled call, if the fast
-                    # path records samples itself (compiled.sampled_eligible)
+                    # a run of sample instants in one compiled call, if the fast path records samples
+                    # itself (compiled.sampled_eligible): up to the next dump or profile instant,
+                    # included if it is a sample instant too
                     j = i
-                    while j < len(instants) and j - i < SAMPLES_PER_CALL and instants[j] not in dumps \
-                            and instants[j] not in profile:
+                    while j < len(instants) and j - i < SAMPLES_PER_CALL:
                         j += 1
+                        if instants[j - 1] in dumps or instants[j - 1] in profile:
+                            j -= instants[j - 1] not in samples
+                            break
                     sampled = getattr(self.fast, "advance_sampled", None)
                     ran = 0
                     if j > i and sampled is not None and self.state.ncases:
@@ -510,6 +513,10 @@ class Engine:
                     if ran:
                         done = instants[i + ran - 1]
                         i += ran
+                        if done in dumps and self.state.ncases:
+                            self.dump_frame()
+                        if done in profile:
+                            self.profiles.sample(self.state)
                         t = self._charge(t)
                         continue
                     target = instants[i]
