@@ -129,11 +129,18 @@ def test_smooth_is_c2_at_switch_on_and_the_cutoff(name):
 
 
 def _source_with_helpers(fn) -> str:
-    """The source of `fn` and of the functions of its module it calls (colloid_shifted: colloid_dg)."""
+    """The source of `fn` and of the functions of its module it calls, transitively
+    (colloid_shifted: colloid_dg and its series and closed forms)."""
     module = inspect.getmodule(fn)
-    src = inspect.getsource(fn)
-    called = {name for name in re.findall(r"\b(\w+)\(", src) if inspect.isfunction(getattr(module, name, None))}
-    return src + "".join(inspect.getsource(getattr(module, name)) for name in sorted(called - {fn.__name__}))
+    seen, todo, out = {fn.__name__}, [fn], []
+    while todo:
+        src = inspect.getsource(todo.pop())
+        out.append(src)
+        for name in re.findall(r"\b(\w+)\(", src):
+            if name not in seen and inspect.isfunction(getattr(module, name, None)):
+                seen.add(name)
+                todo.append(getattr(module, name))
+    return "".join(out)
 
 
 @pytest.mark.parametrize("name", sorted(n for n in WRAPPED if STYLES[n].compiled))
