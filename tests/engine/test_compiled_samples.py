@@ -256,8 +256,9 @@ def test_dt_reset_sampled_every_step(monkeypatch):
 
 
 def test_flow_crossings_per_sample(monkeypatch):
-    """wall/flow in the kernel, sampled every 2 steps: redraws per sample equal NumPy's; ke to 1e-12
-    (the flux solver's few ulp)."""
+    """wall/flow in the kernel, sampled every 2 steps with a dump every 3 (the redraws of a chunk up
+    to a dump count in the next sample): redraws per sample equal NumPy's; ke to 1e-12 (the flux
+    solver's few ulp)."""
     def cfg(seed, vflow):
         return {"units": "lj", "seed": seed, "timestep": 0.005,
                 "box": {"lo": [0, 0, 0], "hi": [10.0, 3.0, 3.0], "boundary": ["p", "p", "p"]},
@@ -266,7 +267,7 @@ def test_flow_crossings_per_sample(monkeypatch):
                 "walls": {"fl": {"style": "flow", "axis": "x", "vflow": vflow, "temperature": 1.5, "seed": 99 + seed,
                                  "coords": [2.5, 5.0, 7.5], "units": "box"}},
                 "run": {"steps": 200, "thermo": 2},
-                "output": {"thermo": ["step", "ke", "temp", "flow_crossings"]}}
+                "output": {"thermo": ["step", "ke", "temp", "flow_crossings"], "dump": {"every": 3, "fields": ["v"]}}}
     ref, got, eng = run_both(monkeypatch, [cfg(3, 0.4), cfg(4, 1.2)])
     assert eng.sample_blocks and len(eng.samples) == 1 and eng.fast.fallbacks == 0
     for r, g in zip(ref, got):

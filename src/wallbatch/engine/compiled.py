@@ -1831,7 +1831,10 @@ class FastPath:
         else:  # one case per call: each case draws from its own generator
             rng_states = [r.bit_generator.state for r in fk.rngs]
             phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
-            prev, cross = np.ascontiguousarray(fk.prev, dtype=float).copy(), np.zeros((C, 1))
+            # redraws since the last sample: the pending count, then the chunk's (a sampled chunk
+            # reports and zeroes it at each sample)
+            prev = np.ascontiguousarray(fk.prev, dtype=float).copy()
+            cross = np.array(fk.crossings, dtype=float).reshape(C, 1)
             status = 0
             for c in range(C):
                 fl_int = np.array([1, fk.axis[c], int(fk.exact[c])], np.int64)
@@ -1866,7 +1869,7 @@ class FastPath:
             _fix_store(fx, fx_fixes, plan)
         if fk is not None:
             fk.phys, fk.pend, fk.prev = phys.astype(np.intp), pend.astype(np.int8), prev
-            fk.crossings += cross[:, 0]
+            fk.crossings = cross[:, 0].copy()
         self._spare = (s.x, s.v, s.f)
         s.x, s.v, s.f = xo, vo, fo
         k = 0
