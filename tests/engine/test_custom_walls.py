@@ -401,25 +401,45 @@ def test_lepton_chunk_kernel_is_loaded_from_disk_by_a_second_process(tmp_path):
 
 
 @pytest.mark.slow
-def test_compiled_tables_equal_numpy_bit_for_bit(tmp_path, monkeypatch):
-    """wall/table faces (a linear and a spline table) run in the compiled chunk kernel with the
-    force generated from each table (the same lookup functions, jitted): the trajectory and
-    outputs equal the NumPy engine's bit for bit."""
+@pytest.mark.parametrize("walls", [
+    # both faces of one fix: a linear table below, a spline table above
+    "a: {style: table, tabstyle: linear, N: 700, units: box, energy: true, "
+    "zlo: {coord: EDGE, file: walls.table, keyword: LJ93, cutoff: 2.5}, "
+    "zhi: {coord: EDGE, file: walls.table, keyword: HARM, cutoff: 2.0}}\n"
+    "b: {style: table, tabstyle: spline, N: 500, units: box, energy: true, "
+    "zhi: {coord: EDGE, file: walls.table, keyword: HARM, cutoff: 1.5}}\n",
+    # two fixes, other tables and cut-offs, the same file section at two resolutions
+    "a: {style: table, tabstyle: spline, N: 90, units: box, energy: true, "
+    "zlo: {coord: EDGE, file: walls.table, keyword: HARM, cutoff: 1.2}}\n"
+    "b: {style: table, tabstyle: linear, N: 3000, units: box, "
+    "zhi: {coord: EDGE, file: walls.table, keyword: LJ93, cutoff: 3.0}}\n",
+])
+def test_compiled_tables_equal_numpy_bit_for_bit(tmp_path, monkeypatch, walls):
+    """wall/table faces run in the built-in scene kernel at default settings, their tables
+    passed as data (no per-table compile): a sweep over the cut-off in one batch gives the NumPy
+    engine's trajectories and outputs bit for bit (linear and spline, lo and hi faces, several
+    tables in one kernel)."""
+    from wallbatch.engine import compiled as fast_mod  # noqa: PLC0415
     from wallbatch.engine.engine import Engine  # noqa: PLC0415
 
-    tab = lj93_tables(tmp_path, n=300)
-    text = slit(f"a: {{style: table, tabstyle: linear, N: 700, units: box, energy: true, "
-                f"zlo: {{coord: EDGE, file: {tab.name}, keyword: LJ93, cutoff: 2.5}}}}\n"
-                f"b: {{style: table, tabstyle: spline, N: 500, units: box, energy: true, "
-                f"zhi: {{coord: EDGE, file: {tab.name}, keyword: HARM, cutoff: 2.0}}}}\n", steps=300)
-    case = build_case(load_config(write(tmp_path, text)))
+    monkeypatch.delenv("WALLBATCH_LEPTON_COMPILED", raising=False)
+    lj93_tables(tmp_path, n=300)
+    path = "walls.a.zlo.cutoff"
+    text = slit(walls, steps=300, extra=f"sweep:\n  product:\n    rc: {{path: {path}, values: [1.0, 1.1, 1.2]}}\n")
+    plan = load_plan(write(tmp_path, text))
+    cases = [build_case(c.config, c.seed_key) for c in plan.cases]
+    assert len({structure_key(c) for c in cases}) == 1
     runs = {}
-    for mode in ("always", "never"):
-        monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", mode)
-        engine = Engine([case])
-        runs[mode] = (engine.run()[0], engine.fast)
-    (compiled, fast), (numpy_res, none) = runs["always"], runs["never"]
+    for numba in ("1", "0"):
+        monkeypatch.setenv("WALLBATCH_NUMBA", numba)
+        engine = Engine(cases)
+        runs[numba] = (engine.run(), engine.fast)
+    (compiled, fast), (numpy_res, none) = runs["1"], runs["0"]
     assert none is None and fast is not None and fast.compiled_chunks > 0 and fast.fallbacks == 0
-    assert np.all(numpy_res.data["wall_force"][1:] != 0.0)
-    for key in ("etot", "wall_energy", "wall_force", "temp"):
-        np.testing.assert_array_equal(compiled.data[key], numpy_res.data[key])
+    assert fast_mod._lepton_extra(engine.compiled_plan()) == ()  # nothing generated per table
+    for c, n in zip(compiled, numpy_res):
+        assert c.status == n.status == "ok"
+        assert np.any(n.data["wall_force"][1:] != 0.0)
+        for key in ("etot", "wall_energy", "wall_force", "temp"):
+            np.testing.assert_array_equal(c.data[key], n.data[key])
+    assert len({float(r.data["wall_energy"][1:].sum()) for r in numpy_res}) == 3

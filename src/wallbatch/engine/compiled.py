@@ -77,6 +77,7 @@ from wallbatch.styles.cutoff import CUTOFF_MODES, FORCE_SHIFT, SHIFT, SMOOTH, cu
 from wallbatch.styles.cutoff import supported as cutoff_supported
 from wallbatch.styles.lepton import HELPERS_IMPORT, generated_module, generated_path
 from wallbatch.styles.lepton import _helpers as _lepton_helpers
+from wallbatch.styles.table import TableWallStyle, linear_lookup, spline_lookup
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
@@ -87,6 +88,9 @@ except Exception:  # noqa: BLE001 - any import failure means "no compiled path"
 # the styles the kernel runs, numbered in registry order (sf_meta's style column)
 COMPILED_STYLES: tuple[WallStyle, ...] = tuple(s for s in STYLES.values() if s.compiled)
 STYLE_IDS: dict[str, int] = {s.name: i for i, s in enumerate(COMPILED_STYLES)}
+TABLE_STYLE = -1  # sf_meta's style column of a wall/table face (its table: the kernel's tb arrays)
+# the table lookups compiled into a scene kernel with wall/table faces: part of its cache key
+_TABLE_SOURCE = "# wall/table\n" + inspect.getsource(linear_lookup) + inspect.getsource(spline_lookup)
 BLOCK = 256  # atoms per block: a block's buffers stay in L1 cache over a window of steps
 WINDOW = 64  # steps per speculative window under dt/reset
 # wall/region geometries in the kernel (rg_meta's kind column)
@@ -243,6 +247,52 @@ if njit is not None:
             F[d, i] = fi
         return nbad
 
+
+    # -- fix wall/table: tables as data (styles.table.WallTable.kernel_rows), one compiled loop for any table
+    _table_linear = njit(nogil=True, error_model="numpy", inline="always")(linear_lookup)
+    _table_spline = njit(nogil=True, error_model="numpy", inline="always")(spline_lookup)
+
+    @inline
+    def _table_face(linear, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6, u0, u1):
+        """One wall/table face over atoms u0..u1-1 (as `_face`, shift mode): F(r) by the table's
+        linear or spline lookup (WallTable.lookup's arithmetic: the same functions, jitted) on
+        its rows grid, tf (force), td (dF or F2). Returns the number of atoms nearer than the
+        table's first distance lo (the NumPy path then reports them). `linear` is a literal."""
+        sidef = float(side)
+        sign = -sidef
+        n2 = grid.shape[0] - 2
+        nbad = 0
+        for i in range(u0, u1):
+            r = (X[d, i] - coord) * sign
+            near = (r < cut) & (groups[g, i] != 0)
+            nbad += near & (r < lo)
+            if near and r >= lo:
+                j = min(int((r - lo) * invdelta), n2)
+                if linear:
+                    fr = _table_linear(r, j, grid, tf, td, invdelta)
+                else:
+                    fr = _table_spline(r, j, grid, tf, td, invdelta, deltasq6)
+                F[d, i] = F[d, i] - sidef * fr
+        return nbad
+
+    @inline
+    def _table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1):
+        """Soft face k of the scene, a wall/table face: its rows in tb = (tb_meta (K, 3) int:
+        offset, N, linear; tb_par (K, 3): lo, 1/delta, delta^2/6; tb_data: every table's rows)."""
+        off, n = tb[0][k, 0], tb[0][k, 1]
+        data = tb[2]
+        grid, tf, td = data[off:off + n], data[off + n:off + 2 * n], data[off + 2 * n:off + 3 * n]
+        lo, invdelta, deltasq6 = tb[1][k, 0], tb[1][k, 1], tb[1][k, 2]
+        if tb[0][k, 2] != 0:
+            return _table_face(True, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6,
+                               u0, u1)
+        return _table_face(False, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6,
+                           u0, u1)
+
+    @inline
+    def _no_table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1):
+        """`_table_faces` of a scene without wall/table faces: nothing (never called)."""
+        return 0
 
     # -- fix wall/region (region_walls.RegionWallKernel.apply; geometry of regions.RegionGeom) ------
     # A region's contacts of one block of atoms go into RB[slot, :, i - u0] = (flag, r, delta x, y, z)
@@ -564,14 +614,15 @@ if njit is not None:
 
     @inline
     def _block_step(c, u0, u1, si, row, dtc, due, X, V, F, M, RAD, DTFM, CAND, groups, box,
-                    sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp):
+                    sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp,
+                    tb):
         """One velocity-Verlet step (engine.Engine.step) of atoms u0..u1-1 of case c, as simple
         passes over the structure-of-arrays buffers: kick-drift, reflect faces (wall velocities
         vw[row], statistics into rstat[row]), periodic wrap, force clear, soft faces, lost test,
         kick; with `due`, fix dt/reset's candidates. Returns (status, smallest candidate over
         the dt/reset group, NaN if any is NaN); status 0, 1 (an atom on/behind a soft wall) or
         2 (an atom left through a fixed boundary). box rows: lo, hi, periodic (1.0) per dimension;
-        dtr_par[c]: xmax, emax, tmin, tmax."""
+        dtr_par[c]: xmax, emax, tmin, tmax; tb: the wall/table faces' tables (`_table_faces`)."""
         for d in range(3):  # initial_integrate: v += dtfm f; x += dt v
             for i in range(u0, u1):
                 vi = V[d, i] + DTFM[i] * F[d, i]
@@ -610,8 +661,11 @@ if njit is not None:
             g, d, side = sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2]
             coord, cut, ron = sf_val[c, si, k, 0], sf_val[c, si, k, 4], sf_val[c, si, k, 5]
             p0, p1, p2 = sf_val[c, si, k, 1], sf_val[c, si, k, 2], sf_val[c, si, k, 3]
-            nbad += _soft_face(style, sf_meta[k, 4], X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron,
-                               u0, u1)
+            if style == TABLE_STYLE:  # wall/table: the face's table from tb (data, not code)
+                nbad += _table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1)
+            else:
+                nbad += _soft_face(style, sf_meta[k, 4], X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut,
+                                   ron, u0, u1)
         if rg[0].shape[0]:  # wall/region fixes (post_force, after the flat walls as in compute_forces)
             nbad += _region_walls(c, u0, u1, X, F, RAD, groups, rg[0], rg[1], rg[2], rg[3])
         if nbad:
@@ -749,7 +803,8 @@ if njit is not None:
         def _run_chunk(nsteps, time_mode, target, tol, x, v, f, mass, radius, dt, atime, atimestep,
                        step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
                        stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo, rg_meta, rg_geo, rg_val,
-                       fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng, fx, fx_rng):
+                       fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng, fx, fx_rng,
+                       tb_meta, tb_par, tb_data):
             """Advance every case by nsteps steps (or, with time_mode, to the time `target` as
             Engine.advance_to_time does), reading x, v, f and writing xo, vo, fo. Returns 0, or the
             nonzero status of the first trouble met (1: an atom on/behind a soft wall, 2: a lost atom,
@@ -813,6 +868,7 @@ if njit is not None:
             FL = np.zeros((3, nfx))  # this step's Langevin forces (the tally's)
             KB = np.empty(nfx)  # per-atom terms of a sum over atoms
             fxp = (fx_meta, G1, FR, FL)
+            tb = (tb_meta, tb_par, tb_data)  # wall/table faces (`_table_faces`)
             for c in range(ncase):
                 for a in range(natom):
                     for d in range(3):
@@ -885,7 +941,7 @@ if njit is not None:
                             due = dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
                             st, m = _block_step(c, u0, u1, (done + s) * vary, s, dtc, due, X, V, F, M, RAD, DTFM,
                                                 CAND, groups, box, sf_meta, sf_val, rf_meta, rf_val,
-                                                vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp)
+                                                vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp, tb)
                             if st != 0:
                                 return st
                             if due:
@@ -996,24 +1052,25 @@ if njit is not None:
         filename: str | None
         fingerprint: int
 
-    def _scene_args(soft: Any, region: Any, flow: Any, extra: Any) -> tuple:
-        return tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow), tuple(extra)
+    def _scene_args(soft: Any, region: Any, flow: Any, extra: Any, tables: Any = False) -> tuple:
+        return tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow), tuple(extra), bool(tables)
 
     def pieces_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
-                   extra: tuple[str, ...] = ()) -> ScenePieces:
+                   extra: tuple[str, ...] = (), tables: bool = False) -> ScenePieces:
         """The compiled pieces of one kind of scene (`_pieces_for`), one per specialisation and
         process: what `kernel_for` and the fused pair chunks (engine/pair_compiled.py) link in."""
-        return _pieces_for(*_scene_args(soft, region, flow, extra))
+        return _pieces_for(*_scene_args(soft, region, flow, extra, tables))
 
     @functools.lru_cache(maxsize=64)
     def _pieces_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
-                    extra: tuple[str, ...]) -> ScenePieces:
+                    extra: tuple[str, ...], tables: bool = False) -> ScenePieces:
         """The face dispatch, region walls, flow step and block step of one kind of scene,
         specialised to what it has: the (style number, cut-off mode) pairs of its flat soft faces
         (`soft`) and of its wall/region fixes (`region`, none: no region code), a wall/flow fix
-        (`flow`) and generated forces (`extra`: wall/lepton and wall/table, the source of
+        (`flow`), generated forces (`extra`: wall/lepton, the source of
         force(r, p0, p1, p2, rc, radius) from WallStyle.generated_force, mode shift, styles
-        len(COMPILED_STYLES) + j). Only those branches are generated and compiled. With `extra`
+        len(COMPILED_STYLES) + j) and wall/table faces (`tables`: one table loop, the tables are
+        the kernel's data, style TABLE_STYLE). Only those branches are generated and compiled. With `extra`
         the forces and the dispatch are written to a module file (styles.lepton.generated_module,
         `_chunk_module_source`) that a kernel built on them is attributed to, so numba caches it
         on disk. The pieces are this module's functions re-linked (the same code objects, new
@@ -1049,26 +1106,30 @@ if njit is not None:
             from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
 
             flow_step = njit(nogil=True, error_model="numpy")(_relink(_flow_step, flow_compiled=flow_compiled))
+        table_faces = _no_table_faces
+        if tables:
+            table_faces = _table_faces
+            source += _TABLE_SOURCE
         block_step = njit(nogil=True, error_model="numpy", inline="always")(
-            _relink(_block_step, _soft_face=soft_face, _region_walls=region_walls))
+            _relink(_block_step, _soft_face=soft_face, _region_walls=region_walls, _table_faces=table_faces))
         return ScenePieces(soft_face, region_walls, flow_step, block_step, source, filename,
                            _fingerprint(pairs, flow, False, source))
 
     def kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
-                   extra: tuple[str, ...] = (), parallel: bool = False) -> Any:
+                   extra: tuple[str, ...] = (), parallel: bool = False, tables: bool = False) -> Any:
         """The chunk kernel of one kind of scene (`_kernel_for`), one per specialisation and process."""
-        return _kernel_for(*_scene_args(soft, region, flow, extra), bool(parallel))
+        return _kernel_for(*_scene_args(soft, region, flow, extra, tables), bool(parallel))
 
     @functools.lru_cache(maxsize=64)
     def _kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
-                    extra: tuple[str, ...], parallel: bool) -> Any:
+                    extra: tuple[str, ...], tables: bool, parallel: bool) -> Any:
         """The chunk kernel of one kind of scene (`pieces_for`; `parallel`: compiled with numba
         parallel=True, reserved for a two-thread variant, not used by the engine yet): this
         module's chunk kernel re-linked to the scene's block and flow steps, named
         `_run_chunk_<fingerprint>` so numba caches it on disk in its own index file (beside this
         file, or with `extra` beside the generated module it is attributed to: compiled once,
         loaded by later processes)."""
-        p = _pieces_for(soft, region, flow, extra)
+        p = _pieces_for(soft, region, flow, extra, tables)
         fp = _fingerprint(tuple(sorted(set(soft) | set(region))), flow, parallel, p.source)
         fn = _relink(_make_run_chunk(fp), name=f"_run_chunk_{fp:015x}", filename=p.filename,
                      _block_step=p.block_step, _flow_step=p.flow_step)
@@ -1137,11 +1198,40 @@ def _face_styles(w: SoftWallKernel) -> list[WallStyle]:
 
 
 def _generated_force(style: WallStyle) -> str | None:
-    """The generated source of a face's force (wall/lepton with at most 3 parameters, wall/table:
+    """The generated source of a face's force (wall/lepton with at most 3 parameters:
     WallStyle.generated_force), else None."""
     return style.generated_force()
 
 
+def _is_table(style: WallStyle) -> bool:
+    """A wall/table face: the kernel runs its table as data (style TABLE_STYLE), no compile of its own."""
+    return isinstance(style, TableWallStyle) and style.table is not None
+
+
+def _tables(soft_faces: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The kernel's tb arrays for the soft faces [(kernel, style, face), ...] in sf_meta order:
+    tb_meta (K, 3) int = offset into tb_data, N, linear (1) or spline (0); tb_par (K, 3) = lo,
+    1/delta, delta^2/6; tb_data: the rows (WallTable.kernel_rows) of each table once. Rows of
+    other faces are zeros."""
+    meta = np.zeros((len(soft_faces), 3), np.int64)
+    par = np.zeros((len(soft_faces), 3))
+    chunks: list[np.ndarray] = []
+    where: dict[int, int] = {}
+    size = 0
+    for k, (_, st, _) in enumerate(soft_faces):
+        if not _is_table(st):
+            continue
+        t = st.table
+        if id(t) not in where:
+            where[id(t)] = size
+            chunks.append(t.kernel_rows().reshape(-1))
+            size += chunks[-1].size
+        meta[k] = (where[id(t)], len(t.r), 1 if t.tabstyle == "linear" else 0)
+        par[k] = (t.lo, t.invdelta, t.deltasq6)
+    return meta, par, (np.concatenate(chunks) if chunks else np.zeros(0))
+
+
+# wall/table faces run in the built-in scene kernel (their tables are its data): always eligible.
 # wall/lepton faces run in the scene's chunk kernel with the batch's expressions (`kernel_for`):
 # compiled once (~20 s), then cached on disk and loaded by later processes (~0.5 s, like the
 # built-in kernel). WALLBATCH_LEPTON_COMPILED=always|never|auto; auto (the default) uses it when
@@ -1197,6 +1287,8 @@ def lepton_compiled_wanted(state: BatchState, extra: tuple[str, ...] = ()) -> bo
 def _compiled_face(w: SoftWallKernel, style: WallStyle) -> bool:
     if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] == style:
         return w.cutoff.mode_id in _modes(style)
+    if _is_table(style):
+        return w.cutoff.mode_id == SHIFT
     return _generated_force(style) is not None and w.cutoff.mode_id == SHIFT
 
 
@@ -1501,6 +1593,8 @@ class FastPath:
         def style_id(style: WallStyle) -> int:
             if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] == style:
                 return STYLE_IDS[style.name]
+            if _is_table(style):
+                return TABLE_STYLE
             return len(COMPILED_STYLES) + extra.index(_generated_force(style))
 
         groups: list[np.ndarray] = [np.ones(s.x.shape[1], np.uint8)]
@@ -1544,8 +1638,10 @@ class FastPath:
         backup = {k: getattr(s, k).copy() for k in ("dt", "atime", "atimestep", "step")}
         fk = plan.flow[0] if plan.flow else None
         n = len(COMPILED_STYLES)
-        kernel = kernel_for(tuple(sorted({(int(r[0]), int(r[4])) for r in sf_meta if r[0] < n})),
-                            tuple(sorted({(int(r[2]), int(r[4])) for r in rg[0]})), fk is not None, tuple(extra))
+        tb = _tables(soft_faces)
+        kernel = kernel_for(tuple(sorted({(int(r[0]), int(r[4])) for r in sf_meta if 0 <= r[0] < n})),
+                            tuple(sorted({(int(r[2]), int(r[4])) for r in rg[0]})), fk is not None, tuple(extra),
+                            tables=bool(np.any(sf_meta[:, 0] == TABLE_STYLE)))
         self.kernel = kernel  # the last chunk's kernel (tests read its cache statistics)
         if not kernel.signatures:
             announce_compile(kernel, 30 if extra else COMPILE_SECONDS)  # generated forces: ~30 s
@@ -1561,7 +1657,7 @@ class FastPath:
             return kernel(*args, s.x[c], s.v[c], s.f[c], s.mass[c], s.radius[c], s.dt[c], s.atime[c],
                               s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
                               rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
-                              rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng)
+                              rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng, *tb)
 
         if fx_rngs:  # fix langevin: one case per call, each with its own generator
             rng_states = [r.bit_generator.state for r in fx_rngs]
