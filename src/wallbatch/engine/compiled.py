@@ -64,10 +64,12 @@ from typing import Any
 import numpy as np
 
 from wallbatch.engine import dt_reset as _dtr
+from wallbatch.engine import stochastic as _st
 from wallbatch.engine import thermostats as _th
 from wallbatch.engine.dt_reset import BIG, dt_candidate
 from wallbatch.engine.state import BatchState
 from wallbatch.engine.region_walls import RegionWallKernel
+from wallbatch.engine.stochastic import RSTYLES, StochasticKernel
 from wallbatch.engine.walls import CustomWallKernel, ReflectKernel, SoftWallKernel
 from wallbatch.expr import VariableError
 from wallbatch.scene.case import DtResetSpec
@@ -197,6 +199,16 @@ if njit is not None:
         """thermostats.libm_exp for a scalar: math.exp (the C library's exp)."""
         return lambda x: math.exp(x)
 
+    @overload(_st.libm_log)
+    def _libm_log(x):  # noqa: ANN001, ANN202
+        """stochastic.libm_log for a scalar: math.log (the C library's log)."""
+        return lambda x: math.log(x)
+
+    @overload(_st.libm_cos)
+    def _libm_cos(x):  # noqa: ANN001, ANN202
+        """stochastic.libm_cos for a scalar: math.cos (the C library's cos)."""
+        return lambda x: math.cos(x)
+
     @inline
     def _nmin(a: float, b: float) -> float:
         """np.minimum for two scalars (NaN propagates)."""
@@ -292,6 +304,84 @@ if njit is not None:
     @inline
     def _no_table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1):
         """`_table_faces` of a scene without wall/table faces: nothing (never called)."""
+        return 0
+
+    # -- fix wall/reflect/stochastic (stochastic.StochasticKernel.apply): the same plain functions
+    _st_sigma = njit(nogil=True, error_model="numpy", inline="always")(_st.thermal_sigma)
+    _st_dnormal = njit(nogil=True, error_model="numpy", inline="always")(_st.diffusive_normal)
+    _st_tangent = njit(nogil=True, error_model="numpy", inline="always")(_st.thermal_tangent)
+    _st_cnormal = njit(nogil=True, error_model="numpy", inline="always")(_st.ccl_normal)
+    _st_ctangent = njit(nogil=True, error_model="numpy", inline="always")(_st.ccl_tangent)
+    _st_time = njit(nogil=True, error_model="numpy", inline="always")(_st.crossing_time)
+    _st_position = njit(nogil=True, error_model="numpy", inline="always")(_st.crossed_position)
+
+    @inline
+    def _stochastic_faces(c, u0, u1, X, V, M, groups, st, ftm2v, mvv2e):
+        """fix wall/reflect/stochastic's faces on atoms u0..u1-1 (every atom of the case: the
+        chunk runs one block, one case per call), after the wall/reflect faces. st = (st_meta (K, 4)
+        int: dim, side, group row, rule (RSTYLES index); st_val (C, K, 9): coord, temp, vx, vy,
+        vz, ax, ay, az, kB; st_stat (C, K, 2): reflections, impulse; stats flag (1,) int; the
+        case's generator; SI scratch (N,) int). Per face: the atoms past it in atom order, then the
+        draws of StochasticKernel.apply in its order, then its arithmetic atom by atom."""
+        st_meta, st_val, st_stat, st_flag, rng, SI = st
+        for k in range(st_meta.shape[0]):
+            d, side, g, rule = st_meta[k, 0], st_meta[k, 1], st_meta[k, 2], st_meta[k, 3]
+            coord = st_val[c, k, 0]
+            n = 0
+            for i in range(u0, u1):
+                pos = X[d, i]
+                if ((pos < coord) if side < 0 else (pos > coord)) and groups[g, i] != 0:
+                    SI[n] = i
+                    n += 1
+            if n == 0:
+                continue
+            if rule == 2:  # ccl: U1 in (0, 1], U2, N (n, 2)
+                ua = 1.0 - rng.random(n)
+                ub = rng.random(n)
+            elif rule == 1:  # maxwell: the choice, U, N (n, 2)
+                ub = rng.random(n)
+                ua = 1.0 - rng.random(n)
+            else:  # diffusive: U, N (n, 2)
+                ua = 1.0 - rng.random(n)
+                ub = ua
+            gn = rng.standard_normal((n, 2))
+            t0 = 1 if d == 0 else 0  # the tangential axes in increasing order
+            t1 = 1 if d == 2 else 2
+            away = -float(side)
+            temp, kb = st_val[c, k, 1], st_val[c, k, 8]
+            w0, w1 = st_val[c, k, 2 + t0], st_val[c, k, 2 + t1]
+            an, a0, a1 = st_val[c, k, 5 + d], st_val[c, k, 5 + t0], st_val[c, k, 5 + t1]
+            acc = st_val[c, k, 5]  # maxwell's one coefficient
+            imp = 0.0
+            for j in range(n):
+                i = SI[j]
+                vn, v0, v1 = V[d, i], V[t0, i], V[t1, i]
+                sigma = _st_sigma(temp, M[i], kb, mvv2e)
+                if rule == 2:
+                    nn = _st_cnormal(away, sigma, an, vn, ua[j], ub[j])
+                    n0 = _st_ctangent(w0, a0, v0, sigma, gn[j, 0])
+                    n1 = _st_ctangent(w1, a1, v1, sigma, gn[j, 1])
+                elif rule == 1 and not ub[j] < acc:  # maxwell, specular
+                    nn, n0, n1 = -vn, v0, v1
+                else:
+                    nn = _st_dnormal(away, sigma, ua[j])
+                    n0 = _st_tangent(w0, sigma, gn[j, 0])
+                    n1 = _st_tangent(w1, sigma, gn[j, 1])
+                t = _st_time(X[d, i], coord, vn)
+                X[t0, i] = X[t0, i] + (n0 - v0) * t
+                X[t1, i] = X[t1, i] + (n1 - v1) * t
+                X[d, i] = _st_position(X[d, i], coord, vn, nn, t)
+                V[d, i], V[t0, i], V[t1, i] = nn, n0, n1
+                dp = M[i] * (vn - nn)
+                imp = dp if j == 0 else imp + dp  # in atom order (StochasticKernel.apply's cumsum)
+            if st_flag[0] != 0:
+                st_stat[c, k, 0] += n
+                st_stat[c, k, 1] += imp / ftm2v
+        return 0
+
+    @inline
+    def _no_stochastic_faces(c, u0, u1, X, V, M, groups, st, ftm2v, mvv2e):
+        """`_stochastic_faces` of a scene without wall/reflect/stochastic: nothing (never called)."""
         return 0
 
     # -- fix wall/region (region_walls.RegionWallKernel.apply; geometry of regions.RegionGeom) ------
@@ -615,14 +705,18 @@ if njit is not None:
     @inline
     def _block_step(c, u0, u1, si, row, dtc, due, X, V, F, M, RAD, DTFM, CAND, groups, box,
                     sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp,
-                    tb):
+                    tbst):
         """One velocity-Verlet step (engine.Engine.step) of atoms u0..u1-1 of case c, as simple
         passes over the structure-of-arrays buffers: kick-drift, reflect faces (wall velocities
         vw[row], statistics into rstat[row]), periodic wrap, force clear, soft faces, lost test,
         kick; with `due`, fix dt/reset's candidates. Returns (status, smallest candidate over
         the dt/reset group, NaN if any is NaN); status 0, 1 (an atom on/behind a soft wall) or
         2 (an atom left through a fixed boundary). box rows: lo, hi, periodic (1.0) per dimension;
-        dtr_par[c]: xmax, emax, tmin, tmax; tb: the wall/table faces' tables (`_table_faces`)."""
+        dtr_par[c]: xmax, emax, tmin, tmax; tbst = (tb, st): the wall/table faces' tables
+        (`_table_faces`) and the wall/reflect/stochastic faces (`_stochastic_faces`), one argument
+        (a call of more than 30 arguments is compiled by CPython as f(*args), which numba cannot
+        inline)."""
+        tb, st = tbst
         for d in range(3):  # initial_integrate: v += dtfm f; x += dt v
             for i in range(u0, u1):
                 vi = V[d, i] + DTFM[i] * F[d, i]
@@ -643,6 +737,8 @@ if njit is not None:
                     if stats:
                         rstat[row, k, 0] += 1.0
                         rstat[row, k, 1] += M[i] * (vb - va) / ftm2v
+        if st[0].shape[0]:  # wall/reflect/stochastic (post_integrate, after the wall/reflect fixes: `eligible`)
+            _stochastic_faces(c, u0, u1, X, V, M, groups, st, ftm2v, mvv2e)
         for d in range(3):  # periodic wrap
             if box[2, d] != 0.0:
                 lod = box[0, d]
@@ -804,7 +900,7 @@ if njit is not None:
                        step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
                        stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo, rg_meta, rg_geo, rg_val,
                        fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng, fx, fx_rng,
-                       tb_meta, tb_par, tb_data):
+                       tb_meta, tb_par, tb_data, st_meta, st_val, st_stat, st_flag, st_rng):
             """Advance every case by nsteps steps (or, with time_mode, to the time `target` as
             Engine.advance_to_time does), reading x, v, f and writing xo, vo, fo. Returns 0, or the
             nonzero status of the first trouble met (1: an atom on/behind a soft wall, 2: a lost atom,
@@ -822,7 +918,9 @@ if njit is not None:
             nrf = rf_meta.shape[0]
             hf = 0.5 * ftm2v
             vary = 1 if (sf_val.shape[1] > 1 or rf_val.shape[1] > 1) else 0
-            nblock = (natom + BLOCK - 1) // BLOCK
+            # wall/reflect/stochastic draws for the atoms of a face in atom order: one block of all atoms
+            blk = max(natom, 1) if st_meta.shape[0] else BLOCK
+            nblock = (natom + blk - 1) // blk
             box = np.empty((3, 3))
             for d in range(3):
                 box[0, d] = lo[d]
@@ -845,7 +943,7 @@ if njit is not None:
             low = np.empty(nrow)  # smallest dt/reset candidate per step of a window
             # wall/region: one argument (a call of more than 30 arguments is compiled by CPython as
             # f(*args), which numba cannot inline); RB holds a block's contacts (_region_contacts)
-            rg = (rg_meta, rg_geo, rg_val, np.empty((6, 5, BLOCK)))
+            rg = (rg_meta, rg_geo, rg_val, np.empty((6, 5, blk)))
             # wall/flow (fl_int[0] != 0; the chunk then holds one case): step by step over all blocks
             CI = np.empty(natom if fl_int[0] != 0 else 0, np.int64)
             DIR = np.empty(natom if fl_int[0] != 0 else 0)
@@ -869,6 +967,8 @@ if njit is not None:
             KB = np.empty(nfx)  # per-atom terms of a sum over atoms
             fxp = (fx_meta, G1, FR, FL)
             tb = (tb_meta, tb_par, tb_data)  # wall/table faces (`_table_faces`)
+            sto = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(natom if st_meta.shape[0] else 0, np.int64))
+            tbst = (tb, sto)  # and wall/reflect/stochastic (`_stochastic_faces`)
             for c in range(ncase):
                 for a in range(natom):
                     for d in range(3):
@@ -935,13 +1035,13 @@ if njit is not None:
                     if thermo:  # fix nvt's first half step, the Langevin random forces
                         _fix_pre(c, step[c] + 1, dtc, V, M, groups, fx, fx_rng, SQM, FR, KB)
                     for b in range(nblock):
-                        u0 = np.uint64(b * BLOCK)  # unsigned: no negative-index wraparound, loops vectorise
-                        u1 = np.uint64(min(b * BLOCK + BLOCK, natom))
+                        u0 = np.uint64(b * blk)  # unsigned: no negative-index wraparound, loops vectorise
+                        u1 = np.uint64(min(b * blk + blk, natom))
                         for s in range(nwin):
                             due = dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
                             st, m = _block_step(c, u0, u1, (done + s) * vary, s, dtc, due, X, V, F, M, RAD, DTFM,
                                                 CAND, groups, box, sf_meta, sf_val, rf_meta, rf_val,
-                                                vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp, tb)
+                                                vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp, tbst)
                             if st != 0:
                                 return st
                             if due:
@@ -1052,25 +1152,28 @@ if njit is not None:
         filename: str | None
         fingerprint: int
 
-    def _scene_args(soft: Any, region: Any, flow: Any, extra: Any, tables: Any = False) -> tuple:
-        return tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow), tuple(extra), bool(tables)
+    def _scene_args(soft: Any, region: Any, flow: Any, extra: Any, tables: Any = False, stochastic: Any = False
+                    ) -> tuple:
+        return (tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow), tuple(extra), bool(tables),
+                bool(stochastic))
 
     def pieces_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
-                   extra: tuple[str, ...] = (), tables: bool = False) -> ScenePieces:
+                   extra: tuple[str, ...] = (), tables: bool = False, stochastic: bool = False) -> ScenePieces:
         """The compiled pieces of one kind of scene (`_pieces_for`), one per specialisation and
         process: what `kernel_for` and the fused pair chunks (engine/pair_compiled.py) link in."""
-        return _pieces_for(*_scene_args(soft, region, flow, extra, tables))
+        return _pieces_for(*_scene_args(soft, region, flow, extra, tables, stochastic))
 
     @functools.lru_cache(maxsize=64)
     def _pieces_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
-                    extra: tuple[str, ...], tables: bool = False) -> ScenePieces:
+                    extra: tuple[str, ...], tables: bool = False, stochastic: bool = False) -> ScenePieces:
         """The face dispatch, region walls, flow step and block step of one kind of scene,
         specialised to what it has: the (style number, cut-off mode) pairs of its flat soft faces
         (`soft`) and of its wall/region fixes (`region`, none: no region code), a wall/flow fix
         (`flow`), generated forces (`extra`: wall/lepton, the source of
         force(r, p0, p1, p2, rc, radius) from WallStyle.generated_force, mode shift, styles
-        len(COMPILED_STYLES) + j) and wall/table faces (`tables`: one table loop, the tables are
-        the kernel's data, style TABLE_STYLE). Only those branches are generated and compiled. With `extra`
+        len(COMPILED_STYLES) + j), wall/table faces (`tables`: one table loop, the tables are
+        the kernel's data, style TABLE_STYLE) and a wall/reflect/stochastic fix (`stochastic`). Only
+        those branches are generated and compiled. With `extra`
         the forces and the dispatch are written to a module file (styles.lepton.generated_module,
         `_chunk_module_source`) that a kernel built on them is attributed to, so numba caches it
         on disk. The pieces are this module's functions re-linked (the same code objects, new
@@ -1110,26 +1213,32 @@ if njit is not None:
         if tables:
             table_faces = _table_faces
             source += _TABLE_SOURCE
+        stochastic_faces = _no_stochastic_faces
+        if stochastic:
+            stochastic_faces = _stochastic_faces
+            source += "# wall/reflect/stochastic\n" + inspect.getsource(_st)
         block_step = njit(nogil=True, error_model="numpy", inline="always")(
-            _relink(_block_step, _soft_face=soft_face, _region_walls=region_walls, _table_faces=table_faces))
+            _relink(_block_step, _soft_face=soft_face, _region_walls=region_walls, _table_faces=table_faces,
+                    _stochastic_faces=stochastic_faces))
         return ScenePieces(soft_face, region_walls, flow_step, block_step, source, filename,
                            _fingerprint(pairs, flow, False, source))
 
     def kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
-                   extra: tuple[str, ...] = (), parallel: bool = False, tables: bool = False) -> Any:
+                   extra: tuple[str, ...] = (), parallel: bool = False, tables: bool = False,
+                   stochastic: bool = False) -> Any:
         """The chunk kernel of one kind of scene (`_kernel_for`), one per specialisation and process."""
-        return _kernel_for(*_scene_args(soft, region, flow, extra, tables), bool(parallel))
+        return _kernel_for(*_scene_args(soft, region, flow, extra, tables, stochastic), bool(parallel))
 
     @functools.lru_cache(maxsize=64)
     def _kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
-                    extra: tuple[str, ...], tables: bool, parallel: bool) -> Any:
+                    extra: tuple[str, ...], tables: bool, stochastic: bool, parallel: bool) -> Any:
         """The chunk kernel of one kind of scene (`pieces_for`; `parallel`: compiled with numba
         parallel=True, reserved for a two-thread variant, not used by the engine yet): this
         module's chunk kernel re-linked to the scene's block and flow steps, named
         `_run_chunk_<fingerprint>` so numba caches it on disk in its own index file (beside this
         file, or with `extra` beside the generated module it is attributed to: compiled once,
         loaded by later processes)."""
-        p = _pieces_for(soft, region, flow, extra, tables)
+        p = _pieces_for(soft, region, flow, extra, tables, stochastic)
         fp = _fingerprint(tuple(sorted(set(soft) | set(region))), flow, parallel, p.source)
         fn = _relink(_make_run_chunk(fp), name=f"_run_chunk_{fp:015x}", filename=p.filename,
                      _block_step=p.block_step, _flow_step=p.flow_step)
@@ -1201,6 +1310,51 @@ def _generated_force(style: WallStyle) -> str | None:
     """The generated source of a face's force (wall/lepton with at most 3 parameters:
     WallStyle.generated_force), else None."""
     return style.generated_force()
+
+
+def _plain_reflect(plan: ChunkPlan) -> list[ReflectKernel]:
+    """The plan's wall/reflect fixes (its `reflect` list without wall/reflect/stochastic)."""
+    return [w for w in plan.reflect if type(w) is ReflectKernel]
+
+
+def _stochastic_kernel(plan: ChunkPlan) -> StochasticKernel | None:
+    """The plan's wall/reflect/stochastic fix (`eligible`: at most one, after the wall/reflect ones)."""
+    return next((w for w in plan.reflect if isinstance(w, StochasticKernel)), None)
+
+
+def _stochastic_eligible(plan: ChunkPlan) -> bool:
+    """wall/reflect/stochastic in the kernel: one such fix, after every wall/reflect fix (the
+    kernel reflects in that order), constant face values, no dt/reset (its windows may be undone,
+    the draws cannot)."""
+    kinds = [isinstance(w, StochasticKernel) for w in plan.reflect]
+    if not any(kinds):
+        return True
+    if kinds.count(True) > 1 or not kinds[-1] or plan.dt_reset is not None:
+        return False
+    w = plan.reflect[-1]
+    return w.rstyle in RSTYLES and all(isinstance(v, np.ndarray) for face in w.faces
+                                       for v in (face.coord, *face.params.values()))
+
+
+def _stochastic_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]) -> tuple:
+    """The kernel's wall/reflect/stochastic arguments (see `_stochastic_faces`): st_meta, st_val,
+    st_stat (a copy of the counters), st_flag; empty without such a fix."""
+    s = plan.state
+    w = _stochastic_kernel(plan)
+    if w is None:
+        return np.zeros((0, 4), np.int64), np.zeros((s.ncases, 0, 9)), np.zeros((s.ncases, 0, 2)), np.zeros(1, np.int64)
+    K = len(w.faces)
+    meta = np.array([[f.dim, f.side, group(w.group, w.all_atoms), RSTYLES.index(w.rstyle)] for f in w.faces],
+                    np.int64).reshape(K, 4)
+    val = np.zeros((s.ncases, K, 9))
+    for k, f in enumerate(w.faces):
+        val[:, k, 0] = f.coord
+        for j, key in enumerate(("temp", "vx", "vy", "vz", "ax", "ay", "az")):
+            val[:, k, 1 + j] = f.params[key]
+        val[:, k, 8] = s.units.boltz
+    stat = (np.stack([w.count, w.impulse], axis=2).astype(float) if w.stats
+            else np.zeros((s.ncases, K, 2)))
+    return meta, val, np.ascontiguousarray(stat), np.array([1 if w.stats else 0], np.int64)
 
 
 def _is_table(style: WallStyle) -> bool:
@@ -1310,7 +1464,9 @@ def eligible(plan: ChunkPlan) -> bool:
         return False
     if not fixes_eligible(plan):
         return False
-    return all(type(w) is ReflectKernel and w.frame in ("lab", "wall") for w in plan.reflect)
+    if not _stochastic_eligible(plan):
+        return False
+    return all(w.frame in ("lab", "wall") for w in _plain_reflect(plan))
 
 
 def _thermostats(ensemble: Any) -> bool:
@@ -1476,7 +1632,7 @@ class FastPath:
 
         soft_faces = [(st, face) for w in plan.soft for st, face in zip(_face_styles(w), w.faces)]
         sf = np.zeros((C, nval, len(soft_faces), 6))
-        rf = np.zeros((C, nval, sum(len(w.faces) for w in plan.reflect)))
+        rf = np.zeros((C, nval, sum(len(w.faces) for w in _plain_reflect(plan))))
         with np.errstate(all="ignore"):
             try:
                 for k, (style, face) in enumerate(soft_faces):
@@ -1493,7 +1649,7 @@ class FastPath:
                     if "switch_on" in face.params:  # cutoff_mode smooth
                         sf[:, :, k, 5] = value(face.params["switch_on"]).T
                 k = 0
-                for w in plan.reflect:
+                for w in _plain_reflect(plan):
                     for face in w.faces:
                         coord = face.coord if isinstance(face.coord, np.ndarray) else var(face.coord) * face.scale
                         rf[:, :, k] = np.broadcast_to(coord, (nval, C)).T
@@ -1608,9 +1764,10 @@ class FastPath:
 
         sf_meta = np.array([[style_id(st), face.dim, face.side, group(w.group, w.all_atoms),
                              w.cutoff.mode_id] for w, st, face in soft_faces], np.int64).reshape(-1, 5)
+        reflect = _plain_reflect(plan)  # wall/reflect fixes (wall/reflect/stochastic: st arrays)
         rf_meta = np.array([[face.dim, face.side, 1 if w.frame == "wall" else 0, group(w.group, w.all_atoms)]
-                            for w in plan.reflect for face in w.faces], np.int64).reshape(-1, 4)
-        stats = bool(plan.reflect) and plan.reflect[0].stats
+                            for w in reflect for face in w.faces], np.int64).reshape(-1, 4)
+        stats = bool(reflect) and reflect[0].stats
         C = s.ncases
         dtr = plan.dt_reset
         if dtr is not None:
@@ -1620,13 +1777,15 @@ class FastPath:
             dtr_group, dtr_par = 0, np.zeros((C, 4))
         rg = self._regions(plan, group)
         fx, fx_fixes, fx_rngs = _fix_arrays(plan, group)
+        sk = _stochastic_kernel(plan)
+        sto = _stochastic_arrays(plan, group)
         groups_arr = np.stack(groups)
-        rf_prev = np.ascontiguousarray(np.stack([p for w in plan.reflect for p in w.previous], axis=1),
-                                       dtype=float) if plan.reflect else np.zeros((C, 0))
+        rf_prev = np.ascontiguousarray(np.stack([p for w in reflect for p in w.previous], axis=1),
+                                       dtype=float) if reflect else np.zeros((C, 0))
         rf_prev = np.broadcast_to(rf_prev, (C, rf_prev.shape[1])).copy()
         if stats:
             rf_stat = np.stack([np.stack([w.count[:, k], w.impulse[:, k]], axis=1)
-                                for w in plan.reflect for k in range(len(w.faces))], axis=1)
+                                for w in reflect for k in range(len(w.faces))], axis=1)
         else:
             rf_stat = np.zeros((C, rf_meta.shape[0], 2))
         periodic = np.zeros(3, np.int64)
@@ -1641,7 +1800,7 @@ class FastPath:
         tb = _tables(soft_faces)
         kernel = kernel_for(tuple(sorted({(int(r[0]), int(r[4])) for r in sf_meta if 0 <= r[0] < n})),
                             tuple(sorted({(int(r[2]), int(r[4])) for r in rg[0]})), fk is not None, tuple(extra),
-                            tables=bool(np.any(sf_meta[:, 0] == TABLE_STYLE)))
+                            tables=bool(np.any(sf_meta[:, 0] == TABLE_STYLE)), stochastic=sk is not None)
         self.kernel = kernel  # the last chunk's kernel (tests read its cache statistics)
         if not kernel.signatures:
             announce_compile(kernel, 30 if extra else COMPILE_SECONDS)  # generated forces: ~30 s
@@ -1652,33 +1811,35 @@ class FastPath:
         consts = (stats, int(dtr.every if dtr is not None else 0), dtr_group)
         units = (float(s.units.ftm2v), float(s.units.mvv2e))
 
-        def run(c: slice, fl: tuple, fx_rng: Any = _NO_FLOW[-1]) -> int:
+        def run(c: slice, fl: tuple, fx_rng: Any = _NO_FLOW[-1], st_rng: Any = _NO_FLOW[-1]) -> int:
             """The kernel on cases c (a slice: views, so the kernel writes through)."""
             return kernel(*args, s.x[c], s.v[c], s.f[c], s.mass[c], s.radius[c], s.dt[c], s.atime[c],
                               s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
                               rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
-                              rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng, *tb)
+                              rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng, *tb, sto[0], sto[1][c],
+                              sto[2][c], sto[3], st_rng)
 
-        if fx_rngs:  # fix langevin: one case per call, each with its own generator
-            rng_states = [r.bit_generator.state for r in fx_rngs]
-            status = 0
-            for c in range(C):
-                status = run(slice(c, c + 1), _NO_FLOW, fx_rngs[c])
-                if status != 0:
-                    break
-        elif fk is None:
-            status = run(slice(None), _NO_FLOW)
-        else:  # one case per call: each case draws from its own generator
-            rng_states = [r.bit_generator.state for r in fk.rngs]
+        # generators drawn from in the kernel (fix langevin, wall/flow, wall/reflect/stochastic):
+        # then one case per call, each with its own generators
+        generators = list(fx_rngs) + (list(fk.rngs) if fk is not None else []) + (list(sk.rngs) if sk else [])
+        rng_states = [r.bit_generator.state for r in generators]
+        if fk is not None:
             phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
             prev, cross = np.ascontiguousarray(fk.prev, dtype=float).copy(), np.zeros((C, 1))
+        if not generators:
+            status = run(slice(None), _NO_FLOW)
+        else:
             status = 0
             for c in range(C):
-                fl_int = np.array([1, fk.axis[c], int(fk.exact[c])], np.int64)
-                fl_f = np.array([fk.lo[c], fk.length[c], fk.vflow[c], fk.kT[c]])
-                walls = np.ascontiguousarray(fk.walls[c][np.isfinite(fk.walls[c])])
-                status = run(slice(c, c + 1), (fl_int, fl_f, walls, fk.group[c].astype(np.uint8), phys[c], pend[c],
-                                               prev[c], cross[c], fk.rngs[c]))
+                fl = _NO_FLOW
+                if fk is not None:
+                    fl_int = np.array([1, fk.axis[c], int(fk.exact[c])], np.int64)
+                    fl_f = np.array([fk.lo[c], fk.length[c], fk.vflow[c], fk.kT[c]])
+                    walls = np.ascontiguousarray(fk.walls[c][np.isfinite(fk.walls[c])])
+                    fl = (fl_int, fl_f, walls, fk.group[c].astype(np.uint8), phys[c], pend[c], prev[c], cross[c],
+                          fk.rngs[c])
+                status = run(slice(c, c + 1), fl, fx_rngs[c] if fx_rngs else _NO_FLOW[-1],
+                             sk.rngs[c] if sk is not None else _NO_FLOW[-1])
                 if status != 0:
                     break
         s.ctx = None
@@ -1688,11 +1849,8 @@ class FastPath:
         if status != 0:
             for k, arr in backup.items():
                 getattr(s, k)[...] = arr
-            if fk is not None:  # the NumPy loop re-runs the chunk with the same random numbers
-                for r, st in zip(fk.rngs, rng_states):
-                    r.bit_generator.state = st
-            for r, st in zip(fx_rngs, rng_states if fx_rngs else []):
-                r.bit_generator.state = st
+            for r, state in zip(generators, rng_states):  # the NumPy loop re-runs the chunk with the same draws
+                r.bit_generator.state = state
             self.fallbacks += 1
             return False
         self.compiled_chunks += 1
@@ -1703,8 +1861,11 @@ class FastPath:
             fk.crossings += cross[:, 0]
         self._spare = (s.x, s.v, s.f)
         s.x, s.v, s.f = xo, vo, fo
+        if sk is not None and sk.stats:
+            sk.count[...] = sto[2][:, :, 0]
+            sk.impulse[...] = sto[2][:, :, 1]
         k = 0
-        for w in plan.reflect:
+        for w in reflect:
             for j, face in enumerate(w.faces):
                 # as ReflectKernel.apply: a constant wall keeps its coord array, a variable one a copy
                 w.previous[j] = face.coord if isinstance(face.coord, np.ndarray) else rf_prev[:, k].copy()
