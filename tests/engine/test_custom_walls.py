@@ -443,3 +443,35 @@ def test_compiled_tables_equal_numpy_bit_for_bit(tmp_path, monkeypatch, walls):
         for key in ("etot", "wall_energy", "wall_force", "temp"):
             np.testing.assert_array_equal(c.data[key], n.data[key])
     assert len({float(r.data["wall_energy"][1:].sum()) for r in numpy_res}) == 3
+
+
+@pytest.mark.slow
+def test_compiled_lepton_with_more_than_three_parameters_equals_numpy(tmp_path, monkeypatch):
+    """Expressions with more than 3 parameters run compiled with their parameters as a per-face
+    row of an array (swept per case), beside an expression of 2 parameters (p0, p1): the
+    trajectories and outputs equal the NumPy engine's bit for bit, and differ between cases."""
+    from wallbatch.engine.engine import Engine  # noqa: PLC0415
+
+    four = ("{coord: EDGE, cutoff: 2.0, expression: 'a*(r-rc)^2 + b*exp(-r/l)', "
+            "params: {a: 20.0, rc: 2.0, b: 3.0, l: 0.4}}")
+    five = ("{coord: EDGE, cutoff: 1.5, expression: 'k*(r-c)^2*(1+q*r) + s*exp(-r/w)', "
+            "params: {k: 30.0, c: 1.5, q: 0.2, s: 1.0, w: 0.3}}")
+    two = "{coord: EDGE, cutoff: 1.0, expression: 'k*(r-rc)^2', params: {k: 5.0, rc: 1.0}}"
+    text = slit(f"w: {{style: lepton, units: box, energy: true, zlo: {four}, zhi: {five}}}\n"
+                f"h: {{style: lepton, units: box, zlo: {two}}}\n", steps=300,
+                extra="sweep:\n  product:\n    b: {path: walls.w.zlo.params.b, values: [1.0, 4.0]}\n")
+    plan = load_plan(write(tmp_path, text))
+    cases = [build_case(c.config, c.seed_key) for c in plan.cases]
+    runs = {}
+    for mode in ("always", "never"):
+        monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", mode)
+        engine = Engine(cases)
+        runs[mode] = (engine.run(), engine.fast)
+    (compiled, fast), (numpy_res, none) = runs["always"], runs["never"]
+    assert none is None and fast is not None and fast.compiled_chunks > 0 and fast.fallbacks == 0
+    for c, n in zip(compiled, numpy_res):
+        assert c.status == n.status == "ok", (c.error, n.error)
+        assert np.all(n.data["wall_force"][1:, :2] != 0.0) and np.any(n.data["wall_force"][1:, 2] != 0.0)
+        for key in ("etot", "wall_energy", "wall_force", "temp"):
+            np.testing.assert_array_equal(c.data[key], n.data[key])
+    assert not np.array_equal(numpy_res[0].data["wall_energy"], numpy_res[1].data["wall_energy"])

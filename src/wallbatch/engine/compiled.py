@@ -38,7 +38,12 @@ with the case's own generator (`_flow_step`; numba's Generator draws NumPy's str
 step over all atoms. `fixes:` (nvt, langevin, temp/berendsen, temp/rescale, enforce2d;
 `fixes_eligible`) run in the kernel with engine/thermostats.py's functions (`_fix_pre`,
 `_fix_post_force`, `_fix_end`; step by step when a thermostat couples the atoms, one case per call
-with fix langevin's generator). Anything else (pair forces, ees, wall/region/ees, ellipsoids,
+with fix langevin's generator). wall/table faces run in every scene kernel with their tables as data
+(`_table_faces`: one concatenated array, styles.table's lookups jitted; no compile per table);
+wall/lepton faces with the force generated from each expression (`kernel_for`'s `extra`, compiled
+once per set of expressions and cached on disk). One wall/reflect/stochastic fix runs after the
+wall/reflect faces (`_stochastic_faces`: one case per call with the case's generator, one block of
+all atoms so the draws follow atom order, engine/stochastic.py's functions). Anything else (pair forces, ees, wall/region/ees, ellipsoids,
 several flow fixes) runs in NumPy. A chunk that
 meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a variable error or a
 negative variable parameter) leaves the state as it was at its start and is handed back to the
@@ -117,18 +122,37 @@ def enabled() -> bool:
 # ----------------------------------------------------------------------------- compiled kernels
 
 
-def _branches(pairs: tuple[tuple[int, int], ...], extra: int) -> list[tuple[str, str, bool, str]]:
+def _branches(pairs: tuple[tuple[int, int], ...], extra: int | tuple[int, ...]) -> list[tuple[str, str, bool, str]]:
     """(condition, force name, radius flag, comment) of each branch of a generated dispatch: the
-    (style number, cut-off mode) pairs of a scene, then `extra` generated wall/lepton forces
-    (styles len(COMPILED_STYLES) + j, mode shift)."""
+    (style number, cut-off mode) pairs of a scene, then generated wall/lepton forces (`extra`: how
+    many, or their numbers j; styles len(COMPILED_STYLES) + j, mode shift)."""
     n = len(COMPILED_STYLES)
     out = [(f"style == {i} and mode == {m}", f"_FORCE_{i}_{m}", bool(COMPILED_STYLES[i].needs_radius),
              f"{COMPILED_STYLES[i].name} {CUTOFF_MODES[m]}") for i, m in pairs]
-    out += [(f"style == {n + j} and mode == {SHIFT}", f"_EXTRA_{j}", False, "wall/lepton") for j in range(extra)]
+    js = range(extra) if isinstance(extra, int) else extra
+    out += [(f"style == {n + j} and mode == {SHIFT}", f"_EXTRA_{j}", False, "wall/lepton") for j in js]
     return out
 
 
-def _dispatch_source(pairs: tuple[tuple[int, int], ...], extra: int = 0) -> str:
+VECTOR_MARK = "# parameters as an array\n"  # first line of a generated force kernel(r, p) in `extra`
+
+
+def _vector_dispatch_source(extra: tuple[str, ...]) -> str:
+    """Python source of `_vector_faces(j, ...)`: one branch per generated force of `extra` with its
+    parameters as an array (wall/lepton with more than 3 parameters; style -2 - j), each a
+    literal call of the face loop `_vface` with that force inlined."""
+    lines = ["def _vector_faces(j, X, F, groups, g, d, side, coord, pv, cut, u0, u1):"]
+    k = 0
+    for j, src in enumerate(extra):
+        if src.startswith(VECTOR_MARK):
+            lines.append(f"    {'if' if k == 0 else 'elif'} j == {j}:  # wall/lepton, parameters as an array")
+            lines.append(f"        return _vface(_VEXTRA_{j}, X, F, groups, g, d, side, coord, pv, cut, u0, u1)")
+            k += 1
+    lines.append("    return 0")
+    return "\n".join(lines) + "\n"
+
+
+def _dispatch_source(pairs: tuple[tuple[int, int], ...], extra: int | tuple[int, ...] = 0) -> str:
     """Python source of `_soft_face(style, mode, ...)`: one branch per (style number, cut-off mode)
     pair of the scene (wallbatch.styles.cutoff) and per generated force, each a literal call of the
     generic face loop with that pair's force function and radius flag, so every pair gets its own
@@ -259,6 +283,28 @@ if njit is not None:
             F[d, i] = fi
         return nbad
 
+
+    @inline
+    def _vface(force, X, F, groups, g, d, side, coord, pv, cut, u0, u1):
+        """One soft face whose force takes its parameters as an array pv (wall/lepton with more
+        than 3 parameters, shift mode): as `_face` with F(r) = force(r, pv)."""
+        sidef = float(side)
+        sign = -sidef
+        nbad = 0
+        for i in range(u0, u1):
+            r = (X[d, i] - coord) * sign
+            near = (r < cut) & (groups[g, i] != 0)
+            nbad += near & (r <= 0.0)
+            fi = F[d, i]
+            if near:
+                fi = fi - sidef * force(r, pv)
+            F[d, i] = fi
+        return nbad
+
+    @inline
+    def _no_vector_faces(j, X, F, groups, g, d, side, coord, pv, cut, u0, u1):
+        """`_vector_faces` of a scene without such faces: nothing (never called)."""
+        return 0
 
     # -- fix wall/table: tables as data (styles.table.WallTable.kernel_rows), one compiled loop for any table
     _table_linear = njit(nogil=True, error_model="numpy", inline="always")(linear_lookup)
@@ -712,11 +758,12 @@ if njit is not None:
         kick; with `due`, fix dt/reset's candidates. Returns (status, smallest candidate over
         the dt/reset group, NaN if any is NaN); status 0, 1 (an atom on/behind a soft wall) or
         2 (an atom left through a fixed boundary). box rows: lo, hi, periodic (1.0) per dimension;
-        dtr_par[c]: xmax, emax, tmin, tmax; tbst = (tb, st): the wall/table faces' tables
-        (`_table_faces`) and the wall/reflect/stochastic faces (`_stochastic_faces`), one argument
+        dtr_par[c]: xmax, emax, tmin, tmax; tbst = (tb, st, lp): the wall/table faces' tables
+        (`_table_faces`), the wall/reflect/stochastic faces (`_stochastic_faces`) and the
+        parameter rows (C, faces, P) of wall/lepton faces with more than 3 parameters, one argument
         (a call of more than 30 arguments is compiled by CPython as f(*args), which numba cannot
         inline)."""
-        tb, st = tbst
+        tb, st, lp = tbst
         for d in range(3):  # initial_integrate: v += dtfm f; x += dt v
             for i in range(u0, u1):
                 vi = V[d, i] + DTFM[i] * F[d, i]
@@ -759,6 +806,8 @@ if njit is not None:
             p0, p1, p2 = sf_val[c, si, k, 1], sf_val[c, si, k, 2], sf_val[c, si, k, 3]
             if style == TABLE_STYLE:  # wall/table: the face's table from tb (data, not code)
                 nbad += _table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1)
+            elif style < TABLE_STYLE:  # wall/lepton, parameters as an array: this case's row of lp
+                nbad += _vector_faces(-2 - style, X, F, groups, g, d, side, coord, lp[c, k], cut, u0, u1)
             else:
                 nbad += _soft_face(style, sf_meta[k, 4], X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut,
                                    ron, u0, u1)
@@ -900,7 +949,7 @@ if njit is not None:
                        step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
                        stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo, rg_meta, rg_geo, rg_val,
                        fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng, fx, fx_rng,
-                       tb_meta, tb_par, tb_data, st_meta, st_val, st_stat, st_flag, st_rng):
+                       tb_meta, tb_par, tb_data, st_meta, st_val, st_stat, st_flag, st_rng, lp_val):
             """Advance every case by nsteps steps (or, with time_mode, to the time `target` as
             Engine.advance_to_time does), reading x, v, f and writing xo, vo, fo. Returns 0, or the
             nonzero status of the first trouble met (1: an atom on/behind a soft wall, 2: a lost atom,
@@ -968,7 +1017,7 @@ if njit is not None:
             fxp = (fx_meta, G1, FR, FL)
             tb = (tb_meta, tb_par, tb_data)  # wall/table faces (`_table_faces`)
             sto = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(natom if st_meta.shape[0] else 0, np.int64))
-            tbst = (tb, sto)  # and wall/reflect/stochastic (`_stochastic_faces`)
+            tbst = (tb, sto, lp_val)  # wall/reflect/stochastic, lepton parameter rows
             for c in range(ncase):
                 for a in range(natom):
                     for d in range(3):
@@ -1187,10 +1236,14 @@ if njit is not None:
             module = generated_module(source, "lepton_chunk")
             namespace = vars(module)
             namespace.update(base)
+            namespace["_vface"] = _vface
             for j in range(len(extra)):
                 force = njit(nogil=True, error_model="numpy", inline="always")(namespace[f"_LEPTON_{j}"])
-                namespace[f"_EXTRA_{j}"] = njit(nogil=True, error_model="numpy")(
-                    cutoff_functions(force, force, SHIFT, _switch)[0])
+                if extra[j].startswith(VECTOR_MARK):
+                    namespace[f"_VEXTRA_{j}"] = force
+                else:
+                    namespace[f"_EXTRA_{j}"] = njit(nogil=True, error_model="numpy")(
+                        cutoff_functions(force, force, SHIFT, _switch)[0])
             filename = module.__file__
         else:
             namespace = base
@@ -1209,6 +1262,9 @@ if njit is not None:
             from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
 
             flow_step = njit(nogil=True, error_model="numpy")(_relink(_flow_step, flow_compiled=flow_compiled))
+        vector_faces = _no_vector_faces
+        if any(src.startswith(VECTOR_MARK) for src in extra):
+            vector_faces = njit(nogil=True, error_model="numpy", inline="always")(namespace["_vector_faces"])
         table_faces = _no_table_faces
         if tables:
             table_faces = _table_faces
@@ -1219,7 +1275,7 @@ if njit is not None:
             source += "# wall/reflect/stochastic\n" + inspect.getsource(_st)
         block_step = njit(nogil=True, error_model="numpy", inline="always")(
             _relink(_block_step, _soft_face=soft_face, _region_walls=region_walls, _table_faces=table_faces,
-                    _stochastic_faces=stochastic_faces))
+                    _stochastic_faces=stochastic_faces, _vector_faces=vector_faces))
         return ScenePieces(soft_face, region_walls, flow_step, block_step, source, filename,
                            _fingerprint(pairs, flow, False, source))
 
@@ -1255,7 +1311,10 @@ def _chunk_module_source(soft: tuple[tuple[int, int], ...], extra: tuple[str, ..
     the lepton helpers and the fingerprint of the scene's styles, so the file (named by a hash of
     its source) and numba's cache beside it change when any of them does."""
     forces = "".join(f"\n\n{src.replace('def kernel(', f'def _LEPTON_{j}(', 1)}" for j, src in enumerate(extra))
-    body = HELPERS_IMPORT + forces + "\n\n" + _dispatch_source(soft, len(extra))
+    positional = tuple(j for j, src in enumerate(extra) if not src.startswith(VECTOR_MARK))
+    body = HELPERS_IMPORT + forces + "\n\n" + _dispatch_source(soft, positional)
+    if len(positional) < len(extra):
+        body += "\n\n" + _vector_dispatch_source(extra)
     header = ('"""wall/lepton chunk kernel dispatch, generated by wallbatch.engine.compiled: do not edit."""\n'
               f"# key: compiled.py {_SOURCE_DIGEST}, styles {_fingerprint(soft, False, False, body):015x}\n")
     return header + body
@@ -1307,9 +1366,26 @@ def _face_styles(w: SoftWallKernel) -> list[WallStyle]:
 
 
 def _generated_force(style: WallStyle) -> str | None:
-    """The generated source of a face's force (wall/lepton with at most 3 parameters:
-    WallStyle.generated_force), else None."""
-    return style.generated_force()
+    """The generated source of a face's force: wall/lepton with at most 3 parameters
+    (WallStyle.generated_force), or with more, its parameters as an array
+    (WallStyle.generated_vector_force, marked by a first line VECTOR_MARK); else None."""
+    src = style.generated_force()
+    if src is None:
+        vec = style.generated_vector_force()
+        src = None if vec is None else VECTOR_MARK + vec
+    return src
+
+
+def _lepton_rows(soft_faces: list, C: int) -> np.ndarray:
+    """lp_val (C, faces, P): the parameter values of each wall/lepton face whose force takes them
+    as an array, in the style's order (rows of other faces: zeros; P >= 1)."""
+    P = max([1] + [len(st.args_names) for _, st, _ in soft_faces if st.generated_vector_force() is not None])
+    out = np.zeros((C, len(soft_faces), P))
+    for k, (_, st, face) in enumerate(soft_faces):
+        if st.generated_vector_force() is not None:
+            for j, key in enumerate(st.args_names):
+                out[:, k, j] = np.broadcast_to(np.asarray(face.params[key], float), (C,))
+    return out
 
 
 def _plain_reflect(plan: ChunkPlan) -> list[ReflectKernel]:
@@ -1638,7 +1714,7 @@ class FastPath:
                 for k, (style, face) in enumerate(soft_faces):
                     coord = face.coord if isinstance(face.coord, np.ndarray) else var(face.coord) * face.scale
                     sf[:, :, k, 0] = np.broadcast_to(coord, (nval, C)).T
-                    for j, key in enumerate(style.args_names):
+                    for j, key in enumerate(style.args_names[:3]):  # more (wall/lepton): `_lepton_rows`
                         if key in face.params:
                             val = value(face.params[key])
                             low = style.param(key).min
@@ -1751,7 +1827,10 @@ class FastPath:
                 return STYLE_IDS[style.name]
             if _is_table(style):
                 return TABLE_STYLE
-            return len(COMPILED_STYLES) + extra.index(_generated_force(style))
+            src = _generated_force(style)
+            if src.startswith(VECTOR_MARK):  # parameters as an array: style -2 - j
+                return -2 - extra.index(src)
+            return len(COMPILED_STYLES) + extra.index(src)
 
         groups: list[np.ndarray] = [np.ones(s.x.shape[1], np.uint8)]
 
@@ -1798,6 +1877,7 @@ class FastPath:
         fk = plan.flow[0] if plan.flow else None
         n = len(COMPILED_STYLES)
         tb = _tables(soft_faces)
+        lp_val = _lepton_rows(soft_faces, C)
         kernel = kernel_for(tuple(sorted({(int(r[0]), int(r[4])) for r in sf_meta if 0 <= r[0] < n})),
                             tuple(sorted({(int(r[2]), int(r[4])) for r in rg[0]})), fk is not None, tuple(extra),
                             tables=bool(np.any(sf_meta[:, 0] == TABLE_STYLE)), stochastic=sk is not None)
@@ -1817,7 +1897,7 @@ class FastPath:
                               s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
                               rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
                               rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng, *tb, sto[0], sto[1][c],
-                              sto[2][c], sto[3], st_rng)
+                              sto[2][c], sto[3], st_rng, lp_val[c])
 
         # generators drawn from in the kernel (fix langevin, wall/flow, wall/reflect/stochastic):
         # then one case per call, each with its own generators
