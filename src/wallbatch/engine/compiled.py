@@ -356,9 +356,9 @@ if njit is not None:
         chunk runs one block, one case per call), after the wall/reflect faces. st = (st_meta (K, 4)
         int: dim, side, group row, rule (RSTYLES index); st_val (C, K, 9): coord, temp, vx, vy,
         vz, ax, ay, az, kB; st_stat (C, K, 2): reflections, impulse; stats flag (1,) int; the
-        case's generator; SI scratch (N,) int). Per face: the atoms past it in atom order, then the
+        case's generator; scratch: SI (N,) int, SD (4, N)). Per face: the atoms past it in atom order, then the
         draws of StochasticKernel.apply in its order, then its arithmetic atom by atom."""
-        st_meta, st_val, st_stat, st_flag, rng, SI = st
+        st_meta, st_val, st_stat, st_flag, rng, SI, SD = st
         for k in range(st_meta.shape[0]):
             d, side, g, rule = st_meta[k, 0], st_meta[k, 1], st_meta[k, 2], st_meta[k, 3]
             coord = st_val[c, k, 0]
@@ -370,16 +370,24 @@ if njit is not None:
                     n += 1
             if n == 0:
                 continue
+            # the draws one number at a time into scratch rows (the same stream as NumPy's arrays of n)
+            ua, ub, g0, g1 = SD[0], SD[1], SD[2], SD[3]
             if rule == 2:  # ccl: U1 in (0, 1], U2, N (n, 2)
-                ua = 1.0 - rng.random(n)
-                ub = rng.random(n)
+                for j in range(n):
+                    ua[j] = 1.0 - rng.random()
+                for j in range(n):
+                    ub[j] = rng.random()
             elif rule == 1:  # maxwell: the choice, U, N (n, 2)
-                ub = rng.random(n)
-                ua = 1.0 - rng.random(n)
+                for j in range(n):
+                    ub[j] = rng.random()
+                for j in range(n):
+                    ua[j] = 1.0 - rng.random()
             else:  # diffusive: U, N (n, 2)
-                ua = 1.0 - rng.random(n)
-                ub = ua
-            gn = rng.standard_normal((n, 2))
+                for j in range(n):
+                    ua[j] = 1.0 - rng.random()
+            for j in range(n):  # N (n, 2) in C order
+                g0[j] = rng.standard_normal()
+                g1[j] = rng.standard_normal()
             t0 = 1 if d == 0 else 0  # the tangential axes in increasing order
             t1 = 1 if d == 2 else 2
             away = -float(side)
@@ -394,14 +402,14 @@ if njit is not None:
                 sigma = _st_sigma(temp, M[i], kb, mvv2e)
                 if rule == 2:
                     nn = _st_cnormal(away, sigma, an, vn, ua[j], ub[j])
-                    n0 = _st_ctangent(w0, a0, v0, sigma, gn[j, 0])
-                    n1 = _st_ctangent(w1, a1, v1, sigma, gn[j, 1])
+                    n0 = _st_ctangent(w0, a0, v0, sigma, g0[j])
+                    n1 = _st_ctangent(w1, a1, v1, sigma, g1[j])
                 elif rule == 1 and not ub[j] < acc:  # maxwell, specular
                     nn, n0, n1 = -vn, v0, v1
                 else:
                     nn = _st_dnormal(away, sigma, ua[j])
-                    n0 = _st_tangent(w0, sigma, gn[j, 0])
-                    n1 = _st_tangent(w1, sigma, gn[j, 1])
+                    n0 = _st_tangent(w0, sigma, g0[j])
+                    n1 = _st_tangent(w1, sigma, g1[j])
                 t = _st_time(X[d, i], coord, vn)
                 X[t0, i] = X[t0, i] + (n0 - v0) * t
                 X[t1, i] = X[t1, i] + (n1 - v1) * t
@@ -979,7 +987,8 @@ if njit is not None:
             KB = np.empty(nfx)  # per-atom terms of a sum over atoms
             fxp = (fx_meta, G1, FR, FL)
             tb = (tb_meta, tb_par, tb_data)  # wall/table faces (`_table_faces`)
-            sto = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(natom if st_meta.shape[0] else 0, np.int64))
+            nst = natom if st_meta.shape[0] else 0
+            sto = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(nst, np.int64), np.empty((4, nst)))
             tbst = (tb, sto, lp_val)  # wall/reflect/stochastic, lepton parameter rows
             for c in range(ncase):
                 for a in range(natom):
