@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from factories import assert_same_results, run_numpy_and_compiled
 from lammps_oracle import requires_lammps
 from wallbatch.config.fixline import parse_fix_line, to_fix_line
 from wallbatch.config.models import load_config, load_config_text
@@ -420,7 +421,6 @@ def test_compiled_tables_equal_numpy_bit_for_bit(tmp_path, monkeypatch, walls):
     engine's trajectories and outputs bit for bit (linear and spline, lo and hi faces, several
     tables in one kernel)."""
     from wallbatch.engine import compiled as fast_mod  # noqa: PLC0415
-    from wallbatch.engine.engine import Engine  # noqa: PLC0415
 
     monkeypatch.delenv("WALLBATCH_LEPTON_COMPILED", raising=False)
     lj93_tables(tmp_path, n=300)
@@ -429,19 +429,12 @@ def test_compiled_tables_equal_numpy_bit_for_bit(tmp_path, monkeypatch, walls):
     plan = load_plan(write(tmp_path, text))
     cases = [build_case(c.config, c.seed_key) for c in plan.cases]
     assert len({structure_key(c) for c in cases}) == 1
-    runs = {}
-    for numba in ("1", "0"):
-        monkeypatch.setenv("WALLBATCH_NUMBA", numba)
-        engine = Engine(cases)
-        runs[numba] = (engine.run(), engine.fast)
-    (compiled, fast), (numpy_res, none) = runs["1"], runs["0"]
-    assert none is None and fast is not None and fast.compiled_chunks > 0 and fast.fallbacks == 0
+    numpy_res, compiled, engine = run_numpy_and_compiled(monkeypatch, cases)
+    fast = engine.fast
+    assert fast is not None and fast.compiled_chunks > 0 and fast.fallbacks == 0
     assert fast_mod._lepton_extra(engine.compiled_plan()) == ()  # nothing generated per table
-    for c, n in zip(compiled, numpy_res):
-        assert c.status == n.status == "ok"
-        assert np.any(n.data["wall_force"][1:] != 0.0)
-        for key in ("etot", "wall_energy", "wall_force", "temp"):
-            np.testing.assert_array_equal(c.data[key], n.data[key])
+    assert all(n.status == "ok" and np.any(n.data["wall_force"][1:] != 0.0) for n in numpy_res)
+    assert_same_results(numpy_res, compiled)  # every output, bit for bit
     assert len({float(r.data["wall_energy"][1:].sum()) for r in numpy_res}) == 3
 
 

@@ -14,6 +14,7 @@ from wallbatch.engine.engine import Engine, run_cases
 from wallbatch.engine.stochastic import StochasticKernel
 from wallbatch.lammps.export import export_case
 from wallbatch.scene.build import build_case
+from factories import assert_same_results, run_numpy_and_compiled
 
 T_LO, T_HI = 2.0, 0.5
 
@@ -149,19 +150,11 @@ def test_compiled_equals_numpy_bit_for_bit(rstyle, monkeypatch):
              + "  soft: {style: harmonic, units: box, zlo: {coord: EDGE, epsilon: 3.0, cutoff: 0.5}}\n")
     cfg = load_config_text(scene(walls, count=300, steps=400, thermo=100))
     cases = [build_case(cfg, (k,)) for k in range(3)]
-    runs = {}
-    for numba in ("1", "0"):
-        monkeypatch.setenv("WALLBATCH_NUMBA", numba)
-        engine = Engine(cases)
-        assert isinstance(engine.reflect[-1], StochasticKernel)
-        runs[numba] = (engine.run(), engine.fast)
-    (compiled, fast), (numpy_res, none) = runs["1"], runs["0"]
-    assert none is None and fast is not None and fast.compiled_chunks > 0 and fast.fallbacks == 0
-    for c, n in zip(compiled, numpy_res):
-        assert c.status == n.status == "ok"
-        assert n.data["reflect_count"][1:, 1:].sum() > 0  # the stochastic faces reflected atoms
-        for key in ("temp", "ke", "reflect_count", "reflect_impulse"):
-            np.testing.assert_array_equal(c.data[key], n.data[key])
+    numpy_res, compiled, engine = run_numpy_and_compiled(monkeypatch, cases)
+    assert isinstance(engine.reflect[-1], StochasticKernel)
+    assert engine.fast is not None and engine.fast.compiled_chunks > 0 and engine.fast.fallbacks == 0
+    assert all(n.status == "ok" and n.data["reflect_count"][1:, 1:].sum() > 0 for n in numpy_res)
+    assert_same_results(numpy_res, compiled)  # every output, bit for bit
     assert not np.array_equal(numpy_res[0].data["temp"], numpy_res[1].data["temp"])
 
 
