@@ -362,6 +362,9 @@ def test_lepton_auto_policy_loads_a_cached_kernel_for_shorter_runs(tmp_path, mon
     assert fast._compiled_marker(extra).exists()
     assert fast.lepton_compiled_wanted(mid, extra)
     assert not fast.lepton_compiled_wanted(state(1000, int(cached_min / 2000)), extra)
+    late = state(1000, int(2 * cached_min / 1000))
+    late.step[:] = late.end_step - 1  # the last chunk of that run: still the run's choice (it once
+    assert fast.lepton_compiled_wanted(late, extra)  # counted the steps left and went NumPy halfway)
     monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", "never")
     assert not fast.lepton_compiled_wanted(state(1000, int(compile_min / 1000)), extra)
     monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", "always")

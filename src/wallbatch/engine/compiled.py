@@ -1518,13 +1518,14 @@ def _mark_compiled(extra: tuple[str, ...]) -> None:
 
 def lepton_compiled_wanted(state: BatchState, extra: tuple[str, ...] = ()) -> bool:
     """Whether wall/lepton faces (generated forces `extra`) run on the compiled path for this batch
-    (see above)."""
+    (see above), from the atom-steps of its whole run (the same answer at every chunk)."""
     mode = os.environ.get("WALLBATCH_LEPTON_COMPILED", "auto").strip().lower()
     if mode in ("always", "1", "yes"):
         return True
     if mode in ("never", "0", "no"):
         return False
-    atom_steps = float(np.maximum(state.end_step - state.step, 0).sum()) * state.x.shape[1]
+    # the batch's whole run, not what is left of it: the choice must not flip to NumPy halfway
+    atom_steps = float(np.broadcast_to(np.maximum(state.end_step, 0), (state.x.shape[0],)).sum()) * state.x.shape[1]
     if atom_steps >= LEPTON_MIN_ATOM_STEPS:
         return True
     return atom_steps >= LEPTON_CACHED_MIN_ATOM_STEPS and _compiled_marker(extra).exists()
