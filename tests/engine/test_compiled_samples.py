@@ -227,6 +227,15 @@ def test_region_walls_sampled_every_step(monkeypatch, shape):
         assert np.count_nonzero(r.data["wall_energy"][:, 1]) > 5
 
 
+def test_stochastic_reflect_keeps_the_sample_by_sample_path(monkeypatch):
+    """wall/reflect/stochastic (its statistics are not recorded per sample in the kernel) runs its
+    steps compiled and samples in NumPy every step, with the same numbers."""
+    walls = {**lj93(), "s": {"style": "reflect/stochastic", "rstyle": "diffusive", "seed": 77, "units": "box",
+                             "zhi": {"coord": 6.6, "temp": 1.0}}}
+    _, got, eng = check(monkeypatch, [gas(walls, steps=100, output=REFLECT_OUT)], sampled=False)
+    assert eng.fast._sampled_refused and got[0].data["reflect_count"].sum() > 0
+
+
 # ----------------------------------------------------------------------------- fixes, dt/reset, flow
 
 
