@@ -316,7 +316,7 @@ def test_one_compiled_signature(monkeypatch):
     """Every scene above runs the same compiled specialisation of the kernel (a new one would cost a
     full compilation): array layouts and argument types do not depend on the scene."""
     check(monkeypatch, [gas(STYLE_SCENES["lj93"](), steps=20, thermo=10)])
-    kernel = fast.kernel_for(((fast.STYLE_IDS["lj93"], 0),))
+    kernel = fast.kernel_for(((fast.STYLE_IDS["lj93"], 0),), fixes=False, dtr=False)
     assert len(kernel.signatures) == 1
 
 
