@@ -298,6 +298,13 @@ def _run_window(items: list, plan: SweepPlan | None = None) -> list[Outcome]:
     return out  # type: ignore[return-value]
 
 
+def _run_window_on_cluster(items: list) -> list[Outcome]:
+    """`_run_window` in a dask worker: one thread per task unless WALLBATCH_THREADS says otherwise
+    (the cluster runs as many tasks at once as it has worker threads)."""
+    threads.set_default(1)
+    return _run_window(items)
+
+
 def _warm_compiler(case: Case | None = None) -> None:
     """Before forking workers, load the kernels they will run in this process: they inherit them
     instead of each loading them from the on-disk cache (or compiling them, each at once). With
@@ -391,7 +398,7 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
         from distributed import as_completed as dask_completed
 
         with Client(scheduler) as client:
-            futures = {client.submit(_run_window, t, pure=False): k for k, t in enumerate(tasks)}
+            futures = {client.submit(_run_window_on_cluster, t, pure=False): k for k, t in enumerate(tasks)}
             try:
                 for fut in dask_completed(futures):
                     yield futures[fut], fut.result()

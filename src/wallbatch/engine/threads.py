@@ -23,6 +23,7 @@ Threads: WALLBATCH_THREADS if set (1 = one thread), else the cores this process 
 
 from __future__ import annotations
 
+import functools
 import inspect
 import os
 import threading
@@ -84,11 +85,17 @@ def set_default(n: int | None) -> None:
 
 
 def _names(kernel: Any) -> tuple[str, ...] | None:
+    """The kernel's parameter names (numba dispatchers: those of their Python function)."""
     fn = getattr(kernel, "py_func", kernel)
     try:
-        return tuple(inspect.signature(fn).parameters)
+        return _signature_names(fn)
     except (TypeError, ValueError):
         return None
+
+
+@functools.lru_cache(maxsize=64)
+def _signature_names(fn: Callable[..., Any]) -> tuple[str, ...]:
+    return tuple(inspect.signature(fn).parameters)
 
 
 def plan_split(named: dict[str, Any], threads: int) -> tuple[str, list[slice]] | None:
