@@ -96,7 +96,8 @@ REGION_KINDS: dict[tuple[str, str], int] = {("block", "in"): 0, ("block", "out")
                                             ("sphere", "out"): 3, ("cylinder", "in"): 4, ("cylinder", "out"): 5}
 # this file's code and the generated kernels' helpers: part of the key of the generated lepton chunk kernels
 _SOURCE_DIGEST = hashlib.sha256(Path(__file__).read_bytes() + inspect.getsource(_lepton_helpers).encode()).hexdigest()[:16]
-COMPILE_SECONDS = 20  # typical compile of one scene kernel on a 2-core machine (measured 14-26 s; the message's estimate)
+COMPILE_SECONDS = 10  # typical compile of one scene kernel on a 2-core machine (flat walls: measured 9-11 s CPU; the message's estimate)
+COMPILE_SECONDS_FIXES = 20  # the same with thermostats or dt/reset in the kernel (measured 20-26 s)
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
 # fixes of `fixes:` in the kernel (fx_meta's kind column); nve is the kernel's own integrator
 FIX_LANGEVIN, FIX_NVT, FIX_BERENDSEN, FIX_RESCALE, FIX_ENFORCE2D = 0, 1, 2, 3, 4
@@ -1552,7 +1553,8 @@ class FastPath:
                             fixes=bool(fx[0].shape[0]), dtr=dtr is not None)
         self.kernel = kernel  # the last chunk's kernel (tests read its cache statistics)
         if not kernel.signatures:
-            announce_compile(kernel, 30 if extra else COMPILE_SECONDS)  # generated forces: ~30 s
+            announce_compile(kernel, 30 if extra else COMPILE_SECONDS_FIXES if fx[0].shape[0] or dtr is not None
+                             else COMPILE_SECONDS)  # generated forces: ~30 s
         sf_val, rf_val, rf_stat = (np.ascontiguousarray(a) for a in (sf_val, rf_val, rf_stat))
         lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)
         args = (int(nsteps), time_mode, float(target if time_mode else 0.0),
