@@ -28,7 +28,7 @@ TRACE = r"""
 import os, sys, time
 T0 = float(os.environ["CORES_T0"])
 def log(msg):
-    sys.stderr.write(f"@@ {time.time() - T0:7.3f} {os.getpid()} {msg}\n")
+    sys.stderr.write(f"@@ {time.time() - T0:7.3f} {time.process_time():7.3f} {os.getpid()} {msg}\n")
 log("python started")
 import wallbatch.batch.runner as R
 log("wallbatch imported")
@@ -91,19 +91,34 @@ def timeline(work: Path, jobs: int) -> tuple[float, float, list[str]]:
     return wall, cpu, lines
 
 
-def summarise(lines: list[str]) -> str:
-    """Per process: its phases (first start .. last end of each), in order of appearance."""
+def summarise(lines: list[str]) -> tuple[str, float]:
+    """Per process: its phases (first start .. last end of each, wall seconds from the launch), in
+    order of appearance; and the critical path in CPU seconds, what the run would take on idle
+    cores: the parent's CPU up to its first worker's start (all of it without workers), plus
+    the busiest worker's CPU, plus the parent's CPU after the last worker's end."""
     procs: dict[str, dict[str, list[float]]] = {}
+    cpu: dict[str, list[tuple[float, float]]] = {}
     for ln in lines:
-        t, pid, what = ln.split(maxsplit=2)
+        t, c, pid, what = ln.split(maxsplit=3)
         procs.setdefault(pid, {}).setdefault(what.split()[-1], []).append(float(t))
+        cpu.setdefault(pid, []).append((float(t), float(c)))
+    pids = list(procs)
+    parent = cpu[pids[0]]
+    if len(pids) == 1:
+        path = parent[-1][1]
+    else:
+        start = min(t for p in pids[1:] for t, _ in cpu[p])
+        end = max(t for p in pids[1:] for t, _ in cpu[p])
+        before = max((c for t, c in parent if t <= start), default=0.0)
+        after = parent[-1][1] - max((c for t, c in parent if t <= end), default=0.0)
+        path = before + max(cpu[p][-1][1] for p in pids[1:]) + after
     out = []
     for k, (pid, ph) in enumerate(procs.items()):
         who = "parent" if k == 0 else f"worker {k}"
         parts = [f"{name} {min(ts):.2f}" + (f"-{max(ts):.2f}" if len(ts) > 1 else "") + (
             f" (x{len(ts) // 2})" if len(ts) > 2 else "") for name, ts in ph.items()]
-        out.append(f"  {who}: " + "; ".join(parts))
-    return "\n".join(out)
+        out.append(f"  {who}: " + "; ".join(parts) + f" [{cpu[pid][-1][1]:.2f} s CPU]")
+    return "\n".join(out), path
 
 
 def main() -> None:
@@ -123,11 +138,15 @@ def main() -> None:
                     got = timeline(work, j)
                     if j not in best or got[0] < best[j][0]:
                         best[j] = got
+            path = {}
             for j in (1, 2):
                 wall, cpu, lines = best[j]
-                print(f"--jobs {j}: {wall:.2f} s wall, {cpu:.2f} s CPU (all processes)")
-                print(summarise(lines))
-            print(f"--jobs 2 / --jobs 1: {best[1][0] / best[2][0]:.2f}x")
+                text, path[j] = summarise(lines)
+                print(f"--jobs {j}: {wall:.2f} s wall, {cpu:.2f} s CPU (all processes), critical path "
+                      f"{path[j]:.2f} s CPU")
+                print(text)
+            print(f"--jobs 2 / --jobs 1: {best[1][0] / best[2][0]:.2f}x wall, {path[1] / path[2]:.2f}x on the "
+                  f"critical path in CPU seconds (idle cores)")
     if not args.skip_threads:
         got = {}
         for k in (1, 2, 1, 2):

@@ -63,3 +63,22 @@ def test_bad_thread_count_is_a_clear_error(tmp_path, monkeypatch):
     monkeypatch.setenv("WALLBATCH_THREADS", "many")
     with pytest.raises(runner.RunError, match="WALLBATCH_THREADS='many': give a whole number of threads"):
         run_plan(load(sweep_file(tmp_path, 2, 50)), None, jobs=1, progress=False)
+
+
+def test_small_run_keeps_its_results_instead_of_reading_the_parts(tmp_path, monkeypatch):
+    """A run of at most KEEP_CASES cases writes its parts but fills the results file from the
+    results it kept (no part read back); the file is identical to one filled from the parts."""
+    plan = load(sweep_file(tmp_path, 4, 40))
+    reads = []
+    real = runner.read_part
+    monkeypatch.setattr(runner, "read_part", lambda folder, key: reads.append(key) or real(folder, key))
+    kept = run_plan(plan, tmp_path / "kept.nc", jobs=1, progress=False)
+    assert reads == []
+    monkeypatch.setattr(runner, "KEEP_CASES", 0)
+    read = run_plan(plan, tmp_path / "read.nc", jobs=1, progress=False)
+    assert len(reads) == 4
+    assert sorted(kept.data_vars) == sorted(read.data_vars)
+    for name in kept.data_vars:
+        if name != "seconds":  # each run's own timing
+            np.testing.assert_array_equal(kept[name].values, read[name].values)
+    assert kept["pe"].shape == (4, 5) and np.isfinite(kept["pe"].values).all()

@@ -47,6 +47,8 @@ MAX_BATCH = 256  # cases per task: big enough to amortise Python overhead, small
 MAX_BATCH_ATOMS = 1_000_000  # atoms per task (all its cases): bounds a running batch's memory (~450 MB)
 WINDOWS_PER_JOB = 4  # with several workers: windows per worker, so a worker slowed by other load takes fewer
 MIN_WINDOW_ATOMS = 4_000  # ... but no smaller windows than this (a window's batch set-up and samples)
+KEEP_CASES = 256  # a run of at most this many cases keeps its results in memory as well as in the parts ...
+KEEP_BYTES = 64_000_000  # ... up to this many bytes of them: the final file does not read those back
 WARM_ATOMS = 200_000  # warm the kernels before forking on the first case if it has at most this many atoms
 MAX_STEPS = 10**12  # steps of one case (10^12 steps of one atom take days)
 MAX_SAMPLES = 1_000_000  # samples of one case (each a row of every output)
@@ -683,6 +685,8 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
     parts = parts_dir(output) if output is not None else None
     saved: set[int] = set()  # cases whose part exists (their results are read back at the end)
     held: dict[int, CaseResult] = {}  # results not in a part: cases that cannot be built, runs without output
+    # (and, for a small run, KEEP_BYTES of results also saved in parts: not read back at the end)
+    keep = KEEP_BYTES if total <= KEEP_CASES else 0
     unbuilt: set[int] = set()  # cases that cannot be built
     finished = 0  # cases run (without an output file)
     try:
@@ -742,6 +746,10 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
                         if parts is not None and out.built:
                             save_part(parts, keys[i], res)
                             saved.add(i)
+                            size = sum(a.nbytes for a in res.data.values())
+                            if size <= keep:
+                                keep -= size
+                                held[i] = res
                         else:
                             held[i] = res
                         finished += 1
@@ -803,7 +811,8 @@ def _first_built(plan: SweepPlan, unbuilt: set[int], upto: list[int] | None = No
 
 def _results(total: int, held: dict[int, CaseResult], parts: Path | None, keys: list[str]) -> Iterator[CaseResult]:
     """Every case's result in plan order, one at a time: from memory (released as it goes) or
-    read back from its part, so the results are never all in memory twice."""
+    read back from its part, so the results are never all in memory twice (but a small run's,
+    see KEEP_CASES)."""
     for i in range(total):
         res = held.pop(i, None)
         if res is None and parts is not None:
