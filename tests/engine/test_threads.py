@@ -57,10 +57,12 @@ def check(monkeypatch, configs, split, fallbacks=0):
     one, eng1, made = run_with(monkeypatch, configs, 1)
     assert made == {"cases": 0, "atoms": 0}
     assert eng1.fast is not None and eng1.fast.compiled_chunks > 0 and eng1.fast.fallbacks == fallbacks
+    kinds = len(eng1.fast.kernel.signatures)
     for n in (2, 3):
         got, eng, made = run_with(monkeypatch, configs, n)
         assert_identical(one, got)
         assert eng.fast.compiled_chunks == eng1.fast.compiled_chunks and eng.fast.fallbacks == fallbacks
+        assert len(eng.fast.kernel.signatures) == kinds  # the parts' arrays have the same types: no new compile
         for kind in ("atoms", "cases"):
             assert (made[kind] > 0) == (split == kind), (n, made)
     return one
