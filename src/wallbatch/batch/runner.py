@@ -651,10 +651,6 @@ def run_plan(plan: SweepPlan, output: str | Path | None = None, *, jobs: int = 1
     and raise `Interrupted` (every finished case stays in the parts). `log` receives one-line
     notes (cases reused, kernels compiling, jobs capped)."""
     say = log or (lambda msg: None)
-    try:
-        threads.count()
-    except ValueError as exc:  # a WALLBATCH_THREADS that is not a number of threads
-        raise RunError(str(exc)) from None
     if output is None:
         return _run(plan, None, jobs, executor, scheduler, False, progress, on_result, say)
     output = Path(output)
@@ -681,6 +677,10 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
          progress: bool | None, on_result: Callable[[int, CaseResult], None] | None,
          say: Callable[[str], None]) -> xr.Dataset:
     global _PLAN, _FIRST
+    try:
+        threads.count()
+    except ValueError as exc:  # a WALLBATCH_THREADS that is not a number of threads
+        raise RunError(str(exc)) from None
     total = len(plan.cases)
     parts = parts_dir(output) if output is not None else None
     saved: set[int] = set()  # cases whose part exists (their results are read back at the end)
