@@ -21,8 +21,8 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-import common  # noqa: E402
-from suite import write_yaml  # noqa: E402
+import common
+from suite import write_yaml
 
 TRACE = r"""
 import os, sys, time
