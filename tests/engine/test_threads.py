@@ -134,6 +134,11 @@ def test_split_points():
     named["x"] = np.zeros((7, 10, 3))
     kind, parts = threads.plan_split(named, 2)
     assert kind == "cases" and [(p.start, p.stop) for p in parts] == [(0, 3), (3, 7)]
+    assert threads.plan_split({**named, "fl_int": np.array([1, 2, 0])}, 2) is None  # wall/flow
+    assert threads.plan_split({**named, "fx": (np.zeros((1, 4)),)}, 2) is None  # fixes:
+    one = {**named, "x": np.zeros((1, 1000, 3))}
+    assert threads.plan_split({**one, "dtr_every": 5}, 2) is None  # dt/reset couples the atoms
+    assert threads.plan_split({**one, "stats": True}, 2) is None  # reflect statistics: sums over atoms
     named["nsteps"] = 10
     assert threads.plan_split(named, 2) is None  # 700 atom-steps: not worth a thread
     named.pop("stats")

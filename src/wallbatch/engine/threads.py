@@ -5,7 +5,7 @@ parallel. `run_kernel` calls it as the caller would, on parts that do not intera
 
 - several cases: each thread takes a contiguous run of cases. Cases never interact, so every
   case's numbers are those of one call, whatever the split (any scene the kernel runs but those
-  with `fixes:`, whose arrays are laid out per fix);
+  with `fixes:`, whose arrays are laid out per fix, and wall/flow, run one case per call);
 - one case: each thread takes a contiguous run of atoms, split at a multiple of ALIGN atoms (the
   kernel's blocks stay the same blocks), when the atoms do not couple within a chunk: flat and
   region soft walls, wall/reflect without statistics (their sums would add in another order),
@@ -108,6 +108,9 @@ def plan_split(named: dict[str, Any], threads: int) -> tuple[str, list[slice]] |
     fx = named["fx"]
     if not isinstance(fx, tuple) or not fx or np.shape(fx[0])[0] != 0:  # `fixes:`: per-fix layout
         return None
+    flow = int(np.asarray(named["fl_int"]).reshape(-1)[0]) if np.size(named["fl_int"]) else 0
+    if flow != 0:  # wall/flow: one case per call, its arrays and generator shared by its atoms
+        return None
     steps = TIME_MODE_STEPS if named["time_mode"] else int(named["nsteps"])
     work = ncase * natom * max(1, steps)
     n = min(threads, work // MIN_WORK)
@@ -117,9 +120,8 @@ def plan_split(named: dict[str, Any], threads: int) -> tuple[str, list[slice]] |
         n = min(n, ncase)
         edges = [ncase * k // n for k in range(n + 1)]
         return "cases", [slice(edges[k], edges[k + 1]) for k in range(n)]
-    flow = int(np.asarray(named["fl_int"]).reshape(-1)[0]) if np.size(named["fl_int"]) else 0
-    if flow != 0 or int(named["dtr_every"]) != 0 or bool(named["stats"]):
-        return None  # atoms coupled within the chunk (flow, dt/reset) or sums in another order (statistics)
+    if int(named["dtr_every"]) != 0 or bool(named["stats"]):
+        return None  # atoms coupled within the chunk (dt/reset) or sums in another order (statistics)
     blocks = -(-natom // ALIGN)
     n = min(n, blocks)
     if n < 2:
