@@ -128,7 +128,7 @@ def test_split_points():
     x = np.zeros((1, 1000, 3))
     named = {k: None for k in threads.KNOWN}
     named.update(x=x, fx=(np.zeros((0, 4)),), time_mode=False, nsteps=10**6, fl_int=np.zeros(3, np.int64),
-                 dtr_every=0, stats=False)
+                 dtr_every=0, stats=False, st_meta=np.zeros((0, 4), np.int64))
     kind, parts = threads.plan_split(named, 3)
     assert kind == "atoms" and [(p.start, p.stop) for p in parts] == [(0, 256), (256, 512), (512, 1000)]
     named["x"] = np.zeros((7, 10, 3))
@@ -136,6 +136,7 @@ def test_split_points():
     assert kind == "cases" and [(p.start, p.stop) for p in parts] == [(0, 3), (3, 7)]
     assert threads.plan_split({**named, "fl_int": np.array([1, 2, 0])}, 2) is None  # wall/flow
     assert threads.plan_split({**named, "fx": (np.zeros((1, 4)),)}, 2) is None  # fixes:
+    assert threads.plan_split({**named, "st_meta": np.zeros((1, 4), np.int64)}, 2) is None  # reflect/stochastic
     one = {**named, "x": np.zeros((1, 1000, 3))}
     assert threads.plan_split({**one, "dtr_every": 5}, 2) is None  # dt/reset couples the atoms
     assert threads.plan_split({**one, "stats": True}, 2) is None  # reflect statistics: sums over atoms

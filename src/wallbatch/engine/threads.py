@@ -5,11 +5,13 @@ parallel. `run_kernel` calls it as the caller would, on parts that do not intera
 
 - several cases: each thread takes a contiguous run of cases. Cases never interact, so every
   case's numbers are those of one call, whatever the split (any scene the kernel runs but those
-  with `fixes:`, whose arrays are laid out per fix, and wall/flow, run one case per call);
+  with `fixes:`, whose arrays are laid out per fix, and wall/flow or wall/reflect/stochastic,
+  run one case per call, their generators drawn from atom after atom);
 - one case: each thread takes a contiguous run of atoms, split at a multiple of ALIGN atoms (the
   kernel's blocks stay the same blocks), when the atoms do not couple within a chunk: flat and
-  region soft walls, wall/reflect without statistics (their sums would add in another order),
-  variables; not fix dt/reset (the smallest dt over the atoms), wall/flow or `fixes:`. The
+  region soft walls (tables and wall/lepton too), wall/reflect without statistics (their sums
+  would add in another order), variables; not fix dt/reset (the smallest dt over the atoms),
+  wall/flow, wall/reflect/stochastic or `fixes:`. The
   per-case counters the kernel advances (step, dt, time, the reflect walls' previous positions)
   are copies per thread; the first thread's are kept (the others' must agree).
 
@@ -39,12 +41,14 @@ TIME_MODE_STEPS = 100  # steps assumed for a time-based chunk (its step count is
 
 # the chunk kernel's arguments (compiled._make_run_chunk), by name
 CASE_AXIS = frozenset({"x", "v", "f", "mass", "radius", "dt", "atime", "atimestep", "step", "sf_val", "rf_val",
-                       "rf_prev", "rf_stat", "dtr_par", "xo", "vo", "fo", "rg_val"})  # leading axis: cases
+                       "rf_prev", "rf_stat", "dtr_par", "xo", "vo", "fo", "rg_val", "st_val", "st_stat",
+                       "lp_val"})  # leading axis: cases
 ATOM_AXIS = {"x": 1, "v": 1, "f": 1, "mass": 1, "radius": 1, "xo": 1, "vo": 1, "fo": 1, "groups": 1}
 COUNTERS = ("dt", "atime", "atimestep", "step", "rf_prev", "rf_stat")  # per-case state the kernel writes
 SHARED = frozenset({"nsteps", "time_mode", "target", "tol", "lo", "hi", "periodic", "sf_meta", "groups", "rf_meta",
                     "stats", "dtr_every", "dtr_group", "ftm2v", "mvv2e", "rg_meta", "rg_geo", "fl_int", "fl_f",
-                    "fl_walls", "fl_grp", "fl_phys", "fl_pend", "fl_prev", "fl_cross", "fl_rng", "fx", "fx_rng"})
+                    "fl_walls", "fl_grp", "fl_phys", "fl_pend", "fl_prev", "fl_cross", "fl_rng", "fx", "fx_rng",
+                    "tb_meta", "tb_par", "tb_data", "st_meta", "st_flag", "st_rng"})
 KNOWN = CASE_AXIS | SHARED
 
 _default: int | None = None  # set_default (a --jobs worker); None: the usable cores
@@ -109,8 +113,8 @@ def plan_split(named: dict[str, Any], threads: int) -> tuple[str, list[slice]] |
     if not isinstance(fx, tuple) or not fx or np.shape(fx[0])[0] != 0:  # `fixes:`: per-fix layout
         return None
     flow = int(np.asarray(named["fl_int"]).reshape(-1)[0]) if np.size(named["fl_int"]) else 0
-    if flow != 0:  # wall/flow: one case per call, its arrays and generator shared by its atoms
-        return None
+    if flow != 0 or np.shape(named["st_meta"])[0] != 0:  # wall/flow, wall/reflect/stochastic: one case per
+        return None  # call, its generator drawn from atom after atom
     steps = TIME_MODE_STEPS if named["time_mode"] else int(named["nsteps"])
     work = ncase * natom * max(1, steps)
     n = min(threads, work // MIN_WORK)
