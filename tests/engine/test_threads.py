@@ -121,6 +121,18 @@ def test_coupled_atoms_are_not_split(monkeypatch, what):
         assert res[0].data["reflect_count"].sum() > 0
 
 
+def test_stochastic_reflect_is_not_split(monkeypatch):
+    """wall/reflect/stochastic draws from its case's generator atom after atom: its chunks run one
+    case per call in one thread, with the same numbers."""
+    def cfg(seed):
+        return gas({"s": {"style": "reflect/stochastic", "rstyle": "maxwell", "seed": seed, "units": "box",
+                          "zlo": {"coord": 1.5, "temp": 1.5, "accom": 0.5}},
+                    "w": {"style": "harmonic", "units": "box", "zhi": {"coord": 8.0, "epsilon": 5.0, "cutoff": 1.0}}},
+                   output=["step", "ke", "reflect_count"])
+    res = check(monkeypatch, [cfg(3), cfg(4)], None)
+    assert all(r.data["reflect_count"].sum() > 0 for r in res)
+
+
 def test_split_points():
     """Atom splits fall on multiples of ALIGN, itself a multiple of the kernel's block (the blocks
     are the same blocks), and cover every atom once; case splits are as even as they can be."""
