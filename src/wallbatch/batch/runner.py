@@ -36,8 +36,8 @@ import xarray as xr
 from wallbatch.version import __version__
 from wallbatch.config.models import Config, lattice_spacing
 from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict
-from wallbatch.engine import compiled
-from wallbatch.engine.engine import CaseResult, run_cases
+from wallbatch.engine import compiled, threads
+from wallbatch.engine.engine import CaseResult, Engine, run_cases
 from wallbatch.io.amber import write_amber
 from wallbatch.io.netcdf import build_dataset, write_netcdf
 from wallbatch.scene.build import build_case
@@ -45,6 +45,11 @@ from wallbatch.scene.case import Case, CaseError, structure_key
 
 MAX_BATCH = 256  # cases per task: big enough to amortise Python overhead, small enough to resume
 MAX_BATCH_ATOMS = 1_000_000  # atoms per task (all its cases): bounds a running batch's memory (~450 MB)
+WINDOWS_PER_JOB = 4  # with several workers: windows per worker, so a worker slowed by other load takes fewer
+MIN_WINDOW_ATOMS = 4_000  # ... but no smaller windows than this (a window's batch set-up and samples)
+KEEP_CASES = 256  # a run of at most this many cases keeps its results in memory as well as in the parts ...
+KEEP_BYTES = 64_000_000  # ... up to this many bytes of them: the final file does not read those back
+WARM_ATOMS = 200_000  # warm the kernels before forking on the first case if it has at most this many atoms
 MAX_STEPS = 10**12  # steps of one case (10^12 steps of one atom take days)
 MAX_SAMPLES = 1_000_000  # samples of one case (each a row of every output)
 PART_FORMAT = 2  # layout of a part file (a part of another layout is recomputed)
@@ -241,15 +246,24 @@ class Outcome:
 
 
 _PLAN: SweepPlan | None = None  # the running plan: forked workers inherit it and build their own cases
+_FIRST: Case | None = None  # its first case, built before forking (the kernels are loaded on it)
 
 
 def make_windows(plan: SweepPlan, todo: list[int], jobs: int) -> list[list[int]]:
     """Consecutive cases to build and run together (a task): at most MAX_BATCH cases and
-    MAX_BATCH_ATOMS atoms (as the config implies; atoms files count 1) and about len(todo)/jobs
-    cases, so every worker gets work and a running window's memory stays bounded."""
+    MAX_BATCH_ATOMS atoms (as the config implies; atoms files count 1), so a running window's
+    memory stays bounded. One worker: windows as large as that. Several: about
+    len(todo)/(jobs x WINDOWS_PER_JOB) cases each, but windows of at least MIN_WINDOW_ATOMS
+    atoms, so every worker gets work and one slowed by other load on the machine takes fewer
+    windows (the results do not depend on the windows)."""
     if not todo:
         return []
-    size = min(MAX_BATCH, max(1, math.ceil(len(todo) / max(1, jobs))))
+    size = math.ceil(len(todo) / max(1, jobs))
+    if jobs > 1:
+        per_case = max(1, estimate_atoms(plan.cases[todo[0]].config))
+        count = min(jobs * WINDOWS_PER_JOB, max(jobs, len(todo) * per_case // MIN_WINDOW_ATOMS))
+        size = math.ceil(len(todo) / count)
+    size = min(MAX_BATCH, max(1, size))
     windows: list[list[int]] = []
     cur: list[int] = []
     atoms = 0
@@ -286,12 +300,28 @@ def _run_window(items: list, plan: SweepPlan | None = None) -> list[Outcome]:
     return out  # type: ignore[return-value]
 
 
-def _warm_compiler() -> None:
-    """Initialise numba's compiler (its type and target contexts, ~1 s) in this process before
-    forking workers: they inherit it instead of each spending that second again, and only load
-    their kernels from the on-disk cache (~0.1 s)."""
+def _run_window_on_cluster(items: list) -> list[Outcome]:
+    """`_run_window` in a dask worker: one thread per task unless WALLBATCH_THREADS says otherwise
+    (the cluster runs as many tasks at once as it has worker threads)."""
+    threads.set_default(1)
+    return _run_window(items)
+
+
+def _warm_compiler(case: Case | None = None) -> None:
+    """Before forking workers, load the kernels they will run in this process: they inherit them
+    instead of each loading them from the on-disk cache (or compiling them, each at once). With
+    `case` (the first case of the run, up to WARM_ATOMS atoms) one step of it on a throw-away
+    engine loads exactly its kernels; otherwise numba's compiler is initialised (its type and
+    target contexts, ~1 s) and the workers load their kernels (~0.2 s each)."""
     if not compiled.enabled() or _fork_context() is None:
         return
+    if case is not None and case.natoms <= WARM_ATOMS:
+        with contextlib.suppress(Exception), np.errstate(all="ignore"):
+            engine = Engine([case])
+            if engine.fast is not None:
+                engine.setup()
+                engine.advance(1, sample=False)
+                return
     with contextlib.suppress(Exception):
         from numba.core.registry import cpu_target
 
@@ -318,10 +348,7 @@ def _run_task(cases: list[Case]) -> list[CaseResult]:
 
 def usable_cores() -> int:
     """Cores this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
+    return threads.usable_cores()
 
 
 def _watch_parent(parent: int) -> None:
@@ -331,9 +358,11 @@ def _watch_parent(parent: int) -> None:
             os._exit(1)
 
 
-def _worker_init(parent: int) -> None:
+def _worker_init(parent: int, nthreads: int = 1) -> None:
     """In each worker: Ctrl-C is the parent's business (it stops the workers), and a worker dies
-    with its parent (Linux parent-death signal, and a watcher thread elsewhere)."""
+    with its parent (Linux parent-death signal, and a watcher thread elsewhere); its compiled
+    chunks use `nthreads` threads unless WALLBATCH_THREADS says otherwise."""
+    threads.set_default(nthreads)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     for sig in (signal.SIGTERM, signal.SIGHUP):  # not the parent's handlers (inherited by fork): end now
         signal.signal(sig, signal.SIG_DFL)
@@ -363,14 +392,15 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
 def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
             scheduler: str | None = None, plan: SweepPlan | None = None) -> Iterator[tuple[int, list[Outcome]]]:
     """Run windows (see `_run_window`; in this process from `plan`); yield (window index, outcomes)
-    as each finishes. Closing the generator early (an interrupt) cancels the pending tasks and
-    stops the workers."""
+    as each finishes. Local workers each get an equal share of the cores as threads, and inherit
+    the kernels loaded here on the run's first case (_FIRST, see _warm_compiler). Closing the
+    generator early (an interrupt) cancels the pending tasks and stops the workers."""
     if executor == "dask":
         from distributed import Client
         from distributed import as_completed as dask_completed
 
         with Client(scheduler) as client:
-            futures = {client.submit(_run_window, t, pure=False): k for k, t in enumerate(tasks)}
+            futures = {client.submit(_run_window_on_cluster, t, pure=False): k for k, t in enumerate(tasks)}
             try:
                 for fut in dask_completed(futures):
                     yield futures[fut], fut.result()
@@ -381,9 +411,10 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
         for k, t in enumerate(tasks):
             yield k, _run_window(t, plan)
     else:
-        _warm_compiler()
-        pool = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=_fork_context(),
-                                   initializer=_worker_init, initargs=(os.getpid(),))
+        _warm_compiler(_FIRST)
+        workers = min(jobs, len(tasks))
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=_fork_context(), initializer=_worker_init,
+                                   initargs=(os.getpid(), max(1, usable_cores() // workers)))
         try:
             futures = {pool.submit(_run_window, t): k for k, t in enumerate(tasks)}
             for fut in as_completed(futures):
@@ -645,11 +676,17 @@ def run_plan(plan: SweepPlan, output: str | Path | None = None, *, jobs: int = 1
 def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, scheduler: str | None, resume: bool,
          progress: bool | None, on_result: Callable[[int, CaseResult], None] | None,
          say: Callable[[str], None]) -> xr.Dataset:
-    global _PLAN
+    global _PLAN, _FIRST
+    try:
+        threads.count()
+    except ValueError as exc:  # a WALLBATCH_THREADS that is not a number of threads
+        raise RunError(str(exc)) from None
     total = len(plan.cases)
     parts = parts_dir(output) if output is not None else None
     saved: set[int] = set()  # cases whose part exists (their results are read back at the end)
     held: dict[int, CaseResult] = {}  # results not in a part: cases that cannot be built, runs without output
+    # (and, for a small run, KEEP_BYTES of results also saved in parts: not read back at the end)
+    keep = KEEP_BYTES if total <= KEEP_CASES else 0
     unbuilt: set[int] = set()  # cases that cannot be built
     finished = 0  # cases run (without an output file)
     try:
@@ -683,6 +720,10 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
             layout: tuple | None = None
             built = len(saved)  # cases built (or reused)
             _PLAN = plan  # for forked workers
+            # forked workers inherit the kernels loaded on the first case (built once: the results
+            # layout comes from it at the end)
+            first = _first_built(plan, set(), windows[0]) if local and jobs > 1 and len(tasks) > 1 else None
+            _FIRST = first[1] if first is not None else None
             runs = execute(tasks, jobs, executor, scheduler, plan=plan)
             try:
                 for k, outcomes in _worker_deaths(runs, parts, saved):
@@ -705,6 +746,10 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
                         if parts is not None and out.built:
                             save_part(parts, keys[i], res)
                             saved.add(i)
+                            size = sum(a.nbytes for a in res.data.values())
+                            if size <= keep:
+                                keep -= size
+                                held[i] = res
                         else:
                             held[i] = res
                         finished += 1
@@ -713,8 +758,8 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
                     bar.update([o.result for o in outcomes])
             finally:
                 runs.close()
-                _PLAN = None
-            c0 = _first_case(plan, unbuilt)
+                _PLAN = _FIRST = None
+            c0 = first[1] if first is not None else _first_case(plan, unbuilt)
             if built == 0 or c0 is None:
                 raise CaseError(_no_case_message(plan, {i: held[i].error for i in sorted(unbuilt)}))
             paths = None
@@ -746,18 +791,28 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
 def _first_case(plan: SweepPlan, unbuilt: set[int]) -> Case | None:
     """The first case that can be built (the results layout and units come from it): built again
     here, one case; cases known not to build are skipped."""
-    for i, sc in enumerate(plan.cases):
+    found = _first_built(plan, unbuilt)
+    return found[1] if found is not None else None
+
+
+def _first_built(plan: SweepPlan, unbuilt: set[int], upto: list[int] | None = None) -> tuple[int, Case] | None:
+    """(index, case) of the first case that can be built, skipping those known not to build (and
+    looking no further than the last index of `upto`, if given). Building is deterministic: the
+    same case whenever it is asked."""
+    last = max(upto) if upto else len(plan.cases) - 1
+    for i, sc in enumerate(plan.cases[:last + 1]):
         if i in unbuilt:
             continue
         case, _, _ = build_one(sc)
         if case is not None:
-            return case
+            return i, case
     return None
 
 
 def _results(total: int, held: dict[int, CaseResult], parts: Path | None, keys: list[str]) -> Iterator[CaseResult]:
     """Every case's result in plan order, one at a time: from memory (released as it goes) or
-    read back from its part, so the results are never all in memory twice."""
+    read back from its part, so the results are never all in memory twice (but a small run's,
+    see KEEP_CASES)."""
     for i in range(total):
         res = held.pop(i, None)
         if res is None and parts is not None:

@@ -72,6 +72,7 @@ from wallbatch.engine import dt_reset as _dtr
 from wallbatch.engine import scalar as _scalar
 from wallbatch.engine import stochastic as _st
 from wallbatch.engine import thermostats as _th
+from wallbatch.engine import threads
 from wallbatch.engine.dt_reset import BIG, dt_candidate
 from wallbatch.engine.state import BatchState
 from wallbatch.engine.region_walls import RegionWallKernel
@@ -2162,12 +2163,13 @@ class FastPath:
 
         def run(c: slice, fl: tuple, fx_rng: Any = _NO_FLOW[-1], st_rng: Any = _NO_FLOW[-1]) -> int:
             """The kernel on cases c (a slice: views, so the kernel writes through)."""
-            return kernel(*args, s.x[c], s.v[c], s.f[c], s.mass[c], s.radius[c], s.dt[c], s.atime[c],
-                              s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
-                              rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
-                              rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng, *tb, sto[0], sto[1][c],
-                              sto[2][c], sto[3], st_rng, lp_val[c],
-                              (sm[0],) + tuple(a[c] for a in sm[1:]))
+            return threads.run_kernel(kernel, (  # in threads over cases or atoms where they do not interact
+                *args, s.x[c], s.v[c], s.f[c], s.mass[c], s.radius[c], s.dt[c], s.atime[c],
+                s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
+                rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
+                rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng, *tb, sto[0], sto[1][c],
+                sto[2][c], sto[3], st_rng, lp_val[c],
+                (sm[0],) + tuple(a[c] for a in sm[1:])))
 
         # generators drawn from in the kernel (fix langevin, wall/flow, wall/reflect/stochastic):
         # then one case per call, each with its own generators
