@@ -1913,6 +1913,8 @@ class FastPath:
         self._sampled_refused = False  # the scene's samples are not recorded in the kernel (sampled_eligible)
         self._sampled_count = 0  # samples of the last sampled chunk
         self._sampled_progress = 0  # after trouble in a sampled chunk: the samples completed before it
+        self._numpy_next = False  # the next chunk has the trouble a sampled chunk met: straight to NumPy
+        self._sampled_trouble = False  # the last sampled chunk met trouble in the kernel
 
     # -- packing ---------------------------------------------------------------------------
 
@@ -2003,7 +2005,11 @@ class FastPath:
     # -- the chunk -------------------------------------------------------------------------
 
     def advance(self, nsteps: int, sample: bool) -> bool:
-        """Run nsteps steps (and the sample of the last one); False: let the NumPy loop do it."""
+        """Run nsteps steps (and the sample of the last one); False: let the NumPy loop do it (also
+        right after a sampled chunk met trouble in these steps)."""
+        if self._numpy_next:
+            self._numpy_next = False
+            return False
         return self._chunk(nsteps, sample, None)
 
     def advance_to_time(self, target: float) -> bool:
@@ -2022,17 +2028,24 @@ class FastPath:
         if not (enabled() and eligible(plan) and sampled_eligible(plan)):
             self._sampled_refused = True
             return 0
+        if _splits_atoms(plan, int(at[-1])):
+            return 0  # one case in threads over its atoms (threads.plan_split): sample by sample
         # the sample arrays (C, S, ...) within SAMPLE_BUDGET doubles: fewer samples per call
         nfix = len(plan.ensemble.fixes) if plan.ensemble is not None else 0
         width = 6 + 5 * len(plan.region) + 3 * sum(len(w.faces) for w in plan.soft) + 2 * sum(len(w.faces) for w in plan.reflect) \
             + 4 * nfix + (3 * MAX_CHAIN + 2 if nfix else 0)
         at = at[:max(1, SAMPLE_BUDGET // (width * max(1, plan.state.ncases)))]
+        trouble = False
         while True:
             self._sampled_count = at.size
             self._sampled_progress = 0
+            self._sampled_trouble = False
             if self._chunk(int(at[-1]), True, None, at):
+                self._numpy_next = trouble  # the next stretch holds the trouble: NumPy runs it, reports it
                 return self._sampled_count
+            trouble = trouble or self._sampled_trouble
             if self._sampled_progress <= 0:
+                self._numpy_next = trouble
                 return 0
             # trouble after some samples (of the case that met it; the cases before it ran them all):
             # run to the last sample before it in the kernel, the step with trouble then in NumPy
@@ -2203,6 +2216,7 @@ class FastPath:
             _mark_compiled(extra)
         if status != 0:
             if at is not None:  # samples the case with trouble completed (cases run in order)
+                self._sampled_trouble = True
                 done = np.count_nonzero(sm[2][:, :, 0], axis=1)
                 short = np.nonzero(done < sm[0].size)[0]
                 self._sampled_progress = int(done[short[0]]) if short.size else 0
@@ -2318,6 +2332,23 @@ def _ecouple_samples(ensemble: Any, fixes: list[Any], acc: np.ndarray, chain: np
         for obj, attrs in saved:
             for name, value in attrs.items():
                 setattr(obj, name, value)
+
+
+def _splits_atoms(plan: ChunkPlan, nsteps: int) -> bool:
+    """Whether threads.run_kernel would split a chunk of nsteps steps of this plan over atoms (one
+    case, nothing coupling its atoms, enough work for two threads): a sampled chunk, whose sums
+    run over all atoms, is not split, so such chunks keep sampling one instant at a time."""
+    s = plan.state
+    natom = s.x.shape[1]
+    if s.ncases != 1 or threads.count() < 2 or natom <= threads.ALIGN or plan.dt_reset is not None or plan.flow:
+        return False
+    if _thermostats(plan.ensemble) or _stochastic_kernel(plan) is not None:
+        return False
+    if plan.ensemble is not None and any(f.style in FIX_KINDS for f in plan.ensemble.fixes):
+        return False  # `fixes:` (enforce2d too): the per-fix layout is never split
+    if plan.reflect and plan.reflect[0].stats:
+        return False
+    return natom * max(1, nsteps) // threads.MIN_WORK >= 2
 
 
 def sampled_eligible(plan: ChunkPlan) -> bool:
