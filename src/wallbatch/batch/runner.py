@@ -36,7 +36,7 @@ import xarray as xr
 from wallbatch.version import __version__
 from wallbatch.config.models import Config, lattice_spacing
 from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict
-from wallbatch.engine import compiled
+from wallbatch.engine import backend
 from wallbatch.engine.engine import CaseResult, run_cases
 from wallbatch.io.amber import write_amber
 from wallbatch.io.netcdf import build_dataset, write_netcdf
@@ -264,10 +264,16 @@ def make_windows(plan: SweepPlan, todo: list[int], jobs: int) -> list[list[int]]
     return windows
 
 
-def _run_window(items: list, plan: SweepPlan | None = None) -> list[Outcome]:
+def _run_window(items: list, plan: SweepPlan | None = None, compiled: bool | None = None) -> list[Outcome]:
     """Build a window's cases (items: indices into `plan`, or the running plan a forked worker
     inherited, built here; or (case, error, seconds) built by the parent), run its same-structure
-    cases as batches, and return one Outcome per item; the built cases are freed on return."""
+    cases as batches, and return one Outcome per item; the built cases are freed on return.
+    `compiled`: the plan's engine path (engine/backend.py) for a worker that did not inherit it."""
+    with backend.plan_path(compiled):
+        return _run_window_items(items, plan)
+
+
+def _run_window_items(items: list, plan: SweepPlan | None) -> list[Outcome]:
     source = plan if plan is not None else _PLAN
     built = [build_one(source.cases[it]) if isinstance(it, int) else it for it in items]  # type: ignore[union-attr]
     out: list[Outcome | None] = [None] * len(items)
@@ -290,7 +296,11 @@ def _warm_compiler() -> None:
     """Initialise numba's compiler (its type and target contexts, ~1 s) in this process before
     forking workers: they inherit it instead of each spending that second again, and only load
     their kernels from the on-disk cache (~0.1 s)."""
-    if not compiled.enabled() or _fork_context() is None:
+    if not backend.numba_allowed() or _fork_context() is None:  # small plans: NumPy, no numba
+        return
+    from wallbatch.engine import compiled
+
+    if not compiled.enabled():
         return
     with contextlib.suppress(Exception):
         from numba.core.registry import cpu_target
@@ -370,7 +380,8 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
         from distributed import as_completed as dask_completed
 
         with Client(scheduler) as client:
-            futures = {client.submit(_run_window, t, pure=False): k for k, t in enumerate(tasks)}
+            path = backend.numba_allowed()  # the plan's engine path travels with each task
+            futures = {client.submit(_run_window, t, None, path, pure=False): k for k, t in enumerate(tasks)}
             try:
                 for fut in dask_completed(futures):
                     yield futures[fut], fut.result()
@@ -619,6 +630,13 @@ def run_plan(plan: SweepPlan, output: str | Path | None = None, *, jobs: int = 1
     parts are removed once the final file is written. Ctrl-C, SIGTERM or SIGHUP stop the workers
     and raise `Interrupted` (every finished case stays in the parts). `log` receives one-line
     notes (cases reused, kernels compiling, jobs capped)."""
+    with backend.plan_path(backend.choose(plan)):  # small plans run NumPy only (engine/backend.py)
+        return _run_plan(plan, output, jobs, executor, scheduler, resume, fresh, overwrite, progress, on_result, log)
+
+
+def _run_plan(plan: SweepPlan, output: str | Path | None, jobs: int, executor: str, scheduler: str | None,
+              resume: bool, fresh: bool, overwrite: bool, progress: bool | None,
+              on_result: Callable[[int, CaseResult], None] | None, log: Callable[[str], None] | None) -> xr.Dataset:
     say = log or (lambda msg: None)
     if output is None:
         return _run(plan, None, jobs, executor, scheduler, False, progress, on_result, say)

@@ -38,7 +38,7 @@ from wallbatch.scene.case import (
 )
 from wallbatch.scene.ensemble import build_fixes
 from wallbatch.styles import STYLES, WallStyle
-from wallbatch.units import LATTICE_CELL, LATTICE_POSITIONS, LATTICES_2D, UNIT_SYSTEMS, UnitSystem
+from wallbatch.units import LATTICE_BASIS, LATTICE_CELL, LATTICE_POSITIONS, LATTICES_2D, UNIT_SYSTEMS, UnitSystem
 
 
 def _fail(path: str, msg: str) -> CaseError:
@@ -194,6 +194,56 @@ def _random_positions(cfg: Config, spec: Any, rng: np.random.Generator, path: st
                     f"{', region ' + spec.region if spec.region else ''}): lower count or overlap")
     new = np.concatenate(accepted)[len(existing):]
     return new
+
+
+def atom_count(cfg: Config) -> int:
+    """The atoms a config creates, from the config and the headers of its atoms files, without
+    building anything: random counts and explicit positions exactly; a lattice as the box
+    volume over the cell volume times the basis (regions not applied); a LAMMPS data file its
+    header's `N atoms`; an .npz archive the length of its `x`. A file that cannot be read
+    counts 0 (the case then fails when it is built)."""
+    n = 0
+    for g in cfg.atoms:
+        c = g.create
+        if c.random is not None:
+            n += c.random.count
+        elif c.positions is not None:
+            n += len(c.positions)
+        elif c.lattice is not None and cfg.lattice is not None:
+            a = lattice_spacing(cfg) or 0.0
+            cell = a * np.asarray(LATTICE_CELL.get(cfg.lattice.style, (1.0, 1.0, 1.0)))
+            cells = np.subtract(cfg.box.hi, cfg.box.lo) / np.where(cell > 0, cell, np.inf)
+            if cfg.lattice.style in LATTICES_2D:
+                cells[2] = 1.0
+            n += int(min(float(np.prod(np.ceil(cells))) * LATTICE_BASIS[cfg.lattice.style], 1e18))
+        elif c.file is not None:
+            file = Path(c.file)
+            n += _file_atom_count(file if file.is_absolute() else cfg._base_dir / file)
+    return n
+
+
+def _file_atom_count(file: Path) -> int:
+    """Atoms in an atoms file from its header only: a data file's `N atoms` line, an .npz's x."""
+    try:
+        if _is_npz(file):
+            fmt = np.lib.format
+            with zipfile.ZipFile(file) as zf, zf.open("x.npy") as fh:
+                read = {(1, 0): fmt.read_array_header_1_0, (2, 0): fmt.read_array_header_2_0}.get(fmt.read_magic(fh))
+                if read is not None:
+                    shape = read(fh)[0]
+                    return int(shape[0]) if shape else 0
+            with np.load(file, allow_pickle=False) as npz:
+                return len(npz["x"])
+        with open(file, errors="replace") as fh:
+            for k, line in enumerate(fh):
+                words = line.split("#")[0].split()
+                if k and len(words) == 2 and words[1] == "atoms":
+                    return int(words[0])
+                if k > 1000:
+                    break
+    except (OSError, ValueError, KeyError, IndexError, zipfile.BadZipFile):
+        pass
+    return 0
 
 
 def _lattice_positions(cfg: Config, region: str | None) -> np.ndarray:
@@ -594,5 +644,5 @@ def _min_settings(cfg: Config, dt: float) -> Any:
                        dmax=m.dmax, timestep=dt)
 
 
-__all__ = ["Case", "CaseError", "Face", "SoftWallSpec", "ReflectSpec", "DtResetSpec", "PairSpec", "RegionWallSpec",
+__all__ = ["atom_count", "Case", "CaseError", "Face", "SoftWallSpec", "ReflectSpec", "DtResetSpec", "PairSpec", "RegionWallSpec",
            "build_case"]
