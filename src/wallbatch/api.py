@@ -12,9 +12,7 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-
-import xarray as xr
+from typing import TYPE_CHECKING, Any
 
 from wallbatch.config.models import Config
 from wallbatch.config.source import SourceMap
@@ -22,6 +20,9 @@ from wallbatch.config.sweep import SweepPlan, config_to_dict, expand, load_plan,
 from wallbatch.engine.engine import sample_instants
 from wallbatch.batch.runner import build_cases, check_layout, make_tasks, run_plan
 from wallbatch.scene.case import Case
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 ConfigLike = str | os.PathLike | SweepPlan | Config | Mapping[str, Any]
 

@@ -28,10 +28,9 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 import numpy as np
-import xarray as xr
 
 from wallbatch.version import __version__
 from wallbatch.config.models import Config, lattice_spacing
@@ -39,9 +38,13 @@ from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict
 from wallbatch.engine import backend
 from wallbatch.engine.engine import CaseResult, run_cases
 from wallbatch.io.amber import write_amber
-from wallbatch.io.netcdf import build_dataset, write_netcdf
+from wallbatch.io.netcdf import build_results, write_netcdf
+from wallbatch.io.results import Results
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import Case, CaseError, structure_key
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 MAX_BATCH = 256  # cases per task: big enough to amortise Python overhead, small enough to resume
 MAX_BATCH_ATOMS = 1_000_000  # atoms per task (all its cases): bounds a running batch's memory (~450 MB)
@@ -621,8 +624,9 @@ def _alive(pid: int) -> bool:
 def run_plan(plan: SweepPlan, output: str | Path | None = None, *, jobs: int = 1, executor: str = "local",
              scheduler: str | None = None, resume: bool = False, fresh: bool = False, overwrite: bool = True,
              progress: bool | None = None, on_result: Callable[[int, CaseResult], None] | None = None,
-             log: Callable[[str], None] | None = None) -> xr.Dataset:
-    """Run every case of a plan; write `output` if given; return the results Dataset.
+             log: Callable[[str], None] | None = None, as_xarray: bool = True) -> xr.Dataset | Results:
+    """Run every case of a plan; write `output` if given; return the results Dataset (with
+    `as_xarray=False` the plain `io.results.Results`: xarray is not imported).
 
     With `output`, each finished case is persisted under OUT.parts/ as it completes and a lock file
     OUT.lock keeps other runs away. Parts left by an earlier run: `resume` reuses those whose case
@@ -631,12 +635,13 @@ def run_plan(plan: SweepPlan, output: str | Path | None = None, *, jobs: int = 1
     and raise `Interrupted` (every finished case stays in the parts). `log` receives one-line
     notes (cases reused, kernels compiling, jobs capped)."""
     with backend.plan_path(backend.choose(plan)):  # small plans run NumPy only (engine/backend.py)
-        return _run_plan(plan, output, jobs, executor, scheduler, resume, fresh, overwrite, progress, on_result, log)
+        res = _run_plan(plan, output, jobs, executor, scheduler, resume, fresh, overwrite, progress, on_result, log)
+    return res.to_xarray() if as_xarray else res
 
 
 def _run_plan(plan: SweepPlan, output: str | Path | None, jobs: int, executor: str, scheduler: str | None,
               resume: bool, fresh: bool, overwrite: bool, progress: bool | None,
-              on_result: Callable[[int, CaseResult], None] | None, log: Callable[[str], None] | None) -> xr.Dataset:
+              on_result: Callable[[int, CaseResult], None] | None, log: Callable[[str], None] | None) -> Results:
     say = log or (lambda msg: None)
     if output is None:
         return _run(plan, None, jobs, executor, scheduler, False, progress, on_result, say)
@@ -662,7 +667,7 @@ def _run_plan(plan: SweepPlan, output: str | Path | None, jobs: int, executor: s
 
 def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, scheduler: str | None, resume: bool,
          progress: bool | None, on_result: Callable[[int, CaseResult], None] | None,
-         say: Callable[[str], None]) -> xr.Dataset:
+         say: Callable[[str], None]) -> Results:
     global _PLAN
     total = len(plan.cases)
     parts = parts_dir(output) if output is not None else None
@@ -739,7 +744,7 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
             if c0.dump_every > 0 and output is not None:
                 paths = [str(dump_path(output, sc).relative_to(output.parent)) if (
                     dump_path(output, sc).exists()) else "" for sc in plan.cases]
-            ds = build_dataset(_results(total, held, parts, keys), c0, config_text=plan.base_text,
+            ds = build_results(_results(total, held, parts, keys), c0, config_text=plan.base_text,
                                sweep_text=plan.sweep_text, dims=plan.dims, dump_paths=paths)
             if output is not None:
                 try:
