@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import os
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
@@ -29,55 +28,6 @@ from wallbatch.scene.case import Case
 
 if TYPE_CHECKING:
     import xarray as xr
-
-class _DaskOnDemand:
-    """Stands in xarray's cache of duck-array modules for "dask" until dask is imported.
-
-    xarray imports dask (0.5-1.5 s) the first time it builds any Variable, only to test
-    `isinstance(data, dask.array.Array)`. No dask array can exist before dask.array is imported,
-    so until then the answer is "not a dask array"; from then on the real entry is used."""
-
-    def _real(self) -> Any:
-        from xarray.namedarray import pycompat
-
-        real = pycompat.DuckArrayModule("dask")
-        pycompat._cached_duck_array_modules["dask"] = real
-        return real
-
-    def __getattr__(self, name: str) -> Any:
-        if "dask" not in sys.modules and name == "type":
-            return ()
-        return getattr(self._real(), name)
-
-
-def _defer_dask_import() -> None:
-    """Keep xarray from importing dask and distributed for runs that never use them (half a
-    small run's start-up): its "is this a dask array / which dask scheduler is active?" tests
-    answer no while dask is not imported, which is exact, since no dask object or scheduler can
-    exist before. Once dask is imported, xarray's own functions answer."""
-    try:
-        from xarray.backends import locks, writers
-        from xarray.namedarray import pycompat
-        from xarray.namedarray import utils as nutils
-
-        cache = pycompat._cached_duck_array_modules
-        targets = [(nutils, "is_dask_collection", False), (locks, "get_dask_scheduler", None),
-                   (writers, "get_dask_scheduler", None)]
-        originals = [getattr(mod, name) for mod, name, _ in targets]
-    except (ImportError, AttributeError):  # another xarray layout: nothing to do
-        return
-    if isinstance(cache, dict) and "dask" not in cache and "dask" not in sys.modules:
-        cache["dask"] = _DaskOnDemand()
-    for (mod, name, without), original in zip(targets, originals):
-        if getattr(original, "_wallbatch_lazy", False):
-            continue
-
-        def lazy(*args: Any, _original: Any = original, _without: Any = without, **kwargs: Any) -> Any:
-            return _original(*args, **kwargs) if "dask" in sys.modules else _without
-
-        lazy._wallbatch_lazy = True  # type: ignore[attr-defined]
-        setattr(mod, name, lazy)
-
 
 LONG_NAMES = {
     "time": "elapsed simulated time",
