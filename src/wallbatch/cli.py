@@ -109,6 +109,8 @@ def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
         resume: bool = typer.Option(False, help="reuse the cases finished by an interrupted run (kept in OUT.nc.parts)"),
         fresh: bool = typer.Option(False, help="discard the cases left by an interrupted run and start over"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing results file"),
+        verbose: bool = typer.Option(False, "--verbose", "-v", help="say which engine runs the plan (NumPy or "
+                                     "compiled) and why"),
         ) -> None:
     """Run the scene (and its sweep) of CONFIG and write the results as NetCDF.
 
@@ -126,6 +128,10 @@ def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
         raise _fail("--resume and --fresh contradict each other: give one")
     plan = _plan(config, set_)
     out = output or Path(config.stem + ".nc")
+    if verbose:
+        from wallbatch.engine import backend
+
+        typer.echo(backend.describe(plan), err=True)
     try:
         # the plain results (xarray is not imported: a third of a small run's start-up)
         ds = run_plan(plan, out, jobs=jobs, executor=executor, scheduler=scheduler, resume=resume, fresh=fresh,
