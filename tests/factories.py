@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import xarray as xr
 
 from wallbatch.batch.runner import run_config
@@ -20,7 +21,7 @@ from wallbatch.config.models import (
     load_config,
     load_config_text,
 )
-from wallbatch.engine.engine import CaseResult, run_cases
+from wallbatch.engine.engine import CaseResult, Engine, run_cases
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import Case
 
@@ -128,3 +129,33 @@ walls:
     zhi: {{coord: 9.9, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}}
 run: {{steps: {steps}, thermo: {thermo}}}
 """
+
+
+def run_numpy_and_compiled(monkeypatch: Any, cases: list[Case]) -> tuple[list[CaseResult], list[CaseResult], Engine]:
+    """The same cases run as one batch on the NumPy path (WALLBATCH_NUMBA=0, the reference) and
+    on the compiled path: (NumPy results, compiled results, the compiled run's engine)."""
+    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
+    ref_engine = Engine(cases)
+    assert ref_engine.fast is None
+    ref = ref_engine.run()
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    eng = Engine(cases)
+    return ref, eng.run(), eng
+
+
+def assert_same_results(ref: list[CaseResult], got: list[CaseResult], rtol: float = 0.0) -> None:
+    """Same statuses, errors and output variables; values bit for bit (rtol 0) or within rtol of
+    each variable's largest magnitude, NaN where the reference has NaN."""
+    assert [r.status for r in got] == [r.status for r in ref]
+    assert [r.error for r in got] == [r.error for r in ref]
+    for a, b in zip(ref, got):
+        assert a.data.keys() == b.data.keys()
+        for name in a.data:
+            x, y = a.data[name], b.data[name]
+            assert np.shape(x) == np.shape(y), name
+            if rtol == 0.0:
+                np.testing.assert_array_equal(y, x, err_msg=name)
+            else:
+                assert np.array_equal(np.isnan(x), np.isnan(y)), name
+                scale = np.nanmax(np.abs(x)) if np.isfinite(x).any() else 0.0
+                np.testing.assert_allclose(y, x, rtol=0, atol=rtol * max(scale, 1e-300), equal_nan=True, err_msg=name)

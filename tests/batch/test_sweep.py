@@ -169,6 +169,22 @@ def test_product_value_forms_counts_and_coords(tmp_path):
     assert plan.cases[0].config.atoms[0].create.random.count == 30
 
 
+def test_cases_share_the_sections_no_swept_path_writes(tmp_path):
+    """A 10,000-case sweep must not hold 10,000 copies of the scene: sections that no swept path
+    writes into are one shared object over the cases; swept sections are each case's own."""
+    path = scene_with_sweep(tmp_path, """\
+        product:
+          epsilon: {path: walls.zwalls.zlo.epsilon, values: [0.5, 1.0, 2.0]}
+        """)
+    plan = load_plan(path)
+    first, *rest = (c.config for c in plan.cases)
+    for cfg in rest:
+        assert cfg.atoms is first.atoms and cfg.box is first.box and cfg.run is first.run
+        assert cfg.walls is not first.walls
+    assert [c.config.walls["zwalls"].zlo.epsilon for c in plan.cases] == [0.5, 1.0, 2.0]
+    assert all(c.config.walls["zwalls"].zhi.epsilon == 1.0 for c in plan.cases)
+
+
 def test_multi_path_entry_sets_every_path(tmp_path):
     path = scene_with_sweep(tmp_path, """\
         product:

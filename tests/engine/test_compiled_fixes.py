@@ -12,7 +12,7 @@ import copy
 
 import numpy as np
 import pytest
-from factories import slab_gas
+from factories import assert_same_results, run_numpy_and_compiled, slab_gas
 
 from wallbatch.config.models import config_from_dict
 from wallbatch.engine import compiled as fast
@@ -38,28 +38,10 @@ def gas(fixes, *, n=300, steps=400, thermo=50, seed=5, temperature=1.5, **extra)
 def run_both(monkeypatch, configs):
     cases = [build_case(config_from_dict(d)) for d in configs]
     assert len({structure_key(c) for c in cases}) == 1
-    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
-    ref_engine = Engine(cases)
-    assert ref_engine.fast is None
-    ref = ref_engine.run()
-    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
-    eng = Engine(cases)
-    got = eng.run()
-    return ref, got, eng
+    return run_numpy_and_compiled(monkeypatch, cases)
 
 
-def assert_same(ref, got, rtol=0.0):
-    assert [r.status for r in got] == [r.status for r in ref]
-    assert [r.error for r in got] == [r.error for r in ref]
-    for a, b in zip(ref, got):
-        assert a.data.keys() == b.data.keys()
-        for name in a.data:
-            x, y = a.data[name], b.data[name]
-            if rtol == 0.0:
-                np.testing.assert_array_equal(y, x, err_msg=name)
-            else:
-                scale = np.nanmax(np.abs(x)) if np.isfinite(x).any() else 0.0
-                np.testing.assert_allclose(y, x, rtol=0, atol=rtol * max(scale, 1e-300), err_msg=name)
+assert_same = assert_same_results
 
 
 def check(monkeypatch, configs, rtol=0.0):

@@ -45,8 +45,12 @@ def test_scene_kernels_are_distinct_and_named_for_the_cache():
     assert fast.kernel_for(((lj93, 0),)) is a
     b = fast.kernel_for(((harm, 0),))
     c = fast.kernel_for(((lj93, 0),), parallel=True)
-    names = {k.py_func.__qualname__ for k in (a, b, c)}
-    assert len(names) == 3 and all(n.startswith("_run_chunk_") for n in names)
+    d = fast.kernel_for(((lj93, 0),), fixes=False, dtr=False)
+    names = {k.py_func.__qualname__ for k in (a, b, c, d)}
+    assert len(names) == 4 and all(n.startswith("_run_chunk_") for n in names)
+    # a scene without `fixes:` and dt/reset links stubs in their place (a shorter first compile)
+    assert d.py_func.__globals__["_fix_pre"] is fast._no_fix_pre
+    assert a.py_func.__globals__["_fix_pre"] is fast._fix_pre
 
 
 @pytest.mark.skipif(fast.njit is None, reason="numba not importable")

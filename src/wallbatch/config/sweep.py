@@ -372,9 +372,14 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
                         from None
                 swept[p] = where
     case_map = OverlayMap(srcmap, {**origins, **swept})
+    # the top-level sections a swept path writes into are copied per case; the others are shared
+    # (validation does not change its input), and so are their validated models when equal to the
+    # base's: a 10,000-case sweep holds one copy of what its cases have in common
+    touched = {p.split(".")[0] for p in swept}
+    shared = [name for name in type(base).model_fields if name not in touched]
     cases, problems = [], []
     for index in itertools.product(*(range(len(d.values)) for d in dims)):
-        case_data = copy.deepcopy(base_data)
+        case_data = {k: copy.deepcopy(v) if k in touched else v for k, v in base_data.items()}
         coords: dict[str, Any] = {}
         for d, i in zip(dims, index):
             coords[d.name] = d.values[i]
@@ -394,6 +399,9 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
             problems.extend((label, p) for p in exc.problems)
             continue
         cfg._base_dir = base_dir
+        for name in shared:
+            if cfg.__dict__[name] == base.__dict__[name]:
+                cfg.__dict__[name] = base.__dict__[name]
         cases.append(SweepCase(index, coords, cfg, _seed_key(coords)))
     if problems:
         grouped = _group(problems, int(np.prod([len(d.values) for d in dims], dtype=int)))

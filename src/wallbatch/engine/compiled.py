@@ -65,6 +65,7 @@ import numpy as np
 
 from wallbatch.engine import backend
 from wallbatch.engine import dt_reset as _dtr
+from wallbatch.engine import scalar as _scalar
 from wallbatch.engine import thermostats as _th
 from wallbatch.engine.dt_reset import BIG, dt_candidate
 from wallbatch.engine.state import BatchState
@@ -95,7 +96,8 @@ REGION_KINDS: dict[tuple[str, str], int] = {("block", "in"): 0, ("block", "out")
                                             ("sphere", "out"): 3, ("cylinder", "in"): 4, ("cylinder", "out"): 5}
 # this file's code and the generated kernels' helpers: part of the key of the generated lepton chunk kernels
 _SOURCE_DIGEST = hashlib.sha256(Path(__file__).read_bytes() + inspect.getsource(_lepton_helpers).encode()).hexdigest()[:16]
-COMPILE_SECONDS = 20  # typical compile of one scene kernel on a 2-core machine (measured 14-26 s; the message's estimate)
+COMPILE_SECONDS = 10  # typical compile of one scene kernel on a 2-core machine (flat walls: measured 9-11 s CPU; the message's estimate)
+COMPILE_SECONDS_FIXES = 20  # the same with thermostats or dt/reset in the kernel (measured 20-26 s)
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
 # fixes of `fixes:` in the kernel (fx_meta's kind column); nve is the kernel's own integrator
 FIX_LANGEVIN, FIX_NVT, FIX_BERENDSEN, FIX_RESCALE, FIX_ENFORCE2D = 0, 1, 2, 3, 4
@@ -172,6 +174,7 @@ def _fingerprint(pairs: tuple[tuple[int, int], ...], flow: bool, parallel: bool,
     h.update(inspect.getsource(_cutoff).encode())
     h.update(inspect.getsource(dt_candidate).encode())
     h.update(inspect.getsource(_th).encode())
+    h.update(inspect.getsource(_scalar).encode())
     if flow:
         from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
 
@@ -194,23 +197,8 @@ if njit is not None:
         """thermostats.libm_exp for a scalar: math.exp (the C library's exp)."""
         return lambda x: math.exp(x)
 
-    @inline
-    def _nmin(a: float, b: float) -> float:
-        """np.minimum for two scalars (NaN propagates)."""
-        if a != a:
-            return a
-        if b != b:
-            return b
-        return a if a <= b else b
-
-    @inline
-    def _nmax(a: float, b: float) -> float:
-        """np.maximum for two scalars (NaN propagates)."""
-        if a != a:
-            return a
-        if b != b:
-            return b
-        return a if a >= b else b
+    _nmin = inline(_scalar.nmin)  # np.minimum / np.maximum of two floats (engine/scalar.py)
+    _nmax = inline(_scalar.nmax)
 
     # the registry's force functions, compiled as they are (the same function objects)
     FORCES = tuple(njit(nogil=True, error_model="numpy")(st.force) for st in COMPILED_STYLES)
@@ -685,42 +673,21 @@ if njit is not None:
 
     def _flow_step(X, V, M, fl_int, fl_f, walls, grp, phys, pend, prev, cross, rng, CI, DIR):
         """fix wall/flow's end_of_step (flow.FlowKernel.end_of_step) for the one case of the chunk,
-        on its buffers: crossings (segments of the wrapped axis coordinate, pending returns), then
-        the draws from the case's generator in the NumPy order (u1, u2, g (n, 2)) and the redraws
-        (flow_compiled.apply's arithmetic). fl_int: on, axis, exact; fl_f: lo, length, vflow, kT.
-        Compiled by `kernel_for` for scenes with a flow wall (`flow_compiled` is linked then)."""
+        on its buffers: crossings (flow_compiled.crossing per atom), then the draws from the case's
+        generator in the NumPy order (u1, u2, g (n, 2)) and the redraws (flow_compiled.redraw).
+        fl_int: on, axis, exact; fl_f: lo, length, vflow, kT. Compiled by `kernel_for` for scenes
+        with a flow wall (`flow_compiled` is linked then)."""
         ax = fl_int[1]
         lo, length = fl_f[0], fl_f[1]
         n = 0
         for i in range(X.shape[1]):
             xi = X[ax, i]
-            t = xi - lo
-            if not (t >= 0.0 and t < length):  # t % length is t itself there (positions are wrapped)
-                t = t % length
-            xw = lo + t
-            sg = 0
-            for k in range(walls.shape[0]):
-                sg += xw >= walls[k]
-            if grp[i] != 0:
-                moved = sg != phys[i]
-                pe = float(pend[i])
-                if moved or pe != 0.0:
-                    va = V[ax, i]
-                    dx = xi - prev[i]
-                    dx -= length * np.rint(dx / length)
-                    d = np.sign(dx)
-                    if d == 0.0:
-                        d = np.sign(va)
-                    if d == 0.0:
-                        d = 1.0
-                    returned = (pe != 0.0) & moved & (d == pe)
-                    turned = (pe != 0.0) & (not moved) & (va * pe <= 0.0)
-                    if returned:
-                        pend[i] = 0
-                    if (moved & (not returned)) | turned:
-                        CI[n] = i
-                        DIR[n] = -pe if turned else d
-                        n += 1
+            sg, d, pe = flow_compiled.crossing(xi, V[ax, i], prev[i], lo, length, walls, phys[i], pend[i], grp[i] != 0)
+            pend[i] = pe
+            if d != 0.0:
+                CI[n] = i
+                DIR[n] = d
+                n += 1
             phys[i] = sg
             prev[i] = xi
         if n == 0:
@@ -732,14 +699,9 @@ if njit is not None:
         for k in range(n):
             i = CI[k]
             gamma = 1.0 / math.sqrt(2.0 * kT / M[i])
-            delta = gamma * vflow
-            pplus = flow_compiled._expit(flow_compiled.log_tail(0.0, delta) - flow_compiled.log_tail(0.0, -delta), 0)
-            side = -1.0 if u1[k] > pplus else 1.0
-            v_axis = side * flow_compiled.solve_flux_speed(side * delta, 1.0 - u2[k], 100) / gamma
-            scale = gamma * flow_compiled._SQRT2
+            v_axis, V[(ax + 1) % 3, i], V[(ax + 2) % 3, i] = flow_compiled.redraw(u1[k], u2[k], g[k, 0], g[k, 1],
+                                                                                  gamma, vflow)
             V[ax, i] = v_axis
-            V[(ax + 1) % 3, i] = g[k, 0] / scale
-            V[(ax + 2) % 3, i] = g[k, 1] / scale
             pend[i] = -DIR[k] if fl_int[2] != 0 and v_axis * DIR[k] < 0.0 else 0
         cross[0] += n
 
@@ -867,9 +829,9 @@ if njit is not None:
                     for a in range(natom):
                         DTFM[a] = hdt / M[a]
                     if window and speculate:
-                        XS[:] = X
-                        VS[:] = V
-                        FS[:] = F
+                        _copy3(XS, X)
+                        _copy3(VS, V)
+                        _copy3(FS, F)
                     for s in range(nwin):
                         low[s] = np.inf
                         for k in range(nrf):
@@ -905,9 +867,9 @@ if njit is not None:
                                 first = s
                                 break
                         if first >= 0:  # dt changes after step `first`: undo, go step by step up to there
-                            X[:] = XS
-                            V[:] = VS
-                            F[:] = FS
+                            _copy3(X, XS)
+                            _copy3(V, VS)
+                            _copy3(F, FS)
                             stepwise = first + 1 + backoff
                             backoff = min(2 * backoff + 8, 4096)
                             continue
@@ -964,6 +926,36 @@ if njit is not None:
     def _no_flow_step(X, V, M, fl_int, fl_f, walls, grp, phys, pend, prev, cross, rng, CI, DIR):
         """`_flow_step` of a scene without wall/flow fixes: nothing."""
         return
+
+    # stubs linked into the kernel of a scene without `fixes:` or without fix dt/reset (`kernel_for`):
+    # the chunk never calls them then (no fix rows; dtr_every == 0), and leaving the thermostat and
+    # dt/reset code out makes the first compile of such a scene's kernel several seconds shorter
+    @jit
+    def _no_fix_pre(c, stepn, dtc, V, M, groups, fx, rng, SQM, FR, KB):
+        """`_fix_pre` of a scene without fixes: nothing."""
+        return 0
+
+    @jit
+    def _no_fix_end(c, stepn, dtc, V, M, groups, fx, KB, FL):
+        """`_fix_end` of a scene without fixes: nothing."""
+        return 0
+
+    @inline
+    def _no_fix_post_force(u0, u1, V, F, groups, fxp):
+        """`_fix_post_force` of a scene without fixes: nothing."""
+        return
+
+    @inline
+    def _no_dt_candidate(vx, vy, vz, fx, fy, fz, m, ftm2v, mvv2e, xmax, emax):
+        """`_dt_candidate` of a scene without fix dt/reset: never called."""
+        return np.inf
+
+    @inline
+    def _copy3(dst, src):
+        """dst[:] = src for (3, N) buffers, as a plain loop (no broadcasting checks to compile)."""
+        for d in range(3):
+            for i in range(src.shape[1]):
+                dst[d, i] = src[d, i]
 
     def _relink(fn: Any, name: str | None = None, filename: str | None = None, **replace: Any) -> Any:
         """The Python function `fn` (or a jitted dispatcher's) with some of its globals replaced
@@ -1056,13 +1048,14 @@ if njit is not None:
                            _fingerprint(pairs, flow, False, source))
 
     def kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
-                   extra: tuple[str, ...] = (), parallel: bool = False) -> Any:
-        """The chunk kernel of one kind of scene (`_kernel_for`), one per specialisation and process."""
-        return _kernel_for(*_scene_args(soft, region, flow, extra), bool(parallel))
+                   extra: tuple[str, ...] = (), parallel: bool = False, fixes: bool = True, dtr: bool = True) -> Any:
+        """The chunk kernel of one kind of scene (`_kernel_for`), one per specialisation and process;
+        `fixes`/`dtr` False: a scene without `fixes:` / fix dt/reset (their code left out)."""
+        return _kernel_for(*_scene_args(soft, region, flow, extra), bool(parallel), bool(fixes), bool(dtr))
 
     @functools.lru_cache(maxsize=64)
     def _kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
-                    extra: tuple[str, ...], parallel: bool) -> Any:
+                    extra: tuple[str, ...], parallel: bool, fixes: bool = True, dtr: bool = True) -> Any:
         """The chunk kernel of one kind of scene (`pieces_for`; `parallel`: compiled with numba
         parallel=True, reserved for a two-thread variant, not used by the engine yet): this
         module's chunk kernel re-linked to the scene's block and flow steps, named
@@ -1070,9 +1063,19 @@ if njit is not None:
         file, or with `extra` beside the generated module it is attributed to: compiled once,
         loaded by later processes)."""
         p = _pieces_for(soft, region, flow, extra)
-        fp = _fingerprint(tuple(sorted(set(soft) | set(region))), flow, parallel, p.source)
+        fp = _fingerprint(tuple(sorted(set(soft) | set(region))), flow, parallel,
+                          p.source + ("" if fixes and dtr else f"\n# fixes {fixes}, dt/reset {dtr}"))
+        block_step, links = p.block_step, {}
+        if not (fixes and dtr):
+            gone = {}
+            if not fixes:
+                gone["_fix_post_force"] = _no_fix_post_force
+                links = {"_fix_pre": _no_fix_pre, "_fix_end": _no_fix_end}
+            if not dtr:
+                gone["_dt_candidate"] = _no_dt_candidate
+            block_step = njit(nogil=True, error_model="numpy", inline="always")(_relink(p.block_step, **gone))
         fn = _relink(_make_run_chunk(fp), name=f"_run_chunk_{fp:015x}", filename=p.filename,
-                     _block_step=p.block_step, _flow_step=p.flow_step)
+                     _block_step=block_step, _flow_step=p.flow_step, **links)
         return njit(cache=True, nogil=True, error_model="numpy", parallel=parallel)(fn)
 
 
@@ -1546,10 +1549,12 @@ class FastPath:
         fk = plan.flow[0] if plan.flow else None
         n = len(COMPILED_STYLES)
         kernel = kernel_for(tuple(sorted({(int(r[0]), int(r[4])) for r in sf_meta if r[0] < n})),
-                            tuple(sorted({(int(r[2]), int(r[4])) for r in rg[0]})), fk is not None, tuple(extra))
+                            tuple(sorted({(int(r[2]), int(r[4])) for r in rg[0]})), fk is not None, tuple(extra),
+                            fixes=bool(fx[0].shape[0]), dtr=dtr is not None)
         self.kernel = kernel  # the last chunk's kernel (tests read its cache statistics)
         if not kernel.signatures:
-            announce_compile(kernel, 30 if extra else COMPILE_SECONDS)  # generated forces: ~30 s
+            announce_compile(kernel, 30 if extra else COMPILE_SECONDS_FIXES if fx[0].shape[0] or dtr is not None
+                             else COMPILE_SECONDS)  # generated forces: ~30 s
         sf_val, rf_val, rf_stat = (np.ascontiguousarray(a) for a in (sf_val, rf_val, rf_stat))
         lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)
         args = (int(nsteps), time_mode, float(target if time_mode else 0.0),

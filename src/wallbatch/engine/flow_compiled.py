@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from wallbatch.engine import backend
+from wallbatch.engine import scalar as _scalar
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     import llvmlite.binding as _llvm
@@ -71,23 +72,8 @@ if njit is not None:
         q = _one_minus_r(y)
         return -y * y + math.log(0.5 * (q + (nu / y) * (1.0 - q)))
 
-    @jit
-    def _nmax(a: float, b: float) -> float:
-        """np.maximum for two scalars (NaN propagates)."""
-        if a != a:
-            return a
-        if b != b:
-            return b
-        return a if a >= b else b
-
-    @jit
-    def _nmin(a: float, b: float) -> float:
-        """np.minimum for two scalars (NaN propagates)."""
-        if a != a:
-            return a
-        if b != b:
-            return b
-        return a if a <= b else b
+    _nmin = jit(_scalar.nmin)  # np.minimum / np.maximum of two floats (engine/scalar.py)
+    _nmax = jit(_scalar.nmax)
 
     @jit
     def solve_flux_speed(delta: float, u: float, max_iter: int) -> float:
@@ -134,47 +120,42 @@ if njit is not None:
                 break
         return x
 
-    @jit
-    def velocities(u1: np.ndarray, u2: np.ndarray, g: np.ndarray, gamma: np.ndarray, vflow: np.ndarray,
-                   v_axis: np.ndarray, v_par: np.ndarray) -> None:
-        """flow._velocities into v_axis (n,) and v_par (n, 2): side from u1 (backward if u1 > P+),
-        speed ν from T(ν)/T(0) = 1 - u2, v_axis = side ν / γ, v_par = g / (γ √2)."""
-        for i in range(u1.shape[0]):
-            delta = gamma[i] * vflow[i]
-            pplus = _expit(log_tail(0.0, delta) - log_tail(0.0, -delta), 0)
-            side = -1.0 if u1[i] > pplus else 1.0
-            nu = solve_flux_speed(side * delta, 1.0 - u2[i], 100)
-            v_axis[i] = side * nu / gamma[i]
-            scale = gamma[i] * _SQRT2
-            v_par[i, 0] = g[i, 0] / scale
-            v_par[i, 1] = g[i, 1] / scale
+    inline = njit(cache=True, nogil=True, error_model="numpy", inline="always")
 
-    @jit
-    def detect(x, v, group, axis, lo, length, walls, phys, pend, prev, seg, xa, ci, ai, direction) -> int:
-        """FlowKernel.end_of_step up to the draws, for every case: the wrapped axis coordinate xa
-        (C, N) and its segment seg (C, N); returned atoms get pend 0; the crossings go to ci, ai,
-        direction (case-major, ascending atom: the order of the draws). Returns their number."""
-        C, N = x.shape[0], x.shape[1]
-        n = 0
-        for c in range(C):
-            ax = axis[c]
-            for i in range(N):
-                xi = x[c, i, ax]
-                xa[c, i] = xi
-                xw = lo[c] + (xi - lo[c]) % length[c]
-                s = 0
-                for k in range(walls.shape[1]):
-                    s += xw >= walls[c, k]
-                seg[c, i] = s
-                if not group[c, i]:
-                    continue
-                moved = s != phys[c, i]
-                pe = float(pend[c, i])
-                if not moved and pe == 0.0:
-                    continue
-                va = v[c, i, ax]
-                dx = xi - prev[c, i]
-                dx -= length[c] * np.rint(dx / length[c])
+    @inline
+    def redraw(u1: float, u2: float, g0: float, g1: float, gamma: float, vflow: float) -> tuple:
+        """One atom's new velocity (flow._velocities): side from u1 (backward if u1 > P+), speed ν
+        from T(ν)/T(0) = 1 - u2; returns (v along the axis = side ν / γ, the two other components
+        g / (γ √2)). γ = 1 / sqrt(2 kT / m) [1 / velocity]."""
+        delta = gamma * vflow
+        pplus = _expit(log_tail(0.0, delta) - log_tail(0.0, -delta), 0)
+        side = -1.0 if u1 > pplus else 1.0
+        v_axis = side * solve_flux_speed(side * delta, 1.0 - u2, 100) / gamma
+        scale = gamma * _SQRT2
+        return v_axis, g0 / scale, g1 / scale
+
+    @inline
+    def crossing(xi: float, va: float, prev: float, lo: float, length: float, walls: np.ndarray, phys: int,
+                 pend: int, member: bool) -> tuple:
+        """FlowKernel.end_of_step's test for one atom: its segment between the walls (of its
+        wrapped axis coordinate xi; walls ascending), and whether it crossed a wall this step.
+        Returns (segment, direction of the crossing: +-1.0, or 0.0 if none, pend after the test: 0
+        if it returned through the wall it was pending at). A member atom crossed if its segment
+        changed (not just returning), or it turned back (va against pend) without leaving."""
+        t = xi - lo
+        if not (t >= 0.0 and t < length):  # t % length is t itself there (positions are wrapped)
+            t = t % length
+        xw = lo + t
+        sg = 0
+        for k in range(walls.shape[0]):
+            sg += xw >= walls[k]
+        direction = 0.0
+        if member:
+            moved = sg != phys
+            pe = float(pend)
+            if moved or pe != 0.0:
+                dx = xi - prev
+                dx -= length * np.rint(dx / length)
                 d = np.sign(dx)
                 if d == 0.0:
                     d = np.sign(va)
@@ -183,28 +164,49 @@ if njit is not None:
                 returned = (pe != 0.0) & moved & (d == pe)
                 turned = (pe != 0.0) & (not moved) & (va * pe <= 0.0)
                 if returned:
-                    pend[c, i] = 0
+                    pend = 0
                 if (moved & (not returned)) | turned:
+                    direction = -pe if turned else d
+        return sg, direction, pend
+
+    @jit
+    def velocities(u1: np.ndarray, u2: np.ndarray, g: np.ndarray, gamma: np.ndarray, vflow: np.ndarray,
+                   v_axis: np.ndarray, v_par: np.ndarray) -> None:
+        """flow._velocities into v_axis (n,) and v_par (n, 2) (`redraw` per atom)."""
+        for i in range(u1.shape[0]):
+            v_axis[i], v_par[i, 0], v_par[i, 1] = redraw(u1[i], u2[i], g[i, 0], g[i, 1], gamma[i], vflow[i])
+
+    @jit
+    def detect(x, v, group, axis, lo, length, walls, phys, pend, prev, seg, xa, ci, ai, direction) -> int:
+        """FlowKernel.end_of_step up to the draws, for every case (`crossing` per atom): the axis
+        coordinate xa (C, N) and its segment seg (C, N); returned atoms get pend 0; the crossings go
+        to ci, ai, direction (case-major, ascending atom: the order of the draws). Returns their number."""
+        C, N = x.shape[0], x.shape[1]
+        n = 0
+        for c in range(C):
+            ax = axis[c]
+            for i in range(N):
+                xi = x[c, i, ax]
+                xa[c, i] = xi
+                s, d, pe = crossing(xi, v[c, i, ax], prev[c, i], lo[c], length[c], walls[c], phys[c, i], pend[c, i],
+                                    group[c, i] != 0)
+                seg[c, i] = s
+                pend[c, i] = pe
+                if d != 0.0:
                     ci[n] = c
                     ai[n] = i
-                    direction[n] = -pe if turned else d
+                    direction[n] = d
                     n += 1
         return n
 
     @jit
     def apply(ci, ai, direction, u1, u2, g, kT, mass, vflow, axis, exact, v, pend) -> None:
-        """The redraws of the crossings ci, ai from the drawn u1, u2, g (flow._velocities per atom),
-        and pend after them (rule exact: -direction if the new velocity points back, else 0)."""
+        """The redraws of the crossings ci, ai from the drawn u1, u2, g (`redraw` per atom), and pend
+        after them (rule exact: -direction if the new velocity points back, else 0)."""
         for k in range(ci.shape[0]):
             c, a = ci[k], ai[k]
-            gamma = 1.0 / math.sqrt(2.0 * kT[c] / mass[c, a])
-            delta = gamma * vflow[c]
-            pplus = _expit(log_tail(0.0, delta) - log_tail(0.0, -delta), 0)
-            side = -1.0 if u1[k] > pplus else 1.0
-            v_axis = side * solve_flux_speed(side * delta, 1.0 - u2[k], 100) / gamma
             ax = axis[c]
-            scale = gamma * _SQRT2
+            gamma = 1.0 / math.sqrt(2.0 * kT[c] / mass[c, a])
+            v_axis, v[c, a, (ax + 1) % 3], v[c, a, (ax + 2) % 3] = redraw(u1[k], u2[k], g[k, 0], g[k, 1], gamma, vflow[c])
             v[c, a, ax] = v_axis
-            v[c, a, (ax + 1) % 3] = g[k, 0] / scale
-            v[c, a, (ax + 2) % 3] = g[k, 1] / scale
             pend[c, a] = -direction[k] if exact[c] and v_axis * direction[k] < 0.0 else 0.0
