@@ -34,6 +34,17 @@ def test_work_is_steps_times_atoms_plus_the_step_cost_summed_over_every_case(tmp
     assert backend.choose(plan_of(tmp_path, 30, steps - 1)) is False
 
 
+def test_pair_forces_and_ellipsoids_weigh_more(tmp_path, monkeypatch):
+    """NumPy's pair lj/cut and ellipsoid steps cost ~50x per atom: their plans go compiled sooner."""
+    monkeypatch.delenv("WALLBATCH_NUMBA", raising=False)
+    flat = plan_of(tmp_path, 30, 400)
+    path = tmp_path / "pair.yaml"
+    path.write_text(slit_yaml("b", 30, 400, 100) + "pair: {style: lj/cut, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}\n")
+    pair = load_plan(path)
+    assert backend.plan_work(pair) == 400 * (backend.HEAVY_ATOM * 30 + backend.HEAVY_STEP * backend.STEP_ATOMS)
+    assert backend.plan_work(pair) > 10 * backend.plan_work(flat)
+
+
 @pytest.mark.parametrize("value, compiled", [("0", False), ("off", False), ("1", True), ("yes", True)])
 def test_wallbatch_numba_forces_the_path_for_any_plan(tmp_path, monkeypatch, value, compiled):
     monkeypatch.setenv("WALLBATCH_NUMBA", value)

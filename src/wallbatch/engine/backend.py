@@ -8,7 +8,8 @@ back runs in NumPy and never imports numba. The choice is made once per plan (a 
     work = sum over ALL cases of steps x (atoms + STEP_ATOMS)
 
 (a NumPy step costs about 65 us plus 14 ns per atom on a 2-core x86 machine: STEP_ATOMS = 4000
-atoms' worth per step); below SMALL_RUN (NumPy's time about equal to numba's start-up, ~0.7 s)
+atoms' worth per step; a scene with pair forces or ellipsoids costs NumPy far more, ~1 ms per step
+at 1000 atoms: its atoms count HEAVY_ATOM times and its steps HEAVY_STEP times); below SMALL_RUN (NumPy's time about equal to numba's start-up, ~0.7 s)
 the plan runs in NumPy, otherwise compiled. It does not depend on how the cases are batched,
 resumed or spread over `--jobs` workers, so a plan is all one path and its results are the same
 however it is run. `WALLBATCH_NUMBA=0` (or numba missing) forces NumPy, `WALLBATCH_NUMBA=1`
@@ -31,6 +32,7 @@ from wallbatch.units import UNIT_SYSTEMS
 
 SMALL_RUN = 50_000_000  # work (atom-steps + STEP_ATOMS per step): below it a plan runs in NumPy
 STEP_ATOMS = 4_000  # a NumPy step's fixed cost (~65 us) in atoms (~14 ns per atom-step)
+HEAVY_ATOM, HEAVY_STEP = 50, 15  # pair lj/cut or ellipsoids: NumPy's cost per atom and per step, relative
 _OFF = ("0", "false", "no", "off")
 _ON = ("1", "true", "yes", "on")
 
@@ -70,12 +72,16 @@ def plan_path(compiled: bool | None) -> Iterator[None]:
 
 
 def case_work(cfg: Config) -> int:
-    """steps x (atoms + STEP_ATOMS) of one case (a run to a simulated time: time / initial dt)."""
+    """steps x (atoms + STEP_ATOMS) of one case (a run to a simulated time: time / initial dt),
+    atoms and steps weighted HEAVY_ATOM and HEAVY_STEP for pair forces or ellipsoids."""
     if cfg.run.steps is not None:
         steps = cfg.run.steps
     else:
         dt = cfg.timestep if cfg.timestep is not None else UNIT_SYSTEMS[cfg.units].dt
         steps = int(cfg.run.time / dt) + 1 if dt > 0 else 0
+    heavy = cfg.pair is not None or any(g.shape is not None for g in cfg.atoms)
+    if heavy:
+        return steps * (HEAVY_ATOM * atom_count(cfg) + HEAVY_STEP * STEP_ATOMS)
     return steps * (atom_count(cfg) + STEP_ATOMS)
 
 
