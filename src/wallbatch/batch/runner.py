@@ -399,7 +399,7 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
         pool = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=_fork_context(),
                                    initializer=_worker_init, initargs=(os.getpid(),))
         try:
-            futures = {pool.submit(_run_window, t): k for k, t in enumerate(tasks)}
+            futures = {pool.submit(_run_window, t, None, backend.numba_allowed()): k for k, t in enumerate(tasks)}
             for fut in as_completed(futures):
                 yield futures[fut], fut.result()
         except BaseException:
