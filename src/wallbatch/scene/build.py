@@ -76,7 +76,7 @@ def _region_contains(cfg: Config, name: str, pts: np.ndarray) -> np.ndarray:
     return RegionGeom.from_config(region, None if region.units == "box" else lattice_spacing(cfg)).contains(pts)
 
 
-PAIR_CHUNK = 1 << 21  # candidate pairs examined at once by _close_pairs (bounds its memory)
+PAIR_CHUNK = 1 << 19  # candidate pairs examined at once by _close_pairs (bounds its memory, ~40 MB)
 
 
 def _cells(s: np.ndarray, boxsize: np.ndarray, ncell: np.ndarray) -> np.ndarray:
