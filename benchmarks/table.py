@@ -6,9 +6,9 @@ gas slit of the suite with both faces read from a table of lj93 (eps 1, sigma 1,
 
 Rows (one process; seconds of the run of one case, the same initial state everywhere):
   * built-in lj93, compiled path (its kernel loaded from numba's on-disk cache beforehand);
-  * wall/table linear / spline, compiled path (WALLBATCH_LEPTON_COMPILED=always): the force
-    generated from the table; its kernel is compiled or loaded from the disk cache by a short run
-    first, timed apart (`kernel`: a cold compile the first time on a machine, a load afterwards);
+  * wall/table linear / spline, compiled path (default settings): the scene kernel with the
+    tables as its data (no per-table compile); loaded, or compiled once per kind of scene, by a
+    short run first, timed apart (`kernel`);
   * the same on the NumPy path;
   * LAMMPS fix wall/table with the same table file, tabstyle and N (seconds of its `run`).
 
@@ -71,7 +71,6 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=300)
     ap.add_argument("--markdown", type=Path)
     args = ap.parse_args()
-    os.environ["WALLBATCH_LEPTON_COMPILED"] = "always"
     tmp = tempfile.mkdtemp(prefix="wb_table_bench_")
     path = os.path.join(tmp, "lj93.table")
     r, e, f = tabulate(lambda r: STYLES["lj93"].energy_force(r, {"epsilon": 1.0, "sigma": 1.0}), 0.3, 3.0, N_TABLE)

@@ -26,7 +26,7 @@ REQUIRED = [
     "flow-lj-4000", "ljcut-4000", "ljcut-32000", "ljcut-100000",
     "every-step-100cases", "every-step-1case",
     "end-to-end-small", "startup-100", "first-run-compile", "jobs2-64cases", "threads-1e6", "memory-10k-cases",
-    "lepton-vs-builtin", "lepton-compiled-vs-builtin",
+    "lepton-vs-builtin",
 ]
 
 

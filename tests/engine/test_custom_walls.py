@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from factories import assert_same_results, run_numpy_and_compiled
 from lammps_oracle import requires_lammps
 from wallbatch.config.fixline import parse_fix_line, to_fix_line
 from wallbatch.config.models import load_config, load_config_text
@@ -361,6 +362,9 @@ def test_lepton_auto_policy_loads_a_cached_kernel_for_shorter_runs(tmp_path, mon
     assert fast._compiled_marker(extra).exists()
     assert fast.lepton_compiled_wanted(mid, extra)
     assert not fast.lepton_compiled_wanted(state(1000, int(cached_min / 2000)), extra)
+    late = state(1000, int(2 * cached_min / 1000))
+    late.step[:] = late.end_step - 1  # the last chunk of that run: still the run's choice (it once
+    assert fast.lepton_compiled_wanted(late, extra)  # counted the steps left and went NumPy halfway)
     monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", "never")
     assert not fast.lepton_compiled_wanted(state(1000, int(compile_min / 1000)), extra)
     monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", "always")
@@ -401,25 +405,69 @@ def test_lepton_chunk_kernel_is_loaded_from_disk_by_a_second_process(tmp_path):
 
 
 @pytest.mark.slow
-def test_compiled_tables_equal_numpy_bit_for_bit(tmp_path, monkeypatch):
-    """wall/table faces (a linear and a spline table) run in the compiled chunk kernel with the
-    force generated from each table (the same lookup functions, jitted): the trajectory and
-    outputs equal the NumPy engine's bit for bit."""
+@pytest.mark.parametrize("walls", [
+    # both faces of one fix: a linear table below, a spline table above
+    "a: {style: table, tabstyle: linear, N: 700, units: box, energy: true, "
+    "zlo: {coord: EDGE, file: walls.table, keyword: LJ93, cutoff: 2.5}, "
+    "zhi: {coord: EDGE, file: walls.table, keyword: HARM, cutoff: 2.0}}\n"
+    "b: {style: table, tabstyle: spline, N: 500, units: box, energy: true, "
+    "zhi: {coord: EDGE, file: walls.table, keyword: HARM, cutoff: 1.5}}\n",
+    # two fixes, other tables and cut-offs, the same file section at two resolutions
+    "a: {style: table, tabstyle: spline, N: 90, units: box, energy: true, "
+    "zlo: {coord: EDGE, file: walls.table, keyword: HARM, cutoff: 1.2}}\n"
+    "b: {style: table, tabstyle: linear, N: 3000, units: box, "
+    "zhi: {coord: EDGE, file: walls.table, keyword: LJ93, cutoff: 3.0}}\n",
+])
+def test_compiled_tables_equal_numpy_bit_for_bit(tmp_path, monkeypatch, walls):
+    """wall/table faces run in the built-in scene kernel at default settings, their tables
+    passed as data (no per-table compile): a sweep over the cut-off in one batch gives the NumPy
+    engine's trajectories and outputs bit for bit (linear and spline, lo and hi faces, several
+    tables in one kernel)."""
+    from wallbatch.engine import compiled as fast_mod  # noqa: PLC0415
+
+    monkeypatch.delenv("WALLBATCH_LEPTON_COMPILED", raising=False)
+    lj93_tables(tmp_path, n=300)
+    path = "walls.a.zlo.cutoff"
+    text = slit(walls, steps=300, extra=f"sweep:\n  product:\n    rc: {{path: {path}, values: [1.0, 1.1, 1.2]}}\n")
+    plan = load_plan(write(tmp_path, text))
+    cases = [build_case(c.config, c.seed_key) for c in plan.cases]
+    assert len({structure_key(c) for c in cases}) == 1
+    numpy_res, compiled, engine = run_numpy_and_compiled(monkeypatch, cases)
+    fast = engine.fast
+    assert fast is not None and fast.compiled_chunks > 0 and fast.fallbacks == 0
+    assert fast_mod._lepton_extra(engine.compiled_plan()) == ()  # nothing generated per table
+    assert all(n.status == "ok" and np.any(n.data["wall_force"][1:] != 0.0) for n in numpy_res)
+    assert_same_results(numpy_res, compiled)  # every output, bit for bit
+    assert len({float(r.data["wall_energy"][1:].sum()) for r in numpy_res}) == 3
+
+
+@pytest.mark.slow
+def test_compiled_lepton_with_more_than_three_parameters_equals_numpy(tmp_path, monkeypatch):
+    """Expressions with more than 3 parameters run compiled with their parameters as a per-face
+    row of an array (swept per case), beside an expression of 2 parameters (p0, p1): the
+    trajectories and outputs equal the NumPy engine's bit for bit, and differ between cases."""
     from wallbatch.engine.engine import Engine  # noqa: PLC0415
 
-    tab = lj93_tables(tmp_path, n=300)
-    text = slit(f"a: {{style: table, tabstyle: linear, N: 700, units: box, energy: true, "
-                f"zlo: {{coord: EDGE, file: {tab.name}, keyword: LJ93, cutoff: 2.5}}}}\n"
-                f"b: {{style: table, tabstyle: spline, N: 500, units: box, energy: true, "
-                f"zhi: {{coord: EDGE, file: {tab.name}, keyword: HARM, cutoff: 2.0}}}}\n", steps=300)
-    case = build_case(load_config(write(tmp_path, text)))
+    four = ("{coord: EDGE, cutoff: 2.0, expression: 'a*(r-rc)^2 + b*exp(-r/l)', "
+            "params: {a: 20.0, rc: 2.0, b: 3.0, l: 0.4}}")
+    five = ("{coord: EDGE, cutoff: 1.5, expression: 'k*(r-c)^2*(1+q*r) + s*exp(-r/w)', "
+            "params: {k: 30.0, c: 1.5, q: 0.2, s: 1.0, w: 0.3}}")
+    two = "{coord: EDGE, cutoff: 1.0, expression: 'k*(r-rc)^2', params: {k: 5.0, rc: 1.0}}"
+    text = slit(f"w: {{style: lepton, units: box, energy: true, zlo: {four}, zhi: {five}}}\n"
+                f"h: {{style: lepton, units: box, zlo: {two}}}\n", steps=300,
+                extra="sweep:\n  product:\n    b: {path: walls.w.zlo.params.b, values: [1.0, 4.0]}\n")
+    plan = load_plan(write(tmp_path, text))
+    cases = [build_case(c.config, c.seed_key) for c in plan.cases]
     runs = {}
     for mode in ("always", "never"):
         monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", mode)
-        engine = Engine([case])
-        runs[mode] = (engine.run()[0], engine.fast)
+        engine = Engine(cases)
+        runs[mode] = (engine.run(), engine.fast)
     (compiled, fast), (numpy_res, none) = runs["always"], runs["never"]
     assert none is None and fast is not None and fast.compiled_chunks > 0 and fast.fallbacks == 0
-    assert np.all(numpy_res.data["wall_force"][1:] != 0.0)
-    for key in ("etot", "wall_energy", "wall_force", "temp"):
-        np.testing.assert_array_equal(compiled.data[key], numpy_res.data[key])
+    for c, n in zip(compiled, numpy_res):
+        assert c.status == n.status == "ok", (c.error, n.error)
+        assert np.all(n.data["wall_force"][1:, :2] != 0.0) and np.any(n.data["wall_force"][1:, 2] != 0.0)
+        for key in ("etot", "wall_energy", "wall_force", "temp"):
+            np.testing.assert_array_equal(c.data[key], n.data[key])
+    assert not np.array_equal(numpy_res[0].data["wall_energy"], numpy_res[1].data["wall_energy"])

@@ -14,6 +14,7 @@ from wallbatch.engine.engine import Engine, run_cases
 from wallbatch.engine.stochastic import StochasticKernel
 from wallbatch.lammps.export import export_case
 from wallbatch.scene.build import build_case
+from factories import assert_same_results, run_numpy_and_compiled
 
 T_LO, T_HI = 2.0, 0.5
 
@@ -127,11 +128,43 @@ def test_outputs_count_and_impulse():
     assert per > math.sqrt(math.pi / 2 * T_LO)
 
 
-def test_kernel_is_used_and_compiled_path_declines():
+WALLS = {
+    "diffusive": DIFFUSIVE,
+    "maxwell": ("  w: {style: reflect/stochastic, rstyle: maxwell, seed: 5, units: box,\n"
+                "      zlo: {coord: EDGE, temp: 1.5, vel: [0.3, 0, 0], accom: 0.4}, zhi: {coord: EDGE, temp: 0.7, "
+                "accom: 0.9}}\n"),
+    "ccl": ("  w: {style: reflect/stochastic, rstyle: ccl, seed: 9, units: box,\n"
+            "      zlo: {coord: EDGE, temp: 1.5, vel: [0.2, -0.1, 0], accom: [0.3, 0.8, 0.6]}, "
+            "zhi: {coord: EDGE, temp: 0.5, accom: [1.0, 0.2, 0.5]}}\n"),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("rstyle", ["diffusive", "maxwell", "ccl"])
+def test_compiled_equals_numpy_bit_for_bit(rstyle, monkeypatch):
+    """wall/reflect/stochastic in the compiled chunk kernel (one case per call with the case's
+    generator, the same plain functions, the same draws in the same order): three cases in one
+    batch (their own streams) give the NumPy engine's trajectories, counts and impulses bit for
+    bit, with a wall/reflect fix before it and a soft wall in the scene."""
+    walls = ("  top: {style: reflect, units: box, zhi: 9.5}\n" + WALLS[rstyle]
+             + "  soft: {style: harmonic, units: box, zlo: {coord: EDGE, epsilon: 3.0, cutoff: 0.5}}\n")
+    cfg = load_config_text(scene(walls, count=300, steps=400, thermo=100))
+    cases = [build_case(cfg, (k,)) for k in range(3)]
+    numpy_res, compiled, engine = run_numpy_and_compiled(monkeypatch, cases)
+    assert isinstance(engine.reflect[-1], StochasticKernel)
+    assert engine.fast is not None and engine.fast.compiled_chunks > 0 and engine.fast.fallbacks == 0
+    assert all(n.status == "ok" and n.data["reflect_count"][1:, 1:].sum() > 0 for n in numpy_res)
+    assert_same_results(numpy_res, compiled)  # every output, bit for bit
+    assert not np.array_equal(numpy_res[0].data["temp"], numpy_res[1].data["temp"])
+
+
+def test_compiled_path_declines_what_it_does_not_run():
+    """A wall/reflect/stochastic fix before a wall/reflect one (the kernel reflects in the other
+    order), or with dt/reset, runs in NumPy; alone it runs compiled."""
     case = build_case(load_config_text(scene(DIFFUSIVE)))
-    engine = Engine([case])
-    assert isinstance(engine.reflect[0], StochasticKernel)
-    assert engine.fast is None
+    assert Engine([case]).fast is not None
+    later = DIFFUSIVE + "  top: {style: reflect, units: box, zhi: 9.5}\n"
+    assert Engine([build_case(load_config_text(scene(later)))]).fast is None
 
 
 def test_export_writes_the_fix_line():

@@ -187,27 +187,28 @@ def test_lammps_refuses_what_we_refuse(tmp_path):
 
 
 @pytest.mark.parametrize("tabstyle", ["linear", "spline"])
-def test_generated_table_force_is_the_numpy_lookup_bit_for_bit(tmp_path, monkeypatch, tabstyle):
-    """WallTable.force_source: the compiled path's force (the grid saved to the kernel cache, the
-    same linear_lookup / spline_lookup jitted) equals lookup()'s force bit for bit over the whole
-    table, grid points and the last point included; NaN below the first distance."""
+def test_kernel_rows_jitted_lookup_is_the_numpy_lookup_bit_for_bit(tabstyle):
+    """WallTable.kernel_rows: the table as the compiled path's data (grid, F, dF or F2), looked up
+    by the same linear_lookup / spline_lookup jitted, equals lookup()'s force bit for bit over the
+    whole table (random points, grid points, the last point)."""
     from numba import njit  # noqa: PLC0415
 
-    from wallbatch.styles.lepton import HELPERS_IMPORT, generated_module  # noqa: PLC0415
-    from wallbatch.styles.table import TableData, WallTable  # noqa: PLC0415
+    from wallbatch.styles.table import TableData, WallTable, linear_lookup, spline_lookup  # noqa: PLC0415
 
-    monkeypatch.setenv("WALLBATCH_CACHE_DIR", str(tmp_path))
     lj93 = STYLES["lj93"]
     p = {"epsilon": 1.3, "sigma": 0.9, "cutoff": 3.0}
     r = np.linspace(0.4, 3.0, 257)
     e, f = lj93.energy_force(r, p)
     table = WallTable.build(TableData("LJ", r, e, f, None, None), tabstyle, 500)
-    source = table.force_source()
-    assert source is table.force_source()  # generated once per table
-    assert list((tmp_path / "kernels").glob("table_*.npy"))
-    force = njit(error_model="numpy")(generated_module(HELPERS_IMPORT + source, "test_table").kernel)
+    rows = table.kernel_rows()
+    assert rows.shape == (3, 500) and rows.flags.c_contiguous
+    lin, spl = njit(error_model="numpy")(linear_lookup), njit(error_model="numpy")(spline_lookup)
     rs = np.concatenate([np.random.default_rng(5).uniform(0.4, 3.0, 400), table.r, [3.0]])
     want = table.lookup(rs)[1]
-    got = np.array([force(x, 0.0, 0.0, 0.0, 3.0, 0.0) for x in rs])
-    np.testing.assert_array_equal(got, want)
-    assert np.isnan(force(0.39, 0.0, 0.0, 0.0, 3.0, 0.0))
+    idx = [min(int((x - table.lo) * table.invdelta), 498) for x in rs]
+    if tabstyle == "linear":
+        got = [lin(x, i, rows[0], rows[1], rows[2], table.invdelta) for x, i in zip(rs, idx)]
+    else:
+        got = [spl(x, i, rows[0], rows[1], rows[2], table.invdelta, table.deltasq6) for x, i in zip(rs, idx)]
+    np.testing.assert_array_equal(np.array(got), want)
+    assert np.any(want != 0.0)

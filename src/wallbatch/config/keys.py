@@ -7,6 +7,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from wallbatch.styles import LEPTON, TABLE
+from wallbatch.styles.base import WallStyle
+
 # What the models do not say: the unit kind of a value, its LAMMPS equivalent and, where the model
 # has no Field(description=...), its meaning. Keys are dotted paths as the reference prints them:
 # `atoms[].mass`; `walls.ID.FACE.epsilon` for any face of any wall style; `ID`/`NAME` for
@@ -268,19 +271,6 @@ KEYS: dict[str, Key] = {
                                         "—"),
     "sweep.replicas": Key("Independent random streams of every grid point: a last dimension `replica`.", "",
                           "—"),
-    "walls.ID.FACE.expression": Key("lepton: the wall energy E(r) as a Lepton expression of r, the distance "
-                                    "from the wall; `;` definitions allowed; F = -dE/dr exactly; shifted to 0 "
-                                    "at the cut-off.", "energy", "`wall/lepton FACE COORD EXPRESSION CUTOFF`"),
-    "walls.ID.FACE.params": Key("lepton: named numbers used by the expression (sweepable; written as `; "
-                                "name=value` definitions for LAMMPS); `cutoff` is reserved.", "",
-                                "`; name=value`"),
-    "walls.ID.FACE.file": Key("table: a LAMMPS table file, relative to the config file.", "",
-                              "`wall/table ... FILE`"),
-    "walls.ID.FACE.keyword": Key("table: the section of the file.", "", "`KEYWORD`"),
-    "walls.ID.tabstyle": Key("table: `linear` or `spline` interpolation, as LAMMPS.", "",
-                             "`wall/table linear|spline`"),
-    "walls.ID.N": Key("table: points of the interpolation table (the file is resampled onto them).", "",
-                      "`wall/table TABSTYLE N`"),
     "walls.ID.rstyle": Key("reflect/stochastic: `diffusive`, `maxwell` (one accommodation coefficient) or "
                            "`ccl` (Cercignani-Lampis, three).", "", "`wall/reflect/stochastic RSTYLE`"),
     "walls.ID.FACE.temp": Key("reflect/stochastic: wall temperature of the reflected velocities.", "temperature",
@@ -291,3 +281,25 @@ KEYS: dict[str, Key] = {
                                "fraction) or [ax, ay, az] (ccl: tangential velocity and normal energy "
                                "accommodation), each in [0, 1]; none for diffusive.", "", "`ACCOM...`"),
 }
+
+
+def _registry_keys(style: WallStyle) -> dict[str, Key]:
+    """The config keys of a per-face registry entry (wall/lepton, wall/table) from the entry's own
+    parameters (their doc and unit: one place), the cut-off left to the common key: each face's
+    `walls.ID.FACE.NAME` and each wall's `walls.ID.NAME`, with the fix line they are words of."""
+    line = " ".join([style.lammps, *(p.name.upper() for p in style.wall_parameters), "FACE COORD",
+                     *(p.name.upper() for p in style.parameters if p.kind != "mapping")])
+    out: dict[str, Key] = {}
+    for prefix, params in (("walls.ID.FACE.", style.parameters), ("walls.ID.", style.wall_parameters)):
+        for p in params:
+            if p.name == "cutoff":
+                continue
+            # a mapping (wall/lepton's params) has no word: it is folded into the quoted expression
+            word = (f"in {next(q.name.upper() for q in style.parameters if q.quoted)}" if p.kind == "mapping"
+                    else p.name.upper())
+            out[prefix + p.name] = Key(f"{style.name}: {p.doc}.", p.unit, f"`{line}`: {word}")
+    return out
+
+
+KEYS.update(_registry_keys(LEPTON))
+KEYS.update(_registry_keys(TABLE))

@@ -38,7 +38,12 @@ with the case's own generator (`_flow_step`; numba's Generator draws NumPy's str
 step over all atoms. `fixes:` (nvt, langevin, temp/berendsen, temp/rescale, enforce2d;
 `fixes_eligible`) run in the kernel with engine/thermostats.py's functions (`_fix_pre`,
 `_fix_post_force`, `_fix_end`; step by step when a thermostat couples the atoms, one case per call
-with fix langevin's generator). Anything else (pair forces, ees, wall/region/ees, ellipsoids,
+with fix langevin's generator). wall/table faces run in every scene kernel with their tables as data
+(`_table_faces`: one concatenated array, styles.table's lookups jitted; no compile per table);
+wall/lepton faces with the force generated from each expression (`kernel_for`'s `extra`, compiled
+once per set of expressions and cached on disk). One wall/reflect/stochastic fix runs after the
+wall/reflect faces (`_stochastic_faces`: one case per call with the case's generator, one block of
+all atoms so the draws follow atom order, engine/stochastic.py's functions). Anything else (pair forces, ees, wall/region/ees, ellipsoids,
 several flow fixes) runs in NumPy. A chunk that
 meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a variable error or a
 negative variable parameter) leaves the state as it was at its start and is handed back to the
@@ -66,10 +71,12 @@ import numpy as np
 from wallbatch.engine import backend
 from wallbatch.engine import dt_reset as _dtr
 from wallbatch.engine import scalar as _scalar
+from wallbatch.engine import stochastic as _st
 from wallbatch.engine import thermostats as _th
 from wallbatch.engine.dt_reset import BIG, dt_candidate
 from wallbatch.engine.state import BatchState
 from wallbatch.engine.region_walls import RegionWallKernel
+from wallbatch.engine.stochastic import RSTYLES, StochasticKernel
 from wallbatch.engine.walls import CustomWallKernel, ReflectKernel, SoftWallKernel
 from wallbatch.expr import VariableError
 from wallbatch.scene.case import DtResetSpec
@@ -79,6 +86,7 @@ from wallbatch.styles.cutoff import CUTOFF_MODES, FORCE_SHIFT, SHIFT, SMOOTH, cu
 from wallbatch.styles.cutoff import supported as cutoff_supported
 from wallbatch.styles.lepton import HELPERS_IMPORT, generated_module, generated_path
 from wallbatch.styles.lepton import _helpers as _lepton_helpers
+from wallbatch.styles.table import TableWallStyle, linear_lookup, spline_lookup
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
@@ -89,6 +97,9 @@ except Exception:  # noqa: BLE001 - any import failure means "no compiled path"
 # the styles the kernel runs, numbered in registry order (sf_meta's style column)
 COMPILED_STYLES: tuple[WallStyle, ...] = tuple(s for s in STYLES.values() if s.compiled)
 STYLE_IDS: dict[str, int] = {s.name: i for i, s in enumerate(COMPILED_STYLES)}
+TABLE_STYLE = -1  # sf_meta's style column of a wall/table face (its table: the kernel's tb arrays)
+# the table lookups compiled into a scene kernel with wall/table faces: part of its cache key
+_TABLE_SOURCE = "# wall/table\n" + inspect.getsource(linear_lookup) + inspect.getsource(spline_lookup)
 BLOCK = 256  # atoms per block: a block's buffers stay in L1 cache over a window of steps
 WINDOW = 64  # steps per speculative window under dt/reset
 # wall/region geometries in the kernel (rg_meta's kind column)
@@ -114,18 +125,37 @@ def enabled() -> bool:
 # ----------------------------------------------------------------------------- compiled kernels
 
 
-def _branches(pairs: tuple[tuple[int, int], ...], extra: int) -> list[tuple[str, str, bool, str]]:
+def _branches(pairs: tuple[tuple[int, int], ...], extra: int | tuple[int, ...]) -> list[tuple[str, str, bool, str]]:
     """(condition, force name, radius flag, comment) of each branch of a generated dispatch: the
-    (style number, cut-off mode) pairs of a scene, then `extra` generated wall/lepton forces
-    (styles len(COMPILED_STYLES) + j, mode shift)."""
+    (style number, cut-off mode) pairs of a scene, then generated wall/lepton forces (`extra`: how
+    many, or their numbers j; styles len(COMPILED_STYLES) + j, mode shift)."""
     n = len(COMPILED_STYLES)
     out = [(f"style == {i} and mode == {m}", f"_FORCE_{i}_{m}", bool(COMPILED_STYLES[i].needs_radius),
              f"{COMPILED_STYLES[i].name} {CUTOFF_MODES[m]}") for i, m in pairs]
-    out += [(f"style == {n + j} and mode == {SHIFT}", f"_EXTRA_{j}", False, "wall/lepton") for j in range(extra)]
+    js = range(extra) if isinstance(extra, int) else extra
+    out += [(f"style == {n + j} and mode == {SHIFT}", f"_EXTRA_{j}", False, "wall/lepton") for j in js]
     return out
 
 
-def _dispatch_source(pairs: tuple[tuple[int, int], ...], extra: int = 0) -> str:
+VECTOR_MARK = "# parameters as an array\n"  # first line of a generated force kernel(r, p) in `extra`
+
+
+def _vector_dispatch_source(extra: tuple[str, ...]) -> str:
+    """Python source of `_vector_faces(j, ...)`: one branch per generated force of `extra` with its
+    parameters as an array (wall/lepton with more than 3 parameters; style -2 - j), each a
+    literal call of the face loop `_vface` with that force inlined."""
+    lines = ["def _vector_faces(j, X, F, groups, g, d, side, coord, pv, cut, u0, u1):"]
+    k = 0
+    for j, src in enumerate(extra):
+        if src.startswith(VECTOR_MARK):
+            lines.append(f"    {'if' if k == 0 else 'elif'} j == {j}:  # wall/lepton, parameters as an array")
+            lines.append(f"        return _vface(_VEXTRA_{j}, X, F, groups, g, d, side, coord, pv, cut, u0, u1)")
+            k += 1
+    lines.append("    return 0")
+    return "\n".join(lines) + "\n"
+
+
+def _dispatch_source(pairs: tuple[tuple[int, int], ...], extra: int | tuple[int, ...] = 0) -> str:
     """Python source of `_soft_face(style, mode, ...)`: one branch per (style number, cut-off mode)
     pair of the scene (wallbatch.styles.cutoff) and per generated force, each a literal call of the
     generic face loop with that pair's force function and radius flag, so every pair gets its own
@@ -197,6 +227,16 @@ if njit is not None:
         """thermostats.libm_exp for a scalar: math.exp (the C library's exp)."""
         return lambda x: math.exp(x)
 
+    @overload(_st.libm_log)
+    def _libm_log(x):  # noqa: ANN001, ANN202
+        """stochastic.libm_log for a scalar: math.log (the C library's log)."""
+        return lambda x: math.log(x)
+
+    @overload(_st.libm_cos)
+    def _libm_cos(x):  # noqa: ANN001, ANN202
+        """stochastic.libm_cos for a scalar: math.cos (the C library's cos)."""
+        return lambda x: math.cos(x)
+
     _nmin = inline(_scalar.nmin)  # np.minimum / np.maximum of two floats (engine/scalar.py)
     _nmax = inline(_scalar.nmax)
 
@@ -232,6 +272,162 @@ if njit is not None:
             F[d, i] = fi
         return nbad
 
+
+    @inline
+    def _vface(force, X, F, groups, g, d, side, coord, pv, cut, u0, u1):
+        """One soft face whose force takes its parameters as an array pv (wall/lepton with more
+        than 3 parameters, shift mode): as `_face` with F(r) = force(r, pv)."""
+        sidef = float(side)
+        sign = -sidef
+        nbad = 0
+        for i in range(u0, u1):
+            r = (X[d, i] - coord) * sign
+            near = (r < cut) & (groups[g, i] != 0)
+            nbad += near & (r <= 0.0)
+            fi = F[d, i]
+            if near:
+                fi = fi - sidef * force(r, pv)
+            F[d, i] = fi
+        return nbad
+
+    @inline
+    def _no_vector_faces(j, X, F, groups, g, d, side, coord, pv, cut, u0, u1):
+        """`_vector_faces` of a scene without such faces: nothing (never called)."""
+        return 0
+
+    # -- fix wall/table: tables as data (styles.table.WallTable.kernel_rows), one compiled loop for any table
+    _table_linear = njit(nogil=True, error_model="numpy", inline="always")(linear_lookup)
+    _table_spline = njit(nogil=True, error_model="numpy", inline="always")(spline_lookup)
+
+    @inline
+    def _table_face(linear, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6, u0, u1):
+        """One wall/table face over atoms u0..u1-1 (as `_face`, shift mode): F(r) by the table's
+        linear or spline lookup (WallTable.lookup's arithmetic: the same functions, jitted) on
+        its rows grid, tf (force), td (dF or F2). Returns the number of atoms nearer than the
+        table's first distance lo (the NumPy path then reports them). `linear` is a literal.
+        (A branch per atom: measured faster than a branch-free loop and than listing the atoms
+        within the cut-off first.)"""
+        sidef = float(side)
+        sign = -sidef
+        n2 = grid.shape[0] - 2
+        nbad = 0
+        for i in range(u0, u1):
+            r = (X[d, i] - coord) * sign
+            near = (r < cut) & (groups[g, i] != 0)
+            nbad += near & (r < lo)
+            if near and r >= lo:
+                j = min(int((r - lo) * invdelta), n2)
+                if linear:
+                    fr = _table_linear(r, j, grid, tf, td, invdelta)
+                else:
+                    fr = _table_spline(r, j, grid, tf, td, invdelta, deltasq6)
+                F[d, i] = F[d, i] - sidef * fr
+        return nbad
+
+    @inline
+    def _table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1):
+        """Soft face k of the scene, a wall/table face: its rows in tb = (tb_meta (K, 3) int:
+        offset, N, linear; tb_par (K, 3): lo, 1/delta, delta^2/6; tb_data: every table's rows)."""
+        off, n = tb[0][k, 0], tb[0][k, 1]
+        data = tb[2]
+        grid, tf, td = data[off:off + n], data[off + n:off + 2 * n], data[off + 2 * n:off + 3 * n]
+        lo, invdelta, deltasq6 = tb[1][k, 0], tb[1][k, 1], tb[1][k, 2]
+        if tb[0][k, 2] != 0:
+            return _table_face(True, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6,
+                               u0, u1)
+        return _table_face(False, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6,
+                           u0, u1)
+
+    @inline
+    def _no_table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1):
+        """`_table_faces` of a scene without wall/table faces: nothing (never called)."""
+        return 0
+
+    # -- fix wall/reflect/stochastic (stochastic.StochasticKernel.apply): the same plain functions
+    _st_sigma = njit(nogil=True, error_model="numpy", inline="always")(_st.thermal_sigma)
+    _st_dnormal = njit(nogil=True, error_model="numpy", inline="always")(_st.diffusive_normal)
+    _st_tangent = njit(nogil=True, error_model="numpy", inline="always")(_st.thermal_tangent)
+    _st_cnormal = njit(nogil=True, error_model="numpy", inline="always")(_st.ccl_normal)
+    _st_ctangent = njit(nogil=True, error_model="numpy", inline="always")(_st.ccl_tangent)
+    _st_time = njit(nogil=True, error_model="numpy", inline="always")(_st.crossing_time)
+    _st_position = njit(nogil=True, error_model="numpy", inline="always")(_st.crossed_position)
+
+    @inline
+    def _stochastic_faces(c, u0, u1, X, V, M, groups, st, ftm2v, mvv2e):
+        """fix wall/reflect/stochastic's faces on atoms u0..u1-1 (every atom of the case: the
+        chunk runs one block, one case per call), after the wall/reflect faces. st = (st_meta (K, 4)
+        int: dim, side, group row, rule (RSTYLES index); st_val (C, K, 9): coord, temp, vx, vy,
+        vz, ax, ay, az, kB; st_stat (C, K, 2): reflections, impulse; stats flag (1,) int; the
+        case's generator; scratch: SI (N,) int, SD (4, N)). Per face: the atoms past it in atom order, then the
+        draws of StochasticKernel.apply in its order, then its arithmetic atom by atom."""
+        st_meta, st_val, st_stat, st_flag, rng, SI, SD = st
+        for k in range(st_meta.shape[0]):
+            d, side, g, rule = st_meta[k, 0], st_meta[k, 1], st_meta[k, 2], st_meta[k, 3]
+            coord = st_val[c, k, 0]
+            n = 0
+            for i in range(u0, u1):
+                pos = X[d, i]
+                if ((pos < coord) if side < 0 else (pos > coord)) and groups[g, i] != 0:
+                    SI[n] = i
+                    n += 1
+            if n == 0:
+                continue
+            # the draws one number at a time into scratch rows (the same stream as NumPy's arrays of n)
+            ua, ub, g0, g1 = SD[0], SD[1], SD[2], SD[3]
+            if rule == 2:  # ccl: U1 in (0, 1], U2, N (n, 2)
+                for j in range(n):
+                    ua[j] = 1.0 - rng.random()
+                for j in range(n):
+                    ub[j] = rng.random()
+            elif rule == 1:  # maxwell: the choice, U, N (n, 2)
+                for j in range(n):
+                    ub[j] = rng.random()
+                for j in range(n):
+                    ua[j] = 1.0 - rng.random()
+            else:  # diffusive: U, N (n, 2)
+                for j in range(n):
+                    ua[j] = 1.0 - rng.random()
+            for j in range(n):  # N (n, 2) in C order
+                g0[j] = rng.standard_normal()
+                g1[j] = rng.standard_normal()
+            t0 = 1 if d == 0 else 0  # the tangential axes in increasing order
+            t1 = 1 if d == 2 else 2
+            away = -float(side)
+            temp, kb = st_val[c, k, 1], st_val[c, k, 8]
+            w0, w1 = st_val[c, k, 2 + t0], st_val[c, k, 2 + t1]
+            an, a0, a1 = st_val[c, k, 5 + d], st_val[c, k, 5 + t0], st_val[c, k, 5 + t1]
+            acc = st_val[c, k, 5]  # maxwell's one coefficient
+            imp = 0.0
+            for j in range(n):
+                i = SI[j]
+                vn, v0, v1 = V[d, i], V[t0, i], V[t1, i]
+                sigma = _st_sigma(temp, M[i], kb, mvv2e)
+                if rule == 2:
+                    nn = _st_cnormal(away, sigma, an, vn, ua[j], ub[j])
+                    n0 = _st_ctangent(w0, a0, v0, sigma, g0[j])
+                    n1 = _st_ctangent(w1, a1, v1, sigma, g1[j])
+                elif rule == 1 and not ub[j] < acc:  # maxwell, specular
+                    nn, n0, n1 = -vn, v0, v1
+                else:
+                    nn = _st_dnormal(away, sigma, ua[j])
+                    n0 = _st_tangent(w0, sigma, g0[j])
+                    n1 = _st_tangent(w1, sigma, g1[j])
+                t = _st_time(X[d, i], coord, vn)
+                X[t0, i] = X[t0, i] + (n0 - v0) * t
+                X[t1, i] = X[t1, i] + (n1 - v1) * t
+                X[d, i] = _st_position(X[d, i], coord, vn, nn, t)
+                V[d, i], V[t0, i], V[t1, i] = nn, n0, n1
+                dp = M[i] * (vn - nn)
+                imp = dp if j == 0 else imp + dp  # in atom order (StochasticKernel.apply's cumsum)
+            if st_flag[0] != 0:
+                st_stat[c, k, 0] += n
+                st_stat[c, k, 1] += imp / ftm2v
+        return 0
+
+    @inline
+    def _no_stochastic_faces(c, u0, u1, X, V, M, groups, st, ftm2v, mvv2e):
+        """`_stochastic_faces` of a scene without wall/reflect/stochastic: nothing (never called)."""
+        return 0
 
     # -- fix wall/region (region_walls.RegionWallKernel.apply; geometry of regions.RegionGeom) ------
     # A region's contacts of one block of atoms go into RB[slot, :, i - u0] = (flag, r, delta x, y, z)
@@ -553,14 +749,20 @@ if njit is not None:
 
     @inline
     def _block_step(c, u0, u1, si, row, dtc, due, X, V, F, M, RAD, DTFM, CAND, groups, box,
-                    sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp):
+                    sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp,
+                    tbst):
         """One velocity-Verlet step (engine.Engine.step) of atoms u0..u1-1 of case c, as simple
         passes over the structure-of-arrays buffers: kick-drift, reflect faces (wall velocities
         vw[row], statistics into rstat[row]), periodic wrap, force clear, soft faces, lost test,
         kick; with `due`, fix dt/reset's candidates. Returns (status, smallest candidate over
         the dt/reset group, NaN if any is NaN); status 0, 1 (an atom on/behind a soft wall) or
         2 (an atom left through a fixed boundary). box rows: lo, hi, periodic (1.0) per dimension;
-        dtr_par[c]: xmax, emax, tmin, tmax."""
+        dtr_par[c]: xmax, emax, tmin, tmax; tbst = (tb, st, lp): the wall/table faces' tables
+        (`_table_faces`), the wall/reflect/stochastic faces (`_stochastic_faces`) and the
+        parameter rows (C, faces, P) of wall/lepton faces with more than 3 parameters, one argument
+        (a call of more than 30 arguments is compiled by CPython as f(*args), which numba cannot
+        inline)."""
+        tb, st, lp = tbst
         for d in range(3):  # initial_integrate: v += dtfm f; x += dt v
             for i in range(u0, u1):
                 vi = V[d, i] + DTFM[i] * F[d, i]
@@ -581,6 +783,8 @@ if njit is not None:
                     if stats:
                         rstat[row, k, 0] += 1.0
                         rstat[row, k, 1] += M[i] * (vb - va) / ftm2v
+        if st[0].shape[0]:  # wall/reflect/stochastic (post_integrate, after the wall/reflect fixes: `eligible`)
+            _stochastic_faces(c, u0, u1, X, V, M, groups, st, ftm2v, mvv2e)
         for d in range(3):  # periodic wrap
             if box[2, d] != 0.0:
                 lod = box[0, d]
@@ -599,8 +803,13 @@ if njit is not None:
             g, d, side = sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2]
             coord, cut, ron = sf_val[c, si, k, 0], sf_val[c, si, k, 4], sf_val[c, si, k, 5]
             p0, p1, p2 = sf_val[c, si, k, 1], sf_val[c, si, k, 2], sf_val[c, si, k, 3]
-            nbad += _soft_face(style, sf_meta[k, 4], X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron,
-                               u0, u1)
+            if style == TABLE_STYLE:  # wall/table: the face's table from tb (data, not code)
+                nbad += _table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1)
+            elif style < TABLE_STYLE:  # wall/lepton, parameters as an array: this case's row of lp
+                nbad += _vector_faces(-2 - style, X, F, groups, g, d, side, coord, lp[c, k], cut, u0, u1)
+            else:
+                nbad += _soft_face(style, sf_meta[k, 4], X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut,
+                                   ron, u0, u1)
         if rg[0].shape[0]:  # wall/region fixes (post_force, after the flat walls as in compute_forces)
             nbad += _region_walls(c, u0, u1, X, F, RAD, groups, rg[0], rg[1], rg[2], rg[3])
         if nbad:
@@ -712,7 +921,8 @@ if njit is not None:
         def _run_chunk(nsteps, time_mode, target, tol, x, v, f, mass, radius, dt, atime, atimestep,
                        step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
                        stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo, rg_meta, rg_geo, rg_val,
-                       fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng, fx, fx_rng):
+                       fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng, fx, fx_rng,
+                       tb_meta, tb_par, tb_data, st_meta, st_val, st_stat, st_flag, st_rng, lp_val):
             """Advance every case by nsteps steps (or, with time_mode, to the time `target` as
             Engine.advance_to_time does), reading x, v, f and writing xo, vo, fo. Returns 0, or the
             nonzero status of the first trouble met (1: an atom on/behind a soft wall, 2: a lost atom,
@@ -730,7 +940,9 @@ if njit is not None:
             nrf = rf_meta.shape[0]
             hf = 0.5 * ftm2v
             vary = 1 if (sf_val.shape[1] > 1 or rf_val.shape[1] > 1) else 0
-            nblock = (natom + BLOCK - 1) // BLOCK
+            # wall/reflect/stochastic draws for the atoms of a face in atom order: one block of all atoms
+            blk = max(natom, 1) if st_meta.shape[0] else BLOCK
+            nblock = (natom + blk - 1) // blk
             box = np.empty((3, 3))
             for d in range(3):
                 box[0, d] = lo[d]
@@ -753,7 +965,7 @@ if njit is not None:
             low = np.empty(nrow)  # smallest dt/reset candidate per step of a window
             # wall/region: one argument (a call of more than 30 arguments is compiled by CPython as
             # f(*args), which numba cannot inline); RB holds a block's contacts (_region_contacts)
-            rg = (rg_meta, rg_geo, rg_val, np.empty((6, 5, BLOCK)))
+            rg = (rg_meta, rg_geo, rg_val, np.empty((6, 5, blk)))
             # wall/flow (fl_int[0] != 0; the chunk then holds one case): step by step over all blocks
             CI = np.empty(natom if fl_int[0] != 0 else 0, np.int64)
             DIR = np.empty(natom if fl_int[0] != 0 else 0)
@@ -776,6 +988,10 @@ if njit is not None:
             FL = np.zeros((3, nfx))  # this step's Langevin forces (the tally's)
             KB = np.empty(nfx)  # per-atom terms of a sum over atoms
             fxp = (fx_meta, G1, FR, FL)
+            tb = (tb_meta, tb_par, tb_data)  # wall/table faces (`_table_faces`)
+            nst = natom if st_meta.shape[0] else 0
+            sto = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(nst, np.int64), np.empty((4, nst)))
+            tbst = (tb, sto, lp_val)  # wall/reflect/stochastic, lepton parameter rows
             for c in range(ncase):
                 for a in range(natom):
                     for d in range(3):
@@ -842,13 +1058,13 @@ if njit is not None:
                     if thermo:  # fix nvt's first half step, the Langevin random forces
                         _fix_pre(c, step[c] + 1, dtc, V, M, groups, fx, fx_rng, SQM, FR, KB)
                     for b in range(nblock):
-                        u0 = np.uint64(b * BLOCK)  # unsigned: no negative-index wraparound, loops vectorise
-                        u1 = np.uint64(min(b * BLOCK + BLOCK, natom))
+                        u0 = np.uint64(b * blk)  # unsigned: no negative-index wraparound, loops vectorise
+                        u1 = np.uint64(min(b * blk + blk, natom))
                         for s in range(nwin):
                             due = dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
                             st, m = _block_step(c, u0, u1, (done + s) * vary, s, dtc, due, X, V, F, M, RAD, DTFM,
                                                 CAND, groups, box, sf_meta, sf_val, rf_meta, rf_val,
-                                                vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp)
+                                                vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp, tbst)
                             if st != 0:
                                 return st
                             if due:
@@ -989,24 +1205,28 @@ if njit is not None:
         filename: str | None
         fingerprint: int
 
-    def _scene_args(soft: Any, region: Any, flow: Any, extra: Any) -> tuple:
-        return tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow), tuple(extra)
+    def _scene_args(soft: Any, region: Any, flow: Any, extra: Any, tables: Any = False, stochastic: Any = False
+                    ) -> tuple:
+        return (tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow), tuple(extra), bool(tables),
+                bool(stochastic))
 
     def pieces_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
-                   extra: tuple[str, ...] = ()) -> ScenePieces:
+                   extra: tuple[str, ...] = (), tables: bool = False, stochastic: bool = False) -> ScenePieces:
         """The compiled pieces of one kind of scene (`_pieces_for`), one per specialisation and
         process: what `kernel_for` and the fused pair chunks (engine/pair_compiled.py) link in."""
-        return _pieces_for(*_scene_args(soft, region, flow, extra))
+        return _pieces_for(*_scene_args(soft, region, flow, extra, tables, stochastic))
 
     @functools.lru_cache(maxsize=64)
     def _pieces_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
-                    extra: tuple[str, ...]) -> ScenePieces:
+                    extra: tuple[str, ...], tables: bool = False, stochastic: bool = False) -> ScenePieces:
         """The face dispatch, region walls, flow step and block step of one kind of scene,
         specialised to what it has: the (style number, cut-off mode) pairs of its flat soft faces
         (`soft`) and of its wall/region fixes (`region`, none: no region code), a wall/flow fix
-        (`flow`) and generated forces (`extra`: wall/lepton and wall/table, the source of
+        (`flow`), generated forces (`extra`: wall/lepton, the source of
         force(r, p0, p1, p2, rc, radius) from WallStyle.generated_force, mode shift, styles
-        len(COMPILED_STYLES) + j). Only those branches are generated and compiled. With `extra`
+        len(COMPILED_STYLES) + j), wall/table faces (`tables`: one table loop, the tables are
+        the kernel's data, style TABLE_STYLE) and a wall/reflect/stochastic fix (`stochastic`). Only
+        those branches are generated and compiled. With `extra`
         the forces and the dispatch are written to a module file (styles.lepton.generated_module,
         `_chunk_module_source`) that a kernel built on them is attributed to, so numba caches it
         on disk. The pieces are this module's functions re-linked (the same code objects, new
@@ -1020,10 +1240,14 @@ if njit is not None:
             module = generated_module(source, "lepton_chunk")
             namespace = vars(module)
             namespace.update(base)
+            namespace["_vface"] = _vface
             for j in range(len(extra)):
                 force = njit(nogil=True, error_model="numpy", inline="always")(namespace[f"_LEPTON_{j}"])
-                namespace[f"_EXTRA_{j}"] = njit(nogil=True, error_model="numpy")(
-                    cutoff_functions(force, force, SHIFT, _switch)[0])
+                if extra[j].startswith(VECTOR_MARK):
+                    namespace[f"_VEXTRA_{j}"] = force
+                else:
+                    namespace[f"_EXTRA_{j}"] = njit(nogil=True, error_model="numpy")(
+                        cutoff_functions(force, force, SHIFT, _switch)[0])
             filename = module.__file__
         else:
             namespace = base
@@ -1042,27 +1266,42 @@ if njit is not None:
             from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
 
             flow_step = njit(nogil=True, error_model="numpy")(_relink(_flow_step, flow_compiled=flow_compiled))
+        vector_faces = _no_vector_faces
+        if any(src.startswith(VECTOR_MARK) for src in extra):
+            vector_faces = njit(nogil=True, error_model="numpy", inline="always")(namespace["_vector_faces"])
+        table_faces = _no_table_faces
+        if tables:
+            table_faces = _table_faces
+            source += _TABLE_SOURCE
+        stochastic_faces = _no_stochastic_faces
+        if stochastic:
+            stochastic_faces = _stochastic_faces
+            source += "# wall/reflect/stochastic\n" + inspect.getsource(_st)
         block_step = njit(nogil=True, error_model="numpy", inline="always")(
-            _relink(_block_step, _soft_face=soft_face, _region_walls=region_walls))
+            _relink(_block_step, _soft_face=soft_face, _region_walls=region_walls, _table_faces=table_faces,
+                    _stochastic_faces=stochastic_faces, _vector_faces=vector_faces))
         return ScenePieces(soft_face, region_walls, flow_step, block_step, source, filename,
                            _fingerprint(pairs, flow, False, source))
 
     def kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
-                   extra: tuple[str, ...] = (), parallel: bool = False, fixes: bool = True, dtr: bool = True) -> Any:
+                   extra: tuple[str, ...] = (), parallel: bool = False, fixes: bool = True, dtr: bool = True,
+                   tables: bool = False, stochastic: bool = False) -> Any:
         """The chunk kernel of one kind of scene (`_kernel_for`), one per specialisation and process;
         `fixes`/`dtr` False: a scene without `fixes:` / fix dt/reset (their code left out)."""
-        return _kernel_for(*_scene_args(soft, region, flow, extra), bool(parallel), bool(fixes), bool(dtr))
+        return _kernel_for(*_scene_args(soft, region, flow, extra, tables, stochastic), bool(parallel), bool(fixes),
+                           bool(dtr))
 
     @functools.lru_cache(maxsize=64)
     def _kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
-                    extra: tuple[str, ...], parallel: bool, fixes: bool = True, dtr: bool = True) -> Any:
+                    extra: tuple[str, ...], tables: bool, stochastic: bool, parallel: bool, fixes: bool = True,
+                    dtr: bool = True) -> Any:
         """The chunk kernel of one kind of scene (`pieces_for`; `parallel`: compiled with numba
         parallel=True, reserved for a two-thread variant, not used by the engine yet): this
         module's chunk kernel re-linked to the scene's block and flow steps, named
         `_run_chunk_<fingerprint>` so numba caches it on disk in its own index file (beside this
         file, or with `extra` beside the generated module it is attributed to: compiled once,
         loaded by later processes)."""
-        p = _pieces_for(soft, region, flow, extra)
+        p = _pieces_for(soft, region, flow, extra, tables, stochastic)
         fp = _fingerprint(tuple(sorted(set(soft) | set(region))), flow, parallel,
                           p.source + ("" if fixes and dtr else f"\n# fixes {fixes}, dt/reset {dtr}"))
         block_step, links = p.block_step, {}
@@ -1089,7 +1328,10 @@ def _chunk_module_source(soft: tuple[tuple[int, int], ...], extra: tuple[str, ..
     the lepton helpers and the fingerprint of the scene's styles, so the file (named by a hash of
     its source) and numba's cache beside it change when any of them does."""
     forces = "".join(f"\n\n{src.replace('def kernel(', f'def _LEPTON_{j}(', 1)}" for j, src in enumerate(extra))
-    body = HELPERS_IMPORT + forces + "\n\n" + _dispatch_source(soft, len(extra))
+    positional = tuple(j for j, src in enumerate(extra) if not src.startswith(VECTOR_MARK))
+    body = HELPERS_IMPORT + forces + "\n\n" + _dispatch_source(soft, positional)
+    if len(positional) < len(extra):
+        body += "\n\n" + _vector_dispatch_source(extra)
     header = ('"""wall/lepton chunk kernel dispatch, generated by wallbatch.engine.compiled: do not edit."""\n'
               f"# key: compiled.py {_SOURCE_DIGEST}, styles {_fingerprint(soft, False, False, body):015x}\n")
     return header + body
@@ -1141,11 +1383,102 @@ def _face_styles(w: SoftWallKernel) -> list[WallStyle]:
 
 
 def _generated_force(style: WallStyle) -> str | None:
-    """The generated source of a face's force (wall/lepton with at most 3 parameters, wall/table:
-    WallStyle.generated_force), else None."""
-    return style.generated_force()
+    """The generated source of a face's force: wall/lepton with at most 3 parameters
+    (WallStyle.generated_force), or with more, its parameters as an array
+    (WallStyle.generated_vector_force, marked by a first line VECTOR_MARK); else None."""
+    src = style.generated_force()
+    if src is None:
+        vec = style.generated_vector_force()
+        src = None if vec is None else VECTOR_MARK + vec
+    return src
 
 
+def _lepton_rows(soft_faces: list, C: int) -> np.ndarray:
+    """lp_val (C, faces, P): the parameter values of each wall/lepton face whose force takes them
+    as an array, in the style's order (rows of other faces: zeros; P >= 1)."""
+    P = max([1] + [len(st.args_names) for _, st, _ in soft_faces if st.generated_vector_force() is not None])
+    out = np.zeros((C, len(soft_faces), P))
+    for k, (_, st, face) in enumerate(soft_faces):
+        if st.generated_vector_force() is not None:
+            for j, key in enumerate(st.args_names):
+                out[:, k, j] = np.broadcast_to(np.asarray(face.params[key], float), (C,))
+    return out
+
+
+def _plain_reflect(plan: ChunkPlan) -> list[ReflectKernel]:
+    """The plan's wall/reflect fixes (its `reflect` list without wall/reflect/stochastic)."""
+    return [w for w in plan.reflect if type(w) is ReflectKernel]
+
+
+def _stochastic_kernel(plan: ChunkPlan) -> StochasticKernel | None:
+    """The plan's wall/reflect/stochastic fix (`eligible`: at most one, after the wall/reflect ones)."""
+    return next((w for w in plan.reflect if isinstance(w, StochasticKernel)), None)
+
+
+def _stochastic_eligible(plan: ChunkPlan) -> bool:
+    """wall/reflect/stochastic in the kernel: one such fix, after every wall/reflect fix (the
+    kernel reflects in that order), constant face values, no dt/reset (its windows may be undone,
+    the draws cannot)."""
+    kinds = [isinstance(w, StochasticKernel) for w in plan.reflect]
+    if not any(kinds):
+        return True
+    if kinds.count(True) > 1 or not kinds[-1] or plan.dt_reset is not None:
+        return False
+    w = plan.reflect[-1]
+    return w.rstyle in RSTYLES and all(isinstance(v, np.ndarray) for face in w.faces
+                                       for v in (face.coord, *face.params.values()))
+
+
+def _stochastic_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]) -> tuple:
+    """The kernel's wall/reflect/stochastic arguments (see `_stochastic_faces`): st_meta, st_val,
+    st_stat (a copy of the counters), st_flag; empty without such a fix."""
+    s = plan.state
+    w = _stochastic_kernel(plan)
+    if w is None:
+        return np.zeros((0, 4), np.int64), np.zeros((s.ncases, 0, 9)), np.zeros((s.ncases, 0, 2)), np.zeros(1, np.int64)
+    K = len(w.faces)
+    meta = np.array([[f.dim, f.side, group(w.group, w.all_atoms), RSTYLES.index(w.rstyle)] for f in w.faces],
+                    np.int64).reshape(K, 4)
+    val = np.zeros((s.ncases, K, 9))
+    for k, f in enumerate(w.faces):
+        val[:, k, 0] = f.coord
+        for j, key in enumerate(("temp", "vx", "vy", "vz", "ax", "ay", "az")):
+            val[:, k, 1 + j] = f.params[key]
+        val[:, k, 8] = s.units.boltz
+    stat = (np.stack([w.count, w.impulse], axis=2).astype(float) if w.stats
+            else np.zeros((s.ncases, K, 2)))
+    return meta, val, np.ascontiguousarray(stat), np.array([1 if w.stats else 0], np.int64)
+
+
+def _is_table(style: WallStyle) -> bool:
+    """A wall/table face: the kernel runs its table as data (style TABLE_STYLE), no compile of its own."""
+    return isinstance(style, TableWallStyle) and style.table is not None
+
+
+def _tables(soft_faces: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The kernel's tb arrays for the soft faces [(kernel, style, face), ...] in sf_meta order:
+    tb_meta (K, 3) int = offset into tb_data, N, linear (1) or spline (0); tb_par (K, 3) = lo,
+    1/delta, delta^2/6; tb_data: the rows (WallTable.kernel_rows) of each table once. Rows of
+    other faces are zeros."""
+    meta = np.zeros((len(soft_faces), 3), np.int64)
+    par = np.zeros((len(soft_faces), 3))
+    chunks: list[np.ndarray] = []
+    where: dict[int, int] = {}
+    size = 0
+    for k, (_, st, _) in enumerate(soft_faces):
+        if not _is_table(st):
+            continue
+        t = st.table
+        if id(t) not in where:
+            where[id(t)] = size
+            chunks.append(t.kernel_rows().reshape(-1))
+            size += chunks[-1].size
+        meta[k] = (where[id(t)], len(t.r), 1 if t.tabstyle == "linear" else 0)
+        par[k] = (t.lo, t.invdelta, t.deltasq6)
+    return meta, par, (np.concatenate(chunks) if chunks else np.zeros(0))
+
+
+# wall/table faces run in the built-in scene kernel (their tables are its data): always eligible.
 # wall/lepton faces run in the scene's chunk kernel with the batch's expressions (`kernel_for`):
 # compiled once (~20 s), then cached on disk and loaded by later processes (~0.5 s, like the
 # built-in kernel). WALLBATCH_LEPTON_COMPILED=always|never|auto; auto (the default) uses it when
@@ -1186,13 +1519,14 @@ def _mark_compiled(extra: tuple[str, ...]) -> None:
 
 def lepton_compiled_wanted(state: BatchState, extra: tuple[str, ...] = ()) -> bool:
     """Whether wall/lepton faces (generated forces `extra`) run on the compiled path for this batch
-    (see above)."""
+    (see above), from the atom-steps of its whole run (the same answer at every chunk)."""
     mode = os.environ.get("WALLBATCH_LEPTON_COMPILED", "auto").strip().lower()
     if mode in ("always", "1", "yes"):
         return True
     if mode in ("never", "0", "no"):
         return False
-    atom_steps = float(np.maximum(state.end_step - state.step, 0).sum()) * state.x.shape[1]
+    # the batch's whole run, not what is left of it: the choice must not flip to NumPy halfway
+    atom_steps = float(np.broadcast_to(np.maximum(state.end_step, 0), (state.x.shape[0],)).sum()) * state.x.shape[1]
     if atom_steps >= LEPTON_MIN_ATOM_STEPS:
         return True
     return atom_steps >= LEPTON_CACHED_MIN_ATOM_STEPS and _compiled_marker(extra).exists()
@@ -1201,6 +1535,8 @@ def lepton_compiled_wanted(state: BatchState, extra: tuple[str, ...] = ()) -> bo
 def _compiled_face(w: SoftWallKernel, style: WallStyle) -> bool:
     if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] == style:
         return w.cutoff.mode_id in _modes(style)
+    if _is_table(style):
+        return w.cutoff.mode_id == SHIFT
     return _generated_force(style) is not None and w.cutoff.mode_id == SHIFT
 
 
@@ -1222,7 +1558,9 @@ def eligible(plan: ChunkPlan) -> bool:
         return False
     if not fixes_eligible(plan):
         return False
-    return all(type(w) is ReflectKernel and w.frame in ("lab", "wall") for w in plan.reflect)
+    if not _stochastic_eligible(plan):
+        return False
+    return all(w.frame in ("lab", "wall") for w in _plain_reflect(plan))
 
 
 def _thermostats(ensemble: Any) -> bool:
@@ -1388,13 +1726,13 @@ class FastPath:
 
         soft_faces = [(st, face) for w in plan.soft for st, face in zip(_face_styles(w), w.faces)]
         sf = np.zeros((C, nval, len(soft_faces), 6))
-        rf = np.zeros((C, nval, sum(len(w.faces) for w in plan.reflect)))
+        rf = np.zeros((C, nval, sum(len(w.faces) for w in _plain_reflect(plan))))
         with np.errstate(all="ignore"):
             try:
                 for k, (style, face) in enumerate(soft_faces):
                     coord = face.coord if isinstance(face.coord, np.ndarray) else var(face.coord) * face.scale
                     sf[:, :, k, 0] = np.broadcast_to(coord, (nval, C)).T
-                    for j, key in enumerate(style.args_names):
+                    for j, key in enumerate(style.args_names[:3]):  # more (wall/lepton): `_lepton_rows`
                         if key in face.params:
                             val = value(face.params[key])
                             low = style.param(key).min
@@ -1405,7 +1743,7 @@ class FastPath:
                     if "switch_on" in face.params:  # cutoff_mode smooth
                         sf[:, :, k, 5] = value(face.params["switch_on"]).T
                 k = 0
-                for w in plan.reflect:
+                for w in _plain_reflect(plan):
                     for face in w.faces:
                         coord = face.coord if isinstance(face.coord, np.ndarray) else var(face.coord) * face.scale
                         rf[:, :, k] = np.broadcast_to(coord, (nval, C)).T
@@ -1505,7 +1843,12 @@ class FastPath:
         def style_id(style: WallStyle) -> int:
             if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] == style:
                 return STYLE_IDS[style.name]
-            return len(COMPILED_STYLES) + extra.index(_generated_force(style))
+            if _is_table(style):
+                return TABLE_STYLE
+            src = _generated_force(style)
+            if src.startswith(VECTOR_MARK):  # parameters as an array: style -2 - j
+                return -2 - extra.index(src)
+            return len(COMPILED_STYLES) + extra.index(src)
 
         groups: list[np.ndarray] = [np.ones(s.x.shape[1], np.uint8)]
 
@@ -1518,9 +1861,10 @@ class FastPath:
 
         sf_meta = np.array([[style_id(st), face.dim, face.side, group(w.group, w.all_atoms),
                              w.cutoff.mode_id] for w, st, face in soft_faces], np.int64).reshape(-1, 5)
+        reflect = _plain_reflect(plan)  # wall/reflect fixes (wall/reflect/stochastic: st arrays)
         rf_meta = np.array([[face.dim, face.side, 1 if w.frame == "wall" else 0, group(w.group, w.all_atoms)]
-                            for w in plan.reflect for face in w.faces], np.int64).reshape(-1, 4)
-        stats = bool(plan.reflect) and plan.reflect[0].stats
+                            for w in reflect for face in w.faces], np.int64).reshape(-1, 4)
+        stats = bool(reflect) and reflect[0].stats
         C = s.ncases
         dtr = plan.dt_reset
         if dtr is not None:
@@ -1530,13 +1874,15 @@ class FastPath:
             dtr_group, dtr_par = 0, np.zeros((C, 4))
         rg = self._regions(plan, group)
         fx, fx_fixes, fx_rngs = _fix_arrays(plan, group)
+        sk = _stochastic_kernel(plan)
+        sto = _stochastic_arrays(plan, group)
         groups_arr = np.stack(groups)
-        rf_prev = np.ascontiguousarray(np.stack([p for w in plan.reflect for p in w.previous], axis=1),
-                                       dtype=float) if plan.reflect else np.zeros((C, 0))
+        rf_prev = np.ascontiguousarray(np.stack([p for w in reflect for p in w.previous], axis=1),
+                                       dtype=float) if reflect else np.zeros((C, 0))
         rf_prev = np.broadcast_to(rf_prev, (C, rf_prev.shape[1])).copy()
         if stats:
             rf_stat = np.stack([np.stack([w.count[:, k], w.impulse[:, k]], axis=1)
-                                for w in plan.reflect for k in range(len(w.faces))], axis=1)
+                                for w in reflect for k in range(len(w.faces))], axis=1)
         else:
             rf_stat = np.zeros((C, rf_meta.shape[0], 2))
         periodic = np.zeros(3, np.int64)
@@ -1548,9 +1894,12 @@ class FastPath:
         backup = {k: getattr(s, k).copy() for k in ("dt", "atime", "atimestep", "step")}
         fk = plan.flow[0] if plan.flow else None
         n = len(COMPILED_STYLES)
-        kernel = kernel_for(tuple(sorted({(int(r[0]), int(r[4])) for r in sf_meta if r[0] < n})),
+        tb = _tables(soft_faces)
+        lp_val = _lepton_rows(soft_faces, C)
+        kernel = kernel_for(tuple(sorted({(int(r[0]), int(r[4])) for r in sf_meta if 0 <= r[0] < n})),
                             tuple(sorted({(int(r[2]), int(r[4])) for r in rg[0]})), fk is not None, tuple(extra),
-                            fixes=bool(fx[0].shape[0]), dtr=dtr is not None)
+                            fixes=bool(fx[0].shape[0]), dtr=dtr is not None,
+                            tables=bool(np.any(sf_meta[:, 0] == TABLE_STYLE)), stochastic=sk is not None)
         self.kernel = kernel  # the last chunk's kernel (tests read its cache statistics)
         if not kernel.signatures:
             announce_compile(kernel, 30 if extra else COMPILE_SECONDS_FIXES if fx[0].shape[0] or dtr is not None
@@ -1562,33 +1911,35 @@ class FastPath:
         consts = (stats, int(dtr.every if dtr is not None else 0), dtr_group)
         units = (float(s.units.ftm2v), float(s.units.mvv2e))
 
-        def run(c: slice, fl: tuple, fx_rng: Any = _NO_FLOW[-1]) -> int:
+        def run(c: slice, fl: tuple, fx_rng: Any = _NO_FLOW[-1], st_rng: Any = _NO_FLOW[-1]) -> int:
             """The kernel on cases c (a slice: views, so the kernel writes through)."""
             return kernel(*args, s.x[c], s.v[c], s.f[c], s.mass[c], s.radius[c], s.dt[c], s.atime[c],
                               s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
                               rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
-                              rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng)
+                              rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng, *tb, sto[0], sto[1][c],
+                              sto[2][c], sto[3], st_rng, lp_val[c])
 
-        if fx_rngs:  # fix langevin: one case per call, each with its own generator
-            rng_states = [r.bit_generator.state for r in fx_rngs]
-            status = 0
-            for c in range(C):
-                status = run(slice(c, c + 1), _NO_FLOW, fx_rngs[c])
-                if status != 0:
-                    break
-        elif fk is None:
-            status = run(slice(None), _NO_FLOW)
-        else:  # one case per call: each case draws from its own generator
-            rng_states = [r.bit_generator.state for r in fk.rngs]
+        # generators drawn from in the kernel (fix langevin, wall/flow, wall/reflect/stochastic):
+        # then one case per call, each with its own generators
+        generators = list(fx_rngs) + (list(fk.rngs) if fk is not None else []) + (list(sk.rngs) if sk else [])
+        rng_states = [r.bit_generator.state for r in generators]
+        if fk is not None:
             phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
             prev, cross = np.ascontiguousarray(fk.prev, dtype=float).copy(), np.zeros((C, 1))
+        if not generators:
+            status = run(slice(None), _NO_FLOW)
+        else:
             status = 0
             for c in range(C):
-                fl_int = np.array([1, fk.axis[c], int(fk.exact[c])], np.int64)
-                fl_f = np.array([fk.lo[c], fk.length[c], fk.vflow[c], fk.kT[c]])
-                walls = np.ascontiguousarray(fk.walls[c][np.isfinite(fk.walls[c])])
-                status = run(slice(c, c + 1), (fl_int, fl_f, walls, fk.group[c].astype(np.uint8), phys[c], pend[c],
-                                               prev[c], cross[c], fk.rngs[c]))
+                fl = _NO_FLOW
+                if fk is not None:
+                    fl_int = np.array([1, fk.axis[c], int(fk.exact[c])], np.int64)
+                    fl_f = np.array([fk.lo[c], fk.length[c], fk.vflow[c], fk.kT[c]])
+                    walls = np.ascontiguousarray(fk.walls[c][np.isfinite(fk.walls[c])])
+                    fl = (fl_int, fl_f, walls, fk.group[c].astype(np.uint8), phys[c], pend[c], prev[c], cross[c],
+                          fk.rngs[c])
+                status = run(slice(c, c + 1), fl, fx_rngs[c] if fx_rngs else _NO_FLOW[-1],
+                             sk.rngs[c] if sk is not None else _NO_FLOW[-1])
                 if status != 0:
                     break
         s.ctx = None
@@ -1598,11 +1949,8 @@ class FastPath:
         if status != 0:
             for k, arr in backup.items():
                 getattr(s, k)[...] = arr
-            if fk is not None:  # the NumPy loop re-runs the chunk with the same random numbers
-                for r, st in zip(fk.rngs, rng_states):
-                    r.bit_generator.state = st
-            for r, st in zip(fx_rngs, rng_states if fx_rngs else []):
-                r.bit_generator.state = st
+            for r, state in zip(generators, rng_states):  # the NumPy loop re-runs the chunk with the same draws
+                r.bit_generator.state = state
             self.fallbacks += 1
             return False
         self.compiled_chunks += 1
@@ -1613,8 +1961,11 @@ class FastPath:
             fk.crossings += cross[:, 0]
         self._spare = (s.x, s.v, s.f)
         s.x, s.v, s.f = xo, vo, fo
+        if sk is not None and sk.stats:
+            sk.count[...] = sto[2][:, :, 0]
+            sk.impulse[...] = sto[2][:, :, 1]
         k = 0
-        for w in plan.reflect:
+        for w in reflect:
             for j, face in enumerate(w.faces):
                 # as ReflectKernel.apply: a constant wall keeps its coord array, a variable one a copy
                 w.previous[j] = face.coord if isinstance(face.coord, np.ndarray) else rf_prev[:, k].copy()

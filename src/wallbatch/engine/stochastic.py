@@ -21,6 +21,12 @@ Random numbers come from one ``numpy.random.Generator`` per case and wall (as fo
 per call the draws are, for the K reflected atoms in atom order: ``diffusive`` U (K,), N (K, 2);
 ``maxwell`` the choice (K,), then U (K,), N (K, 2) for every atom (so the count does not depend
 on the choice); ``ccl`` U1 (K,), U2 (K,), N (K, 2). Uniforms are taken as 1 - random() in (0, 1].
+
+The arithmetic is a set of plain functions of arrays or scalars (:func:`diffusive_normal`,
+:func:`thermal_tangent`, :func:`ccl_normal`, :func:`ccl_tangent`, :func:`crossing_time`,
+:func:`crossed_position`) that the compiled chunk kernel (wallbatch.engine.compiled) compiles as
+they are, with the C library's log and cos (:func:`libm_log`, :func:`libm_cos`, not NumPy's SIMD
+versions) and the impulse summed in atom order, so the two paths agree bit for bit.
 """
 
 from __future__ import annotations
@@ -29,16 +35,72 @@ import math
 
 import numpy as np
 
+from wallbatch.engine.dt_reset import select
 from wallbatch.engine.state import FaceValues
 
-__all__ = ["RSTYLES", "StochasticKernel", "reflect_velocities", "reflect_positions", "thermal_sigma"]
+__all__ = ["RSTYLES", "StochasticKernel", "reflect_velocities", "reflect_positions", "thermal_sigma",
+           "diffusive_normal", "thermal_tangent", "ccl_normal", "ccl_tangent", "crossing_time", "crossed_position",
+           "libm_log", "libm_cos"]
 
 RSTYLES = ("diffusive", "maxwell", "ccl")
+SQRT2 = math.sqrt(2.0)
 
 
-def thermal_sigma(temp: float | np.ndarray, mass: np.ndarray, boltz: float, mvv2e: float) -> np.ndarray:
-    """sqrt(kB T / (m mvv2e)) [velocity]: the standard deviation of one velocity component."""
-    return np.sqrt(boltz * np.asarray(temp, dtype=np.float64) / (np.asarray(mass, dtype=np.float64) * mvv2e))
+def libm_log(x: np.ndarray) -> np.ndarray:
+    """Natural log of a 1-D array by the C library (math.log), not NumPy's SIMD log, so the NumPy
+    path agrees bit for bit with the compiled one (which calls math.log); x > 0 (the few
+    reflections of a step)."""
+    return np.array([math.log(v) for v in np.asarray(x, dtype=np.float64).tolist()], dtype=np.float64)
+
+
+def libm_cos(x: np.ndarray) -> np.ndarray:
+    """cos of a 1-D array by the C library (math.cos), as :func:`libm_log`."""
+    return np.array([math.cos(v) for v in np.asarray(x, dtype=np.float64).tolist()], dtype=np.float64)
+
+
+def thermal_sigma(temp, mass, boltz, mvv2e):
+    """sqrt(kB T / (m mvv2e)) [velocity]: the standard deviation of one velocity component
+    (arrays or scalars)."""
+    return np.sqrt(boltz * temp / (mass * mvv2e))
+
+
+def diffusive_normal(away, sigma, uni):
+    """Outgoing normal velocity of a diffusive reflection [velocity]: sigma sqrt(-2 ln U) in the
+    direction ``away`` (+1 or -1), U in (0, 1]: the flux-weighted (Rayleigh) speed."""
+    return away * sigma * np.sqrt(-2.0 * libm_log(uni))
+
+
+def thermal_tangent(wall_v, sigma, g):
+    """A tangential component of a diffusive reflection: wall velocity + sigma N(0, 1). [velocity]"""
+    return wall_v + sigma * g
+
+
+def ccl_normal(away, sigma, an, vn, u1, u2):
+    """Outgoing normal velocity of a Cercignani-Lampis reflection (normal energy accommodation
+    an, incoming normal velocity vn, uniforms u1 in (0, 1], u2 in [0, 1)) [velocity]."""
+    scale = SQRT2 * sigma
+    rho = np.sqrt(-an * libm_log(u1))
+    m = math.sqrt(1.0 - an) * np.abs(vn) / scale
+    w2 = rho * rho + m * m + 2.0 * rho * m * libm_cos(2.0 * math.pi * u2)
+    return away * np.sqrt(np.maximum(w2, 0.0)) * scale
+
+
+def ccl_tangent(wall_v, at, v, sigma, g):
+    """A tangential component of a Cercignani-Lampis reflection (accommodation at) [velocity]."""
+    return wall_v + (1.0 - at) * (v - wall_v) + math.sqrt(at * (2.0 - at)) * sigma * g
+
+
+def crossing_time(x_n, coord, vn_old):
+    """How long ago an atom at normal coordinate x_n, moving with normal velocity vn_old, crossed
+    the wall at coord: |x_n - coord| / |vn_old| (0 if vn_old = 0). [time]"""
+    vn = np.abs(vn_old)
+    return select(vn > 0.0, np.abs(x_n - coord) / vn, 0.0)
+
+
+def crossed_position(x_n, coord, vn_old, vn_new, t):
+    """Normal coordinate after the reflection: coord + v'_n t, or the mirror image 2 coord - x_n
+    when the atom had no normal velocity. [length]"""
+    return select(np.abs(vn_old) > 0.0, coord + vn_new * t, 2.0 * coord - x_n)
 
 
 def reflect_velocities(
@@ -70,9 +132,9 @@ def reflect_velocities(
         uni = 1.0 - rng.random(k)
         g = rng.standard_normal((k, 2))
         diff = np.empty_like(v)
-        diff[:, dim] = away * sigma * np.sqrt(-2.0 * np.log(uni))
+        diff[:, dim] = diffusive_normal(away, sigma, uni)
         for j, d in enumerate(tang):
-            diff[:, d] = u[d] + sigma * g[:, j]
+            diff[:, d] = thermal_tangent(u[d], sigma, g[:, j])
         if choose is None:
             return diff
         a = float(np.asarray(accom, dtype=np.float64).reshape(-1)[0])
@@ -84,15 +146,9 @@ def reflect_velocities(
         u1 = 1.0 - rng.random(k)
         u2 = rng.random(k)
         g = rng.standard_normal((k, 2))
-        an = acc[dim]
-        scale = math.sqrt(2.0) * sigma
-        rho = np.sqrt(-an * np.log(u1))
-        m = math.sqrt(1.0 - an) * np.abs(v[:, dim]) / scale
-        w2 = rho * rho + m * m + 2.0 * rho * m * np.cos(2.0 * math.pi * u2)
-        out[:, dim] = away * np.sqrt(np.maximum(w2, 0.0)) * scale
+        out[:, dim] = ccl_normal(away, sigma, acc[dim], v[:, dim], u1, u2)
         for j, d in enumerate(tang):
-            at = acc[d]
-            out[:, d] = u[d] + (1.0 - at) * (v[:, d] - u[d]) + math.sqrt(at * (2.0 - at)) * sigma * g[:, j]
+            out[:, d] = ccl_tangent(u[d], acc[d], v[:, d], sigma, g[:, j])
         return out
     raise ValueError(f"unknown reflection rule {rstyle!r} (expected one of {', '.join(RSTYLES)})")
 
@@ -104,12 +160,10 @@ def reflect_positions(
     and left it with v_new: x_n = coord + v'_n t, x_t = x_t + (v'_t - v_t) t (t = 0 if v_n = 0)."""
     x = np.asarray(x, dtype=np.float64)
     coord = np.asarray(coord, dtype=np.float64)
-    depth = np.abs(x[:, dim] - coord)
-    vn = np.abs(v_old[:, dim])
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(vn > 0.0, depth / vn, 0.0)
+        t = crossing_time(x[:, dim], coord, v_old[:, dim])
     out = x + (v_new - v_old) * t[:, None]
-    out[:, dim] = np.where(vn > 0.0, coord + v_new[:, dim] * t, 2.0 * coord - x[:, dim])
+    out[:, dim] = crossed_position(x[:, dim], coord, v_old[:, dim], v_new[:, dim], t)
     return out
 
 
@@ -173,7 +227,8 @@ class StochasticKernel:
                 state.v[c, ai] = v_new
                 if self.stats:
                     self.count[c, k] += ai.size
-                    self.impulse[c, k] += np.sum(mass * (v_old[:, face.dim] - v_new[:, face.dim])) / u.ftm2v
+                    # summed in atom order (cumsum), as the compiled path adds them
+                    self.impulse[c, k] += np.cumsum(mass * (v_old[:, face.dim] - v_new[:, face.dim]))[-1] / u.ftm2v
 
     def take_stats(self) -> tuple[np.ndarray, np.ndarray]:
         """Reflections and impulse since the previous sample; resets the counters."""

@@ -196,6 +196,12 @@ class WallStyle:
         ``force`` itself) and for faces the compiled path cannot run."""
         return None
 
+    def generated_vector_force(self) -> str | None:
+        """Python source of ``kernel(r, p)``, the force F(r) [force] with the parameters as one
+        array p (in ``args_names`` order), for per-face styles with more parameters than the
+        compiled path's p0, p1, p2 (wall/lepton); None otherwise."""
+        return None
+
     def too_close_message(self) -> str | None:
         """How a case that fails because an atom is "on or inside" the wall (too_close) is
         described after "atom A at distance D from the wall at step S is", or None for the

@@ -64,6 +64,7 @@ __all__ = [
     "LEPTON",
     "positional_kernels",
     "force_source",
+    "vector_force_source",
     "kernel_cache_dir",
     "generated_module",
     "generated_path",
@@ -916,6 +917,16 @@ def force_source(expr: LeptonExpression, name: str = "kernel") -> str | None:
     return _codegen((expr.force,), expr.params, positional=True).replace("def kernel(", f"def {name}(", 1)
 
 
+def vector_force_source(expr: LeptonExpression, name: str = "kernel") -> str | None:
+    """Python source of ``name(r, p)``, the force F = -dE/dr [force] of an expression with more
+    than 3 parameters (None with fewer: :func:`force_source`), the parameters as one array p in
+    ``expr.params`` order: the compiled path passes each face's values as a row of an array. The
+    same generated statements as :func:`numba_kernel`'s force, so bit-identical to NumPy."""
+    if len(expr.params) <= POSITIONAL_PARAMS:
+        return None
+    return _codegen((expr.force,), expr.params).replace("def kernel(", f"def {name}(", 1)
+
+
 # the first lines of a generated module that calls the helpers of the generated kernels
 HELPERS_IMPORT = ("from wallbatch.styles.lepton import _helpers as _lepton_helpers\n"
                   "globals().update(_lepton_helpers())\n")
@@ -1039,6 +1050,11 @@ class LeptonWallStyle(WallStyle):
         """The generated force source (:func:`force_source`; None with more than 3 parameters)."""
         return None if self.expression is None else force_source(self.expression)
 
+    def generated_vector_force(self) -> str | None:
+        """The generated force source with the parameters as an array (:func:`vector_force_source`;
+        None with at most 3 parameters)."""
+        return None if self.expression is None else vector_force_source(self.expression)
+
 
 # ---------------------------------------------------------------------------------------------
 # The registry entry
@@ -1089,9 +1105,9 @@ LEPTON = LeptonEntry(
     (Param("expression", "energy", variable=False, kind="word", quoted=True,
            doc="the wall energy E(r) as a Lepton expression of r, the distance to the wall; `;` definitions "
                "allowed (F = -dE/dr is derived exactly; E is shifted to 0 at the cut-off)"),
-     Param("params", "energy", variable=False, required=False, kind="mapping",
+     Param("params", "", variable=False, required=False, kind="mapping",
            doc="named numbers used by the expression (sweepable; written as `; name=value` definitions in "
-               "the LAMMPS fix line)"),
+               "the LAMMPS fix line); `cutoff` is reserved"),
      cutoff_param()),
     region=False, compiled=False, per_face=True, lammps_force_sign=-1.0,
     doc="E(r) from an expression, F = -dE/dr exactly")

@@ -21,7 +21,6 @@ A distance outside [r_1, r_n] is an error (the table does not cover it).
 from __future__ import annotations
 
 import functools
-import hashlib
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -32,7 +31,7 @@ import numpy as np
 
 from wallbatch.styles.base import Param, WallStyle, cutoff_param
 from wallbatch.styles.flat import STYLES
-from wallbatch.styles.lepton import LeptonError, compile_expression, derivative, evaluate, kernel_cache_dir, simplify
+from wallbatch.styles.lepton import LeptonError, compile_expression, derivative, evaluate, simplify
 
 __all__ = [
     "TableWallStyle",
@@ -247,9 +246,6 @@ def spline_lookup(r, i, grid, y, y2, invdelta, deltasq6):
     return a * y[i] + b * y[i + 1] + (ca * y2[i] + cb * y2[i + 1]) * deltasq6
 
 
-_FORCE_SOURCES: dict[int, tuple] = {}  # id(WallTable) -> (the table, its generated force source)
-
-
 @dataclass(frozen=True)
 class WallTable:
     """A table resampled onto N equally spaced points, ready for linear or spline lookups.
@@ -317,42 +313,14 @@ class WallTable:
         return (spline_lookup(r, i, self.r, self.e, self.e2, self.invdelta, self.deltasq6),
                 spline_lookup(r, i, self.r, self.f, self.f2, self.invdelta, self.deltasq6))
 
-    def force_source(self) -> str:
-        """Python source of ``kernel(r, p0, p1, p2, rc, radius)``, the force F(r) [force] by this
-        table's interpolation, for the compiled path (a generated module, see
-        wallbatch.styles.lepton.generated_module): the grid arrays are saved once to a ``.npy``
-        file in the kernel cache directory, named by their digest, and the lookup calls the same
-        :func:`linear_lookup` / :func:`spline_lookup` as :meth:`lookup` (jitted), so the two agree
-        bit for bit. NaN below the table's first distance (the compiled chunk then falls back to
-        NumPy, which reports the atom)."""
-        key = id(self)
-        if key not in _FORCE_SOURCES or _FORCE_SOURCES[key][0] is not self:
-            _FORCE_SOURCES[key] = (self, self._force_source())
-        return _FORCE_SOURCES[key][1]
-
-    def _force_source(self) -> str:
-        linear = self.tabstyle == "linear"
-        rows = np.ascontiguousarray(np.stack([self.r, self.f, np.append(self.df, 0.0) if linear else self.f2]))
-        digest = hashlib.sha256(rows.tobytes() + self.tabstyle.encode()).hexdigest()[:24]
-        path = kernel_cache_dir() / f"table_{digest}.npy"
-        if not path.exists():
-            tmp = path.with_suffix(f".{os.getpid()}.tmp.npy")
-            np.save(tmp, rows)
-            os.replace(tmp, path)
-        name = f"_TAB_{digest}"
-        n2 = len(self.r) - 2
-        call = (f"_table_linear(r, i, {name}_R, {name}_F, {name}_D, {self.invdelta!r})" if linear else
-                f"_table_spline(r, i, {name}_R, {name}_F, {name}_D, {self.invdelta!r}, {self.deltasq6!r})")
-        return ("from numba import njit as _tab_njit\n"
-                "from wallbatch.styles.table import linear_lookup as _tl, spline_lookup as _ts\n"
-                "_table_linear = _tab_njit(inline='always', error_model='numpy')(_tl)\n"
-                "_table_spline = _tab_njit(inline='always', error_model='numpy')(_ts)\n"
-                f"{name}_R, {name}_F, {name}_D = (row.copy() for row in np.load({str(path)!r}))\n"
-                "def kernel(r, p0, p1, p2, rc, radius):\n"
-                f"    if not r >= {self.lo!r}:\n"
-                "        return math.nan\n"
-                f"    i = min(int((r - {self.lo!r}) * {self.invdelta!r}), {n2})\n"
-                f"    return {call}\n")
+    def kernel_rows(self) -> np.ndarray:
+        """The table as data for the compiled path: rows (3, N) = grid r, force F and, per
+        tabstyle, the force differences dF (linear; padded with a 0 to N) or the spline's second
+        derivatives F2 (spline). The compiled chunk kernel takes every face's rows concatenated
+        and looks them up with the same :func:`linear_lookup` / :func:`spline_lookup` as
+        :meth:`lookup` (jitted), so the two agree bit for bit and no table needs its own compile."""
+        d = np.append(self.df, 0.0) if self.tabstyle == "linear" else self.f2
+        return np.ascontiguousarray(np.stack([self.r, self.f, d]))
 
     def offset(self, cutoff: float) -> float:
         """E_lin(rc): the energy subtracted so the wall energy is 0 at the cut-off [energy]."""
@@ -387,10 +355,6 @@ class TableWallStyle(WallStyle):
     def too_close_message(self) -> str | None:
         return (f"nearer than the table's first distance {self.lo:g} (LAMMPS: Particle / wall distance < table "
                 "inner cutoff)")
-
-    def generated_force(self) -> str | None:
-        """The table's force for the compiled path (:meth:`WallTable.force_source`)."""
-        return None if self.table is None else self.table.force_source()
 
 
 def table_style(table: WallTable) -> TableWallStyle:
