@@ -190,8 +190,12 @@ def measured(cmd: list[str], cwd: Path, env: dict | None = None) -> tuple[float,
     The peak memory is read by GNU time (`/usr/bin/time -f %M`), a small process that forks and
     execs the command: a child forked from this (large) Python process would carry this process's
     resident set into its own high-water mark across the exec. Without GNU time: os.wait4's
-    ru_maxrss, an upper bound."""
+    ru_maxrss, an upper bound. The child runs without PYTHONDONTWRITEBYTECODE (this sandbox sets
+    it): a user's Python keeps the compiled .pyc of wallbatch's modules instead of compiling them
+    from source on every start."""
     timed = os.path.exists(GNU_TIME)
+    env = dict(os.environ if env is None else env)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     with tempfile.TemporaryDirectory(prefix="wb_measure_") as tmp:
         rss_file = Path(tmp) / "rss"
         full = [GNU_TIME, "-f", "%M", "-o", str(rss_file), *cmd] if timed else cmd

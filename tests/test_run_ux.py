@@ -42,14 +42,36 @@ def test_startup_imports_no_heavy_module(code):
     assert res.stdout.strip().splitlines()[-1] == "heavy:"
 
 
-def test_run_of_a_flat_wall_scene_imports_neither_dask_nor_matplotlib(tmp_path):
+RUN_HEAVY = ("dask", "distributed", "matplotlib", "numba", "xarray", "pandas", "scipy.spatial", "scipy.sparse")
+
+
+def _run_probe(tmp_path: Path, numba: str | None) -> list[str]:
+    """`wallbatch run` of a small flat-wall scene in a new process: its output lines, then the
+    heavy modules it imported."""
+    import os
+
     (tmp_path / "scene.yaml").write_text(SCENE.replace("steps: 4000", "steps: 40"))
-    probe = ("import sys; sys.argv = ['wallbatch', 'run', 'scene.yaml', '-o', 'o.nc']\n"
+    probe = ("import sys; sys.argv = ['wallbatch', 'run', 'scene.yaml', '-o', 'o.nc', '--force']\n"
              "from wallbatch.cli import app\ntry:\n    app()\nexcept SystemExit:\n    pass\n"
-             "print('heavy:' + ','.join(m for m in ('dask', 'distributed', 'matplotlib') if m in sys.modules))")
-    res = subprocess.run([sys.executable, "-c", probe], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+             f"print('heavy:' + ','.join(m for m in {RUN_HEAVY!r} if m in sys.modules))")
+    env = {k: v for k, v in os.environ.items() if k != "WALLBATCH_NUMBA"}
+    if numba is not None:
+        env["WALLBATCH_NUMBA"] = numba
+    res = subprocess.run([sys.executable, "-c", probe], cwd=tmp_path, capture_output=True, text=True, timeout=300,
+                         env=env)
     assert res.returncode == 0, res.stderr
-    assert res.stdout.strip().splitlines() == ["1 of 1 case(s) ok -> o.nc", "heavy:"]
+    return res.stdout.strip().splitlines()
+
+
+def test_small_run_imports_neither_numba_nor_xarray_nor_scipy_spatial(tmp_path):
+    """A small run (30 atoms x 40 steps, far below backend.SMALL_RUN) runs NumPy, writes its file
+    with netCDF4 directly and places atoms without scipy: none of the heavy modules is imported."""
+    assert _run_probe(tmp_path, None) == ["1 of 1 case(s) ok -> o.nc", "heavy:"]
+
+
+def test_small_run_with_numba_forced_imports_numba_only(tmp_path):
+    """WALLBATCH_NUMBA=1 forces the compiled path whatever the size (and the probe sees it)."""
+    assert _run_probe(tmp_path, "1") == ["1 of 1 case(s) ok -> o.nc", "heavy:numba"]
 
 
 def test_xarray_still_handles_dask_after_a_run(tmp_path):

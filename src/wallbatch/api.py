@@ -12,16 +12,18 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-
-import xarray as xr
+from typing import TYPE_CHECKING, Any
 
 from wallbatch.config.models import Config
 from wallbatch.config.source import SourceMap
 from wallbatch.config.sweep import SweepPlan, config_to_dict, expand, load_plan, parse_set
+from wallbatch.engine import backend
 from wallbatch.engine.engine import sample_instants
 from wallbatch.batch.runner import build_cases, check_layout, make_tasks, run_plan
 from wallbatch.scene.case import Case
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 ConfigLike = str | os.PathLike | SweepPlan | Config | Mapping[str, Any]
 
@@ -111,6 +113,7 @@ class CheckReport:
             out.append(f"    kernels: {', '.join(b.kernels)}")
         if self.atom_steps:
             out.append(f"  total atom-steps: {self.atom_steps:,}")
+        out.append(f"  {backend.describe(self.plan)}")  # NumPy or compiled, chosen for the whole plan
         return out
 
 

@@ -45,6 +45,7 @@ def test_jobs_after_threaded_chunks_in_this_process(tmp_path, monkeypatch):
     cases), then forks `--jobs 2` workers: the workers run, and every number is bit-identical to
     the one-thread `--jobs 1` run."""
     monkeypatch.setattr(threads, "MIN_WORK", 1)
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")  # the compiled path, though the plan is small
     plan = load(sweep_file(tmp_path, 6, 300))
     monkeypatch.setenv("WALLBATCH_THREADS", "1")
     one = run_plan(plan, None, jobs=1, progress=False)

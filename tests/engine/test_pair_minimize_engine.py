@@ -514,10 +514,11 @@ def test_batched_cases_equal_single_runs():
     assert energies[0] > energies[1] > energies[2]  # deeper wells with larger epsilon: not one case thrice
 
 
-def test_netcdf_min_outputs_through_cli(tmp_path):
+def test_netcdf_min_outputs_through_cli(tmp_path, monkeypatch):
     """`wallbatch run` on a config with a sweep over pair epsilon, in real units: the NetCDF
     holds min_* per case with CF units (kcal/mol, kcal/mol/Angstrom, "1") and the values of
     run_cases; run_config writes the same for a single scene."""
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")  # run_cases' path for the small plan too (pair: ~1e-14 apart)
     x = cluster(8, seed=2, shift=(0.0, 0.0, 0.0)) * 3.4 + np.array([8.0, 8.0, 3.0])  # Angstrom
     body = scene_yaml(x, np.zeros_like(x), (0.0, 0.0, 0.0), (25.0, 25.0, 13.6), "ppf", units="real",
                       mass=39.948, timestep=2.0, steps=10, thermo=5, outputs=("step", "pe", "press"),

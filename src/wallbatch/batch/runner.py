@@ -28,20 +28,23 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 import numpy as np
-import xarray as xr
 
 from wallbatch.version import __version__
 from wallbatch.config.models import Config, lattice_spacing
 from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict
-from wallbatch.engine import compiled, threads
+from wallbatch.engine import backend, threads
 from wallbatch.engine.engine import CaseResult, Engine, run_cases
 from wallbatch.io.amber import write_amber
-from wallbatch.io.netcdf import build_dataset, write_netcdf
+from wallbatch.io.netcdf import build_results, write_netcdf
+from wallbatch.io.results import Results
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import Case, CaseError, structure_key
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 MAX_BATCH = 256  # cases per task: big enough to amortise Python overhead, small enough to resume
 MAX_BATCH_ATOMS = 1_000_000  # atoms per task (all its cases): bounds a running batch's memory (~450 MB)
@@ -278,10 +281,16 @@ def make_windows(plan: SweepPlan, todo: list[int], jobs: int) -> list[list[int]]
     return windows
 
 
-def _run_window(items: list, plan: SweepPlan | None = None) -> list[Outcome]:
+def _run_window(items: list, plan: SweepPlan | None = None, compiled: bool | None = None) -> list[Outcome]:
     """Build a window's cases (items: indices into `plan`, or the running plan a forked worker
     inherited, built here; or (case, error, seconds) built by the parent), run its same-structure
-    cases as batches, and return one Outcome per item; the built cases are freed on return."""
+    cases as batches, and return one Outcome per item; the built cases are freed on return.
+    `compiled`: the plan's engine path (engine/backend.py) for a worker that did not inherit it."""
+    with backend.plan_path(compiled):
+        return _run_window_items(items, plan)
+
+
+def _run_window_items(items: list, plan: SweepPlan | None) -> list[Outcome]:
     source = plan if plan is not None else _PLAN
     built = [build_one(source.cases[it]) if isinstance(it, int) else it for it in items]  # type: ignore[union-attr]
     out: list[Outcome | None] = [None] * len(items)
@@ -300,11 +309,12 @@ def _run_window(items: list, plan: SweepPlan | None = None) -> list[Outcome]:
     return out  # type: ignore[return-value]
 
 
-def _run_window_on_cluster(items: list) -> list[Outcome]:
-    """`_run_window` in a dask worker: one thread per task unless WALLBATCH_THREADS says otherwise
-    (the cluster runs as many tasks at once as it has worker threads)."""
+def _run_window_on_cluster(items: list, compiled: bool | None = None) -> list[Outcome]:
+    """`_run_window` in a dask worker (`compiled`: the plan's engine path): one thread per task
+    unless WALLBATCH_THREADS says otherwise (the cluster runs as many tasks at once as it has
+    worker threads)."""
     threads.set_default(1)
-    return _run_window(items)
+    return _run_window(items, None, compiled)
 
 
 def _warm_compiler(case: Case | None = None) -> None:
@@ -312,8 +322,13 @@ def _warm_compiler(case: Case | None = None) -> None:
     instead of each loading them from the on-disk cache (or compiling them, each at once). With
     `case` (the first case of the run, up to WARM_ATOMS atoms) one step of it on a throw-away
     engine loads exactly its kernels; otherwise numba's compiler is initialised (its type and
-    target contexts, ~1 s) and the workers load their kernels (~0.2 s each)."""
-    if not compiled.enabled() or _fork_context() is None:
+    target contexts, ~1 s) and the workers load their kernels (~0.2 s each). Small plans (NumPy
+    path, engine/backend.py) import no numba."""
+    if not backend.numba_allowed() or _fork_context() is None:
+        return
+    from wallbatch.engine import compiled
+
+    if not compiled.enabled():
         return
     if case is not None and case.natoms <= WARM_ATOMS:
         with contextlib.suppress(Exception), np.errstate(all="ignore"):
@@ -400,7 +415,8 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
         from distributed import as_completed as dask_completed
 
         with Client(scheduler) as client:
-            futures = {client.submit(_run_window_on_cluster, t, pure=False): k for k, t in enumerate(tasks)}
+            path = backend.numba_allowed()  # the plan's engine path travels with each task
+            futures = {client.submit(_run_window_on_cluster, t, path, pure=False): k for k, t in enumerate(tasks)}
             try:
                 for fut in dask_completed(futures):
                     yield futures[fut], fut.result()
@@ -416,7 +432,7 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=_fork_context(), initializer=_worker_init,
                                    initargs=(os.getpid(), max(1, usable_cores() // workers)))
         try:
-            futures = {pool.submit(_run_window, t): k for k, t in enumerate(tasks)}
+            futures = {pool.submit(_run_window, t, None, backend.numba_allowed()): k for k, t in enumerate(tasks)}
             for fut in as_completed(futures):
                 yield futures[fut], fut.result()
         except BaseException:
@@ -641,8 +657,9 @@ def _alive(pid: int) -> bool:
 def run_plan(plan: SweepPlan, output: str | Path | None = None, *, jobs: int = 1, executor: str = "local",
              scheduler: str | None = None, resume: bool = False, fresh: bool = False, overwrite: bool = True,
              progress: bool | None = None, on_result: Callable[[int, CaseResult], None] | None = None,
-             log: Callable[[str], None] | None = None) -> xr.Dataset:
-    """Run every case of a plan; write `output` if given; return the results Dataset.
+             log: Callable[[str], None] | None = None, as_xarray: bool = True) -> xr.Dataset | Results:
+    """Run every case of a plan; write `output` if given; return the results Dataset (with
+    `as_xarray=False` the plain `io.results.Results`: xarray is not imported).
 
     With `output`, each finished case is persisted under OUT.parts/ as it completes and a lock file
     OUT.lock keeps other runs away. Parts left by an earlier run: `resume` reuses those whose case
@@ -650,6 +667,14 @@ def run_plan(plan: SweepPlan, output: str | Path | None = None, *, jobs: int = 1
     parts are removed once the final file is written. Ctrl-C, SIGTERM or SIGHUP stop the workers
     and raise `Interrupted` (every finished case stays in the parts). `log` receives one-line
     notes (cases reused, kernels compiling, jobs capped)."""
+    with backend.plan_path(backend.choose(plan)):  # small plans run NumPy only (engine/backend.py)
+        res = _run_plan(plan, output, jobs, executor, scheduler, resume, fresh, overwrite, progress, on_result, log)
+    return res.to_xarray() if as_xarray else res
+
+
+def _run_plan(plan: SweepPlan, output: str | Path | None, jobs: int, executor: str, scheduler: str | None,
+              resume: bool, fresh: bool, overwrite: bool, progress: bool | None,
+              on_result: Callable[[int, CaseResult], None] | None, log: Callable[[str], None] | None) -> Results:
     say = log or (lambda msg: None)
     if output is None:
         return _run(plan, None, jobs, executor, scheduler, False, progress, on_result, say)
@@ -675,7 +700,7 @@ def run_plan(plan: SweepPlan, output: str | Path | None = None, *, jobs: int = 1
 
 def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, scheduler: str | None, resume: bool,
          progress: bool | None, on_result: Callable[[int, CaseResult], None] | None,
-         say: Callable[[str], None]) -> xr.Dataset:
+         say: Callable[[str], None]) -> Results:
     global _PLAN, _FIRST
     try:
         threads.count()
@@ -766,7 +791,7 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
             if c0.dump_every > 0 and output is not None:
                 paths = [str(dump_path(output, sc).relative_to(output.parent)) if (
                     dump_path(output, sc).exists()) else "" for sc in plan.cases]
-            ds = build_dataset(_results(total, held, parts, keys), c0, config_text=plan.base_text,
+            ds = build_results(_results(total, held, parts, keys), c0, config_text=plan.base_text,
                                sweep_text=plan.sweep_text, dims=plan.dims, dump_paths=paths)
             if output is not None:
                 try:

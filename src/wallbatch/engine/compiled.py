@@ -68,6 +68,7 @@ from typing import Any
 
 import numpy as np
 
+from wallbatch.engine import backend
 from wallbatch.engine import dt_reset as _dtr
 from wallbatch.engine import scalar as _scalar
 from wallbatch.engine import stochastic as _st
@@ -121,8 +122,8 @@ FIX_KINDS: dict[str, int] = {"langevin": FIX_LANGEVIN, "nvt": FIX_NVT, "temp/ber
 
 
 def enabled() -> bool:
-    """True if the compiled path may be used (numba importable, WALLBATCH_NUMBA not 0)."""
-    return njit is not None and os.environ.get("WALLBATCH_NUMBA", "1").strip().lower() not in ("0", "false", "no", "off")
+    """True if the compiled path may be used: numba imports and backend.numba_allowed()."""
+    return njit is not None and backend.numba_allowed()
 
 
 # ----------------------------------------------------------------------------- compiled kernels

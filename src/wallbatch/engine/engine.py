@@ -21,23 +21,25 @@ from __future__ import annotations
 
 import time as _time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from wallbatch.engine.asphere_compiled import attach_asphere_path
-from wallbatch.engine.compiled import ChunkPlan, attach_fast_path
+from wallbatch.engine import backend
 from wallbatch.engine.dt_reset import dt_candidate
 from wallbatch.engine.ensemble import Ensemble
 from wallbatch.engine.flow import FlowKernel
 from wallbatch.engine.minimize import minimize
 from wallbatch.engine.pair import PairLJCut
-from wallbatch.engine.pair_compiled import attach_pair_chunks
 from wallbatch.engine.profiles import ProfileSampler
 from wallbatch.engine.state import BatchState
 from wallbatch.engine.thermostats import kinetic_sum
 from wallbatch.engine.walls import build_kernels, build_region_kernels
 from wallbatch.geometry.quaternion import richardson, rotational_energy
 from wallbatch.scene.case import Case, structure_key
+
+if TYPE_CHECKING:
+    from wallbatch.engine.compiled import ChunkPlan
 
 BIG = 1.0e20  # dt/reset's "no limit" (LAMMPS BIG)
 PAIR = "__pair__"  # key of the pair style's (energy, virial) among the force outputs
@@ -100,13 +102,23 @@ class Engine:
         self.profiles = ProfileSampler(cases) if c0.profiles else None  # output.profiles
         # compiled chunks of steps, or None (compiled.eligible: which scenes and fixes; ellipsoids
         # between wall/ees faces: asphere_compiled.eligible)
-        self.fast = attach_fast_path(self.compiled_plan) or attach_asphere_path(self.compiled_plan)
-        if self.fast is None and self.pair is not None:  # pair scenes: fused chunks (pair_compiled.py)
-            self.fast = attach_pair_chunks(self.compiled_plan, self.pair)
+        # (imported only then: numba and the kernels cost ~0.6 s; backend.py: small plans run NumPy)
+        self.fast = None
+        if backend.numba_allowed():
+            from wallbatch.engine.asphere_compiled import attach_asphere_path
+            from wallbatch.engine.compiled import attach_fast_path
+
+            self.fast = attach_fast_path(self.compiled_plan) or attach_asphere_path(self.compiled_plan)
+            if self.fast is None and self.pair is not None:  # pair scenes: fused chunks (pair_compiled.py)
+                from wallbatch.engine.pair_compiled import attach_pair_chunks
+
+                self.fast = attach_pair_chunks(self.compiled_plan, self.pair)
 
     def compiled_plan(self) -> ChunkPlan:
         """What the compiled path would run now: the flat walls, reflect walls and dt/reset with
         their per-case arrays, the NumPy steps it hands back to, and what else the scene has."""
+        from wallbatch.engine.compiled import ChunkPlan
+
         s = self.state
         others = tuple(name for name, present in (
             ("pair", self.pair is not None),

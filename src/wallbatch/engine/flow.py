@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from wallbatch.engine import backend
 from wallbatch.scene.case import FlowSpec
 from wallbatch.units import UnitSystem
 
@@ -177,14 +178,24 @@ def _draw(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray, np.
     return u1, u2, g
 
 
+def _compiled_flow() -> bool:
+    """The compiled flow solver is wanted and imports (numba + scipy.special: imported only then)."""
+    if not backend.numba_allowed():
+        return False
+    from wallbatch.engine import flow_compiled
+
+    return flow_compiled.enabled()
+
+
 def _velocities(u1: np.ndarray, u2: np.ndarray, g: np.ndarray, gamma: np.ndarray,
                 vflow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """§8.3 from given random numbers: side from u1 (backward if u1 > P+), speed from
     T(ν)/T(0) = 1 - u2 (in (0, 1]), parallel components g/(γ√2) = N(0,1) sqrt(kT/m).
     Compiled (flow_compiled.velocities) unless WALLBATCH_NUMBA=0; this NumPy code is the reference."""
-    from wallbatch.engine import flow_compiled  # lazy: numba + scipy.special, only for flow walls
     gamma = np.broadcast_to(np.asarray(gamma, float), u1.shape)
-    if flow_compiled.enabled():  # the same arithmetic per redraw, compiled (flow_compiled.py)
+    if _compiled_flow():  # the same arithmetic per redraw, compiled (flow_compiled.py)
+        from wallbatch.engine import flow_compiled
+
         v_axis, v_par = np.empty(u1.shape), np.empty((u1.size, 2))
         flow_compiled.velocities(np.ascontiguousarray(u1, float), np.ascontiguousarray(u2, float),
                                  np.ascontiguousarray(g, float), np.ascontiguousarray(gamma),
@@ -369,10 +380,9 @@ class FlowKernel:
           turned round in front of the wall, i.e. re-entered its segment: crossing in -pend.
         After a redraw under rule exact, pend = -d if the new v_axis points back (v_axis * d < 0).
         """
-        from wallbatch.engine import flow_compiled  # lazy (see _velocities)
         if self.phys is None:
             raise RuntimeError(f"walls.{self.fix_id}: FlowKernel.setup(x) must run before end_of_step")
-        if flow_compiled.enabled():
+        if _compiled_flow():
             self._end_of_step_compiled(x, v, mass)
             return
         C = self.ncases

@@ -13,10 +13,10 @@ The random numbers are drawn in NumPy exactly as before (flow._draw); only the s
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 
+from wallbatch.engine import backend
 from wallbatch.engine import scalar as _scalar
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
@@ -32,8 +32,8 @@ _SQRT2 = float(np.sqrt(2.0))
 
 
 def enabled() -> bool:
-    """True if the compiled solver may be used (numba importable, WALLBATCH_NUMBA not 0)."""
-    return njit is not None and os.environ.get("WALLBATCH_NUMBA", "1").strip().lower() not in ("0", "false", "no", "off")
+    """True if the compiled solver may be used: numba imports and backend.numba_allowed()."""
+    return njit is not None and backend.numba_allowed()
 
 
 def _link(name: str, fused: str) -> "types.ExternalFunction":

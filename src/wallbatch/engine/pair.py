@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wallbatch.engine import pair_compiled as pair_numba
+from wallbatch.engine import backend
 
 # LAMMPS's default neighbor skin per unit style [length] (0.3 sigma in lj; 2 Angstrom in real/metal)
 DEFAULT_SKIN = {"lj": 0.3, "real": 2.0, "metal": 2.0}
@@ -110,9 +110,18 @@ class PairLJCut:
         self._xref: np.ndarray | None = None  # (C, N, 3) positions at each case's last build
         self._flat: dict[str, np.ndarray] | None = None
         self._work = np.empty((7, 0))
-        if compiled and pair_numba.njit is None:
-            raise RuntimeError("pair lj/cut: compiled=True needs numba")
-        self.compiled = pair_numba.enabled() if compiled is None else bool(compiled)
+        want = backend.numba_allowed() if compiled is None else bool(compiled)  # numba imported only if wanted
+        self._nb = None  # the pair_compiled module on the compiled path
+        if want:
+            from wallbatch.engine import pair_compiled as pair_numba
+
+            if pair_numba.njit is None:
+                if compiled:
+                    raise RuntimeError("pair lj/cut: compiled=True needs numba")
+                want = False
+            else:
+                self._nb = pair_numba
+        self.compiled = want
         self._first: np.ndarray | None = None  # compiled path: (C, N+1) CSR row starts per case
         self._owner = np.empty((len(eps), 0), dtype=np.int32)  # (C, N) atom of each CSR row
         self._neigh = np.empty((len(eps), 0), dtype=np.int32)  # (C, capacity) j of each pair
@@ -216,7 +225,7 @@ class PairLJCut:
             return
         reach = float(self.cutoff[c] + self.skin)
         while True:  # the case's rows of the (C, ...) arrays are the kernel's output buffers
-            m = pair_numba.build_case(pos, self.box_lo, self.length, self.periodic, reach,
+            m = self._nb.build_case(pos, self.box_lo, self.length, self.periodic, reach,
                                       self._owner[c], self._first[c], self._neigh[c])
             if m >= 0:
                 return
@@ -248,7 +257,7 @@ class PairLJCut:
             self._owner = np.zeros((C, N), dtype=np.int32)
         else:
             need = np.empty(C, dtype=bool)
-            pair_numba.moved_cases(x, self._xref, self.length, self.periodic, (0.5 * self.skin) ** 2, need)
+            self._nb.moved_cases(x, self._xref, self.length, self.periodic, (0.5 * self.skin) ** 2, need)
         for c in np.flatnonzero(need):
             self._build_compiled(c, x[c])
             self._xref[c] = x[c]
@@ -262,7 +271,7 @@ class PairLJCut:
         direct = f.dtype == np.float64 and f.flags.c_contiguous
         out = f if direct else np.zeros(x.shape)
         energy, virial = np.zeros(C), np.zeros(C)
-        pair_numba.forces(x, out, self._owner, self._first, self._neigh, eps, sig * sig, rc * rc, offset, self.length,
+        self._nb.forces(x, out, self._owner, self._first, self._neigh, eps, sig * sig, rc * rc, offset, self.length,
                           self.periodic, self._bad, bool(outputs), energy, virial)
         if not direct:
             f += out

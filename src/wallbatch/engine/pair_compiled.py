@@ -30,12 +30,12 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import os
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
+from wallbatch.engine import backend
 from wallbatch.engine import compiled as _compiled
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
@@ -45,8 +45,8 @@ except Exception:  # noqa: BLE001 - any import failure means "no compiled path"
 
 
 def enabled() -> bool:
-    """True if the compiled path may be used (numba importable, WALLBATCH_NUMBA not 0)."""
-    return njit is not None and os.environ.get("WALLBATCH_NUMBA", "1").strip().lower() not in ("0", "false", "no", "off")
+    """True if the compiled path may be used: numba imports and backend.numba_allowed()."""
+    return njit is not None and backend.numba_allowed()
 
 
 if njit is not None:

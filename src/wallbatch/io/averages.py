@@ -18,9 +18,9 @@ from __future__ import annotations
 from typing import Any, Sequence
 
 import numpy as np
-import xarray as xr
 
 from wallbatch.engine.profiles import output_name
+from wallbatch.io.results import Results, Var
 from wallbatch.scene.case import Case
 from wallbatch.stats import block_average
 
@@ -60,9 +60,9 @@ def profile_variables(results: Sequence[Any], case: Case, shape: tuple[int, ...]
         wins = p.window_steps(steps)
         bdim = f"{p.name}_bin"
         centres = p.lo + (np.arange(p.nbins) + 0.5) * p.delta
-        coords[bdim] = xr.Variable((bdim,), centres, attrs={
+        coords[bdim] = Var((bdim,), centres, {
             "units": case.units.distance, "long_name": f"{'xyz'[p.axis]} of the bin centre (profile {p.name})"})
-        coords["window_step"] = xr.Variable(("window",), np.asarray(wins, np.int64), attrs={
+        coords["window_step"] = Var(("window",), np.asarray(wins, np.int64), {
             "units": "1", "long_name": "timestep at which the window's average is taken (LAMMPS Nfreq step)"})
         for q in p.quantities:
             name = output_name(p.name, q)
@@ -73,7 +73,7 @@ def profile_variables(results: Sequence[Any], case: Case, shape: tuple[int, ...]
                 for i, r in enumerate(results):
                     if name in r.data:
                         arr[i] = r.data[name]
-            data_vars[name] = xr.Variable(sweep_dims + ("window", bdim), arr.reshape(shape + arr.shape[1:]), attrs={
+            data_vars[name] = Var(sweep_dims + ("window", bdim), arr.reshape(shape + arr.shape[1:]), {
                 "units": profile_units(case, q),
                 "long_name": f"{PROFILE_LONG[q]} along {'xyz'[p.axis]}",
                 "comment": f"window averages of {p.repeat} samples every {p.every} steps ending at window_step, "
@@ -81,56 +81,67 @@ def profile_variables(results: Sequence[Any], case: Case, shape: tuple[int, ...]
     return data_vars, coords
 
 
-def _stats(da: xr.DataArray, dim: str) -> tuple[xr.DataArray, xr.DataArray, xr.DataArray]:
-    """Mean, sem, converged of `da` along `dim` (block averaging, vectorised over the rest)."""
-    moved = da.transpose(..., dim)
-    res = block_average(moved.values)
-    rest = moved.dims[:-1]
-    return (xr.DataArray(res.mean, dims=rest), xr.DataArray(res.sem, dims=rest),
-            xr.DataArray(res.converged, dims=rest))
+def _isel(v: Var, dim: str, idx: np.ndarray) -> Var:
+    """`v` at positions `idx` along `dim` (a copy, as xarray's isel with an index array)."""
+    key = tuple(idx if d == dim else slice(None) for d in v.dims)
+    return Var(v.dims, v.data[key])
 
 
-def _put(ds: xr.Dataset, name: str, stats: tuple, units: str, long_name: str, where: str) -> None:
+def _stats(v: Var, dim: str) -> tuple[Var, Var, Var]:
+    """Mean, sem, converged of `v` along `dim` (block averaging, vectorised over the rest): `dim`
+    moved last (a view, as xarray's transpose), the others in order."""
+    axis = v.dims.index(dim)
+    rest = v.dims[:axis] + v.dims[axis + 1:]
+    moved = np.transpose(v.data, [k for k in range(len(v.dims)) if k != axis] + [axis])
+    res = block_average(moved)
+    return Var(rest, res.mean), Var(rest, res.sem), Var(rest, res.converged)
+
+
+def _put(ds: Results, name: str, stats: tuple, units: str, long_name: str, where: str) -> None:
     """Store mean, sem and converged of `name`; `where` (the averaged range) goes to `comment`."""
     mean, sem, conv = stats
     for suffix, value, unit, long in (
             ("_mean", mean, units, f"time mean of {long_name}"),
             ("_sem", sem, units, f"standard error of the time mean of {long_name}"),
             ("_sem_converged", conv, "1", f"block averaging of {name} reached a plateau")):
-        ds[name + suffix] = value
-        ds[name + suffix].attrs.update(units=unit, long_name=long, comment=where)
+        ds[name + suffix] = Var(value.dims, value.data, {"units": unit, "long_name": long, "comment": where})
     ds[f"{name}_sem"].attrs["comment"] = f"{where}; block averaging (Flyvbjerg-Petersen), see docs/howto/profiles.md"
     ds[f"{name}_sem_converged"].attrs["comment"] = "false: no plateau, the sem is a lower bound (run longer)"
 
 
-def add_averages(ds: xr.Dataset, case: Case) -> None:
+def add_averages(ds: Results, case: Case) -> None:
     """Add `_mean`/`_sem`/`_sem_converged` of every averaged output and the wall pressure."""
     start = case.average_start
-    if "sample" in ds.dims:
+    dims = ds.dims
+    if "sample" in dims:
         axis = ds["step"] if case.run_time is None else ds["time"]
-        if "sample" not in axis.dims:  # time-based run: time is a coordinate of sample
-            axis = ds.coords["time"]
         keep = np.asarray(axis.values, float) >= start - 1e-9 * max(1.0, abs(start))
-        sub = ds.isel(sample=np.nonzero(keep)[0])
+        idx = np.nonzero(keep)[0]
         where = f"samples at or after {'step' if case.run_time is None else 'time'} {start:g}"
-        for name in list(ds.data_vars):
-            da = ds[name]
-            if "sample" not in da.dims or name in NOT_AVERAGED or da.dtype.kind not in "fiu":
+        for name in ds.data_vars:
+            v = ds[name]
+            if "sample" not in v.dims or name in NOT_AVERAGED or v.data.dtype.kind not in "fiu":
                 continue
-            _put(ds, name, _stats(sub[name], "sample"), da.attrs.get("units", "1"), name, where)
+            _put(ds, name, _stats(_isel(v, "sample", idx), "sample"), v.attrs.get("units", "1"), name, where)
         _wall_pressure(ds, case, keep)
-    if "window" in ds.dims:
+    if "window" in dims:
         keepw = ds["window_step"].values >= start
         if case.run_time is None:
-            sub = ds.isel(window=np.nonzero(keepw)[0])
-            for name in list(ds.data_vars):
+            idx = np.nonzero(keepw)[0]
+            for name in ds.data_vars:
                 if name.startswith("profile_") and "window" in ds[name].dims:
-                    da = ds[name]
-                    _put(ds, name, _stats(sub[name], "window"), da.attrs.get("units", "1"),
-                         da.attrs.get("long_name", name), f"windows at or after step {start:g}")
+                    v = ds[name]
+                    _put(ds, name, _stats(_isel(v, "window", idx), "window"), v.attrs.get("units", "1"),
+                         v.attrs.get("long_name", name), f"windows at or after step {start:g}")
 
 
-def _wall_pressure(ds: xr.Dataset, case: Case, keep: np.ndarray) -> None:
+def _nansum(v: Var, dim: str) -> Var:
+    """Sum over `dim` with NaN as 0 (xarray's sum of floats)."""
+    axis = v.dims.index(dim)
+    return Var(v.dims[:axis] + v.dims[axis + 1:], np.sum(np.where(np.isnan(v.data), 0.0, v.data), axis=axis))
+
+
+def _wall_pressure(ds: Results, case: Case, keep: np.ndarray) -> None:
     """wall_pressure_mean/_sem per face (soft walls from wall_force, reflect from reflect_impulse)."""
     if "face" not in ds.dims:
         return
@@ -142,34 +153,33 @@ def _wall_pressure(ds: xr.Dataset, case: Case, keep: np.ndarray) -> None:
     sign = np.array([float(by_label[lab].side) for lab in labels])
     plane = lengths[:case.dimension]  # 2-D: a face's "area" is the length of the other in-plane side
     area = np.array([float(np.prod(np.delete(plane, by_label[lab].dim))) for lab in labels])
-    factor = xr.DataArray(sign / area * u.nktv2p, dims=("face",))
+    factor = sign / area * u.nktv2p  # along face, the last dim of every face variable
     idx = np.nonzero(keep)[0]
     soft = set(f.label for w in case.soft_walls for f in w.faces)
-    is_soft = xr.DataArray(np.array([lab in soft for lab in labels]), dims=("face",))
+    is_soft = np.array([lab in soft for lab in labels])
     mean = sem = conv = None
     if "wall_force" in ds:
-        p = (ds["wall_force"] * factor).isel(sample=idx)
-        mean, sem, conv = _stats(p, "sample")
+        wf = ds["wall_force"]
+        mean, sem, conv = _stats(_isel(Var(wf.dims, wf.data * factor), "sample", idx), "sample")
     if "reflect_impulse" in ds and len(idx) >= 2:
         # interval k runs from sample k-1 to k: keep those that start at or after averages.start
         iv = idx[1:]
         t = ds["time"]  # a variable (sweep..., sample), or the sample coordinate of a time-based run
-        dt = xr.DataArray(t.isel(sample=iv).values - t.isel(sample=iv - 1).values, dims=t.dims)
-        imp = ds["reflect_impulse"].isel(sample=iv)
-        force = imp / dt
-        rm, rs, rc = _stats(force * factor, "sample")
-        rm = (imp.sum("sample") / dt.sum("sample")) * factor
+        dt = Var(t.dims, _isel(t, "sample", iv).data - _isel(t, "sample", iv - 1).data)
+        imp = _isel(ds["reflect_impulse"], "sample", iv)
+        per_face = dt.data[..., None]  # dt's dims are imp's without face
+        rm, rs, rc = _stats(Var(imp.dims, imp.data / per_face * factor), "sample")
+        total = _nansum(imp, "sample")
+        rm = Var(total.dims, total.data / _nansum(dt, "sample").data[..., None] * factor)
         if mean is None:
             mean, sem, conv = rm, rs, rc
         else:
-            mean = xr.where(is_soft, mean, rm)
-            sem = xr.where(is_soft, sem, rs)
-            conv = xr.where(is_soft, conv, rc)
+            mean = Var(mean.dims, np.where(is_soft, mean.data, rm.data))
+            sem = Var(sem.dims, np.where(is_soft, sem.data, rs.data))
+            conv = Var(conv.dims, np.where(is_soft, conv.data, rc.data))
     if mean is None:
         return
     where = f"samples at or after {'step' if case.run_time is None else 'time'} {case.average_start:g}"
-    order = [d for d in mean.dims if d != "face"] + ["face"]
-    mean, sem, conv = (a.transpose(*order) for a in (mean, sem, conv))
     _put(ds, "wall_pressure", (mean, sem, conv), u.pressure, "wall pressure", where)
     ds["wall_pressure_mean"].attrs["comment"] = (
         f"{where}; normal force on the face over its area, > 0 when the atoms push the wall outward "

@@ -1,77 +1,33 @@
-"""Results as a labelled xarray Dataset, written to NetCDF-4 (docs/reference/outputs.md).
+"""Results as labelled arrays (io/results.py `Results`, or an xarray Dataset), written to NetCDF-4
+(docs/reference/outputs.md).
 
 Dimensions: one per sweep entry (in declared order), `sample`, `fix`, `face`. A run without a
 sweep has no sweep dimensions. A failed case keeps its grid place with NaN outputs.
+
+The results are built and written without xarray (netCDF4 directly, the calls xarray's writer
+makes, so the file is the same and `xarray.open_dataset` reads back the Dataset that
+`Results.to_xarray` gives); xarray is imported only to return or read a Dataset.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import os
-import sys
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 import numpy as np
-import xarray as xr
 
 from wallbatch.version import __version__
 from wallbatch.config.sweep import SweepDim
 from wallbatch.engine.engine import CaseResult, sample_instants
 from wallbatch.engine.profiles import output_name
 from wallbatch.io.averages import add_averages, profile_variables
+from wallbatch.io.results import Results, Var
 from wallbatch.scene.case import Case
 
-class _DaskOnDemand:
-    """Stands in xarray's cache of duck-array modules for "dask" until dask is imported.
-
-    xarray imports dask (0.5-1.5 s) the first time it builds any Variable, only to test
-    `isinstance(data, dask.array.Array)`. No dask array can exist before dask.array is imported,
-    so until then the answer is "not a dask array"; from then on the real entry is used."""
-
-    def _real(self) -> Any:
-        from xarray.namedarray import pycompat
-
-        real = pycompat.DuckArrayModule("dask")
-        pycompat._cached_duck_array_modules["dask"] = real
-        return real
-
-    def __getattr__(self, name: str) -> Any:
-        if "dask" not in sys.modules and name == "type":
-            return ()
-        return getattr(self._real(), name)
-
-
-def _defer_dask_import() -> None:
-    """Keep xarray from importing dask and distributed for runs that never use them (half a
-    small run's start-up): its "is this a dask array / which dask scheduler is active?" tests
-    answer no while dask is not imported, which is exact, since no dask object or scheduler can
-    exist before. Once dask is imported, xarray's own functions answer."""
-    try:
-        from xarray.backends import locks, writers
-        from xarray.namedarray import pycompat
-        from xarray.namedarray import utils as nutils
-
-        cache = pycompat._cached_duck_array_modules
-        targets = [(nutils, "is_dask_collection", False), (locks, "get_dask_scheduler", None),
-                   (writers, "get_dask_scheduler", None)]
-        originals = [getattr(mod, name) for mod, name, _ in targets]
-    except (ImportError, AttributeError):  # another xarray layout: nothing to do
-        return
-    if isinstance(cache, dict) and "dask" not in cache and "dask" not in sys.modules:
-        cache["dask"] = _DaskOnDemand()
-    for (mod, name, without), original in zip(targets, originals):
-        if getattr(original, "_wallbatch_lazy", False):
-            continue
-
-        def lazy(*args: Any, _original: Any = original, _without: Any = without, **kwargs: Any) -> Any:
-            return _original(*args, **kwargs) if "dask" in sys.modules else _without
-
-        lazy._wallbatch_lazy = True  # type: ignore[attr-defined]
-        setattr(mod, name, lazy)
-
-
-_defer_dask_import()
+if TYPE_CHECKING:
+    import xarray as xr
 
 LONG_NAMES = {
     "time": "elapsed simulated time",
@@ -118,6 +74,14 @@ def _units(case: Case) -> dict[str, str]:
 def build_dataset(results: Iterable[CaseResult], c0: Case, *, config_text: str = "",
                   sweep_text: str = "", dims: Sequence[SweepDim] = (),
                   dump_paths: Sequence[str] | None = None) -> xr.Dataset:
+    """`build_results` as an xarray Dataset."""
+    return build_results(results, c0, config_text=config_text, sweep_text=sweep_text, dims=dims,
+                         dump_paths=dump_paths).to_xarray()
+
+
+def build_results(results: Iterable[CaseResult], c0: Case, *, config_text: str = "",
+                  sweep_text: str = "", dims: Sequence[SweepDim] = (),
+                  dump_paths: Sequence[str] | None = None) -> Results:
     """Stack per-case results (in C order over `dims`) into the outputs.md layout; `c0` is any
     case of the plan (they share sample instants, fixes and faces).
 
@@ -155,9 +119,9 @@ def build_dataset(results: Iterable[CaseResult], c0: Case, *, config_text: str =
         coords["face_fix"] = ("face", np.asarray([f.label.split("/")[0] for f in all_faces], dtype=object))
         coords["face_name"] = ("face", np.asarray([f.name for f in all_faces], dtype=object))
     for d in dims:
-        coords[d.name] = xr.Variable((d.name,), np.asarray(d.values), attrs={"path": d.path})
+        coords[d.name] = Var((d.name,), np.asarray(d.values), {"path": d.path})
         for k, (vals, paths) in d.extra.items():  # a zip's parameters along its dimension
-            coords[k] = xr.Variable((d.name,), np.asarray(vals), attrs={"path": ", ".join(paths)})
+            coords[k] = Var((d.name,), np.asarray(vals), {"path": ", ".join(paths)})
 
     wanted = [k for k in per_sample if k in c0.outputs or k in ("time", "dt", "step")]
     if "step" in wanted and c0.run_time is None:
@@ -230,12 +194,13 @@ def build_dataset(results: Iterable[CaseResult], c0: Case, *, config_text: str =
     pvars, pcoords = profile_variables((), c0, shape, sweep_dims, filled=arrays)  # output.profiles
     data_vars.update(pvars)
     coords.update(pcoords)
-    ds = xr.Dataset(data_vars, coords=coords)
-    for name in ds.variables:
+    ds = Results({k: v if isinstance(v, Var) else Var(*v) for k, v in data_vars.items()},
+                 {k: v if isinstance(v, Var) else Var(*v) for k, v in coords.items()})
+    for name, var in ds.variables.items():
         if name in units:
-            ds[name].attrs["units"] = units[name]
+            var.attrs["units"] = units[name]
         if name in LONG_NAMES:
-            ds[name].attrs["long_name"] = LONG_NAMES[name]
+            var.attrs["long_name"] = LONG_NAMES[name]
     u = c0.units
     for name, long_name in MIN_OUTPUTS.items():
         if name in ds:
@@ -250,7 +215,7 @@ def build_dataset(results: Iterable[CaseResult], c0: Case, *, config_text: str =
         "dump_path": "per-atom trajectory of the case (AMBER NetCDF), relative to this file",
     }
     for name, long_name in text_attrs.items():
-        if name in ds.variables:
+        if name in ds:
             ds[name].attrs.update(units="1", long_name=long_name)
     for d in dims:
         ds[d.name].attrs.setdefault("long_name", f"swept {d.path}" if d.name != "replica" else "replica (random stream)")
@@ -270,12 +235,89 @@ def build_dataset(results: Iterable[CaseResult], c0: Case, *, config_text: str =
     return ds
 
 
-def write_netcdf(ds: xr.Dataset, path: str | Path) -> Path:
-    """Write atomically (a temporary file renamed into place), NetCDF-4."""
+def write_netcdf(ds: Results | xr.Dataset, path: str | Path) -> Path:
+    """Write atomically (a temporary file renamed into place), NetCDF-4. `Results` of plain
+    arrays (float64, int64, bool, strings) are written with netCDF4 directly, making the calls
+    xarray's writer makes; anything else (an xarray Dataset, an object array holding None)
+    goes through xarray."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
-    encoding = {name: {"dtype": str} for name in ("status", "error", "dump_path", "min_stop_reason") if name in ds}
-    ds.to_netcdf(tmp, format="NETCDF4", engine="netcdf4", encoding=encoding)
+    if isinstance(ds, Results) and all(_plain(v.data) for v in ds.variables.values()):
+        _write_results(ds, tmp)
+    else:
+        xds = ds.to_xarray() if isinstance(ds, Results) else ds
+        encoding = {name: {"dtype": str} for name in ("status", "error", "dump_path", "min_stop_reason")
+                    if name in xds}
+        xds.to_netcdf(tmp, format="NETCDF4", engine="netcdf4", encoding=encoding)
     os.replace(tmp, path)
     return path
+
+
+def _plain(data: np.ndarray) -> bool:
+    """An array `_write_results` writes as xarray would: float64, int64, bool, str (fixed-width
+    unicode, or objects that are all str)."""
+    kind = data.dtype.kind
+    if kind in "fi":
+        return data.dtype.itemsize == 8
+    if kind in "bU":
+        return True
+    return kind == "O" and all(isinstance(x, str) for x in data.flat)
+
+
+def _write_results(ds: Results, path: Path) -> None:
+    """`Results` to NetCDF-4 with netCDF4, as xarray's `to_netcdf(engine="netcdf4")` does: global
+    attributes, dimensions in order of first use, then each variable (contiguous=False, default
+    chunks, no compression) with its attributes; floats get _FillValue NaN; bool is stored as
+    int8 with attribute dtype = "bool"; strings as variable-length strings; non-dimension
+    coordinates are named in each variable's `coordinates` attribute (CF), or globally when no
+    variable carries them."""
+    import netCDF4
+
+    variables = ds.variables
+    non_dim = {k for k in ds.coord_names if k not in variables[k].dims}
+    attrs_of: dict[str, dict[str, Any]] = {k: dict(v.attrs) for k, v in variables.items()}
+    written: set[str] = set()
+    for k, v in variables.items():
+        if "coordinates" in attrs_of[k]:
+            written.update(str(attrs_of[k]["coordinates"]).split())
+            continue
+        if k in non_dim or k in v.dims:
+            continue
+        names = sorted(c for c in non_dim if set(variables[c].dims) <= set(v.dims))
+        if names:
+            attrs_of[k]["coordinates"] = " ".join(names)
+            written.update(names)
+    global_attrs = dict(ds.attrs)
+    loose = non_dim - written
+    if loose and "coordinates" not in global_attrs:
+        global_attrs["coordinates"] = " ".join(sorted(loose))
+    nc = netCDF4.Dataset(path, mode="w", clobber=True, diskless=False, persist=False, format="NETCDF4")
+    try:
+        for key, value in global_attrs.items():
+            if isinstance(value, list) and value and all(isinstance(x, str) for x in value):
+                nc.setncattr_string(key, value)
+            else:
+                nc.setncattr(key, value)
+        for name, size in ds.dims.items():
+            nc.createDimension(name, size=size)
+        for name, v in variables.items():
+            data, attrs, fill = v.data, attrs_of[name], None
+            kind = data.dtype.kind
+            if kind == "b":
+                data = data.astype("i1")
+                attrs["dtype"] = "bool"
+            if kind in "OU":
+                datatype: Any = str
+            else:
+                datatype = data.dtype.newbyteorder("=") if data.dtype.byteorder not in "=|" else data.dtype
+                if kind == "f":
+                    fill = np.array(np.nan, dtype=datatype)[()]
+            var = nc.createVariable(varname=name, datatype=datatype, dimensions=v.dims, zlib=False, complevel=4,
+                                    shuffle=True, fletcher32=False, contiguous=False, chunksizes=None,
+                                    endian="native", least_significant_digit=None, fill_value=fill)
+            var.setncatts(attrs)
+            var.set_auto_maskandscale(False)
+            var[...] = data
+    finally:
+        nc.close()

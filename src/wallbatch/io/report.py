@@ -14,6 +14,10 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from wallbatch.io.results import _defer_dask_import
+
+_defer_dask_import()  # xarray would import dask (~1 s) to ask whether an array is a dask array
+
 # Dimensions that belong to one case's outputs; every other dimension is a sweep dimension.
 CASE_DIMS = ("sample", "fix", "face", "spatial", "rfix", "window")
 AVG_SUFFIXES = ("_mean", "_sem", "_sem_converged")

@@ -38,7 +38,7 @@ from wallbatch.scene.case import (
 )
 from wallbatch.scene.ensemble import build_fixes
 from wallbatch.styles import STYLES, WallStyle
-from wallbatch.units import LATTICE_CELL, LATTICE_POSITIONS, LATTICES_2D, UNIT_SYSTEMS, UnitSystem
+from wallbatch.units import LATTICE_BASIS, LATTICE_CELL, LATTICE_POSITIONS, LATTICES_2D, UNIT_SYSTEMS, UnitSystem
 
 
 def _fail(path: str, msg: str) -> CaseError:
@@ -76,18 +76,92 @@ def _region_contains(cfg: Config, name: str, pts: np.ndarray) -> np.ndarray:
     return RegionGeom.from_config(region, None if region.units == "box" else lattice_spacing(cfg)).contains(pts)
 
 
+PAIR_CHUNK = 1 << 19  # candidate pairs examined at once by _close_pairs (bounds its memory, ~40 MB)
+
+
+def _cells(s: np.ndarray, boxsize: np.ndarray, ncell: np.ndarray) -> np.ndarray:
+    """Integer cell coordinates (n, 3) of wrapped points `s` (in [0, boxsize)) on a grid of
+    `ncell` cells per dimension."""
+    c = np.floor(s * (ncell / boxsize)).astype(np.int64)
+    return np.clip(c, 0, ncell - 1)
+
+
+def _close_pairs(a: np.ndarray, b: np.ndarray | None, boxsize: np.ndarray,
+                 r: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pairs (i, j, d2) of points a[i], b[j] (b None: pairs i < j within a) whose squared distance
+    d2 in the periodic metric of `boxsize` (per dimension min(|dx|, L - |dx|)) is at most about r^2:
+    every pair with d <= r is in, and others in neighbouring cells too (the caller applies its own
+    rule to d2). A cell list (cells at least r wide, found by sorting cell keys; 27 neighbour
+    offsets, fewer when a dimension has under 3 cells), vectorised over the points; the points are
+    wrapped into [0, boxsize)."""
+    same = b is None
+    b = a if same else b
+    ncell = np.clip(np.floor(boxsize / (r * (1.0 + 1e-9))), 1, 1 << 20).astype(np.int64)
+    ca, cb = _cells(a, boxsize, ncell), _cells(b, boxsize, ncell)
+    key = (cb[:, 0] * ncell[1] + cb[:, 1]) * ncell[2] + cb[:, 2]
+    order = np.argsort(key, kind="stable")
+    ncells = int(np.prod(ncell))
+    dense = ncells <= 8 * len(b) + 4096  # a table of every cell's first point and count
+    if dense:
+        per_cell = np.bincount(key, minlength=ncells)
+        first_in = np.cumsum(per_cell) - per_cell
+    else:
+        sorted_key = key[order]
+    grids = np.meshgrid(*[sorted({o % int(n) for o in (-1, 0, 1)}) for n in ncell], indexing="ij")
+    offsets = np.stack([g.ravel() for g in grids], axis=1)  # (K, 3) neighbour cells, no repeats
+    block = max(1, (1 << 16) // len(offsets))
+    out_i, out_j, out_d = [], [], []
+    for start in range(0, len(a), block):  # blocks of target points, all offsets at once
+        stop = min(len(a), start + block)
+        nb = (ca[start:stop, None, :] + offsets[None, :, :]) % ncell
+        want = ((nb[..., 0] * ncell[1] + nb[..., 1]) * ncell[2] + nb[..., 2]).ravel()
+        target = np.repeat(np.arange(start, stop), len(offsets))
+        if dense:
+            lo, count = first_in[want], per_cell[want]
+        else:
+            lo = np.searchsorted(sorted_key, want, "left")
+            count = np.searchsorted(sorted_key, want, "right") - lo
+        ends = np.cumsum(count)
+        first = 0
+        while first < len(want):  # runs of entries with at most ~PAIR_CHUNK pairs
+            done = int(ends[first - 1]) if first else 0
+            last = max(first + 1, int(np.searchsorted(ends, done + PAIR_CHUNK, "right")))
+            cnt = count[first:last]
+            total = int(ends[last - 1]) - done
+            if total:
+                i = np.repeat(target[first:last], cnt)
+                j = order[np.repeat(lo[first:last] - (np.cumsum(cnt) - cnt), cnt) + np.arange(total)]
+                if same:
+                    keep = i < j
+                    i, j = i[keep], j[keep]
+                dx = np.abs(a[i] - b[j])
+                dx = np.minimum(dx, boxsize - dx)
+                d2 = dx[:, 0] * dx[:, 0] + dx[:, 1] * dx[:, 1] + dx[:, 2] * dx[:, 2]
+                near = d2 <= r * r * (1.0 + 1e-6)
+                out_i.append(i[near])
+                out_j.append(j[near])
+                out_d.append(d2[near])
+            first = last
+    if not out_i:
+        empty = np.zeros(0, np.int64)
+        return empty, empty, np.zeros(0)
+    return np.concatenate(out_i), np.concatenate(out_j), np.concatenate(out_d)
+
+
 def _random_positions(cfg: Config, spec: Any, rng: np.random.Generator, path: str,
                       existing: np.ndarray) -> np.ndarray:
     """`count` uniform random points in the box (or a region), at least `overlap` apart from each
-    other and from atoms created before (minimum image in periodic dims)."""
-    from scipy.spatial import cKDTree
+    other and from atoms created before (minimum image in periodic dims).
 
+    Rounds of 2 x (still needed) candidates (at least 64): a candidate closer than `overlap` to an
+    accepted atom is dropped, then the later point of each candidate pair at most `overlap` apart.
+    Distances are minimum-image in a box of the periodic lengths and, in fixed dims, of twice the
+    length plus 2 overlap + 1 (no wrap inside the box); a NumPy cell list finds the close pairs."""
     lo = np.asarray(cfg.box.lo, float)
     hi = np.asarray(cfg.box.hi, float)
     length = hi - lo
     periodic = np.array([b == "p" for b in cfg.box.boundary])
     ov = spec.overlap or 0.0
-    # cKDTree wraps every dimension; a box twice as long plus the overlap makes fixed dims not wrap
     boxsize = np.where(periodic, length, 2 * length + 2 * ov + 1.0)
     accepted = [existing] if len(existing) else []
     n_have = 0
@@ -102,12 +176,15 @@ def _random_positions(cfg: Config, spec: Any, rng: np.random.Generator, path: st
             shifted = lambda p: np.mod(p - lo, boxsize)  # noqa: E731
             if accepted:
                 old = np.concatenate(accepted)
-                d, _ = cKDTree(shifted(old), boxsize=boxsize).query(shifted(cand), k=1)
-                cand = cand[d >= ov]
-            pairs = cKDTree(shifted(cand), boxsize=boxsize).query_pairs(ov, output_type="ndarray")
-            if len(pairs):
+                i, _, d2 = _close_pairs(shifted(cand), shifted(old), boxsize, ov)
+                far = np.ones(len(cand), bool)
+                far[i[np.sqrt(d2) < ov]] = False  # nearest accepted atom closer than overlap
+                cand = cand[far]
+            i, j, d2 = _close_pairs(shifted(cand), None, boxsize, ov)
+            close = d2 <= ov * ov
+            if np.any(close):
                 keep = np.ones(len(cand), bool)
-                keep[pairs.max(axis=1)] = False  # drop the later point of each close pair
+                keep[np.maximum(i, j)[close]] = False  # drop the later point of each close pair
                 cand = cand[keep]
         cand = cand[:need]
         accepted.append(cand)
@@ -117,6 +194,56 @@ def _random_positions(cfg: Config, spec: Any, rng: np.random.Generator, path: st
                     f"{', region ' + spec.region if spec.region else ''}): lower count or overlap")
     new = np.concatenate(accepted)[len(existing):]
     return new
+
+
+def atom_count(cfg: Config) -> int:
+    """The atoms a config creates, from the config and the headers of its atoms files, without
+    building anything: random counts and explicit positions exactly; a lattice as the box
+    volume over the cell volume times the basis (regions not applied); a LAMMPS data file its
+    header's `N atoms`; an .npz archive the length of its `x`. A file that cannot be read
+    counts 0 (the case then fails when it is built)."""
+    n = 0
+    for g in cfg.atoms:
+        c = g.create
+        if c.random is not None:
+            n += c.random.count
+        elif c.positions is not None:
+            n += len(c.positions)
+        elif c.lattice is not None and cfg.lattice is not None:
+            a = lattice_spacing(cfg) or 0.0
+            cell = a * np.asarray(LATTICE_CELL.get(cfg.lattice.style, (1.0, 1.0, 1.0)))
+            cells = np.subtract(cfg.box.hi, cfg.box.lo) / np.where(cell > 0, cell, np.inf)
+            if cfg.lattice.style in LATTICES_2D:
+                cells[2] = 1.0
+            n += int(min(float(np.prod(np.ceil(cells))) * LATTICE_BASIS[cfg.lattice.style], 1e18))
+        elif c.file is not None:
+            file = Path(c.file)
+            n += _file_atom_count(file if file.is_absolute() else cfg._base_dir / file)
+    return n
+
+
+def _file_atom_count(file: Path) -> int:
+    """Atoms in an atoms file from its header only: a data file's `N atoms` line, an .npz's x."""
+    try:
+        if _is_npz(file):
+            fmt = np.lib.format
+            with zipfile.ZipFile(file) as zf, zf.open("x.npy") as fh:
+                read = {(1, 0): fmt.read_array_header_1_0, (2, 0): fmt.read_array_header_2_0}.get(fmt.read_magic(fh))
+                if read is not None:
+                    shape = read(fh)[0]
+                    return int(shape[0]) if shape else 0
+            with np.load(file, allow_pickle=False) as npz:
+                return len(npz["x"])
+        with open(file, errors="replace") as fh:
+            for k, line in enumerate(fh):
+                words = line.split("#")[0].split()
+                if k and len(words) == 2 and words[1] == "atoms":
+                    return int(words[0])
+                if k > 1000:
+                    break
+    except (OSError, ValueError, KeyError, IndexError, zipfile.BadZipFile):
+        pass
+    return 0
 
 
 def _lattice_positions(cfg: Config, region: str | None) -> np.ndarray:
@@ -517,5 +644,5 @@ def _min_settings(cfg: Config, dt: float) -> Any:
                        dmax=m.dmax, timestep=dt)
 
 
-__all__ = ["Case", "CaseError", "Face", "SoftWallSpec", "ReflectSpec", "DtResetSpec", "PairSpec", "RegionWallSpec",
+__all__ = ["atom_count", "Case", "CaseError", "Face", "SoftWallSpec", "ReflectSpec", "DtResetSpec", "PairSpec", "RegionWallSpec",
            "build_case"]

@@ -1,0 +1,110 @@
+"""Which path runs the steps: compiled chunks (numba) or the NumPy engine alone.
+
+The compiled path pays a fixed price in every process that runs cases: importing numba (~0.3 s)
+and loading the scene's kernel from numba's disk cache (~0.3 s). A run too small to earn that
+back runs in NumPy and never imports numba. The choice is made once per plan (a `wallbatch run`,
+`wallbatch.run`, `runner.run_plan`) from the whole plan's size, known before anything runs:
+
+    work = sum over ALL cases of steps x (atoms + STEP_ATOMS)
+
+(a NumPy step costs about 65 us plus 14 ns per atom on a 2-core x86 machine: STEP_ATOMS = 4000
+atoms' worth per step; a scene with pair forces or ellipsoids costs NumPy far more, ~1 ms per step
+at 1000 atoms: its atoms count HEAVY_ATOM times and its steps HEAVY_STEP times); below SMALL_RUN (NumPy's time about equal to numba's start-up, ~0.7 s)
+the plan runs in NumPy, otherwise compiled. It does not depend on how the cases are batched,
+resumed or spread over `--jobs` workers, so a plan is all one path and its results are the same
+however it is run. `WALLBATCH_NUMBA=0` (or numba missing) forces NumPy, `WALLBATCH_NUMBA=1`
+forces the compiled path, for any plan.
+
+Flat walls, wall/reflect, wall/region, dt/reset and `fixes:` give the same bits on both paths;
+morse, pair lj/cut, wall/flow redraws and ellipsoids agree to ~1e-14 relative.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Iterator
+
+from wallbatch.config.models import Config
+from wallbatch.config.sweep import SweepPlan
+from wallbatch.scene.build import atom_count
+from wallbatch.units import UNIT_SYSTEMS
+
+SMALL_RUN = 50_000_000  # work (atom-steps + STEP_ATOMS per step): below it a plan runs in NumPy
+STEP_ATOMS = 4_000  # a NumPy step's fixed cost (~65 us) in atoms (~14 ns per atom-step)
+HEAVY_ATOM, HEAVY_STEP = 50, 15  # pair lj/cut or ellipsoids: NumPy's cost per atom and per step, relative
+_OFF = ("0", "false", "no", "off")
+_ON = ("1", "true", "yes", "on")
+
+_plan_choice: bool | None = None  # set while a plan runs (inherited by forked workers)
+
+
+def env_choice() -> bool | None:
+    """WALLBATCH_NUMBA: True (1/true/yes/on), False (0/false/no/off), None (unset or empty)."""
+    value = os.environ.get("WALLBATCH_NUMBA", "").strip().lower()
+    if value in _OFF:
+        return False
+    if value in _ON:
+        return True
+    return None
+
+
+def numba_allowed() -> bool:
+    """May this process use compiled kernels now: WALLBATCH_NUMBA if set, else the running
+    plan's choice, else yes. (numba must also import: each compiled module's `enabled`.)"""
+    env = env_choice()
+    if env is not None:
+        return env
+    return True if _plan_choice is None else _plan_choice
+
+
+@contextlib.contextmanager
+def plan_path(compiled: bool | None) -> Iterator[None]:
+    """Run the body with the plan's choice (None: leave it as it is); restored afterwards."""
+    global _plan_choice
+    saved = _plan_choice
+    if compiled is not None:
+        _plan_choice = compiled
+    try:
+        yield
+    finally:
+        _plan_choice = saved
+
+
+def case_work(cfg: Config) -> int:
+    """steps x (atoms + STEP_ATOMS) of one case (a run to a simulated time: time / initial dt),
+    atoms and steps weighted HEAVY_ATOM and HEAVY_STEP for pair forces or ellipsoids."""
+    if cfg.run.steps is not None:
+        steps = cfg.run.steps
+    else:
+        dt = cfg.timestep if cfg.timestep is not None else UNIT_SYSTEMS[cfg.units].dt
+        steps = int(cfg.run.time / dt) + 1 if dt > 0 else 0
+    heavy = cfg.pair is not None or any(g.shape is not None for g in cfg.atoms)
+    if heavy:
+        return steps * (HEAVY_ATOM * atom_count(cfg) + HEAVY_STEP * STEP_ATOMS)
+    return steps * (atom_count(cfg) + STEP_ATOMS)
+
+
+def plan_work(plan: SweepPlan) -> int:
+    """The whole plan's work: every case, however the cases are batched or resumed."""
+    return sum(case_work(sc.config) for sc in plan.cases)
+
+
+def choose(plan: SweepPlan) -> bool:
+    """True: the plan runs compiled chunks; False: NumPy only (see the module docstring)."""
+    env = env_choice()
+    if env is not None:
+        return env
+    return plan_work(plan) >= SMALL_RUN
+
+
+def describe(plan: SweepPlan) -> str:
+    """One line: the path the plan runs on and why."""
+    env = env_choice()
+    if env is not None:
+        return f"engine: {'compiled (numba)' if env else 'NumPy'}, as WALLBATCH_NUMBA={os.environ['WALLBATCH_NUMBA']} asks"
+    work = plan_work(plan)
+    if work >= SMALL_RUN:
+        return f"engine: compiled (numba): work {work:.3g} atom-steps, at least {SMALL_RUN:.3g}"
+    return (f"engine: NumPy: work {work:.3g} atom-steps, below {SMALL_RUN:.3g} (numba's start-up would cost "
+            f"more; WALLBATCH_NUMBA=1 forces it)")

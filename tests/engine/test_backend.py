@@ -1,0 +1,114 @@
+"""The plan-level choice of engine (engine/backend.py): a plan whose work, sum over all cases of
+steps x (atoms + STEP_ATOMS), is below SMALL_RUN runs NumPy (numba never imported), otherwise
+compiled; WALLBATCH_NUMBA=0/1 forces either; the choice covers every case and every worker, and
+atoms are counted from the config and the headers of atoms files."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from factories import slit_yaml
+from wallbatch.batch.runner import run_plan
+from wallbatch.config.models import load_config, load_config_text
+from wallbatch.config.sweep import load_plan
+from wallbatch.engine import backend
+from wallbatch.scene.build import atom_count, build_case
+
+
+def plan_of(tmp_path, count: int, steps: int, sweep: str = ""):
+    path = tmp_path / "scene.yaml"
+    path.write_text(slit_yaml("b", count, steps, max(1, steps // 4)) + sweep)
+    return load_plan(path)
+
+
+def test_work_is_steps_times_atoms_plus_the_step_cost_summed_over_every_case(tmp_path, monkeypatch):
+    monkeypatch.delenv("WALLBATCH_NUMBA", raising=False)
+    one = plan_of(tmp_path, 30, 400)
+    assert backend.plan_work(one) == 400 * (30 + backend.STEP_ATOMS)
+    sweep = plan_of(tmp_path, 30, 400, "sweep:\n  product: {walls.zwalls.zlo.epsilon: [1.0, 2.0, 3.0]}\n")
+    assert backend.plan_work(sweep) == 3 * 400 * (30 + backend.STEP_ATOMS)
+    assert backend.choose(one) is False and backend.choose(sweep) is False
+    steps = -(-backend.SMALL_RUN // (30 + backend.STEP_ATOMS))  # the first length at the threshold
+    assert backend.choose(plan_of(tmp_path, 30, steps)) is True
+    assert backend.choose(plan_of(tmp_path, 30, steps - 1)) is False
+
+
+def test_pair_forces_and_ellipsoids_weigh_more(tmp_path, monkeypatch):
+    """NumPy's pair lj/cut and ellipsoid steps cost ~50x per atom: their plans go compiled sooner."""
+    monkeypatch.delenv("WALLBATCH_NUMBA", raising=False)
+    flat = plan_of(tmp_path, 30, 400)
+    path = tmp_path / "pair.yaml"
+    path.write_text(slit_yaml("b", 30, 400, 100) + "pair: {style: lj/cut, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}\n")
+    pair = load_plan(path)
+    assert backend.plan_work(pair) == 400 * (backend.HEAVY_ATOM * 30 + backend.HEAVY_STEP * backend.STEP_ATOMS)
+    assert backend.plan_work(pair) > 10 * backend.plan_work(flat)
+
+
+@pytest.mark.parametrize("value, compiled", [("0", False), ("off", False), ("1", True), ("yes", True)])
+def test_wallbatch_numba_forces_the_path_for_any_plan(tmp_path, monkeypatch, value, compiled):
+    monkeypatch.setenv("WALLBATCH_NUMBA", value)
+    for steps in (10, 10**6):
+        plan = plan_of(tmp_path, 30, steps)
+        assert backend.choose(plan) is compiled
+        with backend.plan_path(not compiled):  # the environment wins over a plan's choice
+            assert backend.numba_allowed() is compiled
+    assert "WALLBATCH_NUMBA" in backend.describe(plan)
+
+
+def test_a_small_plan_runs_numpy_in_every_case_and_is_restored_after(tmp_path, monkeypatch):
+    """While the plan runs (on_result is called in the run) the compiled path is off; after it,
+    the process default (compiled allowed) is back; the results equal the NumPy engine's."""
+    monkeypatch.delenv("WALLBATCH_NUMBA", raising=False)
+    plan = plan_of(tmp_path, 30, 40, "sweep:\n  product: {walls.zwalls.zlo.epsilon: [1.0, 2.0]}\n")
+    seen = []
+    ds = run_plan(plan, None, progress=False, on_result=lambda i, r: seen.append(backend.numba_allowed()))
+    assert seen == [False, False] and backend.numba_allowed() is True
+    assert backend.describe(plan).startswith("engine: NumPy: work 3.22e+05")
+    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
+    ref = run_plan(plan, None, progress=False)
+    for name in ("pe", "ke", "wall_force"):
+        np.testing.assert_array_equal(ds[name].values, ref[name].values)
+
+
+DATA = """\
+LAMMPS data file
+
+3 atoms
+1 atom types
+
+0 10 xlo xhi
+0 10 ylo yhi
+0 10 zlo zhi
+
+Atoms # atomic
+
+1 1 1.0 1.0 1.0
+2 1 2.0 2.0 2.0
+3 1 3.0 3.0 3.0
+"""
+
+
+def test_atom_count_reads_file_headers_and_matches_the_built_case(tmp_path):
+    (tmp_path / "s.data").write_text(DATA)
+    np.savez(tmp_path / "s.npz", x=np.full((4, 3), 5.0))
+    text = ("units: lj\nseed: 1\nbox: {lo: [0, 0, 0], hi: [10, 10, 10], boundary: [p, p, f]}\natoms:\n"
+            "  - group: a\n    create: {file: %s}\n    mass: 1.0\n"
+            "  - group: b\n    create: {random: {count: 7}}\n    mass: 1.0\n"
+            "  - group: c\n    create: {positions: [[1, 1, 1], [2, 2, 2]]}\n    mass: 1.0\nrun: {steps: 10}\n")
+    for name, n in (("s.data", 3), ("s.npz", 4)):
+        (tmp_path / "scene.yaml").write_text(text % name)
+        cfg = load_config(tmp_path / "scene.yaml")
+        assert atom_count(cfg) == n + 7 + 2 == build_case(cfg).natoms
+    (tmp_path / "scene.yaml").write_text(text % "missing.data")
+    assert atom_count(load_config(tmp_path / "scene.yaml")) == 9  # unreadable: counted 0 (the build fails)
+
+
+def test_a_lattice_counts_the_box_over_the_cell():
+    """fcc at reduced density 0.8 in a 6^3 box: ceil(6 / a)^3 cells of 4 atoms, at least the
+    atoms the lattice places and not far above."""
+    cfg = load_config_text("units: lj\nseed: 1\nlattice: {style: fcc, scale: 0.8}\n"
+                           "box: {lo: [0, 0, 0], hi: [6, 6, 6], boundary: [p, p, p]}\n"
+                           "atoms:\n  - group: a\n    create: {lattice: {}}\n    mass: 1.0\nrun: {steps: 10}\n")
+    built = build_case(cfg).natoms
+    assert built <= atom_count(cfg) <= 1.5 * built
