@@ -33,14 +33,14 @@ from typing import TYPE_CHECKING, Any, Callable, Iterator
 import numpy as np
 
 from wallbatch.version import __version__
-from wallbatch.config.models import Config, lattice_spacing
+from wallbatch.config.models import Config
 from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict
 from wallbatch.engine import backend, threads
 from wallbatch.engine.engine import CaseResult, Engine, run_cases
 from wallbatch.io.amber import write_amber
 from wallbatch.io.netcdf import build_results, write_netcdf
 from wallbatch.io.results import Results
-from wallbatch.scene.build import build_case
+from wallbatch.scene.build import atom_count, build_case
 from wallbatch.scene.case import Case, CaseError, structure_key
 
 if TYPE_CHECKING:
@@ -110,25 +110,6 @@ def build_cases(plan: SweepPlan, seconds: list[float] | None = None) -> tuple[li
 MAX_ATOMS = 100_000_000  # atoms of one case
 HELD_BYTES_PER_ATOM = 80  # a built case waiting to run (measured: 73 B/atom)
 RUN_BYTES_PER_ATOM = 450  # a running batch at its peak (measured: 425 B/atom, flat walls)
-LATTICE_BASIS = {"sc": 1, "bcc": 2, "fcc": 4}
-
-
-def estimate_atoms(cfg: Config) -> int:
-    """Atoms a config will create, from the config alone (an upper bound for lattices: the whole
-    box; atoms files are not opened and count 0 here)."""
-    n = 0
-    for g in cfg.atoms:
-        c = g.create
-        if c.random is not None:
-            n += c.random.count
-        elif c.positions is not None:
-            n += len(c.positions)
-        elif c.lattice is not None and cfg.lattice is not None:
-            spacing = lattice_spacing(cfg)
-            volume = float(np.prod(np.subtract(cfg.box.hi, cfg.box.lo)))
-            if spacing and spacing > 0:
-                n += int(min(volume / spacing ** 3 * LATTICE_BASIS.get(cfg.lattice.style, 4), 1e18))
-    return n
 
 
 def memory_available() -> int:
@@ -155,7 +136,7 @@ def check_memory(plan: SweepPlan, jobs: int) -> None:
     cases of a window are built just before it runs (HELD_BYTES_PER_ATOM each) and run as batches
     (RUN_BYTES_PER_ATOM); `jobs` windows run at once. Finished cases go to the parts, so the
     number of cases does not add up."""
-    atoms = [estimate_atoms(sc.config) for sc in plan.cases]
+    atoms = [atom_count(sc.config) for sc in plan.cases]
     if not atoms:
         return
     big = max(range(len(atoms)), key=atoms.__getitem__)
@@ -263,7 +244,7 @@ def make_windows(plan: SweepPlan, todo: list[int], jobs: int) -> list[list[int]]
         return []
     size = math.ceil(len(todo) / max(1, jobs))
     if jobs > 1:
-        per_case = max(1, estimate_atoms(plan.cases[todo[0]].config))
+        per_case = max(1, atom_count(plan.cases[todo[0]].config))
         count = min(jobs * WINDOWS_PER_JOB, max(jobs, len(todo) * per_case // MIN_WINDOW_ATOMS))
         size = math.ceil(len(todo) / count)
     size = min(MAX_BATCH, max(1, size))
@@ -271,7 +252,7 @@ def make_windows(plan: SweepPlan, todo: list[int], jobs: int) -> list[list[int]]
     cur: list[int] = []
     atoms = 0
     for i in todo:
-        n = max(1, estimate_atoms(plan.cases[i].config))
+        n = max(1, atom_count(plan.cases[i].config))
         if cur and (len(cur) >= size or atoms + n > MAX_BATCH_ATOMS):
             windows.append(cur)
             cur, atoms = [], 0
