@@ -135,7 +135,8 @@ def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
     try:
         # the plain results (xarray is not imported: a third of a small run's start-up)
         ds = run_plan(plan, out, jobs=jobs, executor=executor, scheduler=scheduler, resume=resume, fresh=fresh,
-                      overwrite=force, log=lambda msg: typer.echo(msg, err=True), as_xarray=False)
+                      overwrite=force, log=lambda msg: typer.echo(msg, err=True), as_xarray=False,
+                      summary=True)  # the file is written block by block: only status and errors come back
     except Interrupted as exc:
         typer.echo(str(exc), err=True)
         raise typer.Exit(130) from None

@@ -38,7 +38,7 @@ from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict
 from wallbatch.engine import backend, threads
 from wallbatch.engine.engine import CaseResult, Engine, run_cases
 from wallbatch.io.amber import write_amber
-from wallbatch.io.netcdf import build_results, write_netcdf
+from wallbatch.io.netcdf import build_results, write_netcdf, write_results_file
 from wallbatch.io.results import Results
 from wallbatch.scene.build import atom_count, build_case
 from wallbatch.scene.case import Case, CaseError, structure_key
@@ -638,9 +638,13 @@ def _alive(pid: int) -> bool:
 def run_plan(plan: SweepPlan, output: str | Path | None = None, *, jobs: int = 1, executor: str = "local",
              scheduler: str | None = None, resume: bool = False, fresh: bool = False, overwrite: bool = True,
              progress: bool | None = None, on_result: Callable[[int, CaseResult], None] | None = None,
-             log: Callable[[str], None] | None = None, as_xarray: bool = True) -> xr.Dataset | Results:
+             log: Callable[[str], None] | None = None, as_xarray: bool = True,
+             summary: bool = False) -> xr.Dataset | Results:
     """Run every case of a plan; write `output` if given; return the results Dataset (with
-    `as_xarray=False` the plain `io.results.Results`: xarray is not imported).
+    `as_xarray=False` the plain `io.results.Results`: xarray is not imported). With `output` and
+    `summary`, the results file is written block by block from the parts (the outputs of all
+    cases are never in memory at once) and only each case's status, error and seconds are
+    returned, with the sweep coordinates.
 
     With `output`, each finished case is persisted under OUT.parts/ as it completes and a lock file
     OUT.lock keeps other runs away. Parts left by an earlier run: `resume` reuses those whose case
@@ -649,13 +653,15 @@ def run_plan(plan: SweepPlan, output: str | Path | None = None, *, jobs: int = 1
     and raise `Interrupted` (every finished case stays in the parts). `log` receives one-line
     notes (cases reused, kernels compiling, jobs capped)."""
     with backend.plan_path(backend.choose(plan)):  # small plans run NumPy only (engine/backend.py)
-        res = _run_plan(plan, output, jobs, executor, scheduler, resume, fresh, overwrite, progress, on_result, log)
+        res = _run_plan(plan, output, jobs, executor, scheduler, resume, fresh, overwrite, progress, on_result, log,
+                        summary)
     return res.to_xarray() if as_xarray else res
 
 
 def _run_plan(plan: SweepPlan, output: str | Path | None, jobs: int, executor: str, scheduler: str | None,
               resume: bool, fresh: bool, overwrite: bool, progress: bool | None,
-              on_result: Callable[[int, CaseResult], None] | None, log: Callable[[str], None] | None) -> Results:
+              on_result: Callable[[int, CaseResult], None] | None, log: Callable[[str], None] | None,
+              summary: bool = False) -> Results:
     say = log or (lambda msg: None)
     if output is None:
         return _run(plan, None, jobs, executor, scheduler, False, progress, on_result, say)
@@ -676,12 +682,12 @@ def _run_plan(plan: SweepPlan, output: str | Path | None, jobs: int, executor: s
                 shutil.rmtree(dump)
             else:
                 dump.unlink()
-        return _run(plan, output, jobs, executor, scheduler, resume, progress, on_result, say)
+        return _run(plan, output, jobs, executor, scheduler, resume, progress, on_result, say, summary)
 
 
 def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, scheduler: str | None, resume: bool,
          progress: bool | None, on_result: Callable[[int, CaseResult], None] | None,
-         say: Callable[[str], None]) -> Results:
+         say: Callable[[str], None], summary: bool = False) -> Results:
     global _PLAN, _FIRST
     try:
         threads.count()
@@ -772,11 +778,18 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
             if c0.dump_every > 0 and output is not None:
                 paths = [str(dump_path(output, sc).relative_to(output.parent)) if (
                     dump_path(output, sc).exists()) else "" for sc in plan.cases]
-            ds = build_results(_results(total, held, parts, keys), c0, config_text=plan.base_text,
-                               sweep_text=plan.sweep_text, dims=plan.dims, dump_paths=paths)
+            stream = output is not None and summary
+            if not stream:
+                ds = build_results(_results(total, held, parts, keys), c0, config_text=plan.base_text,
+                                   sweep_text=plan.sweep_text, dims=plan.dims, dump_paths=paths)
             if output is not None:
                 try:
-                    write_netcdf(ds, output)
+                    if stream:  # block by block from the parts: the outputs are never all in memory
+                        ds = write_results_file(_results(total, held, parts, keys), c0, output,
+                                                config_text=plan.base_text, sweep_text=plan.sweep_text,
+                                                dims=plan.dims, dump_paths=paths)
+                    else:
+                        write_netcdf(ds, output)
                 except (OSError, RuntimeError) as exc:
                     tmp = output.with_name(output.name + ".tmp")
                     with contextlib.suppress(OSError):

@@ -11,10 +11,13 @@ makes, so the file is the same and `xarray.open_dataset` reads back the Dataset 
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import datetime as _dt
+import itertools
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable, Sequence
+from typing import TYPE_CHECKING, Any, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -118,10 +121,7 @@ def build_results(results: Iterable[CaseResult], c0: Case, *, config_text: str =
         coords["face"] = ("face", np.asarray([f.label for f in all_faces], dtype=object))
         coords["face_fix"] = ("face", np.asarray([f.label.split("/")[0] for f in all_faces], dtype=object))
         coords["face_name"] = ("face", np.asarray([f.name for f in all_faces], dtype=object))
-    for d in dims:
-        coords[d.name] = Var((d.name,), np.asarray(d.values), {"path": d.path})
-        for k, (vals, paths) in d.extra.items():  # a zip's parameters along its dimension
-            coords[k] = Var((d.name,), np.asarray(vals), {"path": ", ".join(paths)})
+    coords.update(_sweep_coords(dims))
 
     wanted = [k for k in per_sample if k in c0.outputs or k in ("time", "dt", "step")]
     if "step" in wanted and c0.run_time is None:
@@ -235,6 +235,152 @@ def build_results(results: Iterable[CaseResult], c0: Case, *, config_text: str =
     return ds
 
 
+def _sweep_coords(dims: Sequence[SweepDim]) -> dict[str, Var]:
+    """The coordinates along the sweep dimensions: each dimension's values, and a zip's
+    parameters along its dimension (extra coordinates), each with the path(s) it sets."""
+    coords: dict[str, Var] = {}
+    for d in dims:
+        coords[d.name] = Var((d.name,), np.asarray(d.values), {"path": d.path})
+        for k, (vals, paths) in d.extra.items():  # a zip's parameters along its dimension
+            coords[k] = Var((d.name,), np.asarray(vals), {"path": ", ".join(paths)})
+    return coords
+
+
+BLOCK_BYTES = 2_000_000  # output bytes of a block of cases when the file is written block by block
+
+
+def case_bytes(c0: Case) -> int:
+    """About the bytes the results file holds per case (its per-sample series and profiles):
+    sets the number of cases per block of `write_results_file`, not any value."""
+    nsamp = len(sample_instants(c0))
+    faces = sum(len(w.faces) for w in c0.soft_walls) + sum(len(w.faces) for w in c0.reflect_walls)
+    series = len(c0.outputs) + 3 + len(c0.fix_order) + 2 * faces + 3 * len(c0.region_walls)
+    windows = sum(len(p.window_steps(int(c0.steps or 0))) * p.nbins * len(p.quantities) for p in c0.profiles)
+    return 8 * (nsamp * series + windows) + 200
+
+
+def case_blocks(shape: tuple[int, ...], size: int) -> Iterator[tuple[slice, ...]]:
+    """Blocks of at most `size` cases (but at least one) of a sweep grid of `shape`, in order:
+    each a rectangle of the grid (one slice per dimension) whose cases are consecutive in C
+    order, so the cases of a block come one after the other from the parts. A grid without
+    dimensions (no sweep) is one block ()."""
+    if not shape:
+        yield ()
+        return
+    size = max(1, size)
+    inner, j = 1, len(shape)  # the trailing dimensions j.. fit whole in a block
+    while j > 0 and inner * shape[j - 1] <= size:
+        inner *= shape[j - 1]
+        j -= 1
+    if j == 0:
+        yield tuple(slice(0, n) for n in shape)
+        return
+    step = max(1, size // inner)  # along dimension j - 1
+    tail = tuple(slice(0, n) for n in shape[j:])
+    for lead in np.ndindex(*shape[:j - 1]):
+        for a in range(0, shape[j - 1], step):
+            yield tuple(slice(i, i + 1) for i in lead) + (slice(a, min(a + step, shape[j - 1])),) + tail
+
+
+def _block_dims(dims: Sequence[SweepDim], block: tuple[slice, ...]) -> list[SweepDim]:
+    """The sweep dimensions restricted to a block of the grid."""
+    return [dataclasses.replace(d, values=list(d.values[s]),
+                                extra={k: (list(vals[s]), paths) for k, (vals, paths) in d.extra.items()})
+            for d, s in zip(dims, block)]
+
+
+def write_results_file(results: Iterable[CaseResult], c0: Case, path: str | Path, *, config_text: str = "",
+                       sweep_text: str = "", dims: Sequence[SweepDim] = (), dump_paths: Sequence[str] | None = None,
+                       block_bytes: int = BLOCK_BYTES) -> Results:
+    """Write the results file of per-case results (in C order over `dims`, e.g. read back from
+    the parts one at a time) block by block, never holding more than a block of cases (about
+    `block_bytes` of outputs): the variables are created first, as `write_netcdf` of
+    `build_results` creates them, then each block (a rectangle of the grid, see `case_blocks`)
+    is built by `build_results` (its averages too: they are per case) and written in its place.
+    The file holds the same values as `write_netcdf(build_results(...))` (atomic too: a
+    temporary file renamed into place). Returns the per-case status, error and seconds with the
+    sweep coordinates (what a caller needs to report failures), not the outputs."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    shape = tuple(len(d.values) for d in dims)
+    ncase = int(np.prod(shape, dtype=int))
+    coords = _sweep_coords(dims)
+    if not all(_plain(v.data) for v in coords.values()):  # e.g. None among the values: xarray writes it
+        ds = build_results(results, c0, config_text=config_text, sweep_text=sweep_text, dims=dims,
+                           dump_paths=dump_paths)
+        write_netcdf(ds, path)
+        return _summary(ds, coords)
+    swept = {d.name: axis for axis, d in enumerate(dims)}
+    size = max(1, block_bytes // case_bytes(c0))
+    tmp = path.with_name(path.name + ".tmp")
+    status = np.empty(ncase, dtype=object)
+    error = np.empty(ncase, dtype=object)
+    seconds = np.zeros(ncase)
+    nc = None
+    first: Results | None = None
+    stream = iter(results)
+    try:
+        start = 0
+        for block in case_blocks(shape, size):
+            count = int(np.prod([s.stop - s.start for s in block], dtype=int))
+            ds = build_results(itertools.islice(stream, count), c0, config_text=config_text, sweep_text=sweep_text,
+                               dims=_block_dims(dims, block),
+                               dump_paths=None if dump_paths is None else dump_paths[start:start + count])
+            if nc is None:  # the file, its dimensions and variables, as write_netcdf makes them
+                first = ds
+                layout = Results({}, {})  # the first block with the whole grid's sweep coordinates
+                layout.variables = {name: Var(v.dims, coords[name].data, v.attrs) if name in coords else v
+                                    for name, v in ds.variables.items()}
+                layout.coord_names, layout.attrs = ds.coord_names, ds.attrs
+                bad = [name for name, v in layout.variables.items() if not _plain(v.data)]
+                if bad:
+                    raise ValueError(f"{bad[0]}: values the results file cannot hold ({layout[bad[0]].data.dtype})")
+                sizes = {name: len(dims[swept[name]].values) if name in swept else n for name, n in ds.dims.items()}
+                nc, attrs_of = _create_file(tmp, layout, sizes)
+                variables = {}
+                for name, v in layout.variables.items():
+                    var = variables[name] = _create_variable(nc, name, v, attrs_of[name])
+                    if name in coords or not swept.keys() & set(v.dims):  # whole: sweep coordinates, sample ...
+                        var[...] = _file_data(v.data)
+            for name, v in ds.variables.items():
+                if name in coords or not swept.keys() & set(v.dims):
+                    continue
+                if not _plain(v.data):
+                    raise ValueError(f"{name}: values the results file cannot hold ({v.data.dtype})")
+                variables[name][tuple(block[swept[d]] if d in swept else slice(None) for d in v.dims)] = \
+                    _file_data(v.data)
+            status[start:start + count] = ds["status"].data.ravel()
+            error[start:start + count] = ds["error"].data.ravel()
+            seconds[start:start + count] = ds["seconds"].data.ravel()
+            start += count
+        if next(stream, None) is not None:
+            raise ValueError(f"more than {ncase} results for a sweep grid of shape {shape}")
+        nc.close()
+        nc = None
+        os.replace(tmp, path)
+    except BaseException:
+        if nc is not None:
+            with contextlib.suppress(Exception):
+                nc.close()
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    assert first is not None
+    out = Results({"status": Var(first["status"].dims, status.reshape(shape), first["status"].attrs),
+                   "error": Var(first["error"].dims, error.reshape(shape), first["error"].attrs),
+                   "seconds": Var(first["seconds"].dims, seconds.reshape(shape), first["seconds"].attrs)},
+                  {name: Var(v.dims, v.data, first[name].attrs) for name, v in coords.items()})
+    out.attrs.update(first.attrs)
+    return out
+
+
+def _summary(ds: Results, coords: dict[str, Var]) -> Results:
+    """The per-case status, error and seconds of `ds` with its sweep coordinates."""
+    out = Results({name: ds[name] for name in ("status", "error", "seconds")}, {name: ds[name] for name in coords})
+    out.attrs.update(ds.attrs)
+    return out
+
+
 def write_netcdf(ds: Results | xr.Dataset, path: str | Path) -> Path:
     """Write atomically (a temporary file renamed into place), NetCDF-4. `Results` of plain
     arrays (float64, int64, bool, strings) are written with netCDF4 directly, making the calls
@@ -272,8 +418,17 @@ def _write_results(ds: Results, path: Path) -> None:
     int8 with attribute dtype = "bool"; strings as variable-length strings; non-dimension
     coordinates are named in each variable's `coordinates` attribute (CF), or globally when no
     variable carries them."""
-    import netCDF4
+    nc, attrs_of = _create_file(path, ds, ds.dims)
+    try:
+        for name, v in ds.variables.items():
+            _create_variable(nc, name, v, attrs_of[name])[...] = _file_data(v.data)
+    finally:
+        nc.close()
 
+
+def _file_attrs(ds: Results) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
+    """(global attributes, attributes of each variable) as written: the CF `coordinates`
+    attribute added where xarray adds it, bool variables marked dtype = "bool"."""
     variables = ds.variables
     non_dim = {k for k in ds.coord_names if k not in variables[k].dims}
     attrs_of: dict[str, dict[str, Any]] = {k: dict(v.attrs) for k, v in variables.items()}
@@ -292,6 +447,19 @@ def _write_results(ds: Results, path: Path) -> None:
     loose = non_dim - written
     if loose and "coordinates" not in global_attrs:
         global_attrs["coordinates"] = " ".join(sorted(loose))
+    for k, v in variables.items():
+        if v.data.dtype.kind == "b":
+            attrs_of[k]["dtype"] = "bool"
+    return global_attrs, attrs_of
+
+
+def _create_file(path: Path, ds: Results, sizes: dict[str, int]) -> tuple[Any, dict[str, dict[str, Any]]]:
+    """A new NetCDF-4 file holding the global attributes of `ds` and its dimensions (in order of
+    first use; `sizes` gives their lengths), its variables still to be created; and the
+    attributes each variable will carry (`_file_attrs`)."""
+    import netCDF4
+
+    global_attrs, attrs_of = _file_attrs(ds)
     nc = netCDF4.Dataset(path, mode="w", clobber=True, diskless=False, persist=False, format="NETCDF4")
     try:
         for key, value in global_attrs.items():
@@ -299,25 +467,35 @@ def _write_results(ds: Results, path: Path) -> None:
                 nc.setncattr_string(key, value)
             else:
                 nc.setncattr(key, value)
-        for name, size in ds.dims.items():
-            nc.createDimension(name, size=size)
-        for name, v in variables.items():
-            data, attrs, fill = v.data, attrs_of[name], None
-            kind = data.dtype.kind
-            if kind == "b":
-                data = data.astype("i1")
-                attrs["dtype"] = "bool"
-            if kind in "OU":
-                datatype: Any = str
-            else:
-                datatype = data.dtype.newbyteorder("=") if data.dtype.byteorder not in "=|" else data.dtype
-                if kind == "f":
-                    fill = np.array(np.nan, dtype=datatype)[()]
-            var = nc.createVariable(varname=name, datatype=datatype, dimensions=v.dims, zlib=False, complevel=4,
-                                    shuffle=True, fletcher32=False, contiguous=False, chunksizes=None,
-                                    endian="native", least_significant_digit=None, fill_value=fill)
-            var.setncatts(attrs)
-            var.set_auto_maskandscale(False)
-            var[...] = data
-    finally:
+        for name in ds.dims:
+            nc.createDimension(name, size=sizes[name])
+    except BaseException:
         nc.close()
+        raise
+    return nc, attrs_of
+
+
+def _create_variable(nc: Any, name: str, v: Var, attrs: dict[str, Any]) -> Any:
+    """Create variable `name` (`v`'s dims and type) in `nc` (made by _create_file) with `attrs`;
+    returns it, ready to take `_file_data` of its values."""
+    data, fill = v.data, None
+    kind = data.dtype.kind
+    if kind == "b":
+        data = data.astype("i1")
+    if kind in "OU":
+        datatype: Any = str
+    else:
+        datatype = data.dtype.newbyteorder("=") if data.dtype.byteorder not in "=|" else data.dtype
+        if kind == "f":
+            fill = np.array(np.nan, dtype=datatype)[()]
+    var = nc.createVariable(varname=name, datatype=datatype, dimensions=v.dims, zlib=False, complevel=4,
+                            shuffle=True, fletcher32=False, contiguous=False, chunksizes=None,
+                            endian="native", least_significant_digit=None, fill_value=fill)
+    var.setncatts(attrs)
+    var.set_auto_maskandscale(False)
+    return var
+
+
+def _file_data(data: np.ndarray) -> np.ndarray:
+    """Values as stored: bool as int8."""
+    return data.astype("i1") if data.dtype.kind == "b" else data
