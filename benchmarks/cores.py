@@ -43,7 +43,7 @@ def wrap(name):
     g.__qualname__ = g.__name__ = name
     g.__module__ = R.__name__
     setattr(R, name, g)
-for name in ("_warm_compiler", "_run_window", "build_dataset", "write_netcdf"):
+for name in ("_warm_compiler", "_first_built", "execute", "_run_window", "write_results_file"):
     wrap(name)
 from wallbatch.cli import app
 sys.argv = ["wallbatch"] + sys.argv[1:]
