@@ -91,8 +91,9 @@ class SoftWallKernel:
         near = delta < p["cutoff"][:, None]
         if not self.all_atoms:
             near &= self.group
-        ci, ai = near.nonzero()
-        return p, ci, ai, delta[ci, ai]
+        flat = near.ravel().nonzero()[0]  # c * N + a (1-D: cheaper than 2-D nonzero and indexing)
+        ci, ai = np.divmod(flat, near.shape[1])
+        return p, ci, ai, delta.ravel()[flat]
 
     def _fail_inside(self, state: "BatchState", ci: np.ndarray, ai: np.ndarray, r: np.ndarray,
                      face: str) -> None:
