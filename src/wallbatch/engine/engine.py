@@ -185,7 +185,9 @@ class Engine:
         s = self.state
         for d in s.fixed:
             xd = s.x[:, :, d]
-            if xd.size == 0 or not (xd.min() < s.box_lo[d] or xd.max() > s.box_hi[d]):  # NaN: not lost here
+            # pre-test on the extremes (fmin/fmax pass over NaN: a NaN position is not lost here)
+            if xd.size == 0 or not (np.fmin.reduce(xd, axis=None) < s.box_lo[d]
+                                    or np.fmax.reduce(xd, axis=None) > s.box_hi[d]):
                 continue
             lost = (xd < s.box_lo[d]) | (xd > s.box_hi[d])
             if lost.any():
