@@ -55,12 +55,34 @@ def default_skin(units: str) -> float:
 def lj_pair(r2: np.ndarray, epsilon, sigma) -> tuple[np.ndarray, np.ndarray]:
     """Unshifted pair energy E(r) [energy] and fpair = F/r = -(dE/dr)/r [force/length] from r^2.
 
-    E = 4 eps (s6^2 - s6), fpair = 24 eps (2 s6^2 - s6) / r^2 with s6 = (sigma^2 / r^2)^3.
-    No cut-off here; everything broadcasts.
+    E = 4 eps (s6^2 - s6), fpair = 24 eps (2 s6^2 - s6) / r^2 with s6 = (sigma^2 / r^2)^3
+    (`lj_terms` without a cut-off); everything broadcasts.
     """
-    s2 = sigma * sigma / r2
-    s6 = s2 * s2 * s2
-    return 4.0 * epsilon * s6 * (s6 - 1.0), 24.0 * epsilon * s6 * (2.0 * s6 - 1.0) / r2
+    fpair, energy = lj_terms(r2, 24.0 * epsilon, 4.0 * epsilon, sigma * sigma, np.inf, 0.0)
+    return energy, fpair
+
+
+def min_image(d, inv_length, length):
+    """d [length] moved to its nearest periodic image: d - rint(d / L) L, with inv_length = 1/L
+    (0 in a fixed dimension, where d stays as it is). Plain arithmetic: the NumPy path calls it on
+    arrays, the compiled kernels (pair_compiled.py) compile it into their loops."""
+    return d - np.rint(d * inv_length) * length
+
+
+def lj_terms(r2, e24, e4, sig2, rc2, off):
+    """fpair = F/r [force/length] and the shifted energy E(r) - off [energy] of pairs at r^2
+    [length^2], both 0 at r^2 >= rc2 (inside = r^2 < rc2: computed for every pair, then zeroed,
+    no branch). e24 = 24 eps, e4 = 4 eps [energy], sig2 = sigma^2 [length^2], off = E(rc) or 0.
+
+    With t = sig2 / r^2 and s6 = t^3: fpair = (2 s6 - 1) s6 (24 eps) / r^2, E = (s6 - 1) s6 (4 eps).
+    The one place of this arithmetic: the NumPy path calls it on arrays of pairs, the compiled
+    force pass (pair_compiled.py) compiles it (inlined) into its loop, so each pair's values are
+    the same bits on both paths. Scalars or arrays; bool `inside` multiplies as 0/1.
+    """
+    inside = r2 < rc2
+    t = sig2 / r2
+    s6 = t * t * t
+    return (s6 * 2.0 - 1.0) * s6 * e24 / r2 * inside, ((s6 - 1.0) * s6 * e4 - off) * inside
 
 
 class PairLJCut:
@@ -109,7 +131,7 @@ class PairLJCut:
         self._bad = np.zeros(len(eps), dtype=bool)  # non-finite positions at the last build
         self._xref: np.ndarray | None = None  # (C, N, 3) positions at each case's last build
         self._flat: dict[str, np.ndarray] | None = None
-        self._work = np.empty((7, 0))
+        self._work = np.empty((5, 0))
         want = backend.numba_allowed() if compiled is None else bool(compiled)  # numba imported only if wanted
         self._nb = None  # the pair_compiled module on the compiled path
         if want:
@@ -125,6 +147,7 @@ class PairLJCut:
         self._first: np.ndarray | None = None  # compiled path: (C, N+1) CSR row starts per case
         self._owner = np.empty((len(eps), 0), dtype=np.int32)  # (C, N) atom of each CSR row
         self._neigh = np.empty((len(eps), 0), dtype=np.int32)  # (C, capacity) j of each pair
+        self._memo: tuple[np.ndarray, ...] | None = None  # remember(): outputs of a compiled chunk's last step
 
     @property
     def ncases(self) -> int:
@@ -183,9 +206,7 @@ class PairLJCut:
         both = np.concatenate(self._pairs) if self._pairs else np.empty((0, 2), dtype=np.int64)
         i, j = both[:, 0] + case * natoms, both[:, 1] + case * natoms
         eps, sig, rc = self.epsilon, self.sigma, self.cutoff
-        e_rc, _ = lj_pair(rc * rc, eps, sig)
-        coef = {"eps": eps, "sig2": sig * sig, "rc2": rc * rc,
-                "offset": e_rc if self.shift else np.zeros_like(eps)}
+        coef = {"eps": eps, "sig2": sig * sig, "rc2": rc * rc, "offset": self.offsets()}
         uniform = len(eps) > 0 and all(np.all(v == v[0]) for v in coef.values())
         run = np.flatnonzero(np.r_[True, i[1:] != i[:-1]]) if len(i) else np.empty(0, dtype=np.int64)
         starts = np.r_[0, np.cumsum(counts)[:-1]].astype(np.int64)
@@ -195,7 +216,7 @@ class PairLJCut:
             flat[k] = float(v[0]) if uniform else v[case]
         self._flat = flat
         if self._work.shape[1] < len(i):  # reused work arrays (grow only): no fresh pages each step
-            self._work = np.empty((7, int(1.2 * len(i))))
+            self._work = np.empty((5, int(1.2 * len(i))))
 
     def _update(self, x: np.ndarray) -> None:
         """Rebuild the cases with an atom moved more than skin/2 since their last build."""
@@ -262,12 +283,34 @@ class PairLJCut:
             self._build_compiled(c, x[c])
             self._xref[c] = x[c]
 
+    def offsets(self) -> np.ndarray:
+        """Energy shift per case (C,) [energy]: E(rc) with `pair_modify shift yes`, else 0."""
+        eps, sig, rc = self.epsilon, self.sigma, self.cutoff
+        return lj_pair(rc * rc, eps, sig)[0] if self.shift else np.zeros_like(eps)
+
+    def remember(self, x: np.ndarray, f: np.ndarray, energy: np.ndarray, virial: np.ndarray) -> None:
+        """Keep the pair forces f (C, N, 3), energy and virial (C,) that the compiled chunk computed
+        at positions x (its last step): the next compute() at exactly these positions returns them
+        instead of a second pass (a sampled chunk's outputs). Any other call forgets them."""
+        self._memo = (np.array(x, dtype=float), f, energy, virial)
+
+    def _recall(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        memo, self._memo = self._memo, None
+        if memo is None or memo[0].shape != x.shape or not np.array_equal(memo[0], x):
+            return None
+        return memo[1:]
+
     def _compute_compiled(self, x: np.ndarray, f: np.ndarray, outputs: bool) -> tuple[np.ndarray, np.ndarray] | None:
-        """compute() with the fused kernel: per case, one pass over its half list."""
+        """compute() with the fused kernel: per case, one pass over its half list (forces, and
+        energy and virial with outputs)."""
         C = x.shape[0]
+        memo = self._recall(x)
+        if memo is not None:
+            f += memo[0]
+            return (memo[1].copy(), memo[2].copy()) if outputs else None
         self._update_compiled(x)
         eps, sig, rc = self.epsilon, self.sigma, self.cutoff
-        offset = lj_pair(rc * rc, eps, sig)[0] if self.shift else np.zeros_like(eps)
+        offset = self.offsets()
         direct = f.dtype == np.float64 and f.flags.c_contiguous
         out = f if direct else np.zeros(x.shape)
         energy, virial = np.zeros(C), np.zeros(C)
@@ -288,8 +331,7 @@ class PairLJCut:
     def compute(self, x: np.ndarray, f: np.ndarray, outputs: bool) -> tuple[np.ndarray, np.ndarray] | None:
         """Add pair forces [force] into f (C, N, 3) in place for positions x (C, N, 3) [length].
 
-        With `outputs`, return (energy (C,) [energy], virial W (C,) [energy]), W = sum r_ij . F_ij;
-        the energy is computed only then. A case whose positions are not finite gets NaN forces
+        With `outputs`, return (energy (C,) [energy], virial W (C,) [energy]), W = sum r_ij . F_ij. A case whose positions are not finite gets NaN forces
         (and NaN energy and virial).
         """
         if self.compiled:
@@ -298,30 +340,19 @@ class PairLJCut:
         self._update(x)
         p = self._flat
         i, j = p["i"], p["j"]
-        dx, dy, dz, r2, s6, fpair, t = self._work[:, :len(i)]
+        dx, dy, dz, r2, t = self._work[:, :len(i)]
         xt = np.ascontiguousarray(x.reshape(C * N, 3).T)  # (3, C*N): fast 1-D gathers
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             for k, dk in enumerate((dx, dy, dz)):  # d = x_i - x_j, minimum image
                 xt[k].take(i, out=dk, mode="clip")  # indices are valid; "clip" avoids a buffer copy
                 dk -= xt[k].take(j, out=t, mode="clip")
                 if self.periodic[k]:
-                    np.multiply(dk, 1.0 / self.length[k], out=t)
-                    np.rint(t, out=t)
-                    t *= self.length[k]
-                    dk -= t
+                    dk[:] = min_image(dk, 1.0 / self.length[k], self.length[k])
             np.multiply(dx, dx, out=r2)
             r2 += np.multiply(dy, dy, out=t)
             r2 += np.multiply(dz, dz, out=t)
-            inside = r2 < p["rc2"]
-            np.divide(p["sig2"], r2, out=t)  # (sigma/r)^2
-            np.multiply(t, t, out=s6)
-            s6 *= t  # (sigma/r)^6
-            np.multiply(s6, 2.0, out=fpair)  # fpair = 24 eps s6 (2 s6 - 1) / r^2 = F/r
-            fpair -= 1.0
-            fpair *= s6
-            fpair *= 24.0 * p["eps"]
-            fpair /= r2
-            fpair *= inside  # outside rc: finite values, zeroed
+            eps = p["eps"]
+            fpair, e = lj_terms(r2, 24.0 * eps, 4.0 * eps, p["sig2"], p["rc2"], p["offset"])
             for k, dk in enumerate((dx, dy, dz)):  # F_i += fpair d, F_j -= fpair d
                 np.multiply(fpair, dk, out=t)
                 fk = -np.bincount(j, t, C * N)
@@ -334,12 +365,7 @@ class PairLJCut:
                 return None
             energy, virial = np.zeros(C), np.zeros(C)
             if len(i):
-                np.subtract(s6, 1.0, out=t)  # E = 4 eps s6 (s6 - 1) - E(rc)
-                t *= s6
-                t *= 4.0 * p["eps"]
-                t -= p["offset"]
-                t *= inside
-                energy[p["case_nonempty"]] = np.add.reduceat(t, p["case_start"])
+                energy[p["case_nonempty"]] = np.add.reduceat(e, p["case_start"])
                 np.multiply(fpair, r2, out=t)  # r . F = fpair r^2
                 virial[p["case_nonempty"]] = np.add.reduceat(t, p["case_start"])
         energy[self._bad] = np.nan
@@ -356,6 +382,7 @@ class PairLJCut:
         """Keep only some cases (a boolean (C,) mask or indices), in the given order."""
         keep = np.asarray(keep)
         idx = np.flatnonzero(keep) if keep.dtype == bool else keep.astype(np.int64).ravel()
+        self._memo = None
         self.epsilon, self.sigma, self.cutoff = self.epsilon[idx], self.sigma[idx], self.cutoff[idx]
         self.case_builds = self.case_builds[idx]
         self._bad = self._bad[idx]
