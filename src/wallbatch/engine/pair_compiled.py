@@ -179,6 +179,7 @@ if njit is not None:
         inv1 = 1.0 / L1 if periodic[1] and n1 == 1 else 0.0
         inv2 = 1.0 / L2 if periodic[2] and n2 == 1 else 0.0
         per2 = periodic[2] and n2 > 1
+        image = inv0 != 0.0 or inv1 != 0.0 or inv2 != 0.0
         seg_lo = np.empty(32, np.int64)  # per cell: the sorted-atom ranges of its half stencil
         seg_hi = np.empty(32, np.int64)
         seg_sh = np.empty((32, 3))  # image shift of each range [length]
@@ -222,12 +223,20 @@ if njit is not None:
                     if m + hi_t - lo_t > cap:
                         return -1
                     y0, y1, y2 = xs[s, 0] - seg_sh[g, 0], xs[s, 1] - seg_sh[g, 1], xs[s, 2] - seg_sh[g, 2]
-                    for t in range(lo_t, hi_t):
-                        d0 = _image(y0 - xs[t, 0], inv0, L0)
-                        d1 = _image(y1 - xs[t, 1], inv1, L1)
-                        d2 = _image(y2 - xs[t, 2], inv2, L2)
-                        neigh[m] = order[t]  # kept only if within reach (branch-free append)
-                        m += d0 * d0 + d1 * d1 + d2 * d2 <= reach2
+                    if image:
+                        for t in range(lo_t, hi_t):
+                            d0 = _image(y0 - xs[t, 0], inv0, L0)
+                            d1 = _image(y1 - xs[t, 1], inv1, L1)
+                            d2 = _image(y2 - xs[t, 2], inv2, L2)
+                            neigh[m] = order[t]  # kept only if within reach (branch-free append)
+                            m += d0 * d0 + d1 * d1 + d2 * d2 <= reach2
+                    else:  # no one-cell periodic dim: the image is d itself (d - rint(0 d) L = d)
+                        for t in range(lo_t, hi_t):
+                            d0 = y0 - xs[t, 0]
+                            d1 = y1 - xs[t, 1]
+                            d2 = y2 - xs[t, 2]
+                            neigh[m] = order[t]
+                            m += d0 * d0 + d1 * d1 + d2 * d2 <= reach2
         first[N] = m
         return m
 
