@@ -148,6 +148,7 @@ class PairLJCut:
         self._owner = np.empty((len(eps), 0), dtype=np.int32)  # (C, N) atom of each CSR row
         self._neigh = np.empty((len(eps), 0), dtype=np.int32)  # (C, capacity) j of each pair
         self._memo: tuple[np.ndarray, ...] | None = None  # remember(): outputs of a compiled chunk's last step
+        self._spare = np.empty(0, dtype=np.int32)  # a one-case batch's second pair array (spare_list)
 
     @property
     def ncases(self) -> int:
@@ -266,6 +267,24 @@ class PairLJCut:
         grown[:, :self._neigh.shape[1]] = self._neigh
         self._neigh = grown
 
+    def spare_list(self) -> np.ndarray:
+        """A one-case batch's spare pair array (capacity of the current one), for a compiled chunk
+        to build into while the current list stays intact (`adopt_list` swaps them)."""
+        if len(self._spare) < self._neigh.shape[1]:
+            self._spare = np.empty(self._neigh.shape[1], dtype=np.int32)
+        return self._spare
+
+    def adopt_list(self, c: int, neigh: np.ndarray) -> None:
+        """Case c's pairs are now neigh[:first[c, -1]] (owner and first already written): a
+        one-case batch takes the array itself (the old one becomes the spare), others copy."""
+        m = int(self._first[c, -1])
+        if self.ncases == 1 and neigh.dtype == np.int32 and neigh.flags.c_contiguous:
+            self._spare, self._neigh = self._neigh[0], neigh.reshape(1, -1)
+            return
+        if m > self._neigh.shape[1]:
+            self._grow(len(neigh))
+        self._neigh[c, :m] = neigh[:m]
+
     def _update_compiled(self, x: np.ndarray) -> None:
         """As _update, with the compiled displacement check and cell-list build."""
         C, N = x.shape[:2]
@@ -383,6 +402,7 @@ class PairLJCut:
         keep = np.asarray(keep)
         idx = np.flatnonzero(keep) if keep.dtype == bool else keep.astype(np.int64).ravel()
         self._memo = None
+        self._spare = np.empty(0, dtype=np.int32)
         self.epsilon, self.sigma, self.cutoff = self.epsilon[idx], self.sigma[idx], self.cutoff[idx]
         self.case_builds = self.case_builds[idx]
         self._bad = self._bad[idx]

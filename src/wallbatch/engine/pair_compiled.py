@@ -386,7 +386,7 @@ if njit is not None:
 
         @jit
         def pair_chunk(nsteps, x, v, f, mass, radius, dt, ftm2v, lo, hi, box_per, length, pair_per, reach,
-                       limit2, e24, e4, s2c, rcut2, off, sample, fpair, ew, xref, owner, first, neigh, sf_meta,
+                       limit2, e24, e4, s2c, rcut2, off, sample, fpair, ew, xref, owner, first, neigh, spare, sf_meta,
                        sf_val, groups, rg_meta, rg_geo, rg_val, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend,
                        fl_prev, fl_cross, fl_rng):
             """Advance one case (x, v, f: (N, 3), written in place) by nsteps velocity-Verlet steps
@@ -397,7 +397,9 @@ if njit is not None:
             also gives the pair energy and virial (ew[0], ew[1]) and its pair forces are copied to
             fpair (N, 3) (the outputs of that step, without a second pass). Returns (status, builds, neigh):
             status 0, 1 (an atom on/behind a wall), 2 (a lost atom) or 3 (a non-finite value; the
-            caller then hands the chunk back to NumPy); neigh is a longer array when the list grew."""
+            caller then hands the chunk back to NumPy); neigh is the list after the chunk: the caller's
+            (not written) if no build ran, else `spare` (the first build writes there, so the
+            caller's list survives a chunk handed back) or a longer array when the list grew."""
             if nsteps == -fingerprint:  # never: ties the on-disk cache to the wall kernels
                 return 5, 0, neigh
             N = x.shape[0]
@@ -431,10 +433,12 @@ if njit is not None:
                         for d in range(3):
                             if not math.isfinite(x[a, d]):
                                 return 3, builds, neigh
-                    m = build_case(x, lo, length, pair_per, reach, owner, first, neigh)
+                    target = neigh if builds > 0 else spare
+                    m = build_case(x, lo, length, pair_per, reach, owner, first, target)
                     while m < 0:
-                        neigh = np.empty(2 * len(neigh) + 4 * N, np.int32)
-                        m = build_case(x, lo, length, pair_per, reach, owner, first, neigh)
+                        target = np.empty(2 * len(target) + 4 * N, np.int32)
+                        m = build_case(x, lo, length, pair_per, reach, owner, first, target)
+                    neigh = target
                     xref[:] = x
                     builds += 1
                 for a in range(N):  # force clear, pair forces
@@ -582,7 +586,8 @@ class PairChunks:
         for c in range(C):
             x, v, f = s.x[c].copy(), s.v[c].copy(), s.f[c].copy()
             xref, owner, first = pair._xref[c].copy(), pair._owner[c].copy(), pair._first[c].copy()
-            neigh = pair._neigh[c].copy()
+            neigh = pair._neigh[c]  # read only: a build in the chunk writes into `spare`
+            spare = pair.spare_list() if C == 1 else np.empty(pair._neigh.shape[1], np.int32)
             if fk is None:
                 fl = _compiled._NO_FLOW
             else:
@@ -595,7 +600,7 @@ class PairChunks:
                 np.ascontiguousarray(s.radius[c], dtype=float), float(s.dt[c]), float(s.units.ftm2v), lo, hi, box_per,
                 pair.length, pair.periodic, float(pair.cutoff[c] + pair.skin), (0.5 * pair.skin) ** 2,
                 24.0 * float(pair.epsilon[c]), 4.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2),
-                float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh,
+                float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
                 sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl)
             if status != 0:
                 if fk is not None:  # the NumPy loop re-runs the chunk with the same random numbers
@@ -607,9 +612,8 @@ class PairChunks:
         for c, (x, v, f, xref, owner, first, neigh, builds) in enumerate(done):
             s.x[c], s.v[c], s.f[c] = x, v, f
             pair._xref[c], pair._owner[c], pair._first[c] = xref, owner, first
-            if len(neigh) > pair._neigh.shape[1]:
-                pair._grow(len(neigh))
-            pair._neigh[c, :len(neigh)] = neigh
+            if builds:
+                pair.adopt_list(c, neigh)
             pair.builds += builds
             pair.case_builds[c] += builds
         if sample:  # the sample's pair.compute at these positions takes them instead of a second pass
