@@ -28,13 +28,15 @@ Compiled path (pair_compiled.py; the default when numba imports and WALLBATCH_NU
 `compiled=False` forces NumPy): the same per-case rebuild decisions, a cell-list build per case
 (the same pairs, each once, in cell order; CSR rows in (C, ...) arrays) and a force pass per case
 that gathers each row's separations into contiguous buffers, computes the pair terms in one
-vectorised loop and adds them in list order. Each pair's values come from the NumPy path's
-operations in the same order; only the order of the sums differs, so the paths agree to rounding
+vectorised loop and adds them in list order (with outputs, the energy and virial in the same pass).
+Each pair's values come from the same functions (`min_image`, `lj_terms`, compiled into the
+kernels); only the order of the sums differs, so the paths agree to rounding
 (tests: <= 1e-13 relative to the case's force, energy and virial scales). Each case is still
 computed alone, so its numbers never depend on its batch. For N = 4000 at density 0.8 (137k
-pairs): force pass ~0.7 ms, build ~2 ms. Scenes whose other fixes the chunk kernels run (flat
-soft walls, wall/region, one wall/flow) run whole chunks of steps in one compiled call per case
-(pair_compiled.PairChunks), with the same bits as this path step by step.
+pairs): force pass ~0.7 ms, build ~2 ms; for N = 97,556 (3.4M pairs) ~17 ms and ~33 ms. Scenes
+whose other fixes the chunk kernels run (flat soft walls, wall/region, one wall/flow) run whole
+chunks of steps in one compiled call per case (pair_compiled.PairChunks), with the same bits as
+this path step by step; a sampled chunk's outputs come from its last force pass (`remember`).
 """
 
 from __future__ import annotations
