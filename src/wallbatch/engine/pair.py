@@ -29,8 +29,8 @@ Compiled path (pair_compiled.py; the default when numba imports and WALLBATCH_NU
 (the same pairs, each once, in cell order; CSR rows in (C, ...) arrays) and a force pass per case
 that gathers each row's separations into contiguous buffers, computes the pair terms in one
 vectorised loop and adds them in list order (with outputs, the energy and virial in the same pass).
-Each pair's values come from the same functions (`min_image`, `lj_terms`, compiled into the
-kernels); only the order of the sums differs, so the paths agree to rounding
+Each pair's values come from the same functions (lj.py's `min_image`, `lj_terms`, compiled into
+the kernels); only the order of the sums differs, so the paths agree to rounding
 (tests: <= 1e-13 relative to the case's force, energy and virial scales). Each case is still
 computed alone, so its numbers never depend on its batch. For N = 4000 at density 0.8 (137k
 pairs): force pass ~0.7 ms, build ~2 ms; for N = 97,556 (3.4M pairs) ~17 ms and ~33 ms. Scenes
@@ -44,6 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from wallbatch.engine import backend
+from wallbatch.engine.lj import lj_terms, min_image
 
 # LAMMPS's default neighbor skin per unit style [length] (0.3 sigma in lj; 2 Angstrom in real/metal)
 DEFAULT_SKIN = {"lj": 0.3, "real": 2.0, "metal": 2.0}
@@ -62,29 +63,6 @@ def lj_pair(r2: np.ndarray, epsilon, sigma) -> tuple[np.ndarray, np.ndarray]:
     """
     fpair, energy = lj_terms(r2, 24.0 * epsilon, 4.0 * epsilon, sigma * sigma, np.inf, 0.0)
     return energy, fpair
-
-
-def min_image(d, inv_length, length):
-    """d [length] moved to its nearest periodic image: d - rint(d / L) L, with inv_length = 1/L
-    (0 in a fixed dimension, where d stays as it is). Plain arithmetic: the NumPy path calls it on
-    arrays, the compiled kernels (pair_compiled.py) compile it into their loops."""
-    return d - np.rint(d * inv_length) * length
-
-
-def lj_terms(r2, e24, e4, sig2, rc2, off):
-    """fpair = F/r [force/length] and the shifted energy E(r) - off [energy] of pairs at r^2
-    [length^2], both 0 at r^2 >= rc2 (inside = r^2 < rc2: computed for every pair, then zeroed,
-    no branch). e24 = 24 eps, e4 = 4 eps [energy], sig2 = sigma^2 [length^2], off = E(rc) or 0.
-
-    With t = sig2 / r^2 and s6 = t^3: fpair = (2 s6 - 1) s6 (24 eps) / r^2, E = (s6 - 1) s6 (4 eps).
-    The one place of this arithmetic: the NumPy path calls it on arrays of pairs, the compiled
-    force pass (pair_compiled.py) compiles it (inlined) into its loop, so each pair's values are
-    the same bits on both paths. Scalars or arrays; bool `inside` multiplies as 0/1.
-    """
-    inside = r2 < rc2
-    t = sig2 / r2
-    s6 = t * t * t
-    return (s6 * 2.0 - 1.0) * s6 * e24 / r2 * inside, ((s6 - 1.0) * s6 * e4 - off) * inside
 
 
 class PairLJCut:

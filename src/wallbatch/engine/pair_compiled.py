@@ -39,7 +39,7 @@ import numpy as np
 
 from wallbatch.engine import backend
 from wallbatch.engine import compiled as _compiled
-from wallbatch.engine.pair import lj_terms, min_image
+from wallbatch.engine.lj import lj_terms, min_image
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
@@ -47,7 +47,7 @@ except Exception:  # noqa: BLE001 - any import failure means "no compiled path"
     njit = None
 
 
-# pair.py's per-pair arithmetic compiled into the force pass: part of the kernels' cache names
+# lj.py's per-pair arithmetic compiled into the build and force pass: part of the kernels' cache names
 _FORMULA_KEY = hashlib.sha256((inspect.getsource(lj_terms) + inspect.getsource(min_image)).encode()).hexdigest()[:12]
 
 
@@ -62,7 +62,7 @@ if njit is not None:
     _lj_pair = njit(nogil=True, error_model="numpy", inline="always")(lj_terms)
 
     def _keyed(fn: Any) -> Any:
-        """fn jitted with its on-disk cache named by a digest of pair.py's `lj_terms` and
+        """fn jitted with its on-disk cache named by a digest of lj.py's `lj_terms` and
         `min_image` too: numba keys a cached function by its own file only, and these are compiled
         into the build and force pass (inlined), so an edit of them must not load a stale kernel."""
         return jit(_compiled._relink(fn, name=f"{fn.__name__}_{_FORMULA_KEY}"))
@@ -247,7 +247,7 @@ if njit is not None:
                     L0, L1, L2):
         """fpair d of n pairs from their raw separations g = x_i - x_j (contiguous buffers, no
         indirect access: the loop vectorises) into t: the minimum image (`_image`), then the
-        pair terms (`_lj_pair`, pair.py's lj_terms); with outputs also each pair's energy into
+        pair terms (`_lj_pair`, lj.py's lj_terms); with outputs also each pair's energy into
         te and its virial fpair r^2 into tw (two loops: the branch stays out of the loop)."""
         if outputs:
             for k in range(n):
@@ -338,7 +338,7 @@ if njit is not None:
         fpair r^2, in the same pass.
 
         Per pair, the NumPy path's operations: d = x_i - x_j, d -= rint(d (1/L)) L in periodic
-        dims (bad cases are skipped, so d is finite), then pair.py's lj_terms: r2,
+        dims (bad cases are skipped, so d is finite), then lj.py's lj_terms: r2,
         s6 = ((sig2/r2)^2)(sig2/r2), fpair = (((2 s6) - 1) s6)(24 eps)/r2, times (r2 < rc2):
         computed for every listed pair, then zeroed outside rc (no branch).
         """
