@@ -888,6 +888,43 @@ if njit is not None:
         return 0
 
     @inline
+    def _reflect_face(d, side, wall, g, coord, vwall, stats, row, k, X, V, M, groups, rstat, ftm2v, u0, u1):
+        """One wall/reflect face over atoms u0..u1-1 (walls.ReflectKernel.apply): an atom of group g
+        past coord (side < 0: below it; else above) gets x -> 2 coord - x and v -> -v (`wall`,
+        frame wall: v -> 2 vwall - v). Without statistics one branch-free pass (selects: the same
+        values, every atom written), which the compiler vectorises; with them the reflected atoms
+        add their count and impulse M (v_before - v_after) / ftm2v to rstat[row, k] in atom
+        order, as np.bincount sums them."""
+        sgn = 1.0 if side < 0 else -1.0  # past: sgn x < sgn coord (x < coord, or -x < -coord: x > coord), exactly
+        lim = sgn * coord
+        two = 2.0 * coord
+        if stats:
+            for i in range(u0, u1):
+                pos = X[d, i]
+                if sgn * pos < lim and groups[g, i] != 0:
+                    X[d, i] = two - pos
+                    vb = V[d, i]
+                    va = 2.0 * vwall - vb if wall else -vb
+                    V[d, i] = va
+                    rstat[row, k, 0] += 1.0
+                    rstat[row, k, 1] += M[i] * (vb - va) / ftm2v
+        elif wall:
+            vw2 = 2.0 * vwall
+            for i in range(u0, u1):
+                pos = X[d, i]
+                vb = V[d, i]
+                past = (sgn * pos < lim) & (groups[g, i] != 0)
+                X[d, i] = two - pos if past else pos
+                V[d, i] = vw2 - vb if past else vb
+        else:
+            for i in range(u0, u1):
+                pos = X[d, i]
+                vb = V[d, i]
+                past = (sgn * pos < lim) & (groups[g, i] != 0)
+                X[d, i] = two - pos if past else pos
+                V[d, i] = -vb if past else vb
+
+    @inline
     def _block_step(c, u0, u1, si, row, dtc, due, X, V, F, M, RAD, DTFM, CAND, groups, box,
                     sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp,
                     tbst):
@@ -909,20 +946,8 @@ if njit is not None:
                 V[d, i] = vi
                 X[d, i] = X[d, i] + dtc * vi
         for k in range(rf_meta.shape[0]):  # wall/reflect (post_integrate)
-            d = rf_meta[k, 0]
-            side = rf_meta[k, 1]
-            g = rf_meta[k, 3]
-            coord = rf_val[c, si, k]
-            for i in range(u0, u1):
-                pos = X[d, i]
-                if ((pos < coord) if side < 0 else (pos > coord)) and groups[g, i] != 0:
-                    X[d, i] = 2.0 * coord - pos
-                    vb = V[d, i]
-                    va = 2.0 * vw[row, k] - vb if rf_meta[k, 2] == 1 else -vb
-                    V[d, i] = va
-                    if stats:
-                        rstat[row, k, 0] += 1.0
-                        rstat[row, k, 1] += M[i] * (vb - va) / ftm2v
+            _reflect_face(rf_meta[k, 0], rf_meta[k, 1], rf_meta[k, 2] == 1, rf_meta[k, 3], rf_val[c, si, k],
+                          vw[row, k], stats, row, k, X, V, M, groups, rstat, ftm2v, u0, u1)
         if st[0].shape[0]:  # wall/reflect/stochastic (post_integrate, after the wall/reflect fixes: `eligible`)
             _stochastic_faces(c, u0, u1, X, V, M, groups, st, ftm2v, mvv2e)
         for d in range(3):  # periodic wrap
