@@ -101,7 +101,9 @@ def _close_pairs(a: np.ndarray, b: np.ndarray | None, boxsize: np.ndarray,
     key = (cb[:, 0] * ncell[1] + cb[:, 1]) * ncell[2] + cb[:, 2]
     order = np.argsort(key, kind="stable")
     ncells = int(np.prod(ncell))
-    dense = ncells <= 8 * len(b) + 4096  # a table of every cell's first point and count
+    # a table of every cell's first point and count, unless it would dwarf the 27 lookups per point
+    # of `a` (which a binary search of the sorted keys then answers: the same first point and count)
+    dense = ncells <= 8 * (len(b) + 27 * len(a)) + 4096
     if dense:
         per_cell = np.bincount(key, minlength=ncells)
         first_in = np.cumsum(per_cell) - per_cell
