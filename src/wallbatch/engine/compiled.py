@@ -940,18 +940,37 @@ if njit is not None:
         (a call of more than 30 arguments is compiled by CPython as f(*args), which numba cannot
         inline)."""
         tb, st, lp = tbst
-        for d in range(3):  # initial_integrate: v += dtfm f; x += dt v
-            for i in range(u0, u1):
-                vi = V[d, i] + DTFM[i] * F[d, i]
-                V[d, i] = vi
-                X[d, i] = X[d, i] + dtc * vi
+        # the periodic wrap joins the drift unless something between them reads or moves a
+        # periodic coordinate (a wall/reflect face on a periodic dimension, wall/reflect/stochastic);
+        # the force clear joins it too (nothing reads F before the clear): the same values, fewer passes
+        early = st[0].shape[0] == 0
+        for k in range(rf_meta.shape[0]):
+            early = early and box[2, rf_meta[k, 0]] == 0.0
+        for d in range(3):  # initial_integrate: v += dtfm f; x += dt v (then wrap, f = 0)
+            if early and box[2, d] != 0.0:
+                lod = box[0, d]
+                hid = box[1, d]
+                length = hid - lod
+                for i in range(u0, u1):
+                    vi = V[d, i] + DTFM[i] * F[d, i]
+                    V[d, i] = vi
+                    xi = X[d, i] + dtc * vi
+                    xi = xi - length if xi >= hid else xi
+                    X[d, i] = xi + length if xi < lod else xi
+                    F[d, i] = 0.0
+            else:
+                for i in range(u0, u1):
+                    vi = V[d, i] + DTFM[i] * F[d, i]
+                    V[d, i] = vi
+                    X[d, i] = X[d, i] + dtc * vi
+                    F[d, i] = 0.0
         for k in range(rf_meta.shape[0]):  # wall/reflect (post_integrate)
             _reflect_face(rf_meta[k, 0], rf_meta[k, 1], rf_meta[k, 2] == 1, rf_meta[k, 3], rf_val[c, si, k],
                           vw[row, k], stats, row, k, X, V, M, groups, rstat, ftm2v, u0, u1)
         if st[0].shape[0]:  # wall/reflect/stochastic (post_integrate, after the wall/reflect fixes: `eligible`)
             _stochastic_faces(c, u0, u1, X, V, M, groups, st, ftm2v, mvv2e)
-        for d in range(3):  # periodic wrap
-            if box[2, d] != 0.0:
+        for d in range(3):  # periodic wrap (when not done with the drift)
+            if box[2, d] != 0.0 and not early:
                 lod = box[0, d]
                 hid = box[1, d]
                 length = hid - lod
@@ -959,9 +978,6 @@ if njit is not None:
                     xi = X[d, i]
                     xi = xi - length if xi >= hid else xi
                     X[d, i] = xi + length if xi < lod else xi
-        for d in range(3):  # force clear
-            for i in range(u0, u1):
-                F[d, i] = 0.0
         nbad = 0
         for k in range(sf_meta.shape[0]):  # soft walls (post_force), one loop per style
             style = sf_meta[k, 0]
