@@ -9,8 +9,9 @@ expm1 come from another libm, to ~1e-15). One step of one atom is engine.Engine.
   lost-atom test ; v += dtfm f ; (fix dt/reset: the atom's largest dt)
 
 Layout: per case, the atoms are copied into structure-of-arrays buffers and a step is a few
-simple passes over a block of BLOCK atoms (kick-drift, reflect, wrap, clear, one branch-free pass
-per soft face with the style fixed at compile time, lost test, kick), which the compiler
+simple passes over a block of BLOCK atoms (kick-drift with the periodic wrap and the force clear,
+one branch-free pass per reflect face, one branch-free pass per soft face with the style fixed at
+compile time, lost test, kick), which the compiler
 vectorises (AVX2/AVX-512). Steps run in windows: every step of a window on one block (it stays in
 L1 cache), then the next block. Without dt/reset a window is the whole chunk. With dt/reset the
 smallest dt over the atoms couples them every step; a window of WINDOW steps runs at the current
@@ -929,7 +930,8 @@ if njit is not None:
                     sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp,
                     tbst):
         """One velocity-Verlet step (engine.Engine.step) of atoms u0..u1-1 of case c, as simple
-        passes over the structure-of-arrays buffers: kick-drift, reflect faces (wall velocities
+        passes over the structure-of-arrays buffers: kick-drift (with the force clear and, when
+        nothing in between moves a periodic coordinate, the periodic wrap), reflect faces (wall velocities
         vw[row], statistics into rstat[row]), periodic wrap, force clear, soft faces, lost test,
         kick; with `due`, fix dt/reset's candidates. Returns (status, smallest candidate over
         the dt/reset group, NaN if any is NaN); status 0, 1 (an atom on/behind a soft wall) or
