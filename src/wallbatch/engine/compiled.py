@@ -1004,7 +1004,7 @@ if njit is not None:
         """One velocity-Verlet step (engine.Engine.step) of atoms u0..u1-1 of case c, as simple
         passes over the structure-of-arrays buffers: kick-drift (with the force clear and, when
         nothing in between moves a periodic coordinate, the periodic wrap), reflect faces (wall velocities
-        vw[row], statistics into rstat[row]), periodic wrap, force clear, soft faces, lost test,
+        vw[row], statistics into rstat[row]), the periodic wrap if not done before, soft faces, lost test,
         kick; with `due`, fix dt/reset's candidates. Returns (status, smallest candidate over
         the dt/reset group, NaN if any is NaN); status 0, 1 (an atom on/behind a soft wall) or
         2 (an atom left through a fixed boundary). box rows: lo, hi, periodic (1.0) per dimension;
