@@ -9,8 +9,9 @@ expm1 come from another libm, to ~1e-15). One step of one atom is engine.Engine.
   lost-atom test ; v += dtfm f ; (fix dt/reset: the atom's largest dt)
 
 Layout: per case, the atoms are copied into structure-of-arrays buffers and a step is a few
-simple passes over a block of BLOCK atoms (kick-drift, reflect, wrap, clear, one branch-free pass
-per soft face with the style fixed at compile time, lost test, kick), which the compiler
+simple passes over a block of BLOCK atoms (kick-drift with the periodic wrap and the force clear,
+one branch-free pass per reflect face, one branch-free pass per soft face with the style fixed at
+compile time, lost test, kick), which the compiler
 vectorises (AVX2/AVX-512). Steps run in windows: every step of a window on one block (it stays in
 L1 cache), then the next block. Without dt/reset a window is the whole chunk. With dt/reset the
 smallest dt over the atoms couples them every step; a window of WINDOW steps runs at the current
@@ -960,12 +961,50 @@ if njit is not None:
         return 0
 
     @inline
+    def _reflect_face(d, side, wall, g, coord, vwall, stats, row, k, X, V, M, groups, rstat, ftm2v, u0, u1):
+        """One wall/reflect face over atoms u0..u1-1 (walls.ReflectKernel.apply): an atom of group g
+        past coord (side < 0: below it; else above) gets x -> 2 coord - x and v -> -v (`wall`,
+        frame wall: v -> 2 vwall - v). Without statistics one branch-free pass (selects: the same
+        values, every atom written), which the compiler vectorises; with them the reflected atoms
+        add their count and impulse M (v_before - v_after) / ftm2v to rstat[row, k] in atom
+        order, as np.bincount sums them."""
+        sgn = 1.0 if side < 0 else -1.0  # past: sgn x < sgn coord (x < coord, or -x < -coord: x > coord), exactly
+        lim = sgn * coord
+        two = 2.0 * coord
+        if stats:
+            for i in range(u0, u1):
+                pos = X[d, i]
+                if sgn * pos < lim and groups[g, i] != 0:
+                    X[d, i] = two - pos
+                    vb = V[d, i]
+                    va = 2.0 * vwall - vb if wall else -vb
+                    V[d, i] = va
+                    rstat[row, k, 0] += 1.0
+                    rstat[row, k, 1] += M[i] * (vb - va) / ftm2v
+        elif wall:
+            vw2 = 2.0 * vwall
+            for i in range(u0, u1):
+                pos = X[d, i]
+                vb = V[d, i]
+                past = (sgn * pos < lim) & (groups[g, i] != 0)
+                X[d, i] = two - pos if past else pos
+                V[d, i] = vw2 - vb if past else vb
+        else:
+            for i in range(u0, u1):
+                pos = X[d, i]
+                vb = V[d, i]
+                past = (sgn * pos < lim) & (groups[g, i] != 0)
+                X[d, i] = two - pos if past else pos
+                V[d, i] = -vb if past else vb
+
+    @inline
     def _block_step(c, u0, u1, si, row, dtc, due, X, V, F, M, RAD, DTFM, CAND, groups, box,
                     sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp,
                     tbst):
         """One velocity-Verlet step (engine.Engine.step) of atoms u0..u1-1 of case c, as simple
-        passes over the structure-of-arrays buffers: kick-drift, reflect faces (wall velocities
-        vw[row], statistics into rstat[row]), periodic wrap, force clear, soft faces, lost test,
+        passes over the structure-of-arrays buffers: kick-drift (with the force clear and, when
+        nothing in between moves a periodic coordinate, the periodic wrap), reflect faces (wall velocities
+        vw[row], statistics into rstat[row]), the periodic wrap if not done before, soft faces, lost test,
         kick; with `due`, fix dt/reset's candidates. Returns (status, smallest candidate over
         the dt/reset group, NaN if any is NaN); status 0, 1 (an atom on/behind a soft wall) or
         2 (an atom left through a fixed boundary). box rows: lo, hi, periodic (1.0) per dimension;
@@ -975,30 +1014,37 @@ if njit is not None:
         (a call of more than 30 arguments is compiled by CPython as f(*args), which numba cannot
         inline)."""
         tb, st, lp = tbst
-        for d in range(3):  # initial_integrate: v += dtfm f; x += dt v
-            for i in range(u0, u1):
-                vi = V[d, i] + DTFM[i] * F[d, i]
-                V[d, i] = vi
-                X[d, i] = X[d, i] + dtc * vi
+        # the periodic wrap joins the drift unless something between them reads or moves a
+        # periodic coordinate (a wall/reflect face on a periodic dimension, wall/reflect/stochastic);
+        # the force clear joins it too (nothing reads F before the clear): the same values, fewer passes
+        early = st[0].shape[0] == 0
+        for k in range(rf_meta.shape[0]):
+            early = early and box[2, rf_meta[k, 0]] == 0.0
+        for d in range(3):  # initial_integrate: v += dtfm f; x += dt v (then wrap, f = 0)
+            if early and box[2, d] != 0.0:
+                lod = box[0, d]
+                hid = box[1, d]
+                length = hid - lod
+                for i in range(u0, u1):
+                    vi = V[d, i] + DTFM[i] * F[d, i]
+                    V[d, i] = vi
+                    xi = X[d, i] + dtc * vi
+                    xi = xi - length if xi >= hid else xi
+                    X[d, i] = xi + length if xi < lod else xi
+                    F[d, i] = 0.0
+            else:
+                for i in range(u0, u1):
+                    vi = V[d, i] + DTFM[i] * F[d, i]
+                    V[d, i] = vi
+                    X[d, i] = X[d, i] + dtc * vi
+                    F[d, i] = 0.0
         for k in range(rf_meta.shape[0]):  # wall/reflect (post_integrate)
-            d = rf_meta[k, 0]
-            side = rf_meta[k, 1]
-            g = rf_meta[k, 3]
-            coord = rf_val[c, si, k]
-            for i in range(u0, u1):
-                pos = X[d, i]
-                if ((pos < coord) if side < 0 else (pos > coord)) and groups[g, i] != 0:
-                    X[d, i] = 2.0 * coord - pos
-                    vb = V[d, i]
-                    va = 2.0 * vw[row, k] - vb if rf_meta[k, 2] == 1 else -vb
-                    V[d, i] = va
-                    if stats:
-                        rstat[row, k, 0] += 1.0
-                        rstat[row, k, 1] += M[i] * (vb - va) / ftm2v
+            _reflect_face(rf_meta[k, 0], rf_meta[k, 1], rf_meta[k, 2] == 1, rf_meta[k, 3], rf_val[c, si, k],
+                          vw[row, k], stats, row, k, X, V, M, groups, rstat, ftm2v, u0, u1)
         if st[0].shape[0]:  # wall/reflect/stochastic (post_integrate, after the wall/reflect fixes: `eligible`)
             _stochastic_faces(c, u0, u1, X, V, M, groups, st, ftm2v, mvv2e)
-        for d in range(3):  # periodic wrap
-            if box[2, d] != 0.0:
+        for d in range(3):  # periodic wrap (when not done with the drift)
+            if box[2, d] != 0.0 and not early:
                 lod = box[0, d]
                 hid = box[1, d]
                 length = hid - lod
@@ -1006,9 +1052,6 @@ if njit is not None:
                     xi = X[d, i]
                     xi = xi - length if xi >= hid else xi
                     X[d, i] = xi + length if xi < lod else xi
-        for d in range(3):  # force clear
-            for i in range(u0, u1):
-                F[d, i] = 0.0
         nbad = 0
         for k in range(sf_meta.shape[0]):  # soft walls (post_force), one loop per style
             style = sf_meta[k, 0]
