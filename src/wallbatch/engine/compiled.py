@@ -118,6 +118,13 @@ MAX_CHAIN = 10  # the longest Nose-Hoover chain counted in that budget (longer o
 FIX_LANGEVIN, FIX_NVT, FIX_BERENDSEN, FIX_RESCALE, FIX_ENFORCE2D = 0, 1, 2, 3, 4
 FIX_KINDS: dict[str, int] = {"langevin": FIX_LANGEVIN, "nvt": FIX_NVT, "temp/berendsen": FIX_BERENDSEN,
                              "temp/rescale": FIX_RESCALE, "enforce2d": FIX_ENFORCE2D}
+# What a scene kernel compiles (`kernel_for`): the chunk loop and the block step read these module
+# flags as constants (numba freezes globals), and numba's dead-branch pruning drops a feature's
+# code before typing when its flag is False in the kernel's re-linked globals. True here: all of it.
+KERNEL_FLAGS = ("_K_REFLECT", "_K_STOCHASTIC", "_K_TABLES", "_K_VECTOR", "_K_REGION", "_K_FIXES", "_K_DTR",
+                "_K_FLOW", "_K_TIME", "_K_SAMPLES")
+_K_REFLECT = _K_STOCHASTIC = _K_TABLES = _K_VECTOR = _K_REGION = True
+_K_FIXES = _K_DTR = _K_FLOW = _K_TIME = _K_SAMPLES = True
 
 
 
@@ -908,22 +915,23 @@ if njit is not None:
                 vi = V[d, i] + DTFM[i] * F[d, i]
                 V[d, i] = vi
                 X[d, i] = X[d, i] + dtc * vi
-        for k in range(rf_meta.shape[0]):  # wall/reflect (post_integrate)
-            d = rf_meta[k, 0]
-            side = rf_meta[k, 1]
-            g = rf_meta[k, 3]
-            coord = rf_val[c, si, k]
-            for i in range(u0, u1):
-                pos = X[d, i]
-                if ((pos < coord) if side < 0 else (pos > coord)) and groups[g, i] != 0:
-                    X[d, i] = 2.0 * coord - pos
-                    vb = V[d, i]
-                    va = 2.0 * vw[row, k] - vb if rf_meta[k, 2] == 1 else -vb
-                    V[d, i] = va
-                    if stats:
-                        rstat[row, k, 0] += 1.0
-                        rstat[row, k, 1] += M[i] * (vb - va) / ftm2v
-        if st[0].shape[0]:  # wall/reflect/stochastic (post_integrate, after the wall/reflect fixes: `eligible`)
+        if _K_REFLECT:
+            for k in range(rf_meta.shape[0]):  # wall/reflect (post_integrate)
+                d = rf_meta[k, 0]
+                side = rf_meta[k, 1]
+                g = rf_meta[k, 3]
+                coord = rf_val[c, si, k]
+                for i in range(u0, u1):
+                    pos = X[d, i]
+                    if ((pos < coord) if side < 0 else (pos > coord)) and groups[g, i] != 0:
+                        X[d, i] = 2.0 * coord - pos
+                        vb = V[d, i]
+                        va = 2.0 * vw[row, k] - vb if rf_meta[k, 2] == 1 else -vb
+                        V[d, i] = va
+                        if stats:
+                            rstat[row, k, 0] += 1.0
+                            rstat[row, k, 1] += M[i] * (vb - va) / ftm2v
+        if _K_STOCHASTIC and st[0].shape[0]:  # wall/reflect/stochastic (post_integrate, after the wall/reflect fixes: `eligible`)
             _stochastic_faces(c, u0, u1, X, V, M, groups, st, ftm2v, mvv2e)
         for d in range(3):  # periodic wrap
             if box[2, d] != 0.0:
@@ -943,18 +951,18 @@ if njit is not None:
             g, d, side = sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2]
             coord, cut, ron = sf_val[c, si, k, 0], sf_val[c, si, k, 4], sf_val[c, si, k, 5]
             p0, p1, p2 = sf_val[c, si, k, 1], sf_val[c, si, k, 2], sf_val[c, si, k, 3]
-            if style == TABLE_STYLE:  # wall/table: the face's table from tb (data, not code)
+            if _K_TABLES and style == TABLE_STYLE:  # wall/table: the face's table from tb (data, not code)
                 nbad += _table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1)
-            elif style < TABLE_STYLE:  # wall/lepton, parameters as an array: this case's row of lp
+            elif _K_VECTOR and style < TABLE_STYLE:  # wall/lepton, parameters as an array: this case's row of lp
                 nbad += _vector_faces(-2 - style, X, F, groups, g, d, side, coord, lp[c, k], cut, u0, u1)
             else:
                 nbad += _soft_face(style, sf_meta[k, 4], X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut,
                                    ron, u0, u1)
-        if rg[0].shape[0]:  # wall/region fixes (post_force, after the flat walls as in compute_forces)
+        if _K_REGION and rg[0].shape[0]:  # wall/region fixes (post_force, after the flat walls as in compute_forces)
             nbad += _region_walls(c, u0, u1, X, F, RAD, groups, rg[0], rg[1], rg[2], rg[3])
         if nbad:
             return 1, 0.0
-        if fxp[0].shape[0]:  # post_force fixes: langevin, enforce2d (Ensemble.post_force)
+        if _K_FIXES and fxp[0].shape[0]:  # post_force fixes: langevin, enforce2d (Ensemble.post_force)
             _fix_post_force(u0, u1, V, F, groups, fxp)
         nlost = 0
         for d in range(3):  # lost atoms
@@ -966,11 +974,11 @@ if njit is not None:
         if nlost:
             return 2, 0.0
         xmax, emax, tmax = dtr_par[c, 0], dtr_par[c, 1], dtr_par[c, 3]
-        if not due or tmax != tmax:
+        if not _K_DTR or not due or tmax != tmax:
             for d in range(3):  # final_integrate: v += dtfm f
                 for i in range(u0, u1):
                     V[d, i] = V[d, i] + DTFM[i] * F[d, i]
-            if not due:
+            if not _K_DTR or not due:
                 return 0, np.inf
         else:
             # final_integrate fused with a test: each atom's dt is >= min(dtv, dtf, dte) / 2 (the
@@ -1150,7 +1158,7 @@ if njit is not None:
                         F[d, a] = f[c, a, d]
                     M[a] = mass[c, a]
                     RAD[a] = radius[c, a]
-                if langevin >= 0:
+                if _K_FIXES and langevin >= 0:
                     for a in range(natom):
                         SQM[a] = np.sqrt(M[a])
                         G1[a] = _th_drag(M[a], fx[1][c, langevin, 2], ftm2v)
@@ -1162,7 +1170,7 @@ if njit is not None:
                     base = 0.0
                     sdt = 0.0
                     landing = False
-                    if time_mode:
+                    if _K_TIME and time_mode:
                         now = atime[c] + (step[c] - atimestep[c]) * dt[c]
                         if not now < target - tol:
                             if done == 0:
@@ -1177,14 +1185,14 @@ if njit is not None:
                     nwin = 1
                     if window:
                         nwin = nsteps - done if dtr_every == 0 else min(WINDOW, nsteps - done)
-                        if thermo:  # temp/rescale only (its atoms are coupled on due steps only)
+                        if _K_FIXES and thermo:  # temp/rescale only (its atoms are coupled on due steps only)
                             for k in range(fx_meta.shape[0]):
                                 if fx_meta[k, 0] == FIX_RESCALE:
                                     every = fx_meta[k, 2]
                                     nwin = min(nwin, every - step[c] % every)
-                        if ism < nsm:  # a window ends at a sample step
+                        if _K_SAMPLES and ism < nsm:  # a window ends at a sample step
                             nwin = min(nwin, sm_at[ism] - done)
-                    if time_mode:
+                    if _K_TIME and time_mode:
                         base = dt[c]
                         rem = target - now
                         sdt = _nmin(base, rem)
@@ -1197,39 +1205,39 @@ if njit is not None:
                     hdt = hf * dtc
                     for a in range(natom):
                         DTFM[a] = hdt / M[a]
-                    if window and speculate:
+                    if _K_DTR and window and speculate:
                         _copy3(XS, X)
                         _copy3(VS, V)
                         _copy3(FS, F)
                     for s in range(nwin):
                         low[s] = np.inf
-                        for k in range(nrf):
+                        for k in range(nrf if _K_REFLECT else 0):
                             prev = rf_prev[c, k] if s == 0 else rf_val[c, (done + s - 1) * vary, k]
                             vw[s, k] = (rf_val[c, (done + s) * vary, k] - prev) / dtc if dtc > 0 else 0.0
                             rstat[s, k, 0] = 0.0
                             rstat[s, k, 1] = 0.0
-                    if thermo:  # fix nvt's first half step, the Langevin random forces
+                    if _K_FIXES and thermo:  # fix nvt's first half step, the Langevin random forces
                         _fix_pre(c, step[c] + 1, dtc, V, M, groups, fx, fx_rng, SQM, FR, KB)
                     for b in range(nblock):
                         u0 = np.uint64(b * blk)  # unsigned: no negative-index wraparound, loops vectorise
                         u1 = np.uint64(min(b * blk + blk, natom))
                         for s in range(nwin):
-                            due = dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
+                            due = _K_DTR and dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
                             st, m = _block_step(c, u0, u1, (done + s) * vary, s, dtc, due, X, V, F, M, RAD, DTFM,
                                                 CAND, groups, box, sf_meta, sf_val, rf_meta, rf_val,
                                                 vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp, tbst)
                             if st != 0:
                                 return st
-                            if due:
+                            if _K_DTR and due:
                                 low[s] = _nmin(low[s], m)
-                    if thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
+                    if _K_FIXES and thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
                         st = _fix_end(c, step[c] + nwin, dtc, V, M, groups, fx, KB, FL)
                         if st != 0:
                             return st
-                    if fl_int[0] != 0:  # fix wall/flow (end_of_step)
+                    if _K_FLOW and fl_int[0] != 0:  # fix wall/flow (end_of_step)
                         _flow_step(X, V, M, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross,
                                    fl_rng, CI, DIR)
-                    if window and speculate:
+                    if _K_DTR and window and speculate:
                         first = -1
                         for s in range(nwin):
                             if (step[c] + s + 1) % dtr_every == 0 and _clamp(low[s], natom, dtr_par[c]) != dtc:
@@ -1244,7 +1252,7 @@ if njit is not None:
                             continue
                         backoff = 0
                     step[c] += nwin
-                    for s in range(nwin):
+                    for s in range(nwin if _K_REFLECT else 0):
                         for k in range(nrf):
                             rf_stat[c, k, 0] += rstat[s, k, 0]
                             rf_stat[c, k, 1] += rstat[s, k, 1]
@@ -1252,7 +1260,7 @@ if njit is not None:
                         rf_prev[c, k] = rf_val[c, (done + nwin - 1) * vary, k]
                     done += nwin
                     if not window:
-                        if dtr_every > 0 and step[c] % dtr_every == 0:  # fix dt/reset (end_of_step)
+                        if _K_DTR and dtr_every > 0 and step[c] % dtr_every == 0:  # fix dt/reset (end_of_step)
                             new = _clamp(low[0], natom, dtr_par[c])
                             if new != dt[c]:
                                 atime[c] = atime[c] + (step[c] - atimestep[c]) * dt[c]
@@ -1260,7 +1268,7 @@ if njit is not None:
                                 dt[c] = new
                         if stepwise > 0:
                             stepwise -= 1
-                        if time_mode:
+                        if _K_TIME and time_mode:
                             new_base = dt[c] if dt[c] != sdt else base
                             if landing or new_base != dt[c]:  # at a fixed dt: time = atime + n dt (no sum)
                                 now = atime[c] + (step[c] - atimestep[c]) * dt[c]
@@ -1269,9 +1277,9 @@ if njit is not None:
                             dt[c] = new_base
                             if landing:
                                 break
-                    if ism < nsm and done == sm_at[ism]:  # a sample step: the outputs of Engine.sample
+                    if _K_SAMPLES and ism < nsm and done == sm_at[ism]:  # a sample step: the outputs of Engine.sample
                         _sample_faces(c, (done - 1) * vary, X, RAD, groups, sf_meta, sf_val, sm_face[c, ism])
-                        if rg_meta.shape[0]:
+                        if _K_REGION and rg_meta.shape[0]:
                             _sample_regions(c, X, RAD, groups, rg_meta, rg_geo, rg_val, RBS, sm_reg[c, ism])
                         for a in range(natom):
                             KS[a] = _th_mv2(M[a], V[0, a], V[1, a], V[2, a])
@@ -1285,10 +1293,10 @@ if njit is not None:
                             sm_rstat[c, ism, k, 1] = rf_stat[c, k, 1]
                             rf_stat[c, k, 0] = 0.0
                             rf_stat[c, k, 1] = 0.0
-                        for k in range(fx_meta.shape[0]):  # the fixes' accumulators (ecouple)
+                        for k in range(fx_meta.shape[0] if _K_FIXES else 0):  # the fixes' accumulators (ecouple)
                             for j in range(4):
                                 sm_fx[c, ism, k, j] = fx[2][c, k, j]
-                        if sm_chain.shape[2]:  # fix nvt's chain: eta, eta_dot, eta_mass, t_target
+                        if _K_FIXES and sm_chain.shape[2]:  # fix nvt's chain: eta, eta_dot, eta_mass, t_target
                             j = 0
                             for m in range(fx[3].shape[1]):
                                 sm_chain[c, ism, j] = fx[3][c, m]
@@ -1312,7 +1320,7 @@ if njit is not None:
                         xo[c, a, d] = X[d, a]
                         vo[c, a, d] = V[d, a]
                         fo[c, a, d] = F[d, a]
-                if langevin >= 0:
+                if _K_FIXES and langevin >= 0:
                     for a in range(natom):
                         for d in range(3):
                             fx[13][c, a, d] = FL[d, a]
@@ -1490,37 +1498,42 @@ if njit is not None:
 
     def kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
                    extra: tuple[str, ...] = (), parallel: bool = False, fixes: bool = True, dtr: bool = True,
-                   tables: bool = False, stochastic: bool = False) -> Any:
+                   tables: bool = False, stochastic: bool = False, reflect: bool = True, time: bool = True,
+                   sampled: bool = True) -> Any:
         """The chunk kernel of one kind of scene (`_kernel_for`), one per specialisation and process;
-        `fixes`/`dtr` False: a scene without `fixes:` / fix dt/reset (their code left out)."""
+        False leaves that code out: `fixes` (`fixes:`), `dtr` (fix dt/reset), `reflect`
+        (wall/reflect), `time` (time-based runs, `FastPath.advance_to_time`), `sampled` (samples
+        recorded in the kernel, `FastPath.advance_sampled`)."""
         return _kernel_for(*_scene_args(soft, region, flow, extra, tables, stochastic), bool(parallel), bool(fixes),
-                           bool(dtr))
+                           bool(dtr), bool(reflect), bool(time), bool(sampled))
 
     @functools.lru_cache(maxsize=64)
     def _kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
                     extra: tuple[str, ...], tables: bool, stochastic: bool, parallel: bool, fixes: bool = True,
-                    dtr: bool = True) -> Any:
+                    dtr: bool = True, reflect: bool = True, time: bool = True, sampled: bool = True) -> Any:
         """The chunk kernel of one kind of scene (`pieces_for`; `parallel`: compiled with numba
         parallel=True, reserved for a two-thread variant, not used by the engine yet): this
-        module's chunk kernel re-linked to the scene's block and flow steps, named
-        `_run_chunk_<fingerprint>` so numba caches it on disk in its own index file (beside this
-        file, or with `extra` beside the generated module it is attributed to: compiled once,
-        loaded by later processes)."""
+        module's chunk kernel re-linked to the scene's block and flow steps and to its
+        KERNEL_FLAGS (what it leaves out), named `_run_chunk_<fingerprint>` so numba caches it on
+        disk in its own index file (beside this file, or with `extra` beside the generated module
+        it is attributed to: compiled once, loaded by later processes)."""
         p = _pieces_for(soft, region, flow, extra, tables, stochastic)
+        flags = {"_K_REFLECT": reflect, "_K_STOCHASTIC": stochastic, "_K_TABLES": tables,
+                 "_K_VECTOR": any(src.startswith(VECTOR_MARK) for src in extra), "_K_REGION": bool(region),
+                 "_K_FIXES": fixes, "_K_DTR": dtr, "_K_FLOW": flow, "_K_TIME": time, "_K_SAMPLES": sampled}
         fp = _fingerprint(tuple(sorted(set(soft) | set(region))), flow, parallel,
-                          p.source + ("" if fixes and dtr else f"\n# fixes {fixes}, dt/reset {dtr}"))
-        block_step, links = p.block_step, {}
-        if not (fixes and dtr):
-            gone = {}
-            if not fixes:
-                gone["_fix_post_force"] = _no_fix_post_force
-                links = {"_fix_pre": _no_fix_pre, "_fix_end": _no_fix_end}
-            if not dtr:
-                gone["_dt_candidate"] = _no_dt_candidate
-            block_step = njit(nogil=True, error_model="numpy", inline="always")(_relink(p.block_step, **gone))
+                          p.source + "\n# " + ", ".join(f"{k} {v}" for k, v in flags.items()))
+        gone: dict[str, Any] = {}
+        links: dict[str, Any] = {}
+        if not fixes:
+            gone["_fix_post_force"] = _no_fix_post_force
+            links = {"_fix_pre": _no_fix_pre, "_fix_end": _no_fix_end}
+        if not dtr:
+            gone["_dt_candidate"] = _no_dt_candidate
+        block_step = njit(nogil=True, error_model="numpy", inline="always")(_relink(p.block_step, **gone, **flags))
         fn = _relink(_make_run_chunk(fp), name=f"_run_chunk_{fp:015x}", filename=p.filename,
                      _block_step=block_step, _flow_step=p.flow_step, _sample_faces=p.sample_faces,
-                     _sample_regions=p.sample_regions, **links)
+                     _sample_regions=p.sample_regions, **links, **flags)
         return njit(cache=True, nogil=True, error_model="numpy", parallel=parallel)(fn)
 
 
@@ -2029,8 +2042,11 @@ class FastPath:
         if not (enabled() and eligible(plan) and sampled_eligible(plan)):
             self._sampled_refused = True
             return 0
-        if _splits_atoms(plan, int(at[-1])):
-            return 0  # one case in threads over its atoms (threads.plan_split): sample by sample
+        if _splits_atoms(plan, max(1, int(at[-1]) // at.size)):
+            # one case with enough work between two samples for threads over its atoms
+            # (threads.plan_split): sample by sample. Decided by the steps per sample, not by the
+            # chunk's length, so a run keeps to one of the two kernels (each is a compile)
+            return 0
         # the sample arrays (C, S, ...) within SAMPLE_BUDGET doubles: fewer samples per call
         nfix = len(plan.ensemble.fixes) if plan.ensemble is not None else 0
         width = 6 + 5 * len(plan.region) + 3 * sum(len(w.faces) for w in plan.soft) + 2 * sum(len(w.faces) for w in plan.reflect) \
@@ -2162,7 +2178,8 @@ class FastPath:
         kernel = kernel_for(tuple(sorted({(int(r[0]), int(r[4])) for r in sf_meta if 0 <= r[0] < n})),
                             tuple(sorted({(int(r[2]), int(r[4])) for r in rg[0]})), fk is not None, tuple(extra),
                             fixes=bool(fx[0].shape[0]), dtr=dtr is not None,
-                            tables=bool(np.any(sf_meta[:, 0] == TABLE_STYLE)), stochastic=sk is not None)
+                            tables=bool(np.any(sf_meta[:, 0] == TABLE_STYLE)), stochastic=sk is not None,
+                            reflect=bool(rf_meta.shape[0]), time=time_mode, sampled=at is not None)
         self.kernel = kernel  # the last chunk's kernel (tests read its cache statistics)
         if not kernel.signatures:
             announce_compile(kernel, 30 if extra else COMPILE_SECONDS_FIXES if fx[0].shape[0] or dtr is not None
