@@ -109,10 +109,15 @@ REGION_KINDS: dict[tuple[str, str], int] = {("block", "in"): 0, ("block", "out")
                                             ("sphere", "out"): 3, ("cylinder", "in"): 4, ("cylinder", "out"): 5}
 # this file's code and the generated kernels' helpers: part of the key of the generated lepton chunk kernels
 _SOURCE_DIGEST = hashlib.sha256(Path(__file__).read_bytes() + inspect.getsource(_lepton_helpers).encode()).hexdigest()[:16]
-COMPILE_SECONDS = 15  # typical compile of one scene kernel on a 2-core machine (flat walls: measured 13-14 s; the message's estimate)
-COMPILE_SECONDS_FIXES = 20  # the same with thermostats or dt/reset in the kernel (measured 20-26 s)
+COMPILE_SECONDS = 8  # typical compile of one scene kernel on a 2-core machine (flat walls: measured 5-7.5 s CPU; the message's estimate)
+COMPILE_SECONDS_FIXES = 14  # the same with thermostats or dt/reset in the kernel (measured 10-13.5 s CPU)
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
 SAMPLE_BUDGET = 4_000_000  # sample outputs of a sampled chunk held at once (doubles): fewer samples per call
+# samples at least SPARSE_STEPS steps and SPARSE_WORK atom-steps apart run one instant at a time
+# (`advance`, outputs from NumPy: ~0.5 ms + ~70 ns per atom per sample, a few % of such a chunk),
+# so their kernel leaves the in-kernel sample recording out (`kernel_for`'s `sampled`)
+SPARSE_STEPS = 1000
+SPARSE_WORK = 2_000_000
 MAX_CHAIN = 10  # the longest Nose-Hoover chain counted in that budget (longer ones only take more memory)
 # fixes of `fixes:` in the kernel (fx_meta's kind column); nve is the kernel's own integrator
 FIX_LANGEVIN, FIX_NVT, FIX_BERENDSEN, FIX_RESCALE, FIX_ENFORCE2D = 0, 1, 2, 3, 4
@@ -192,36 +197,29 @@ def _region_dispatch_source(pairs: tuple[tuple[int, int], ...]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _outputs_dispatch_source(pairs: tuple[tuple[int, int], ...]) -> str:
-    """Python source of `_face_out(style, mode, ...)`: as `_dispatch_source`, one branch per
-    (style, cut-off mode) pair of the scene's flat soft faces whose energy the kernel computes
-    (`energy_compiled`), each calling the face's output loop `_eface` with that pair's force and
-    energy inlined; (NaN, NaN, NaN) for any other pair (`sampled_eligible` keeps those scenes out)."""
-    lines = ["def _face_out(style, mode, X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n):"]
+# the two output dispatches of sampled chunks (`_outputs_source`): function, its arguments after
+# (style, mode) (passed on to the loop as they are), the output loop, the number of outputs
+_OUTPUTS = {"face": ("_face_out", "X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n", "_eface", 3),
+            "region": ("_region_out", "RAD, RB, nslot, n, p0, p1, p2, cut, ron", "_rout", 5)}
+
+
+def _outputs_source(pairs: tuple[tuple[int, int], ...], kind: str = "face") -> str:
+    """Python source of the outputs dispatch of sampled chunks: `_face_out(style, mode, ...)` for
+    flat soft faces (kind "face", output loop `_eface`) or `_region_out(style, mode, ...)` for the
+    contacts of a wall/region fix (kind "region", `_rout`). As `_dispatch_source`, one branch per
+    (style, cut-off mode) pair whose energy the kernel computes (`energy_compiled`), each calling
+    the output loop with that pair's force and energy inlined; NaNs for any other pair
+    (`sampled_eligible` keeps those scenes out)."""
+    name, args, loop, nout = _OUTPUTS[kind]
+    lines = [f"def {name}(style, mode, {args}):"]
     k = 0
     for (cond, force, rad, note), (i, m) in zip(_branches(pairs, 0), pairs):
         if not energy_compiled(COMPILED_STYLES[i]):
             continue
         lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
-        lines.append(f"        return _eface({force}, _ENERGY_{i}_{m}, {rad}, X, RAD, groups, g, d, side, coord, p0, p1, "
-                     "p2, cut, ron, n)")
+        lines.append(f"        return {loop}({force}, _ENERGY_{i}_{m}, {rad}, {args})")
         k += 1
-    lines.append("    return _nan, _nan, _nan")
-    return "\n".join(lines) + "\n"
-
-
-def _region_outputs_source(pairs: tuple[tuple[int, int], ...]) -> str:
-    """Python source of `_region_out(style, mode, ...)`: as `_outputs_dispatch_source`, for the
-    contacts of a wall/region fix (`_rout`)."""
-    lines = ["def _region_out(style, mode, RAD, RB, nslot, n, p0, p1, p2, cut, ron):"]
-    k = 0
-    for (cond, force, rad, note), (i, m) in zip(_branches(pairs, 0), pairs):
-        if not energy_compiled(COMPILED_STYLES[i]):
-            continue
-        lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
-        lines.append(f"        return _rout({force}, _ENERGY_{i}_{m}, {rad}, RAD, RB, nslot, n, p0, p1, p2, cut, ron)")
-        k += 1
-    lines.append("    return _nan, _nan, _nan, _nan, _nan")
+    lines.append("    return " + ", ".join(["_nan"] * nout))
     return "\n".join(lines) + "\n"
 
 
@@ -265,7 +263,12 @@ def _fingerprint(pairs: tuple[tuple[int, int], ...], flow: bool, parallel: bool,
 
 if njit is not None:
     # error_model="numpy": x/0 gives inf/nan as in NumPy (no zero-division checks, so loops vectorise)
-    jit = njit(cache=True, nogil=True, error_model="numpy")
+    # no cfunc wrapper to build (each costs a compile of its own): nothing here is called as a
+    # first-class function; the per-scene pieces (`_SCENE`), called from compiled code only, have no
+    # CPython wrapper either (the registry's compiled forces keep theirs: tests call them)
+    _INNER = {"nogil": True, "error_model": "numpy", "no_cfunc_wrapper": True}
+    _SCENE = {**_INNER, "no_cpython_wrapper": True}
+    jit = njit(cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True)
     inline = njit(cache=True, nogil=True, error_model="numpy", inline="always")  # inlined in numba IR
 
     @overload(_dtr.select)
@@ -278,8 +281,8 @@ if njit is not None:
         """thermostats.libm_exp for a scalar: math.exp (the C library's exp)."""
         return lambda x: math.exp(x)
 
-    _dg_series = njit(nogil=True, error_model="numpy")(_flat._colloid_dg_series)
-    _dg_closed = njit(nogil=True, error_model="numpy")(_flat._colloid_dg_closed)
+    _dg_series = njit(**_INNER)(_flat._colloid_dg_series)
+    _dg_closed = njit(**_INNER)(_flat._colloid_dg_closed)
 
     @overload(_flat.colloid_dg)
     def _colloid_dg_scalar(r, big_r, rc, h, b, dct):  # noqa: ANN001, ANN202
@@ -307,20 +310,20 @@ if njit is not None:
     _nmax = inline(_scalar.nmax)
 
     # the registry's force functions, compiled as they are (the same function objects)
-    FORCES = tuple(njit(nogil=True, error_model="numpy")(st.force) for st in COMPILED_STYLES)
+    FORCES = tuple(njit(**_INNER)(st.force) for st in COMPILED_STYLES)
     # each style's force under each cut-off mode it runs: the closures of styles.cutoff around the
     # compiled force (and, for force-shift and smooth, E(r) - E(rc)), compiled as they are
-    _SHIFTED = {i: njit(nogil=True, error_model="numpy")(st.shifted_fn) for i, st in enumerate(COMPILED_STYLES)
+    _SHIFTED = {i: njit(**_INNER)(st.shifted_fn) for i, st in enumerate(COMPILED_STYLES)
                 if len(_modes(st)) > 1}
-    _switch = njit(nogil=True, error_model="numpy")(_cutoff.switch)
-    MODE_FORCES = {(i, m): njit(nogil=True, error_model="numpy")(
+    _switch = njit(**_INNER)(_cutoff.switch)
+    MODE_FORCES = {(i, m): njit(**_INNER)(
         cutoff_functions(FORCES[i], _SHIFTED.get(i, FORCES[i]), m, _switch)[0])
         for i, st in enumerate(COMPILED_STYLES) for m in _modes(st)}
     # each style's reported energy under each cut-off mode (sampled chunks): styles.cutoff's
     # closures around the compiled force and E(r) - E(rc), as the NumPy CutoffStyle.energy
-    _SHIFTED_E = {i: _SHIFTED[i] if i in _SHIFTED else njit(nogil=True, error_model="numpy")(st.shifted_fn)
+    _SHIFTED_E = {i: _SHIFTED[i] if i in _SHIFTED else njit(**_INNER)(st.shifted_fn)
                   for i, st in enumerate(COMPILED_STYLES) if energy_compiled(st)}
-    MODE_ENERGIES = {(i, m): njit(nogil=True, error_model="numpy")(
+    MODE_ENERGIES = {(i, m): njit(**_INNER)(
         cutoff_functions(FORCES[i], _SHIFTED_E[i], m, _switch)[1])
         for i, st in enumerate(COMPILED_STYLES) if i in _SHIFTED_E for m in _modes(st)}
     _dt_candidate = njit(nogil=True, error_model="numpy", inline="always")(dt_candidate)
@@ -1088,14 +1091,13 @@ if njit is not None:
             every case go into the sm arrays (`_sample_faces`; sum m v^2 in NumPy's pairwise order;
             step, dt, atime, atimestep; reflect statistics and flow redraws since the last sample;
             the fixes' accumulators and chain), as Engine.sample would record them."""
-            if nsteps == -fingerprint:  # never: ties the on-disk cache to the styles (see _fingerprint)
-                return 5
+            # (each return releases every live array: a few returns only, for a shorter compile)
             ncase, natom = x.shape[0], x.shape[1]
             nrf = rf_meta.shape[0]
             hf = 0.5 * ftm2v
             vary = 1 if (sf_val.shape[1] > 1 or rf_val.shape[1] > 1) else 0
             # wall/reflect/stochastic draws for the atoms of a face in atom order: one block of all atoms
-            blk = max(natom, 1) if st_meta.shape[0] else BLOCK
+            blk = (natom if natom > 1 else 1) if st_meta.shape[0] else BLOCK
             nblock = (natom + blk - 1) // blk
             box = np.empty((3, 3))
             for d in range(3):
@@ -1113,16 +1115,19 @@ if njit is not None:
             XS = np.empty((3, natom if speculate else 0))  # window start, to undo a window
             VS = np.empty((3, natom if speculate else 0))
             FS = np.empty((3, natom if speculate else 0))
-            nrow = max(1, nsteps if dtr_every == 0 else min(WINDOW, nsteps))
-            vw = np.zeros((nrow, nrf))  # wall velocities (frame wall) per step of a window
-            rstat = np.zeros((nrow, nrf, 2))  # reflections and impulse per step and face
+            # (plain conditionals for min/max and np.empty for np.zeros: each overload is a compile)
+            nrow = nsteps if dtr_every == 0 else (WINDOW if WINDOW < nsteps else nsteps)
+            nrow = nrow if nrow > 1 else 1
+            vw = np.empty((nrow, nrf))  # wall velocities (frame wall) per step of a window (set per window)
+            rstat = np.empty((nrow, nrf, 2))  # reflections and impulse per step and face (set per window)
             low = np.empty(nrow)  # smallest dt/reset candidate per step of a window
             # wall/region: one argument (a call of more than 30 arguments is compiled by CPython as
             # f(*args), which numba cannot inline); RB holds a block's contacts (_region_contacts)
             rg = (rg_meta, rg_geo, rg_val, np.empty((6, 5, blk)))
             # wall/flow (fl_int[0] != 0; the chunk then holds one case): step by step over all blocks
-            CI = np.empty(natom if fl_int[0] != 0 else 0, np.int64)
-            DIR = np.empty(natom if fl_int[0] != 0 else 0)
+            if _K_FLOW:
+                CI = np.empty(natom if fl_int[0] != 0 else 0, np.int64)
+                DIR = np.empty(natom if fl_int[0] != 0 else 0)
             # fixes (fx: see _fix_pre; fx[0] = fx_meta): thermostats couple the atoms every step, so
             # a chunk with one goes step by step over all blocks; enforce2d alone keeps the windows
             fx_meta = fx[0]
@@ -1138,8 +1143,12 @@ if njit is not None:
             nfx = natom if fx_meta.shape[0] else 0
             SQM = np.empty(nfx)  # sqrt(m): the Langevin random force's per-atom factor
             G1 = np.empty(nfx)  # the Langevin drag per atom
-            FR = np.zeros((3, nfx))  # this step's Langevin random forces
-            FL = np.zeros((3, nfx))  # this step's Langevin forces (the tally's)
+            FR = np.empty((3, nfx))  # this step's Langevin random forces
+            FL = np.empty((3, nfx))  # this step's Langevin forces (the tally's)
+            for d in range(3):
+                for a in range(nfx):
+                    FR[d, a] = 0.0
+                    FL[d, a] = 0.0
             KB = np.empty(nfx)  # per-atom terms of a sum over atoms
             fxp = (fx_meta, G1, FR, FL)
             sm_at, sm_mv2, sm_clock, sm_face, sm_rstat, sm_fx, sm_chain, sm_cross, sm_reg = sm
@@ -1148,7 +1157,9 @@ if njit is not None:
             RBS = np.empty((6, 5, natom if nsm and rg_meta.shape[0] else 0))  # a case's region contacts
             tb = (tb_meta, tb_par, tb_data)  # wall/table faces (`_table_faces`)
             nst = natom if st_meta.shape[0] else 0
-            sto = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(nst, np.int64), np.empty((4, nst)))
+            # scratch of the stochastic faces (a scene without them: `periodic`, an int64 array never read)
+            sto = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(nst, np.int64) if _K_STOCHASTIC else periodic,
+                   np.empty((4, nst)))
             tbst = (tb, sto, lp_val)  # wall/reflect/stochastic, lepton parameter rows
             for c in range(ncase):
                 for a in range(natom):
@@ -1184,14 +1195,18 @@ if njit is not None:
                               and (rescale_only or not thermo))
                     nwin = 1
                     if window:
-                        nwin = nsteps - done if dtr_every == 0 else min(WINDOW, nsteps - done)
+                        nwin = nsteps - done
+                        if dtr_every != 0 and WINDOW < nwin:
+                            nwin = WINDOW
                         if _K_FIXES and thermo:  # temp/rescale only (its atoms are coupled on due steps only)
                             for k in range(fx_meta.shape[0]):
                                 if fx_meta[k, 0] == FIX_RESCALE:
                                     every = fx_meta[k, 2]
-                                    nwin = min(nwin, every - step[c] % every)
+                                    due_in = every - step[c] % every
+                                    nwin = due_in if due_in < nwin else nwin
                         if _K_SAMPLES and ism < nsm:  # a window ends at a sample step
-                            nwin = min(nwin, sm_at[ism] - done)
+                            to_sample = sm_at[ism] - done
+                            nwin = to_sample if to_sample < nwin else nwin
                     if _K_TIME and time_mode:
                         base = dt[c]
                         rem = target - now
@@ -1220,7 +1235,7 @@ if njit is not None:
                         _fix_pre(c, step[c] + 1, dtc, V, M, groups, fx, fx_rng, SQM, FR, KB)
                     for b in range(nblock):
                         u0 = np.uint64(b * blk)  # unsigned: no negative-index wraparound, loops vectorise
-                        u1 = np.uint64(min(b * blk + blk, natom))
+                        u1 = np.uint64(b * blk + blk if b * blk + blk < natom else natom)
                         for s in range(nwin):
                             due = _K_DTR and dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
                             st, m = _block_step(c, u0, u1, (done + s) * vary, s, dtc, due, X, V, F, M, RAD, DTFM,
@@ -1248,7 +1263,7 @@ if njit is not None:
                             _copy3(V, VS)
                             _copy3(F, FS)
                             stepwise = first + 1 + backoff
-                            backoff = min(2 * backoff + 8, 4096)
+                            backoff = 2 * backoff + 8 if 2 * backoff + 8 < 4096 else 4096
                             continue
                         backoff = 0
                     step[c] += nwin
@@ -1311,20 +1326,20 @@ if njit is not None:
                         sm_cross[c, ism] = fl_cross[0]  # flow redraws since the last sample (take_crossings)
                         fl_cross[0] = 0.0
                         ism += 1
-                if not math.isfinite(dt[c]):
-                    return 3
+                finite = math.isfinite(dt[c])
                 for a in range(natom):
                     for d in range(3):
-                        if not (math.isfinite(X[d, a]) and math.isfinite(V[d, a])):
-                            return 3
+                        finite = finite & math.isfinite(X[d, a]) & math.isfinite(V[d, a])
                         xo[c, a, d] = X[d, a]
                         vo[c, a, d] = V[d, a]
                         fo[c, a, d] = F[d, a]
+                if not finite:
+                    return 3
                 if _K_FIXES and langevin >= 0:
                     for a in range(natom):
                         for d in range(3):
                             fx[13][c, a, d] = FL[d, a]
-            return 0
+            return 5 if nsteps == -fingerprint else 0  # never 5: ties the on-disk cache to the styles (_fingerprint)
         return _run_chunk
 
     @jit
@@ -1449,7 +1464,7 @@ if njit is not None:
                 if extra[j].startswith(VECTOR_MARK):
                     namespace[f"_VEXTRA_{j}"] = force
                 else:
-                    namespace[f"_EXTRA_{j}"] = njit(nogil=True, error_model="numpy")(
+                    namespace[f"_EXTRA_{j}"] = njit(**_SCENE)(
                         cutoff_functions(force, force, SHIFT, _switch)[0])
             filename = module.__file__
         else:
@@ -1457,28 +1472,28 @@ if njit is not None:
             source = _dispatch_source(soft)
             exec(compile(source, "<wallbatch soft-face dispatch>", "exec"), namespace)  # noqa: S102 - generated here
         soft_face = njit(nogil=True, error_model="numpy", inline="always")(namespace["_soft_face"])
-        osource = _outputs_dispatch_source(soft)
+        osource = _outputs_source(soft)
         source += osource
         exec(compile(osource, "<wallbatch soft-face outputs dispatch>", "exec"), namespace)  # noqa: S102 - generated here
         face_out = njit(nogil=True, error_model="numpy", inline="always")(namespace["_face_out"])
-        sample_faces = njit(nogil=True, error_model="numpy")(_relink(_sample_faces, _face_out=face_out))
+        sample_faces = njit(**_SCENE)(_relink(_sample_faces, _face_out=face_out))
         region_walls = _no_region_walls
         sample_regions = _no_sample_regions
         if region:
             namespace.update({f"_ENERGY_{i}_{m}": MODE_ENERGIES[(i, m)] for i, m in region if (i, m) in MODE_ENERGIES})
             namespace["_rout"] = _rout
-            rsource = _region_dispatch_source(region) + _region_outputs_source(region)
+            rsource = _region_dispatch_source(region) + _outputs_source(region, "region")
             source += rsource
             exec(compile(rsource, "<wallbatch region dispatch>", "exec"), namespace)  # noqa: S102 - generated here
             region_force = njit(nogil=True, error_model="numpy", inline="always")(namespace["_region_force"])
-            region_walls = njit(nogil=True, error_model="numpy")(_relink(_region_walls, _region_force=region_force))
+            region_walls = njit(**_SCENE)(_relink(_region_walls, _region_force=region_force))
             region_out = njit(nogil=True, error_model="numpy", inline="always")(namespace["_region_out"])
-            sample_regions = njit(nogil=True, error_model="numpy")(_relink(_sample_regions, _region_out=region_out))
+            sample_regions = njit(**_SCENE)(_relink(_sample_regions, _region_out=region_out))
         flow_step = _no_flow_step
         if flow:
             from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
 
-            flow_step = njit(nogil=True, error_model="numpy")(_relink(_flow_step, flow_compiled=flow_compiled))
+            flow_step = njit(**_SCENE)(_relink(_flow_step, flow_compiled=flow_compiled))
         vector_faces = _no_vector_faces
         if any(src.startswith(VECTOR_MARK) for src in extra):
             vector_faces = njit(nogil=True, error_model="numpy", inline="always")(namespace["_vector_faces"])
@@ -1534,7 +1549,7 @@ if njit is not None:
         fn = _relink(_make_run_chunk(fp), name=f"_run_chunk_{fp:015x}", filename=p.filename,
                      _block_step=block_step, _flow_step=p.flow_step, _sample_faces=p.sample_faces,
                      _sample_regions=p.sample_regions, **links, **flags)
-        return njit(cache=True, nogil=True, error_model="numpy", parallel=parallel)(fn)
+        return njit(cache=True, nogil=True, error_model="numpy", parallel=parallel, no_cfunc_wrapper=True)(fn)
 
 
 # ----------------------------------------------------------------------------- the Python side
@@ -2042,7 +2057,11 @@ class FastPath:
         if not (enabled() and eligible(plan) and sampled_eligible(plan)):
             self._sampled_refused = True
             return 0
-        if _splits_atoms(plan, max(1, int(at[-1]) // at.size)):
+        per = max(1, int(at[-1]) // at.size)  # steps per sample
+        if per >= SPARSE_STEPS and per * plan.state.x.shape[1] * plan.state.ncases >= SPARSE_WORK:
+            return 0  # sparse samples: one instant at a time costs little, and the kernel without
+            # the sample recording compiles in less time
+        if _splits_atoms(plan, per):
             # one case with enough work between two samples for threads over its atoms
             # (threads.plan_split): sample by sample. Decided by the steps per sample, not by the
             # chunk's length, so a run keeps to one of the two kernels (each is a compile)
