@@ -330,3 +330,34 @@ def test_a_case_failing_mid_chunk(monkeypatch):
     assert step > 10  # mid-run
     assert np.isnan(got[1].data["ke"]).all() and not np.isnan(got[0].data["ke"]).any()
     assert eng.fast.fallbacks >= 1 and len(eng.sample_blocks) >= 2
+
+
+def test_one_run_keeps_to_one_kernel(monkeypatch):
+    """A one-case run whose whole length would be split over two threads but whose samples are
+    close together runs every sample in the kernel (no threads), so it compiles one kernel, not a
+    one-instant kernel for the first chunks and a sampled one for the last (as when the choice
+    followed each chunk's length)."""
+    from wallbatch.engine import threads
+
+    monkeypatch.setenv("WALLBATCH_THREADS", "2")
+    monkeypatch.setattr(threads, "MIN_WORK", 2000)  # 300 atoms x 150 steps: split; x 10 steps: not
+    ref, got, eng = run_both(monkeypatch, [gas(lj93(), n=300, steps=150, thermo=10)])
+    assert_same_results(ref, got)
+    assert len(eng.fast.kernel_names) == 1
+    assert eng.fast.sampled_calls > 0 and len(eng.samples) == 1  # step 0 only from NumPy
+
+
+def test_sparse_samples_one_instant_at_a_time(monkeypatch):
+    """Samples far apart (SPARSE_STEPS steps and SPARSE_WORK atom-steps) run chunk by chunk with
+    the outputs from NumPy, on a kernel without the sample recording (KERNEL_FLAGS); the same bits."""
+    monkeypatch.setattr(fast, "SPARSE_STEPS", 50)
+    monkeypatch.setattr(fast, "SPARSE_WORK", 50 * 120)
+    ref, got, eng = run_both(monkeypatch, [gas(lj93(), steps=150, thermo=50)])
+    assert_same_results(ref, got)
+    assert eng.fast.sampled_calls == 0 and eng.fast.compiled_chunks == 3 and len(eng.samples) == 4
+    assert eng.fast.kernel.py_func.__globals__["_K_SAMPLES"] is False
+    monkeypatch.setattr(fast, "SPARSE_WORK", 50 * 120 + 1)  # just below: recorded in the kernel
+    ref, got, eng = run_both(monkeypatch, [gas(lj93(), steps=150, thermo=50)])
+    assert_same_results(ref, got)
+    assert eng.fast.sampled_calls == 1 and eng.fast.kernel.py_func.__globals__["_K_SAMPLES"] is True
+

@@ -49,8 +49,10 @@ meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a vari
 negative variable parameter) leaves the state as it was at its start and is handed back to the
 NumPy loop, which re-runs it and reports exactly as always. `WALLBATCH_NUMBA=0` (or numba not
 importable) selects the NumPy path everywhere. Kernels are built per kind of scene (`kernel_for`:
-only the styles, cut-off modes, region and flow code it has) and cached on disk by numba under
-their own names; a kernel not yet cached is announced on stderr before it compiles.
+only the styles, cut-off modes, region and flow code it has; KERNEL_FLAGS leave out the code of
+what it does not use: wall/reflect, fixes, dt/reset, time-based runs, in-kernel samples, ...) and
+cached on disk by numba under their own names; a kernel not yet cached is announced on stderr
+before it compiles.
 """
 
 from __future__ import annotations
@@ -1937,6 +1939,7 @@ class FastPath:
         self.compiled_chunks = 0  # chunks run compiled (tests and benchmarks read these)
         self.sampled_calls = 0  # kernel calls that recorded samples themselves (advance_sampled)
         self.kernel: Any = None  # the scene kernel of the last chunk (kernel_for)
+        self.kernel_names: set[str] = set()  # every scene kernel this path ran (each is a compile)
         self.fallbacks = 0  # chunks handed back to NumPy
         self._spare: tuple[np.ndarray, ...] = ()  # output buffers for x, v, f (swapped with the state's)
         self._sampled_refused = False  # the scene's samples are not recorded in the kernel (sampled_eligible)
@@ -2200,6 +2203,7 @@ class FastPath:
                             tables=bool(np.any(sf_meta[:, 0] == TABLE_STYLE)), stochastic=sk is not None,
                             reflect=bool(rf_meta.shape[0]), time=time_mode, sampled=at is not None)
         self.kernel = kernel  # the last chunk's kernel (tests read its cache statistics)
+        self.kernel_names.add(kernel.py_func.__qualname__)
         if not kernel.signatures:
             announce_compile(kernel, 30 if extra else COMPILE_SECONDS_FIXES if fx[0].shape[0] or dtr is not None
                              else COMPILE_SECONDS)  # generated forces: ~30 s
