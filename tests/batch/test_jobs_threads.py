@@ -83,3 +83,34 @@ def test_small_run_keeps_its_results_instead_of_reading_the_parts(tmp_path, monk
         if name != "seconds":  # each run's own timing
             np.testing.assert_array_equal(kept[name].values, read[name].values)
     assert kept["pe"].shape == (4, 5) and np.isfinite(kept["pe"].values).all()
+
+
+@pytest.mark.skipif(compiled.njit is None, reason="numba not importable")
+@pytest.mark.parametrize("thermo, sampled", [(10, True), (40, False)])
+def test_warm_up_builds_the_kernel_the_run_uses(monkeypatch, tmp_path, thermo, sampled):
+    """Before forking workers, the first case's warm-up step asks for the very kernel the run will
+    use (samples recorded in the kernel or one instant at a time), so the workers inherit it instead
+    of each compiling another."""
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    monkeypatch.setattr(compiled, "SPARSE_STEPS", 40)  # 40 steps x 500 atoms apart: sparse here
+    monkeypatch.setattr(compiled, "SPARSE_WORK", 40 * 500)
+    calls: list[tuple] = []
+    real = compiled.kernel_for
+
+    def spy(*args, **kwargs):
+        calls.append((args, tuple(sorted(kwargs.items()))))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(compiled, "kernel_for", spy)
+    path = sweep_file(tmp_path, 1, 500, steps=40)
+    path.write_text(path.read_text().replace("run.thermo: 10", f"run.thermo: {thermo}"))
+    case = runner.build_case(load(path).cases[0].config)
+    runner._warm_compiler(case)
+    warmed = set(calls)
+    calls.clear()
+    from wallbatch.engine.engine import Engine
+
+    eng = Engine([case])
+    assert eng.run()[0].status == "ok"
+    assert set(calls) == warmed and len(warmed) == 1
+    assert dict(next(iter(warmed))[1])["sampled"] is sampled

@@ -2048,27 +2048,34 @@ class FastPath:
         """Engine.advance_to_time compiled; False: let the NumPy loop do it."""
         return self._chunk(0, True, target)
 
+    def samples_in_kernel(self, at: np.ndarray) -> bool:
+        """Whether `advance_sampled` records the samples `at` (steps from now, increasing) in the
+        kernel; False: the caller goes one instant at a time (`advance`). Decided by the steps per
+        sample, not by a chunk's length, so a run keeps to one of the two kernels (each is a
+        compile; batch/runner.py warms the one a run will use)."""
+        at = np.asarray(at, np.int64)
+        if self._sampled_refused or at.size == 0 or at[0] <= 0 or np.any(np.diff(at) <= 0):
+            return False
+        plan = self.plan_source()
+        if not (enabled() and eligible(plan) and sampled_eligible(plan)):
+            self._sampled_refused = True  # not asked again
+            return False
+        per = max(1, int(at[-1]) // at.size)  # steps per sample
+        if per >= SPARSE_STEPS and per * plan.state.x.shape[1] * plan.state.ncases >= SPARSE_WORK:
+            return False  # sparse samples: one instant at a time costs little, and the kernel
+            # without the sample recording compiles in less time
+        # one case with enough work between two samples for threads over its atoms
+        # (threads.plan_split): one instant at a time
+        return not _splits_atoms(plan, per)
+
     def advance_sampled(self, at: np.ndarray) -> int:
         """Run to the sample steps `at` (counted from now, increasing), recording every sample
         inside the kernel (plan.record_samples); returns how many of them were run (the first ones;
-        0: nothing done, let the caller go sample by sample). `sampled_eligible` says which scenes
-        run here; one that does not is not asked again."""
+        0: nothing done, let the caller go sample by sample: `samples_in_kernel`)."""
+        if not self.samples_in_kernel(at):
+            return 0
         at = np.asarray(at, np.int64)
-        if self._sampled_refused or at.size == 0 or at[0] <= 0 or np.any(np.diff(at) <= 0):
-            return 0
         plan = self.plan_source()
-        if not (enabled() and eligible(plan) and sampled_eligible(plan)):
-            self._sampled_refused = True
-            return 0
-        per = max(1, int(at[-1]) // at.size)  # steps per sample
-        if per >= SPARSE_STEPS and per * plan.state.x.shape[1] * plan.state.ncases >= SPARSE_WORK:
-            return 0  # sparse samples: one instant at a time costs little, and the kernel without
-            # the sample recording compiles in less time
-        if _splits_atoms(plan, per):
-            # one case with enough work between two samples for threads over its atoms
-            # (threads.plan_split): sample by sample. Decided by the steps per sample, not by the
-            # chunk's length, so a run keeps to one of the two kernels (each is a compile)
-            return 0
         # the sample arrays (C, S, ...) within SAMPLE_BUDGET doubles: fewer samples per call
         nfix = len(plan.ensemble.fixes) if plan.ensemble is not None else 0
         width = 6 + 5 * len(plan.region) + 3 * sum(len(w.faces) for w in plan.soft) + 2 * sum(len(w.faces) for w in plan.reflect) \
