@@ -86,14 +86,12 @@ def test_small_run_keeps_its_results_instead_of_reading_the_parts(tmp_path, monk
 
 
 @pytest.mark.skipif(compiled.njit is None, reason="numba not importable")
-@pytest.mark.parametrize("thermo, sampled", [(10, True), (40, False)])
-def test_warm_up_builds_the_kernel_the_run_uses(monkeypatch, tmp_path, thermo, sampled):
+@pytest.mark.parametrize("length, time_based", [("run.steps: 40", False), ("run.steps: null, run.time: 0.2, run.thermo: {time: 0.05}", True)])
+def test_warm_up_builds_the_kernel_the_run_uses(monkeypatch, tmp_path, length, time_based):
     """Before forking workers, the first case's warm-up step asks for the very kernel the run will
-    use (samples recorded in the kernel or one instant at a time), so the workers inherit it instead
+    use (step- or time-based: each leaves the other's code out), so the workers inherit it instead
     of each compiling another."""
     monkeypatch.setenv("WALLBATCH_NUMBA", "1")
-    monkeypatch.setattr(compiled, "SPARSE_STEPS", 40)  # 40 steps x 500 atoms apart: sparse here
-    monkeypatch.setattr(compiled, "SPARSE_WORK", 40 * 500)
     calls: list[tuple] = []
     real = compiled.kernel_for
 
@@ -103,7 +101,8 @@ def test_warm_up_builds_the_kernel_the_run_uses(monkeypatch, tmp_path, thermo, s
 
     monkeypatch.setattr(compiled, "kernel_for", spy)
     path = sweep_file(tmp_path, 1, 500, steps=40)
-    path.write_text(path.read_text().replace("run.thermo: 10", f"run.thermo: {thermo}"))
+    path.write_text(path.read_text().replace("run.steps: 40, run.thermo: 10", length if time_based else
+                                             length + ", run.thermo: 10"))
     case = runner.build_case(load(path).cases[0].config)
     runner._warm_compiler(case)
     warmed = set(calls)
@@ -111,6 +110,6 @@ def test_warm_up_builds_the_kernel_the_run_uses(monkeypatch, tmp_path, thermo, s
     from wallbatch.engine.engine import Engine
 
     eng = Engine([case])
-    assert eng.run()[0].status == "ok"
+    assert eng.run()[0].status == "ok" and eng.fast.compiled_chunks > 0
     assert set(calls) == warmed and len(warmed) == 1
-    assert dict(next(iter(warmed))[1])["sampled"] is sampled
+    assert dict(next(iter(warmed))[1])["time"] is time_based

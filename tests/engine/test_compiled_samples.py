@@ -347,17 +347,17 @@ def test_one_run_keeps_to_one_kernel(monkeypatch):
     assert eng.fast.sampled_calls > 0 and len(eng.samples) == 1  # step 0 only from NumPy
 
 
-def test_sparse_samples_one_instant_at_a_time(monkeypatch):
-    """Samples far apart (SPARSE_STEPS steps and SPARSE_WORK atom-steps) run chunk by chunk with
-    the outputs from NumPy, on a kernel without the sample recording (KERNEL_FLAGS); the same bits."""
-    monkeypatch.setattr(fast, "SPARSE_STEPS", 50)
-    monkeypatch.setattr(fast, "SPARSE_WORK", 50 * 120)
-    ref, got, eng = run_both(monkeypatch, [gas(lj93(), steps=150, thermo=50)])
-    assert_same_results(ref, got)
-    assert eng.fast.sampled_calls == 0 and eng.fast.compiled_chunks == 3 and len(eng.samples) == 4
-    assert eng.fast.kernel.py_func.__globals__["_K_SAMPLES"] is False
-    monkeypatch.setattr(fast, "SPARSE_WORK", 50 * 120 + 1)  # just below: recorded in the kernel
-    ref, got, eng = run_both(monkeypatch, [gas(lj93(), steps=150, thermo=50)])
-    assert_same_results(ref, got)
-    assert eng.fast.sampled_calls == 1 and eng.fast.kernel.py_func.__globals__["_K_SAMPLES"] is True
+def test_both_ways_of_sampling_share_one_kernel(monkeypatch):
+    """Samples recorded in the kernel and samples taken one instant at a time (a case split over
+    two threads between samples) run the same kernel: one compile per kind of scene, whatever the
+    sample spacing; both give NumPy's bits."""
+    from wallbatch.engine import threads
 
+    monkeypatch.setenv("WALLBATCH_THREADS", "2")
+    monkeypatch.setattr(threads, "MIN_WORK", 2000)
+    ref, got, near = run_both(monkeypatch, [gas(lj93(), n=300, steps=150, thermo=5)])  # 1500: no split
+    assert_same_results(ref, got)
+    ref, got, far = run_both(monkeypatch, [gas(lj93(), n=300, steps=150, thermo=50)])  # 15000: split
+    assert_same_results(ref, got)
+    assert near.fast.sampled_calls > 0 and far.fast.sampled_calls == 0 and far.fast.compiled_chunks == 3
+    assert near.fast.kernel_names == far.fast.kernel_names and len(near.fast.kernel_names) == 1

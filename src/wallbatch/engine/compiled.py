@@ -115,11 +115,6 @@ COMPILE_SECONDS = 8  # typical compile of one scene kernel on a 2-core machine (
 COMPILE_SECONDS_FIXES = 14  # the same with thermostats or dt/reset in the kernel (measured 10-13.5 s CPU)
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
 SAMPLE_BUDGET = 4_000_000  # sample outputs of a sampled chunk held at once (doubles): fewer samples per call
-# samples at least SPARSE_STEPS steps and SPARSE_WORK atom-steps apart run one instant at a time
-# (`advance`, outputs from NumPy: ~0.5 ms + ~70 ns per atom per sample, a few % of such a chunk),
-# so their kernel leaves the in-kernel sample recording out (`kernel_for`'s `sampled`)
-SPARSE_STEPS = 1000
-SPARSE_WORK = 2_000_000
 MAX_CHAIN = 10  # the longest Nose-Hoover chain counted in that budget (longer ones only take more memory)
 # fixes of `fixes:` in the kernel (fx_meta's kind column); nve is the kernel's own integrator
 FIX_LANGEVIN, FIX_NVT, FIX_BERENDSEN, FIX_RESCALE, FIX_ENFORCE2D = 0, 1, 2, 3, 4
@@ -2051,8 +2046,7 @@ class FastPath:
     def samples_in_kernel(self, at: np.ndarray) -> bool:
         """Whether `advance_sampled` records the samples `at` (steps from now, increasing) in the
         kernel; False: the caller goes one instant at a time (`advance`). Decided by the steps per
-        sample, not by a chunk's length, so a run keeps to one of the two kernels (each is a
-        compile; batch/runner.py warms the one a run will use)."""
+        sample, not by a chunk's length, so a run keeps to one way (batch/runner.py warms it)."""
         at = np.asarray(at, np.int64)
         if self._sampled_refused or at.size == 0 or at[0] <= 0 or np.any(np.diff(at) <= 0):
             return False
@@ -2060,13 +2054,9 @@ class FastPath:
         if not (enabled() and eligible(plan) and sampled_eligible(plan)):
             self._sampled_refused = True  # not asked again
             return False
-        per = max(1, int(at[-1]) // at.size)  # steps per sample
-        if per >= SPARSE_STEPS and per * plan.state.x.shape[1] * plan.state.ncases >= SPARSE_WORK:
-            return False  # sparse samples: one instant at a time costs little, and the kernel
-            # without the sample recording compiles in less time
         # one case with enough work between two samples for threads over its atoms
         # (threads.plan_split): one instant at a time
-        return not _splits_atoms(plan, per)
+        return not _splits_atoms(plan, max(1, int(at[-1]) // at.size))
 
     def advance_sampled(self, at: np.ndarray) -> int:
         """Run to the sample steps `at` (counted from now, increasing), recording every sample
@@ -2208,7 +2198,9 @@ class FastPath:
                             tuple(sorted({(int(r[2]), int(r[4])) for r in rg[0]})), fk is not None, tuple(extra),
                             fixes=bool(fx[0].shape[0]), dtr=dtr is not None,
                             tables=bool(np.any(sf_meta[:, 0] == TABLE_STYLE)), stochastic=sk is not None,
-                            reflect=bool(rf_meta.shape[0]), time=time_mode, sampled=at is not None)
+                            reflect=bool(rf_meta.shape[0]), time=time_mode,
+                            # one kernel for both ways of sampling (a second would be a second compile)
+                            sampled=sampled_eligible(plan))
         self.kernel = kernel  # the last chunk's kernel (tests read its cache statistics)
         self.kernel_names.add(kernel.py_func.__qualname__)
         if not kernel.signatures:
