@@ -94,6 +94,7 @@ from wallbatch.styles.table import TableWallStyle, linear_lookup, spline_lookup
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
+    from numba.cpython.unsafe.numbers import trailing_zeros as _trailing_zeros
     from numba.extending import overload
 except Exception:  # noqa: BLE001 - any import failure means "no compiled path"
     njit = None
@@ -366,12 +367,19 @@ if njit is not None:
                 vir += fi * r
         return e, fs, vir
 
-    def _sample_faces(c, si, X, RAD, groups, sf_meta, sf_val, out):
-        """Every soft face's outputs (`_eface`) of case c at the current positions into out[k] =
-        (energy, force on the wall, virial). Compiled per scene by `kernel_for` with the scene's
-        `_face_out` dispatch."""
+    def _sample_faces(c, si, X, RAD, groups, sf_meta, sf_val, tb, out):
+        """Every soft face's outputs (`_eface`; wall/table faces: `_table_out` on the tables tb)
+        of case c at the current positions into out[k] = (energy, force on the wall, virial).
+        Compiled per scene by `kernel_for` with the scene's `_face_out` dispatch."""
         n = X.shape[1]
         for k in range(sf_meta.shape[0]):
+            if sf_meta[k, 0] == TABLE_STYLE:
+                e, fs, vir = _table_out(tb, k, X, groups, sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2],
+                                        sf_val[c, si, k, 0], sf_val[c, si, k, 4], n)
+                out[k, 0] = e
+                out[k, 1] = fs
+                out[k, 2] = vir
+                continue
             e, fs, vir = _face_out(sf_meta[k, 0], sf_meta[k, 4], X, RAD, groups, sf_meta[k, 3], sf_meta[k, 1],
                                    sf_meta[k, 2], sf_val[c, si, k, 0], sf_val[c, si, k, 1], sf_val[c, si, k, 2],
                                    sf_val[c, si, k, 3], sf_val[c, si, k, 4], sf_val[c, si, k, 5], n)
@@ -447,48 +455,112 @@ if njit is not None:
     _table_spline = njit(nogil=True, error_model="numpy", inline="always")(spline_lookup)
 
     @inline
-    def _table_face(linear, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6, u0, u1):
+    def _table_face(linear, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6, u0, u1,
+                    MB):
         """One wall/table face over atoms u0..u1-1 (as `_face`, shift mode): F(r) by the table's
         linear or spline lookup (WallTable.lookup's arithmetic: the same functions, jitted) on
         its rows grid, tf (force), td (dF or F2). Returns the number of atoms nearer than the
         table's first distance lo (the NumPy path then reports them). `linear` is a literal.
-        (A branch per atom: measured faster than a branch-free loop and than listing the atoms
-        within the cut-off first.)"""
+
+        Two passes, so no branch depends on where an atom is (a gas near a wall: ~10% of the
+        atoms, in random order, a mispredicted branch every few atoms): a branch-free pass marks
+        the group atoms within the cut-off in the bytes MB (it vectorises); then, 64 atoms at a
+        time, their marks are packed into the bits of one word (8 bytes at once: the byte-to-bit
+        multiply) and only the marked atoms are visited, lowest bit first (atom order), each with
+        its table lookup. (Faster than a branch per atom, a branch-free lookup of every atom and
+        a list of the atoms within the cut-off: benchmarks/table.py.)"""
         sidef = float(side)
         sign = -sidef
         n2 = grid.shape[0] - 2
-        nbad = 0
+        nb = u1 - u0
         for i in range(u0, u1):
             r = (X[d, i] - coord) * sign
-            near = (r < cut) & (groups[g, i] != 0)
-            nbad += near & (r < lo)
-            if near and r >= lo:
-                j = min(int((r - lo) * invdelta), n2)
-                if linear:
-                    fr = _table_linear(r, j, grid, tf, td, invdelta)
+            MB[i - u0] = (r < cut) & (groups[g, i] != 0)
+        nw = (nb + np.uint64(7)) >> np.uint64(3)
+        for i in range(nb, nw << np.uint64(3)):
+            MB[i] = 0
+        W = MB.view(np.uint64)
+        nwi = np.int64(nw)
+        nbad = 0
+        for w0 in range(0, nwi, 8):
+            bits = np.uint64(0)
+            for w in range(w0, min(w0 + 8, nwi)):  # bit 8 (w - w0) + k: atom 8 w + k
+                bits |= ((W[w] * np.uint64(0x0102040810204080)) >> np.uint64(56)) << np.uint64(8 * (w - w0))
+            base = u0 + np.uint64(8 * w0)
+            while bits != np.uint64(0):
+                i = base + _trailing_zeros(bits)
+                bits &= bits - np.uint64(1)
+                r = (X[d, i] - coord) * sign
+                if r >= lo:
+                    j = min(int((r - lo) * invdelta), n2)
+                    if linear:
+                        fr = _table_linear(r, j, grid, tf, td, invdelta)
+                    else:
+                        fr = _table_spline(r, j, grid, tf, td, invdelta, deltasq6)
+                    F[d, i] = F[d, i] - sidef * fr
                 else:
-                    fr = _table_spline(r, j, grid, tf, td, invdelta, deltasq6)
-                F[d, i] = F[d, i] - sidef * fr
+                    nbad += 1
         return nbad
 
     @inline
     def _table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1):
         """Soft face k of the scene, a wall/table face: its rows in tb = (tb_meta (K, 3) int:
-        offset, N, linear; tb_par (K, 3): lo, 1/delta, delta^2/6; tb_data: every table's rows)."""
+        offset, N, linear; tb_par (K, 3): lo, 1/delta, delta^2/6; tb_data: every table's rows;
+        MB: scratch bytes, a block's atoms rounded up to 64, for `_table_face`)."""
         off, n = tb[0][k, 0], tb[0][k, 1]
         data = tb[2]
         grid, tf, td = data[off:off + n], data[off + n:off + 2 * n], data[off + 2 * n:off + 3 * n]
         lo, invdelta, deltasq6 = tb[1][k, 0], tb[1][k, 1], tb[1][k, 2]
         if tb[0][k, 2] != 0:
             return _table_face(True, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6,
-                               u0, u1)
+                               u0, u1, tb[3])
         return _table_face(False, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6,
-                           u0, u1)
+                           u0, u1, tb[3])
 
     @inline
     def _no_table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1):
         """`_table_faces` of a scene without wall/table faces: nothing (never called)."""
         return 0
+
+    @inline
+    def _table_out(tb, k, X, groups, g, d, side, coord, cut, n):
+        """The outputs of wall/table face k over a case's n atoms (walls.CustomWallKernel.apply
+        with outputs): (sum of E(r) - E_lin(rc), sum of side F(r): the force on the wall, sum of
+        F(r) r: the virial), summed atom by atom in atom order as np.bincount does; E and F by
+        the table's lookup (its rows 3-4 and 1-2), the offset E_lin(rc) by the linear lookup on
+        rows 3 and 5 (WallTable.offset)."""
+        off, nt = tb[0][k, 0], tb[0][k, 1]
+        data = tb[2]
+        grid, tf, td = data[off:off + nt], data[off + nt:off + 2 * nt], data[off + 2 * nt:off + 3 * nt]
+        te, tde, tdl = data[off + 3 * nt:off + 4 * nt], data[off + 4 * nt:off + 5 * nt], data[off + 5 * nt:off + 6 * nt]
+        lo, invdelta, deltasq6 = tb[1][k, 0], tb[1][k, 1], tb[1][k, 2]
+        linear = tb[0][k, 2] != 0
+        n2 = nt - 2
+        shift = _table_linear(cut, min(int((cut - lo) * invdelta), n2), grid, te, tdl, invdelta)
+        sidef = float(side)
+        sign = -sidef
+        e = 0.0
+        fs = 0.0
+        vir = 0.0
+        for i in range(n):
+            r = (X[d, i] - coord) * sign
+            if r < cut and groups[g, i] != 0:
+                j = min(int((r - lo) * invdelta), n2)
+                if linear:
+                    fi = _table_linear(r, j, grid, tf, td, invdelta)
+                    ei = _table_linear(r, j, grid, te, tde, invdelta)
+                else:
+                    fi = _table_spline(r, j, grid, tf, td, invdelta, deltasq6)
+                    ei = _table_spline(r, j, grid, te, tde, invdelta, deltasq6)
+                e += ei - shift
+                fs += sidef * fi
+                vir += fi * r
+        return e, fs, vir
+
+    @inline
+    def _no_table_out(tb, k, X, groups, g, d, side, coord, cut, n):
+        """`_table_out` of a scene without wall/table faces: nothing (never called)."""
+        return math.nan, math.nan, math.nan
 
     # -- fix wall/reflect/stochastic (stochastic.StochasticKernel.apply): the same plain functions
     _st_sigma = njit(nogil=True, error_model="numpy", inline="always")(_st.thermal_sigma)
@@ -1152,7 +1224,8 @@ if njit is not None:
             nsm = sm_at.shape[0]
             KS = np.empty(natom if nsm else 0)  # m v^2 per atom at a sample
             RBS = np.empty((6, 5, natom if nsm and rg_meta.shape[0] else 0))  # a case's region contacts
-            tb = (tb_meta, tb_par, tb_data)  # wall/table faces (`_table_faces`)
+            tb = (tb_meta, tb_par, tb_data,  # wall/table faces (`_table_faces`) and their scratch bytes
+                  np.zeros(((blk + 63) // 64) * 64 if tb_meta.shape[0] else 0, np.uint8))
             nst = natom if st_meta.shape[0] else 0
             # scratch of the stochastic faces (a scene without them: `periodic`, an int64 array never read)
             sto = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(nst, np.int64) if _K_STOCHASTIC else periodic,
@@ -1290,7 +1363,7 @@ if njit is not None:
                             if landing:
                                 break
                     if _K_SAMPLES and ism < nsm and done == sm_at[ism]:  # a sample step: the outputs of Engine.sample
-                        _sample_faces(c, (done - 1) * vary, X, RAD, groups, sf_meta, sf_val, sm_face[c, ism])
+                        _sample_faces(c, (done - 1) * vary, X, RAD, groups, sf_meta, sf_val, tb, sm_face[c, ism])
                         if _K_REGION and rg_meta.shape[0]:
                             _sample_regions(c, X, RAD, groups, rg_meta, rg_geo, rg_val, RBS, sm_reg[c, ism])
                         for a in range(natom):
@@ -1473,7 +1546,8 @@ if njit is not None:
         source += osource
         exec(compile(osource, "<wallbatch soft-face outputs dispatch>", "exec"), namespace)  # noqa: S102 - generated here
         face_out = njit(nogil=True, error_model="numpy", inline="always")(namespace["_face_out"])
-        sample_faces = njit(**_SCENE)(_relink(_sample_faces, _face_out=face_out))
+        sample_faces = njit(**_SCENE)(
+            _relink(_sample_faces, _face_out=face_out, _table_out=_table_out if tables else _no_table_out))
         region_walls = _no_region_walls
         sample_regions = _no_sample_regions
         if region:
@@ -2393,12 +2467,13 @@ def _splits_atoms(plan: ChunkPlan, nsteps: int) -> bool:
 
 def sampled_eligible(plan: ChunkPlan) -> bool:
     """Scenes whose samples the kernel records itself (sampled chunks): `eligible` ones with
-    flat soft faces of registry styles whose energy it computes (`energy_compiled`), no
-    generated forces or wall/reflect/stochastic, wall/region fixes of such styles, and an engine that
-    takes the records."""
+    flat soft faces of registry styles whose energy it computes (`energy_compiled`) or of
+    wall/table (`_table_out`), no generated forces or wall/reflect/stochastic, wall/region fixes
+    of such styles, and an engine that takes the records."""
     if plan.record_samples is None or _lepton_extra(plan) or _stochastic_kernel(plan) is not None:
         return False
-    return all(type(w) is SoftWallKernel and energy_compiled(w.style) for w in plan.soft) and \
+    return all((type(w) is SoftWallKernel and energy_compiled(w.style)) or
+               (type(w) is CustomWallKernel and all(_is_table(st) for st in w.face_styles)) for w in plan.soft) and \
         all(energy_compiled(w.style) for w in plan.region)
 
 
