@@ -331,9 +331,10 @@ def test_real_units_and_masses(monkeypatch):
 def test_one_compiled_signature(monkeypatch):
     """Every scene above runs the same compiled specialisation of the kernel (a new one would cost a
     full compilation): array layouts and argument types do not depend on the scene."""
-    check(monkeypatch, [gas(STYLE_SCENES["lj93"](), steps=20, thermo=10)])
-    kernel = fast.kernel_for(((fast.STYLE_IDS["lj93"], 0),), fixes=False, dtr=False)
-    assert len(kernel.signatures) == 1
+    _, _, eng = check(monkeypatch, [gas(STYLE_SCENES["lj93"](), steps=20, thermo=10)])
+    kernel = fast.kernel_for(((fast.STYLE_IDS["lj93"], 0),), fixes=False, dtr=False, reflect=False, time=False,
+                             sampled=True)
+    assert eng.fast.kernel is kernel and len(kernel.signatures) == 1
 
 
 def test_a_case_sent_to_a_worker_still_runs_compiled():
