@@ -30,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import build, gas_slit, lammps_module, lammps_run  # noqa: E402
 from common import time_engine as run  # noqa: E402
 
-from wallbatch.engine import compiled  # noqa: E402
+from wallbatch.engine import compiled, threads  # noqa: E402
 from wallbatch.styles import STYLES  # noqa: E402
 from wallbatch.styles.table import tabulate, write_table  # noqa: E402
 
@@ -97,7 +97,8 @@ def main() -> None:
     atom_steps = args.n * args.steps
     lines = [f"gas slit, N = {args.n}, {args.steps} steps ({atom_steps:.2g} atom-steps), table of {N_TABLE} points; "
              f"kernel compile or load before the timed runs: "
-             + ", ".join(f"{k} {v:.1f} s" for k, v in kernel.items()) + f"; numba {compiled.enabled()}",
+             + ", ".join(f"{k} {v:.1f} s" for k, v in kernel.items())
+             + f"; numba {compiled.enabled()}, threads {threads.count()} (WALLBATCH_THREADS)",
              "", "| wall | path | seconds | ns/atom-step | vs built-in | vs LAMMPS |",
              "| --- | --- | --- | --- | --- | --- |"]
     for name, kind, secs, t_lmp in rows:

@@ -143,3 +143,38 @@ def test_tasks_bounded_by_atoms(tmp_path, monkeypatch):
     split = run_plan(plan, progress=False)
     for name in ("pe", "temp", "wall_force"):
         np.testing.assert_array_equal(split[name].values, whole[name].values)
+
+
+_GC_PROBE = """
+import gc, sys
+starts = []
+gc.callbacks.append(lambda phase, info: starts.append(info["generation"]) if phase == "start" else None)
+sys.argv = ['wallbatch'] + {args!r}
+import wallbatch.cli as cli
+done = cli._start_up_done
+at = {{}}
+def spy():
+    at.setdefault("paused", not gc.isenabled())
+    at.setdefault("during", len(starts) - at["before"])
+    done()
+cli._start_up_done = spy
+at["before"] = len(starts)
+try:
+    cli.app()
+except SystemExit as exc:
+    at["code"] = exc.code
+print(at["paused"], at["during"], at.get("code"), gc.isenabled(), gc.get_freeze_count() > 0)
+"""
+
+
+@pytest.mark.parametrize("args, code", [(["run", "scene.yaml", "-o", "o.nc", "--force"], 0),
+                                        (["run", "missing.yaml"], 2), (["check", "scene.yaml"], 0)])
+def test_start_up_runs_without_garbage_collection_then_resumes_it(tmp_path, args, code):
+    """`wallbatch run` imports its modules and validates its config with the collector paused (no
+    collection at all until the start-up is done), then freezes what start-up built and resumes
+    collection; a failing command and the other commands resume it too."""
+    (tmp_path / "scene.yaml").write_text(SCENE.replace("steps: 4000", "steps: 40"))
+    res = subprocess.run([sys.executable, "-c", _GC_PROBE.format(args=args)], cwd=tmp_path, capture_output=True,
+                         text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.split()[-5:] == ["True", "0", str(code), "True", "True"]

@@ -83,3 +83,33 @@ def test_small_run_keeps_its_results_instead_of_reading_the_parts(tmp_path, monk
         if name != "seconds":  # each run's own timing
             np.testing.assert_array_equal(kept[name].values, read[name].values)
     assert kept["pe"].shape == (4, 5) and np.isfinite(kept["pe"].values).all()
+
+
+@pytest.mark.skipif(compiled.njit is None, reason="numba not importable")
+@pytest.mark.parametrize("length, time_based", [("run.steps: 40", False), ("run.steps: null, run.time: 0.2, run.thermo: {time: 0.05}", True)])
+def test_warm_up_builds_the_kernel_the_run_uses(monkeypatch, tmp_path, length, time_based):
+    """Before forking workers, the first case's warm-up step asks for the very kernel the run will
+    use (step- or time-based: each leaves the other's code out), so the workers inherit it instead
+    of each compiling another."""
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    calls: list[tuple] = []
+    real = compiled.kernel_for
+
+    def spy(*args, **kwargs):
+        calls.append((args, tuple(sorted(kwargs.items()))))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(compiled, "kernel_for", spy)
+    path = sweep_file(tmp_path, 1, 500, steps=40)
+    path.write_text(path.read_text().replace("run.steps: 40, run.thermo: 10", length if time_based else
+                                             length + ", run.thermo: 10"))
+    case = runner.build_case(load(path).cases[0].config)
+    runner._warm_compiler(case)
+    warmed = set(calls)
+    calls.clear()
+    from wallbatch.engine.engine import Engine
+
+    eng = Engine([case])
+    assert eng.run()[0].status == "ok" and eng.fast.compiled_chunks > 0
+    assert set(calls) == warmed and len(warmed) == 1
+    assert dict(next(iter(warmed))[1])["time"] is time_based

@@ -148,6 +148,40 @@ def test_reflect_moving_walls_both_frames(monkeypatch, frame, thermo):
     assert got[0].data["reflect_count"][1:].sum() > (10 if thermo > 1 else 3)
 
 
+@pytest.mark.parametrize("frame, pbc", [("lab", False), ("wall", False), ("lab", True)])
+def test_reflect_without_statistics_final_state_bit_for_bit(monkeypatch, frame, pbc):
+    """Reflect faces without reflect outputs (the kernel's branch-free pass) on a group, moving
+    (frame wall) or on a periodic x dimension (pbc: the wrap then stays after the reflect):
+    positions and velocities at the end equal the NumPy engine's bit for bit, and atoms were
+    reflected (the wall frame's 2 v_wall - v changes the kinetic energy)."""
+    walls = {"r": {"style": "reflect", "units": "box", "frame": frame, "group": "slow", "zlo": "v_lo", "zhi": 6.9},
+             "s": {"style": "reflect", "units": "box", "zlo": 0.3, "zhi": 7.7}}
+    if pbc:
+        walls["x"] = {"style": "reflect", "units": "box", "pbc": True, "xlo": 0.4, "xhi": 5.1}
+    d = gas(walls, variables={"lo": "swiggle(1.0, 0.6, 0.4)"}, steps=400, thermo=100, n=60,
+            output=["step", "ke"])
+    d["atoms"] = [{"group": g, "create": {"random": {"count": 30, "region": "mid"}}, "mass": m,
+                   "velocity": {"temperature": 2.0}} for g, m in (("fast", 1.0), ("slow", 3.0))]
+    cases = [build_case(config_from_dict(d))]
+    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
+    ref = Engine(cases)
+    ref_res = ref.run()
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    eng = Engine(cases)
+    res = eng.run()
+    assert eng.fast.compiled_chunks > 0 and eng.fast.fallbacks == 0
+    assert_same_results(ref_res, res)  # bit for bit
+    assert np.array_equal(eng.state.x, ref.state.x) and np.array_equal(eng.state.v, ref.state.v)
+    c0, x, v = cases[0], eng.state.x[0], eng.state.v[0]
+    free = c0.x[:, 2] + c0.v[:, 2] * (400 * 0.005)  # where the atoms would be without walls
+    assert np.count_nonzero((free < 0.3) | (free > 7.7)) > 5  # so many were reflected
+    assert np.all(x[:, 2] >= 0.3) and np.all(x[:, 2] <= 7.7) and np.all(x[30:, 2] <= 6.9)
+    moved = not np.array_equal(np.abs(v[30:, 2]), np.abs(c0.v[30:, 2]))  # |v_z| changes only off a moving wall
+    assert moved == (frame == "wall")
+    if pbc:
+        assert np.all((x[:, 0] >= 0.4) & (x[:, 0] <= 5.1))
+
+
 # ----------------------------------------------------------------------------- variables and batches
 
 
@@ -297,9 +331,10 @@ def test_real_units_and_masses(monkeypatch):
 def test_one_compiled_signature(monkeypatch):
     """Every scene above runs the same compiled specialisation of the kernel (a new one would cost a
     full compilation): array layouts and argument types do not depend on the scene."""
-    check(monkeypatch, [gas(STYLE_SCENES["lj93"](), steps=20, thermo=10)])
-    kernel = fast.kernel_for(((fast.STYLE_IDS["lj93"], 0),), fixes=False, dtr=False)
-    assert len(kernel.signatures) == 1
+    _, _, eng = check(monkeypatch, [gas(STYLE_SCENES["lj93"](), steps=20, thermo=10)])
+    kernel = fast.kernel_for(((fast.STYLE_IDS["lj93"], 0),), fixes=False, dtr=False, reflect=False, time=False,
+                             sampled=True)
+    assert eng.fast.kernel is kernel and len(kernel.signatures) == 1
 
 
 def test_a_case_sent_to_a_worker_still_runs_compiled():

@@ -330,3 +330,34 @@ def test_a_case_failing_mid_chunk(monkeypatch):
     assert step > 10  # mid-run
     assert np.isnan(got[1].data["ke"]).all() and not np.isnan(got[0].data["ke"]).any()
     assert eng.fast.fallbacks >= 1 and len(eng.sample_blocks) >= 2
+
+
+def test_one_run_keeps_to_one_kernel(monkeypatch):
+    """A one-case run whose whole length would be split over two threads but whose samples are
+    close together runs every sample in the kernel (no threads), so it compiles one kernel, not a
+    one-instant kernel for the first chunks and a sampled one for the last (as when the choice
+    followed each chunk's length)."""
+    from wallbatch.engine import threads
+
+    monkeypatch.setenv("WALLBATCH_THREADS", "2")
+    monkeypatch.setattr(threads, "MIN_WORK", 2000)  # 300 atoms x 150 steps: split; x 10 steps: not
+    ref, got, eng = run_both(monkeypatch, [gas(lj93(), n=300, steps=150, thermo=10)])
+    assert_same_results(ref, got)
+    assert len(eng.fast.kernel_names) == 1
+    assert eng.fast.sampled_calls > 0 and len(eng.samples) == 1  # step 0 only from NumPy
+
+
+def test_both_ways_of_sampling_share_one_kernel(monkeypatch):
+    """Samples recorded in the kernel and samples taken one instant at a time (a case split over
+    two threads between samples) run the same kernel: one compile per kind of scene, whatever the
+    sample spacing; both give NumPy's bits."""
+    from wallbatch.engine import threads
+
+    monkeypatch.setenv("WALLBATCH_THREADS", "2")
+    monkeypatch.setattr(threads, "MIN_WORK", 2000)
+    ref, got, near = run_both(monkeypatch, [gas(lj93(), n=300, steps=150, thermo=5)])  # 1500: no split
+    assert_same_results(ref, got)
+    ref, got, far = run_both(monkeypatch, [gas(lj93(), n=300, steps=150, thermo=50)])  # 15000: split
+    assert_same_results(ref, got)
+    assert near.fast.sampled_calls > 0 and far.fast.sampled_calls == 0 and far.fast.compiled_chunks == 3
+    assert near.fast.kernel_names == far.fast.kernel_names and len(near.fast.kernel_names) == 1

@@ -435,10 +435,55 @@ def test_compiled_tables_equal_numpy_bit_for_bit(tmp_path, monkeypatch, walls):
     numpy_res, compiled, engine = run_numpy_and_compiled(monkeypatch, cases)
     fast = engine.fast
     assert fast is not None and fast.compiled_chunks > 0 and fast.fallbacks == 0
+    assert fast.sampled_calls > 0  # the outputs too are the kernel's (its table energies)
     assert fast_mod._lepton_extra(engine.compiled_plan()) == ()  # nothing generated per table
     assert all(n.status == "ok" and np.any(n.data["wall_force"][1:] != 0.0) for n in numpy_res)
     assert_same_results(numpy_res, compiled)  # every output, bit for bit
     assert len({float(r.data["wall_energy"][1:].sum()) for r in numpy_res}) == 3
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("tabstyle", ["linear", "spline"])
+def test_compiled_table_face_over_blocks_groups_and_threads(tmp_path, monkeypatch, tabstyle):
+    """The compiled table face visits only the group atoms within the cut-off (marks packed 64
+    to a word) and records the outputs itself: 613 atoms (blocks of 256 and a last one of 101, no multiple of 8 or 64), walls
+    on one of two groups (the other held by reflecting faces), dense near the walls: trajectories
+    and outputs equal the NumPy engine's bit for bit, and the same with two threads splitting the
+    atoms."""
+    from wallbatch.engine import threads  # noqa: PLC0415
+
+    lj93_tables(tmp_path, n=300)
+    text = textwrap.dedent(f"""\
+        name: blocks
+        units: lj
+        seed: 11
+        box: {{lo: [0, 0, 0], hi: [8, 8, 5], boundary: [p, p, f]}}
+        regions:
+          inner: {{style: block, lo: [0, 0, 0.7], hi: [8, 8, 4.3], units: box}}
+        atoms:
+          - {{group: a, create: {{random: {{count: 409, region: inner}}}}, mass: 1.0, velocity: {{temperature: 2.0}}}}
+          - {{group: b, create: {{random: {{count: 204, region: inner}}}}, mass: 2.0, velocity: {{temperature: 1.0}}}}
+        walls:
+          t: {{style: table, tabstyle: {tabstyle}, N: 800, units: box, energy: true, virial: true, group: a,
+              zlo: {{coord: EDGE, file: walls.table, keyword: LJ93, cutoff: 2.5}},
+              zhi: {{coord: EDGE, file: walls.table, keyword: HARM, cutoff: 2.0}}}}
+          r: {{style: reflect, units: box, group: b, zlo: EDGE, zhi: EDGE}}
+        run: {{steps: 300, thermo: 30}}
+        output: {{thermo: [step, temp, ke, pe, etot, press]}}
+        """)
+    cases = [build_case(load_config(write(tmp_path, text)))]
+    monkeypatch.setenv("WALLBATCH_THREADS", "1")
+    numpy_res, compiled, engine = run_numpy_and_compiled(monkeypatch, cases)
+    assert engine.fast is not None and engine.fast.compiled_chunks > 0 and engine.fast.fallbacks == 0
+    assert engine.fast.sampled_calls > 0  # energies, wall forces: recorded inside the kernel
+    assert numpy_res[0].status == "ok" and np.all(numpy_res[0].data["wall_force"][1:] != 0.0)
+    assert_same_results(numpy_res, compiled)
+    monkeypatch.setenv("WALLBATCH_THREADS", "2")
+    monkeypatch.setattr(threads, "MIN_WORK", 1)
+    before = threads.splits["atoms"]
+    _, two, _ = run_numpy_and_compiled(monkeypatch, cases)
+    assert threads.splits["atoms"] > before
+    assert_same_results(numpy_res, two)
 
 
 @pytest.mark.slow

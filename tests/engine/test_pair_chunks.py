@@ -192,3 +192,66 @@ def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
     eng = Engine(cases_of(d))
     assert eng.fast is None and eng.pair.compiled
     assert eng.run()[0].status == "ok"
+
+
+def test_sample_takes_the_chunk_outputs(monkeypatch):
+    """A sampled chunk's last step gives the pair energy and virial in its own force pass: the
+    sample's pair.compute at those positions takes them (no second pass over the list: the only
+    `forces` call is the set-up's), with the per-step path's bits."""
+    cases = cases_of(slit(1.0), slit(1.3))
+    got, fused, ref, step = run_fused_and_stepwise(monkeypatch, cases)
+    assert_bits(got, ref)
+    calls = []
+    forces = pair_compiled.forces
+    monkeypatch.setattr(pair_compiled, "forces", lambda *a: calls.append(1) or forces(*a))
+    eng = Engine(cases)
+    assert_bits(eng.run(), ref)
+    assert eng.fast.compiled_chunks == 4 and len(got[0].data["pe"]) == 5
+    assert len(calls) == 1  # the set-up's forces; the 4 chunk-end samples took the chunks' outputs
+    assert eng.pair._memo is None  # taken by the last sample
+
+
+def test_remembered_outputs_only_at_their_positions():
+    """pair.remember holds a chunk's outputs for exactly its positions, once: a compute at other
+    positions (one atom moved by 1e-12) computes afresh, and agrees with a fresh pair's."""
+    cases = cases_of(slit())
+    eng = Engine(cases)
+    eng.setup()
+    pair, x = eng.pair, eng.state.x.copy()
+    f0 = np.zeros_like(x)
+    e0, w0 = pair.compute(x, f0, True)
+    pair.remember(x, f0 + 1.0, e0 + 1.0, w0 + 1.0)  # marked: recognisable if taken
+    f = np.zeros_like(x)
+    e, w = pair.compute(x, f, True)
+    np.testing.assert_array_equal(f, f0 + 1.0)
+    assert e[0] == e0[0] + 1.0 and w[0] == w0[0] + 1.0
+    pair.remember(x, f0 + 1.0, e0 + 1.0, w0 + 1.0)
+    x[0, 5, 0] += 1e-12
+    f = np.zeros_like(x)
+    e, w = pair.compute(x, f, True)
+    fresh = Engine(cases).pair
+    fr = np.zeros_like(x)
+    er, wr = fresh.compute(x, fr, True)
+    np.testing.assert_array_equal(f, fr)
+    assert e[0] == er[0] and w[0] == wr[0] and abs(e[0] - e0[0]) < 1e-6
+
+
+def test_trouble_in_a_one_case_batch_keeps_its_list(monkeypatch):
+    """One case alone: its chunk builds into the spare pair array, so a chunk handed back to
+    NumPy (here after a build: the bullet moves 2 sigma per step) leaves the list, its rows and
+    its reference positions as they were; the run reports what the per-step path reports."""
+    bad = slit(steps=30)
+    bad["atoms"].append({"group": "bullet", "create": {"positions": [[3.4, 3.4, 0.9]]}, "mass": 1.0,
+                         "velocity": {"values": [[0.0, 0.0, -400.0]]}})
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    eng = Engine(cases_of(bad))
+    eng.setup()
+    pair = eng.pair
+    before = [a.copy() for a in (pair._neigh, pair._owner, pair._first, pair._xref, eng.state.x)]
+    assert isinstance(eng.fast, PairChunks) and not eng.fast.advance(5, False)
+    assert eng.fast.fallbacks == 1
+    for a, b in zip(before, (pair._neigh, pair._owner, pair._first, pair._xref, eng.state.x)):
+        np.testing.assert_array_equal(a, b)
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(bad))
+    assert_bits(got, ref)
+    assert got[0].status == "failed" and fused.fast.fallbacks >= 1

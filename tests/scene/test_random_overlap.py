@@ -99,3 +99,29 @@ def test_close_pairs_finds_every_pair_within_r(boundary):
     ii, jj = np.nonzero(np.triu(full <= 0.49, 1))
     assert got == set(zip(ii.tolist(), jj.tolist())) and len(got) > 50
     assert np.array_equal(np.sort(d2[sel]), np.sort(full[ii, jj]))
+
+
+@pytest.mark.parametrize("boundary", ["ppp", "ppf"])
+def test_close_pairs_cell_table_and_binary_search_agree_bit_for_bit(boundary):
+    """The two ways of finding a cell's points (a table of every cell, or a binary search of the
+    sorted cell keys, chosen by size) give the same pairs in the same order, with and without a
+    second point set; and in a box of far more cells than points every pair within r is found."""
+    r = np.random.default_rng(11)
+    box = np.array([9.0, 7.0, 30.0])
+    periodic = np.array([b == "p" for b in boundary])
+    boxsize = np.where(periodic, box, 2 * box + 2.0)
+    a, b = r.random((400, 3)) * box, r.random((250, 3)) * box
+    for other in (None, b):
+        table = build._close_pairs(a, other, boxsize, 0.6, dense=True)
+        search = build._close_pairs(a, other, boxsize, 0.6, dense=False)
+        assert len(table[0]) > 20
+        for x, y in zip(table, search):
+            assert np.array_equal(x, y)
+    few = r.random((150, 3)) * box  # the binary search against all pairs
+    i, j, d2 = build._close_pairs(few, None, boxsize, 1.5, dense=False)
+    dx = np.abs(few[:, None, :] - few[None, :, :])
+    dx = np.minimum(dx, boxsize - dx)
+    full = (dx * dx).sum(-1)
+    ii, jj = np.nonzero(np.triu(full <= 1.5 * 1.5, 1))
+    sel = d2 <= 1.5 * 1.5
+    assert set(zip(i[sel].tolist(), j[sel].tolist())) == set(zip(ii.tolist(), jj.tolist())) and len(ii) > 5

@@ -188,9 +188,10 @@ def test_lammps_refuses_what_we_refuse(tmp_path):
 
 @pytest.mark.parametrize("tabstyle", ["linear", "spline"])
 def test_kernel_rows_jitted_lookup_is_the_numpy_lookup_bit_for_bit(tabstyle):
-    """WallTable.kernel_rows: the table as the compiled path's data (grid, F, dF or F2), looked up
-    by the same linear_lookup / spline_lookup jitted, equals lookup()'s force bit for bit over the
-    whole table (random points, grid points, the last point)."""
+    """WallTable.kernel_rows: the table as the compiled path's data (grid, F, dF or F2, E, dE or
+    E2, dE), looked up by the same linear_lookup / spline_lookup jitted, equals lookup()'s force
+    and energy, and offset()'s linear energy at the cut-off, bit for bit over the whole table
+    (random points, grid points, the last point)."""
     from numba import njit  # noqa: PLC0415
 
     from wallbatch.styles.table import TableData, WallTable, linear_lookup, spline_lookup  # noqa: PLC0415
@@ -201,14 +202,17 @@ def test_kernel_rows_jitted_lookup_is_the_numpy_lookup_bit_for_bit(tabstyle):
     e, f = lj93.energy_force(r, p)
     table = WallTable.build(TableData("LJ", r, e, f, None, None), tabstyle, 500)
     rows = table.kernel_rows()
-    assert rows.shape == (3, 500) and rows.flags.c_contiguous
+    assert rows.shape == (6, 500) and rows.flags.c_contiguous
     lin, spl = njit(error_model="numpy")(linear_lookup), njit(error_model="numpy")(spline_lookup)
     rs = np.concatenate([np.random.default_rng(5).uniform(0.4, 3.0, 400), table.r, [3.0]])
-    want = table.lookup(rs)[1]
+    want_e, want_f = table.lookup(rs)
     idx = [min(int((x - table.lo) * table.invdelta), 498) for x in rs]
-    if tabstyle == "linear":
-        got = [lin(x, i, rows[0], rows[1], rows[2], table.invdelta) for x, i in zip(rs, idx)]
-    else:
-        got = [spl(x, i, rows[0], rows[1], rows[2], table.invdelta, table.deltasq6) for x, i in zip(rs, idx)]
-    np.testing.assert_array_equal(np.array(got), want)
-    assert np.any(want != 0.0)
+    for want, y, d in ((want_f, 1, 2), (want_e, 3, 4)):
+        if tabstyle == "linear":
+            got = [lin(x, i, rows[0], rows[y], rows[d], table.invdelta) for x, i in zip(rs, idx)]
+        else:
+            got = [spl(x, i, rows[0], rows[y], rows[d], table.invdelta, table.deltasq6) for x, i in zip(rs, idx)]
+        np.testing.assert_array_equal(np.array(got), want)
+        assert np.any(want != 0.0)
+    offsets = [lin(x, i, rows[0], rows[3], rows[5], table.invdelta) for x, i in zip(rs, idx)]
+    assert offsets == [table.offset(x) for x in rs]

@@ -36,7 +36,7 @@ from wallbatch.version import __version__
 from wallbatch.config.models import Config
 from wallbatch.config.sweep import SweepCase, SweepPlan, config_to_dict
 from wallbatch.engine import backend, threads
-from wallbatch.engine.engine import CaseResult, Engine, run_cases
+from wallbatch.engine.engine import SAMPLES_PER_CALL, CaseResult, Engine, run_cases, sample_instants
 from wallbatch.io.amber import write_amber
 from wallbatch.io.netcdf import build_results, write_netcdf, write_results_file
 from wallbatch.io.results import Results
@@ -316,7 +316,13 @@ def _warm_compiler(case: Case | None = None) -> None:
             engine = Engine([case])
             if engine.fast is not None:
                 engine.setup()
-                engine.advance(1, sample=False)
+                # the kernel the run will use: time-based, samples recorded in the kernel or not
+                if case.run_time is not None:
+                    engine.advance_to_time(float(engine.state.time[0] + engine.state.dt[0]))
+                elif engine.fast.samples_in_kernel(np.asarray(sample_instants(case)[1:SAMPLES_PER_CALL + 1])):
+                    engine.fast.advance_sampled(np.array([1]))
+                else:
+                    engine.advance(1, sample=False)
                 return
     with contextlib.suppress(Exception):
         from numba.core.registry import cpu_target

@@ -9,8 +9,9 @@ expm1 come from another libm, to ~1e-15). One step of one atom is engine.Engine.
   lost-atom test ; v += dtfm f ; (fix dt/reset: the atom's largest dt)
 
 Layout: per case, the atoms are copied into structure-of-arrays buffers and a step is a few
-simple passes over a block of BLOCK atoms (kick-drift, reflect, wrap, clear, one branch-free pass
-per soft face with the style fixed at compile time, lost test, kick), which the compiler
+simple passes over a block of BLOCK atoms (kick-drift with the periodic wrap and the force clear,
+one branch-free pass per reflect face, one branch-free pass per soft face with the style fixed at
+compile time, lost test, kick), which the compiler
 vectorises (AVX2/AVX-512). Steps run in windows: every step of a window on one block (it stays in
 L1 cache), then the next block. Without dt/reset a window is the whole chunk. With dt/reset the
 smallest dt over the atoms couples them every step; a window of WINDOW steps runs at the current
@@ -49,8 +50,10 @@ meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a vari
 negative variable parameter) leaves the state as it was at its start and is handed back to the
 NumPy loop, which re-runs it and reports exactly as always. `WALLBATCH_NUMBA=0` (or numba not
 importable) selects the NumPy path everywhere. Kernels are built per kind of scene (`kernel_for`:
-only the styles, cut-off modes, region and flow code it has) and cached on disk by numba under
-their own names; a kernel not yet cached is announced on stderr before it compiles.
+only the styles, cut-off modes, region and flow code it has; KERNEL_FLAGS leave out the code of
+what it does not use: wall/reflect, fixes, dt/reset, time-based runs, in-kernel samples, ...) and
+cached on disk by numba under their own names; a kernel not yet cached is announced on stderr
+before it compiles.
 """
 
 from __future__ import annotations
@@ -92,6 +95,7 @@ from wallbatch.styles.table import TableWallStyle, linear_lookup, spline_lookup
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
+    from numba.cpython.unsafe.numbers import trailing_zeros as _trailing_zeros
     from numba.extending import overload
 except Exception:  # noqa: BLE001 - any import failure means "no compiled path"
     njit = None
@@ -109,8 +113,8 @@ REGION_KINDS: dict[tuple[str, str], int] = {("block", "in"): 0, ("block", "out")
                                             ("sphere", "out"): 3, ("cylinder", "in"): 4, ("cylinder", "out"): 5}
 # this file's code and the generated kernels' helpers: part of the key of the generated lepton chunk kernels
 _SOURCE_DIGEST = hashlib.sha256(Path(__file__).read_bytes() + inspect.getsource(_lepton_helpers).encode()).hexdigest()[:16]
-COMPILE_SECONDS = 15  # typical compile of one scene kernel on a 2-core machine (flat walls: measured 13-14 s; the message's estimate)
-COMPILE_SECONDS_FIXES = 20  # the same with thermostats or dt/reset in the kernel (measured 20-26 s)
+COMPILE_SECONDS = 8  # typical compile of one scene kernel on a 2-core machine (flat walls: measured 7-8 s CPU; the message's estimate)
+COMPILE_SECONDS_FIXES = 14  # the same with thermostats or dt/reset in the kernel (measured 10-13.5 s CPU)
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
 SAMPLE_BUDGET = 4_000_000  # sample outputs of a sampled chunk held at once (doubles): fewer samples per call
 MAX_CHAIN = 10  # the longest Nose-Hoover chain counted in that budget (longer ones only take more memory)
@@ -118,6 +122,13 @@ MAX_CHAIN = 10  # the longest Nose-Hoover chain counted in that budget (longer o
 FIX_LANGEVIN, FIX_NVT, FIX_BERENDSEN, FIX_RESCALE, FIX_ENFORCE2D = 0, 1, 2, 3, 4
 FIX_KINDS: dict[str, int] = {"langevin": FIX_LANGEVIN, "nvt": FIX_NVT, "temp/berendsen": FIX_BERENDSEN,
                              "temp/rescale": FIX_RESCALE, "enforce2d": FIX_ENFORCE2D}
+# What a scene kernel compiles (`kernel_for`): the chunk loop and the block step read these module
+# flags as constants (numba freezes globals), and numba's dead-branch pruning drops a feature's
+# code before typing when its flag is False in the kernel's re-linked globals. True here: all of it.
+KERNEL_FLAGS = ("_K_REFLECT", "_K_STOCHASTIC", "_K_TABLES", "_K_VECTOR", "_K_REGION", "_K_FIXES", "_K_DTR",
+                "_K_FLOW", "_K_TIME", "_K_SAMPLES")
+_K_REFLECT = _K_STOCHASTIC = _K_TABLES = _K_VECTOR = _K_REGION = True
+_K_FIXES = _K_DTR = _K_FLOW = _K_TIME = _K_SAMPLES = True
 
 
 
@@ -185,36 +196,29 @@ def _region_dispatch_source(pairs: tuple[tuple[int, int], ...]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _outputs_dispatch_source(pairs: tuple[tuple[int, int], ...]) -> str:
-    """Python source of `_face_out(style, mode, ...)`: as `_dispatch_source`, one branch per
-    (style, cut-off mode) pair of the scene's flat soft faces whose energy the kernel computes
-    (`energy_compiled`), each calling the face's output loop `_eface` with that pair's force and
-    energy inlined; (NaN, NaN, NaN) for any other pair (`sampled_eligible` keeps those scenes out)."""
-    lines = ["def _face_out(style, mode, X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n):"]
+# the two output dispatches of sampled chunks (`_outputs_source`): function, its arguments after
+# (style, mode) (passed on to the loop as they are), the output loop, the number of outputs
+_OUTPUTS = {"face": ("_face_out", "X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n", "_eface", 3),
+            "region": ("_region_out", "RAD, RB, nslot, n, p0, p1, p2, cut, ron", "_rout", 5)}
+
+
+def _outputs_source(pairs: tuple[tuple[int, int], ...], kind: str = "face") -> str:
+    """Python source of the outputs dispatch of sampled chunks: `_face_out(style, mode, ...)` for
+    flat soft faces (kind "face", output loop `_eface`) or `_region_out(style, mode, ...)` for the
+    contacts of a wall/region fix (kind "region", `_rout`). As `_dispatch_source`, one branch per
+    (style, cut-off mode) pair whose energy the kernel computes (`energy_compiled`), each calling
+    the output loop with that pair's force and energy inlined; NaNs for any other pair
+    (`sampled_eligible` keeps those scenes out)."""
+    name, args, loop, nout = _OUTPUTS[kind]
+    lines = [f"def {name}(style, mode, {args}):"]
     k = 0
     for (cond, force, rad, note), (i, m) in zip(_branches(pairs, 0), pairs):
         if not energy_compiled(COMPILED_STYLES[i]):
             continue
         lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
-        lines.append(f"        return _eface({force}, _ENERGY_{i}_{m}, {rad}, X, RAD, groups, g, d, side, coord, p0, p1, "
-                     "p2, cut, ron, n)")
+        lines.append(f"        return {loop}({force}, _ENERGY_{i}_{m}, {rad}, {args})")
         k += 1
-    lines.append("    return _nan, _nan, _nan")
-    return "\n".join(lines) + "\n"
-
-
-def _region_outputs_source(pairs: tuple[tuple[int, int], ...]) -> str:
-    """Python source of `_region_out(style, mode, ...)`: as `_outputs_dispatch_source`, for the
-    contacts of a wall/region fix (`_rout`)."""
-    lines = ["def _region_out(style, mode, RAD, RB, nslot, n, p0, p1, p2, cut, ron):"]
-    k = 0
-    for (cond, force, rad, note), (i, m) in zip(_branches(pairs, 0), pairs):
-        if not energy_compiled(COMPILED_STYLES[i]):
-            continue
-        lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
-        lines.append(f"        return _rout({force}, _ENERGY_{i}_{m}, {rad}, RAD, RB, nslot, n, p0, p1, p2, cut, ron)")
-        k += 1
-    lines.append("    return _nan, _nan, _nan, _nan, _nan")
+    lines.append("    return " + ", ".join(["_nan"] * nout))
     return "\n".join(lines) + "\n"
 
 
@@ -258,7 +262,12 @@ def _fingerprint(pairs: tuple[tuple[int, int], ...], flow: bool, parallel: bool,
 
 if njit is not None:
     # error_model="numpy": x/0 gives inf/nan as in NumPy (no zero-division checks, so loops vectorise)
-    jit = njit(cache=True, nogil=True, error_model="numpy")
+    # no cfunc wrapper to build (each costs a compile of its own): nothing here is called as a
+    # first-class function; the per-scene pieces (`_SCENE`), called from compiled code only, have no
+    # CPython wrapper either (the registry's compiled forces keep theirs: tests call them)
+    _INNER = {"nogil": True, "error_model": "numpy", "no_cfunc_wrapper": True}
+    _SCENE = {**_INNER, "no_cpython_wrapper": True}
+    jit = njit(cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True)
     inline = njit(cache=True, nogil=True, error_model="numpy", inline="always")  # inlined in numba IR
 
     @overload(_dtr.select)
@@ -271,8 +280,8 @@ if njit is not None:
         """thermostats.libm_exp for a scalar: math.exp (the C library's exp)."""
         return lambda x: math.exp(x)
 
-    _dg_series = njit(nogil=True, error_model="numpy")(_flat._colloid_dg_series)
-    _dg_closed = njit(nogil=True, error_model="numpy")(_flat._colloid_dg_closed)
+    _dg_series = njit(**_INNER)(_flat._colloid_dg_series)
+    _dg_closed = njit(**_INNER)(_flat._colloid_dg_closed)
 
     @overload(_flat.colloid_dg)
     def _colloid_dg_scalar(r, big_r, rc, h, b, dct):  # noqa: ANN001, ANN202
@@ -300,20 +309,20 @@ if njit is not None:
     _nmax = inline(_scalar.nmax)
 
     # the registry's force functions, compiled as they are (the same function objects)
-    FORCES = tuple(njit(nogil=True, error_model="numpy")(st.force) for st in COMPILED_STYLES)
+    FORCES = tuple(njit(**_INNER)(st.force) for st in COMPILED_STYLES)
     # each style's force under each cut-off mode it runs: the closures of styles.cutoff around the
     # compiled force (and, for force-shift and smooth, E(r) - E(rc)), compiled as they are
-    _SHIFTED = {i: njit(nogil=True, error_model="numpy")(st.shifted_fn) for i, st in enumerate(COMPILED_STYLES)
+    _SHIFTED = {i: njit(**_INNER)(st.shifted_fn) for i, st in enumerate(COMPILED_STYLES)
                 if len(_modes(st)) > 1}
-    _switch = njit(nogil=True, error_model="numpy")(_cutoff.switch)
-    MODE_FORCES = {(i, m): njit(nogil=True, error_model="numpy")(
+    _switch = njit(**_INNER)(_cutoff.switch)
+    MODE_FORCES = {(i, m): njit(**_INNER)(
         cutoff_functions(FORCES[i], _SHIFTED.get(i, FORCES[i]), m, _switch)[0])
         for i, st in enumerate(COMPILED_STYLES) for m in _modes(st)}
     # each style's reported energy under each cut-off mode (sampled chunks): styles.cutoff's
     # closures around the compiled force and E(r) - E(rc), as the NumPy CutoffStyle.energy
-    _SHIFTED_E = {i: _SHIFTED[i] if i in _SHIFTED else njit(nogil=True, error_model="numpy")(st.shifted_fn)
+    _SHIFTED_E = {i: _SHIFTED[i] if i in _SHIFTED else njit(**_INNER)(st.shifted_fn)
                   for i, st in enumerate(COMPILED_STYLES) if energy_compiled(st)}
-    MODE_ENERGIES = {(i, m): njit(nogil=True, error_model="numpy")(
+    MODE_ENERGIES = {(i, m): njit(**_INNER)(
         cutoff_functions(FORCES[i], _SHIFTED_E[i], m, _switch)[1])
         for i, st in enumerate(COMPILED_STYLES) if i in _SHIFTED_E for m in _modes(st)}
     _dt_candidate = njit(nogil=True, error_model="numpy", inline="always")(dt_candidate)
@@ -359,12 +368,19 @@ if njit is not None:
                 vir += fi * r
         return e, fs, vir
 
-    def _sample_faces(c, si, X, RAD, groups, sf_meta, sf_val, out):
-        """Every soft face's outputs (`_eface`) of case c at the current positions into out[k] =
-        (energy, force on the wall, virial). Compiled per scene by `kernel_for` with the scene's
-        `_face_out` dispatch."""
+    def _sample_faces(c, si, X, RAD, groups, sf_meta, sf_val, tb, out):
+        """Every soft face's outputs (`_eface`; wall/table faces: `_table_out` on the tables tb)
+        of case c at the current positions into out[k] = (energy, force on the wall, virial).
+        Compiled per scene by `kernel_for` with the scene's `_face_out` dispatch."""
         n = X.shape[1]
         for k in range(sf_meta.shape[0]):
+            if sf_meta[k, 0] == TABLE_STYLE:
+                e, fs, vir = _table_out(tb, k, X, groups, sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2],
+                                        sf_val[c, si, k, 0], sf_val[c, si, k, 4], n)
+                out[k, 0] = e
+                out[k, 1] = fs
+                out[k, 2] = vir
+                continue
             e, fs, vir = _face_out(sf_meta[k, 0], sf_meta[k, 4], X, RAD, groups, sf_meta[k, 3], sf_meta[k, 1],
                                    sf_meta[k, 2], sf_val[c, si, k, 0], sf_val[c, si, k, 1], sf_val[c, si, k, 2],
                                    sf_val[c, si, k, 3], sf_val[c, si, k, 4], sf_val[c, si, k, 5], n)
@@ -440,48 +456,112 @@ if njit is not None:
     _table_spline = njit(nogil=True, error_model="numpy", inline="always")(spline_lookup)
 
     @inline
-    def _table_face(linear, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6, u0, u1):
+    def _table_face(linear, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6, u0, u1,
+                    MB):
         """One wall/table face over atoms u0..u1-1 (as `_face`, shift mode): F(r) by the table's
         linear or spline lookup (WallTable.lookup's arithmetic: the same functions, jitted) on
         its rows grid, tf (force), td (dF or F2). Returns the number of atoms nearer than the
         table's first distance lo (the NumPy path then reports them). `linear` is a literal.
-        (A branch per atom: measured faster than a branch-free loop and than listing the atoms
-        within the cut-off first.)"""
+
+        Two passes, so no branch depends on where an atom is (a gas near a wall: ~10% of the
+        atoms, in random order, a mispredicted branch every few atoms): a branch-free pass marks
+        the group atoms within the cut-off in the bytes MB (it vectorises); then, 64 atoms at a
+        time, their marks are packed into the bits of one word (8 bytes at once: the byte-to-bit
+        multiply) and only the marked atoms are visited, lowest bit first (atom order), each with
+        its table lookup. (Faster than a branch per atom, a branch-free lookup of every atom and
+        a list of the atoms within the cut-off: benchmarks/table.py.)"""
         sidef = float(side)
         sign = -sidef
         n2 = grid.shape[0] - 2
-        nbad = 0
+        nb = u1 - u0
         for i in range(u0, u1):
             r = (X[d, i] - coord) * sign
-            near = (r < cut) & (groups[g, i] != 0)
-            nbad += near & (r < lo)
-            if near and r >= lo:
-                j = min(int((r - lo) * invdelta), n2)
-                if linear:
-                    fr = _table_linear(r, j, grid, tf, td, invdelta)
+            MB[i - u0] = (r < cut) & (groups[g, i] != 0)
+        nw = (nb + np.uint64(7)) >> np.uint64(3)
+        for i in range(nb, nw << np.uint64(3)):
+            MB[i] = 0
+        W = MB.view(np.uint64)
+        nwi = np.int64(nw)
+        nbad = 0
+        for w0 in range(0, nwi, 8):
+            bits = np.uint64(0)
+            for w in range(w0, min(w0 + 8, nwi)):  # bit 8 (w - w0) + k: atom 8 w + k
+                bits |= ((W[w] * np.uint64(0x0102040810204080)) >> np.uint64(56)) << np.uint64(8 * (w - w0))
+            base = u0 + np.uint64(8 * w0)
+            while bits != np.uint64(0):
+                i = base + _trailing_zeros(bits)
+                bits &= bits - np.uint64(1)
+                r = (X[d, i] - coord) * sign
+                if r >= lo:
+                    j = min(int((r - lo) * invdelta), n2)
+                    if linear:
+                        fr = _table_linear(r, j, grid, tf, td, invdelta)
+                    else:
+                        fr = _table_spline(r, j, grid, tf, td, invdelta, deltasq6)
+                    F[d, i] = F[d, i] - sidef * fr
                 else:
-                    fr = _table_spline(r, j, grid, tf, td, invdelta, deltasq6)
-                F[d, i] = F[d, i] - sidef * fr
+                    nbad += 1
         return nbad
 
     @inline
     def _table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1):
         """Soft face k of the scene, a wall/table face: its rows in tb = (tb_meta (K, 3) int:
-        offset, N, linear; tb_par (K, 3): lo, 1/delta, delta^2/6; tb_data: every table's rows)."""
+        offset, N, linear; tb_par (K, 3): lo, 1/delta, delta^2/6; tb_data: every table's rows;
+        MB: scratch bytes, a block's atoms rounded up to 64, for `_table_face`)."""
         off, n = tb[0][k, 0], tb[0][k, 1]
         data = tb[2]
         grid, tf, td = data[off:off + n], data[off + n:off + 2 * n], data[off + 2 * n:off + 3 * n]
         lo, invdelta, deltasq6 = tb[1][k, 0], tb[1][k, 1], tb[1][k, 2]
         if tb[0][k, 2] != 0:
             return _table_face(True, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6,
-                               u0, u1)
+                               u0, u1, tb[3])
         return _table_face(False, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6,
-                           u0, u1)
+                           u0, u1, tb[3])
 
     @inline
     def _no_table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1):
         """`_table_faces` of a scene without wall/table faces: nothing (never called)."""
         return 0
+
+    @inline
+    def _table_out(tb, k, X, groups, g, d, side, coord, cut, n):
+        """The outputs of wall/table face k over a case's n atoms (walls.CustomWallKernel.apply
+        with outputs): (sum of E(r) - E_lin(rc), sum of side F(r): the force on the wall, sum of
+        F(r) r: the virial), summed atom by atom in atom order as np.bincount does; E and F by
+        the table's lookup (its rows 3-4 and 1-2), the offset E_lin(rc) by the linear lookup on
+        rows 3 and 5 (WallTable.offset)."""
+        off, nt = tb[0][k, 0], tb[0][k, 1]
+        data = tb[2]
+        grid, tf, td = data[off:off + nt], data[off + nt:off + 2 * nt], data[off + 2 * nt:off + 3 * nt]
+        te, tde, tdl = data[off + 3 * nt:off + 4 * nt], data[off + 4 * nt:off + 5 * nt], data[off + 5 * nt:off + 6 * nt]
+        lo, invdelta, deltasq6 = tb[1][k, 0], tb[1][k, 1], tb[1][k, 2]
+        linear = tb[0][k, 2] != 0
+        n2 = nt - 2
+        shift = _table_linear(cut, min(int((cut - lo) * invdelta), n2), grid, te, tdl, invdelta)
+        sidef = float(side)
+        sign = -sidef
+        e = 0.0
+        fs = 0.0
+        vir = 0.0
+        for i in range(n):
+            r = (X[d, i] - coord) * sign
+            if r < cut and groups[g, i] != 0:
+                j = min(int((r - lo) * invdelta), n2)
+                if linear:
+                    fi = _table_linear(r, j, grid, tf, td, invdelta)
+                    ei = _table_linear(r, j, grid, te, tde, invdelta)
+                else:
+                    fi = _table_spline(r, j, grid, tf, td, invdelta, deltasq6)
+                    ei = _table_spline(r, j, grid, te, tde, invdelta, deltasq6)
+                e += ei - shift
+                fs += sidef * fi
+                vir += fi * r
+        return e, fs, vir
+
+    @inline
+    def _no_table_out(tb, k, X, groups, g, d, side, coord, cut, n):
+        """`_table_out` of a scene without wall/table faces: nothing (never called)."""
+        return math.nan, math.nan, math.nan
 
     # -- fix wall/reflect/stochastic (stochastic.StochasticKernel.apply): the same plain functions
     _st_sigma = njit(nogil=True, error_model="numpy", inline="always")(_st.thermal_sigma)
@@ -888,12 +968,50 @@ if njit is not None:
         return 0
 
     @inline
+    def _reflect_face(d, side, wall, g, coord, vwall, stats, row, k, X, V, M, groups, rstat, ftm2v, u0, u1):
+        """One wall/reflect face over atoms u0..u1-1 (walls.ReflectKernel.apply): an atom of group g
+        past coord (side < 0: below it; else above) gets x -> 2 coord - x and v -> -v (`wall`,
+        frame wall: v -> 2 vwall - v). Without statistics one branch-free pass (selects: the same
+        values, every atom written), which the compiler vectorises; with them the reflected atoms
+        add their count and impulse M (v_before - v_after) / ftm2v to rstat[row, k] in atom
+        order, as np.bincount sums them."""
+        sgn = 1.0 if side < 0 else -1.0  # past: sgn x < sgn coord (x < coord, or -x < -coord: x > coord), exactly
+        lim = sgn * coord
+        two = 2.0 * coord
+        if stats:
+            for i in range(u0, u1):
+                pos = X[d, i]
+                if sgn * pos < lim and groups[g, i] != 0:
+                    X[d, i] = two - pos
+                    vb = V[d, i]
+                    va = 2.0 * vwall - vb if wall else -vb
+                    V[d, i] = va
+                    rstat[row, k, 0] += 1.0
+                    rstat[row, k, 1] += M[i] * (vb - va) / ftm2v
+        elif wall:
+            vw2 = 2.0 * vwall
+            for i in range(u0, u1):
+                pos = X[d, i]
+                vb = V[d, i]
+                past = (sgn * pos < lim) & (groups[g, i] != 0)
+                X[d, i] = two - pos if past else pos
+                V[d, i] = vw2 - vb if past else vb
+        else:
+            for i in range(u0, u1):
+                pos = X[d, i]
+                vb = V[d, i]
+                past = (sgn * pos < lim) & (groups[g, i] != 0)
+                X[d, i] = two - pos if past else pos
+                V[d, i] = -vb if past else vb
+
+    @inline
     def _block_step(c, u0, u1, si, row, dtc, due, X, V, F, M, RAD, DTFM, CAND, groups, box,
                     sf_meta, sf_val, rf_meta, rf_val, vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp,
                     tbst):
         """One velocity-Verlet step (engine.Engine.step) of atoms u0..u1-1 of case c, as simple
-        passes over the structure-of-arrays buffers: kick-drift, reflect faces (wall velocities
-        vw[row], statistics into rstat[row]), periodic wrap, force clear, soft faces, lost test,
+        passes over the structure-of-arrays buffers: kick-drift (with the force clear and, when
+        nothing in between moves a periodic coordinate, the periodic wrap), reflect faces (wall velocities
+        vw[row], statistics into rstat[row]), the periodic wrap if not done before, soft faces, lost test,
         kick; with `due`, fix dt/reset's candidates. Returns (status, smallest candidate over
         the dt/reset group, NaN if any is NaN); status 0, 1 (an atom on/behind a soft wall) or
         2 (an atom left through a fixed boundary). box rows: lo, hi, periodic (1.0) per dimension;
@@ -903,30 +1021,38 @@ if njit is not None:
         (a call of more than 30 arguments is compiled by CPython as f(*args), which numba cannot
         inline)."""
         tb, st, lp = tbst
-        for d in range(3):  # initial_integrate: v += dtfm f; x += dt v
-            for i in range(u0, u1):
-                vi = V[d, i] + DTFM[i] * F[d, i]
-                V[d, i] = vi
-                X[d, i] = X[d, i] + dtc * vi
-        for k in range(rf_meta.shape[0]):  # wall/reflect (post_integrate)
-            d = rf_meta[k, 0]
-            side = rf_meta[k, 1]
-            g = rf_meta[k, 3]
-            coord = rf_val[c, si, k]
-            for i in range(u0, u1):
-                pos = X[d, i]
-                if ((pos < coord) if side < 0 else (pos > coord)) and groups[g, i] != 0:
-                    X[d, i] = 2.0 * coord - pos
-                    vb = V[d, i]
-                    va = 2.0 * vw[row, k] - vb if rf_meta[k, 2] == 1 else -vb
-                    V[d, i] = va
-                    if stats:
-                        rstat[row, k, 0] += 1.0
-                        rstat[row, k, 1] += M[i] * (vb - va) / ftm2v
-        if st[0].shape[0]:  # wall/reflect/stochastic (post_integrate, after the wall/reflect fixes: `eligible`)
+        # the periodic wrap joins the drift unless something between them reads or moves a
+        # periodic coordinate (a wall/reflect face on a periodic dimension, wall/reflect/stochastic);
+        # the force clear joins it too (nothing reads F before the clear): the same values, fewer passes
+        early = st[0].shape[0] == 0
+        for k in range(rf_meta.shape[0]):
+            early = early and box[2, rf_meta[k, 0]] == 0.0
+        for d in range(3):  # initial_integrate: v += dtfm f; x += dt v (then wrap, f = 0)
+            if early and box[2, d] != 0.0:
+                lod = box[0, d]
+                hid = box[1, d]
+                length = hid - lod
+                for i in range(u0, u1):
+                    vi = V[d, i] + DTFM[i] * F[d, i]
+                    V[d, i] = vi
+                    xi = X[d, i] + dtc * vi
+                    xi = xi - length if xi >= hid else xi
+                    X[d, i] = xi + length if xi < lod else xi
+                    F[d, i] = 0.0
+            else:
+                for i in range(u0, u1):
+                    vi = V[d, i] + DTFM[i] * F[d, i]
+                    V[d, i] = vi
+                    X[d, i] = X[d, i] + dtc * vi
+                    F[d, i] = 0.0
+        if _K_REFLECT:
+            for k in range(rf_meta.shape[0]):  # wall/reflect (post_integrate)
+                _reflect_face(rf_meta[k, 0], rf_meta[k, 1], rf_meta[k, 2] == 1, rf_meta[k, 3], rf_val[c, si, k],
+                              vw[row, k], stats, row, k, X, V, M, groups, rstat, ftm2v, u0, u1)
+        if _K_STOCHASTIC and st[0].shape[0]:  # wall/reflect/stochastic (post_integrate, after the wall/reflect fixes: `eligible`)
             _stochastic_faces(c, u0, u1, X, V, M, groups, st, ftm2v, mvv2e)
-        for d in range(3):  # periodic wrap
-            if box[2, d] != 0.0:
+        for d in range(3):  # periodic wrap (when not done with the drift)
+            if box[2, d] != 0.0 and not early:
                 lod = box[0, d]
                 hid = box[1, d]
                 length = hid - lod
@@ -934,27 +1060,24 @@ if njit is not None:
                     xi = X[d, i]
                     xi = xi - length if xi >= hid else xi
                     X[d, i] = xi + length if xi < lod else xi
-        for d in range(3):  # force clear
-            for i in range(u0, u1):
-                F[d, i] = 0.0
         nbad = 0
         for k in range(sf_meta.shape[0]):  # soft walls (post_force), one loop per style
             style = sf_meta[k, 0]
             g, d, side = sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2]
             coord, cut, ron = sf_val[c, si, k, 0], sf_val[c, si, k, 4], sf_val[c, si, k, 5]
             p0, p1, p2 = sf_val[c, si, k, 1], sf_val[c, si, k, 2], sf_val[c, si, k, 3]
-            if style == TABLE_STYLE:  # wall/table: the face's table from tb (data, not code)
+            if _K_TABLES and style == TABLE_STYLE:  # wall/table: the face's table from tb (data, not code)
                 nbad += _table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1)
-            elif style < TABLE_STYLE:  # wall/lepton, parameters as an array: this case's row of lp
+            elif _K_VECTOR and style < TABLE_STYLE:  # wall/lepton, parameters as an array: this case's row of lp
                 nbad += _vector_faces(-2 - style, X, F, groups, g, d, side, coord, lp[c, k], cut, u0, u1)
             else:
                 nbad += _soft_face(style, sf_meta[k, 4], X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut,
                                    ron, u0, u1)
-        if rg[0].shape[0]:  # wall/region fixes (post_force, after the flat walls as in compute_forces)
+        if _K_REGION and rg[0].shape[0]:  # wall/region fixes (post_force, after the flat walls as in compute_forces)
             nbad += _region_walls(c, u0, u1, X, F, RAD, groups, rg[0], rg[1], rg[2], rg[3])
         if nbad:
             return 1, 0.0
-        if fxp[0].shape[0]:  # post_force fixes: langevin, enforce2d (Ensemble.post_force)
+        if _K_FIXES and fxp[0].shape[0]:  # post_force fixes: langevin, enforce2d (Ensemble.post_force)
             _fix_post_force(u0, u1, V, F, groups, fxp)
         nlost = 0
         for d in range(3):  # lost atoms
@@ -966,11 +1089,11 @@ if njit is not None:
         if nlost:
             return 2, 0.0
         xmax, emax, tmax = dtr_par[c, 0], dtr_par[c, 1], dtr_par[c, 3]
-        if not due or tmax != tmax:
+        if not _K_DTR or not due or tmax != tmax:
             for d in range(3):  # final_integrate: v += dtfm f
                 for i in range(u0, u1):
                     V[d, i] = V[d, i] + DTFM[i] * F[d, i]
-            if not due:
+            if not _K_DTR or not due:
                 return 0, np.inf
         else:
             # final_integrate fused with a test: each atom's dt is >= min(dtv, dtf, dte) / 2 (the
@@ -1080,14 +1203,13 @@ if njit is not None:
             every case go into the sm arrays (`_sample_faces`; sum m v^2 in NumPy's pairwise order;
             step, dt, atime, atimestep; reflect statistics and flow redraws since the last sample;
             the fixes' accumulators and chain), as Engine.sample would record them."""
-            if nsteps == -fingerprint:  # never: ties the on-disk cache to the styles (see _fingerprint)
-                return 5
+            # (each return releases every live array: a few returns only, for a shorter compile)
             ncase, natom = x.shape[0], x.shape[1]
             nrf = rf_meta.shape[0]
             hf = 0.5 * ftm2v
             vary = 1 if (sf_val.shape[1] > 1 or rf_val.shape[1] > 1) else 0
             # wall/reflect/stochastic draws for the atoms of a face in atom order: one block of all atoms
-            blk = max(natom, 1) if st_meta.shape[0] else BLOCK
+            blk = (natom if natom > 1 else 1) if st_meta.shape[0] else BLOCK
             nblock = (natom + blk - 1) // blk
             box = np.empty((3, 3))
             for d in range(3):
@@ -1105,16 +1227,19 @@ if njit is not None:
             XS = np.empty((3, natom if speculate else 0))  # window start, to undo a window
             VS = np.empty((3, natom if speculate else 0))
             FS = np.empty((3, natom if speculate else 0))
-            nrow = max(1, nsteps if dtr_every == 0 else min(WINDOW, nsteps))
-            vw = np.zeros((nrow, nrf))  # wall velocities (frame wall) per step of a window
-            rstat = np.zeros((nrow, nrf, 2))  # reflections and impulse per step and face
+            # (plain conditionals for min/max and np.empty for np.zeros: each overload is a compile)
+            nrow = nsteps if dtr_every == 0 else (WINDOW if WINDOW < nsteps else nsteps)
+            nrow = nrow if nrow > 1 else 1
+            vw = np.empty((nrow, nrf))  # wall velocities (frame wall) per step of a window (set per window)
+            rstat = np.empty((nrow, nrf, 2))  # reflections and impulse per step and face (set per window)
             low = np.empty(nrow)  # smallest dt/reset candidate per step of a window
             # wall/region: one argument (a call of more than 30 arguments is compiled by CPython as
             # f(*args), which numba cannot inline); RB holds a block's contacts (_region_contacts)
             rg = (rg_meta, rg_geo, rg_val, np.empty((6, 5, blk)))
             # wall/flow (fl_int[0] != 0; the chunk then holds one case): step by step over all blocks
-            CI = np.empty(natom if fl_int[0] != 0 else 0, np.int64)
-            DIR = np.empty(natom if fl_int[0] != 0 else 0)
+            if _K_FLOW:
+                CI = np.empty(natom if fl_int[0] != 0 else 0, np.int64)
+                DIR = np.empty(natom if fl_int[0] != 0 else 0)
             # fixes (fx: see _fix_pre; fx[0] = fx_meta): thermostats couple the atoms every step, so
             # a chunk with one goes step by step over all blocks; enforce2d alone keeps the windows
             fx_meta = fx[0]
@@ -1130,17 +1255,24 @@ if njit is not None:
             nfx = natom if fx_meta.shape[0] else 0
             SQM = np.empty(nfx)  # sqrt(m): the Langevin random force's per-atom factor
             G1 = np.empty(nfx)  # the Langevin drag per atom
-            FR = np.zeros((3, nfx))  # this step's Langevin random forces
-            FL = np.zeros((3, nfx))  # this step's Langevin forces (the tally's)
+            FR = np.empty((3, nfx))  # this step's Langevin random forces
+            FL = np.empty((3, nfx))  # this step's Langevin forces (the tally's)
+            for d in range(3):
+                for a in range(nfx):
+                    FR[d, a] = 0.0
+                    FL[d, a] = 0.0
             KB = np.empty(nfx)  # per-atom terms of a sum over atoms
             fxp = (fx_meta, G1, FR, FL)
             sm_at, sm_mv2, sm_clock, sm_face, sm_rstat, sm_fx, sm_chain, sm_cross, sm_reg = sm
             nsm = sm_at.shape[0]
             KS = np.empty(natom if nsm else 0)  # m v^2 per atom at a sample
             RBS = np.empty((6, 5, natom if nsm and rg_meta.shape[0] else 0))  # a case's region contacts
-            tb = (tb_meta, tb_par, tb_data)  # wall/table faces (`_table_faces`)
+            tb = (tb_meta, tb_par, tb_data,  # wall/table faces (`_table_faces`) and their scratch bytes
+                  np.zeros(((blk + 63) // 64) * 64 if tb_meta.shape[0] else 0, np.uint8))
             nst = natom if st_meta.shape[0] else 0
-            sto = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(nst, np.int64), np.empty((4, nst)))
+            # scratch of the stochastic faces (a scene without them: `periodic`, an int64 array never read)
+            sto = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(nst, np.int64) if _K_STOCHASTIC else periodic,
+                   np.empty((4, nst)))
             tbst = (tb, sto, lp_val)  # wall/reflect/stochastic, lepton parameter rows
             for c in range(ncase):
                 for a in range(natom):
@@ -1150,7 +1282,7 @@ if njit is not None:
                         F[d, a] = f[c, a, d]
                     M[a] = mass[c, a]
                     RAD[a] = radius[c, a]
-                if langevin >= 0:
+                if _K_FIXES and langevin >= 0:
                     for a in range(natom):
                         SQM[a] = np.sqrt(M[a])
                         G1[a] = _th_drag(M[a], fx[1][c, langevin, 2], ftm2v)
@@ -1162,7 +1294,7 @@ if njit is not None:
                     base = 0.0
                     sdt = 0.0
                     landing = False
-                    if time_mode:
+                    if _K_TIME and time_mode:
                         now = atime[c] + (step[c] - atimestep[c]) * dt[c]
                         if not now < target - tol:
                             if done == 0:
@@ -1176,15 +1308,19 @@ if njit is not None:
                               and (rescale_only or not thermo))
                     nwin = 1
                     if window:
-                        nwin = nsteps - done if dtr_every == 0 else min(WINDOW, nsteps - done)
-                        if thermo:  # temp/rescale only (its atoms are coupled on due steps only)
+                        nwin = nsteps - done
+                        if dtr_every != 0 and WINDOW < nwin:
+                            nwin = WINDOW
+                        if _K_FIXES and thermo:  # temp/rescale only (its atoms are coupled on due steps only)
                             for k in range(fx_meta.shape[0]):
                                 if fx_meta[k, 0] == FIX_RESCALE:
                                     every = fx_meta[k, 2]
-                                    nwin = min(nwin, every - step[c] % every)
-                        if ism < nsm:  # a window ends at a sample step
-                            nwin = min(nwin, sm_at[ism] - done)
-                    if time_mode:
+                                    due_in = every - step[c] % every
+                                    nwin = due_in if due_in < nwin else nwin
+                        if _K_SAMPLES and ism < nsm:  # a window ends at a sample step
+                            to_sample = sm_at[ism] - done
+                            nwin = to_sample if to_sample < nwin else nwin
+                    if _K_TIME and time_mode:
                         base = dt[c]
                         rem = target - now
                         sdt = _nmin(base, rem)
@@ -1197,39 +1333,39 @@ if njit is not None:
                     hdt = hf * dtc
                     for a in range(natom):
                         DTFM[a] = hdt / M[a]
-                    if window and speculate:
+                    if _K_DTR and window and speculate:
                         _copy3(XS, X)
                         _copy3(VS, V)
                         _copy3(FS, F)
                     for s in range(nwin):
                         low[s] = np.inf
-                        for k in range(nrf):
+                        for k in range(nrf if _K_REFLECT else 0):
                             prev = rf_prev[c, k] if s == 0 else rf_val[c, (done + s - 1) * vary, k]
                             vw[s, k] = (rf_val[c, (done + s) * vary, k] - prev) / dtc if dtc > 0 else 0.0
                             rstat[s, k, 0] = 0.0
                             rstat[s, k, 1] = 0.0
-                    if thermo:  # fix nvt's first half step, the Langevin random forces
+                    if _K_FIXES and thermo:  # fix nvt's first half step, the Langevin random forces
                         _fix_pre(c, step[c] + 1, dtc, V, M, groups, fx, fx_rng, SQM, FR, KB)
                     for b in range(nblock):
                         u0 = np.uint64(b * blk)  # unsigned: no negative-index wraparound, loops vectorise
-                        u1 = np.uint64(min(b * blk + blk, natom))
+                        u1 = np.uint64(b * blk + blk if b * blk + blk < natom else natom)
                         for s in range(nwin):
-                            due = dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
+                            due = _K_DTR and dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
                             st, m = _block_step(c, u0, u1, (done + s) * vary, s, dtc, due, X, V, F, M, RAD, DTFM,
                                                 CAND, groups, box, sf_meta, sf_val, rf_meta, rf_val,
                                                 vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp, tbst)
                             if st != 0:
                                 return st
-                            if due:
+                            if _K_DTR and due:
                                 low[s] = _nmin(low[s], m)
-                    if thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
+                    if _K_FIXES and thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
                         st = _fix_end(c, step[c] + nwin, dtc, V, M, groups, fx, KB, FL)
                         if st != 0:
                             return st
-                    if fl_int[0] != 0:  # fix wall/flow (end_of_step)
+                    if _K_FLOW and fl_int[0] != 0:  # fix wall/flow (end_of_step)
                         _flow_step(X, V, M, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross,
                                    fl_rng, CI, DIR)
-                    if window and speculate:
+                    if _K_DTR and window and speculate:
                         first = -1
                         for s in range(nwin):
                             if (step[c] + s + 1) % dtr_every == 0 and _clamp(low[s], natom, dtr_par[c]) != dtc:
@@ -1240,11 +1376,11 @@ if njit is not None:
                             _copy3(V, VS)
                             _copy3(F, FS)
                             stepwise = first + 1 + backoff
-                            backoff = min(2 * backoff + 8, 4096)
+                            backoff = 2 * backoff + 8 if 2 * backoff + 8 < 4096 else 4096
                             continue
                         backoff = 0
                     step[c] += nwin
-                    for s in range(nwin):
+                    for s in range(nwin if _K_REFLECT else 0):
                         for k in range(nrf):
                             rf_stat[c, k, 0] += rstat[s, k, 0]
                             rf_stat[c, k, 1] += rstat[s, k, 1]
@@ -1252,7 +1388,7 @@ if njit is not None:
                         rf_prev[c, k] = rf_val[c, (done + nwin - 1) * vary, k]
                     done += nwin
                     if not window:
-                        if dtr_every > 0 and step[c] % dtr_every == 0:  # fix dt/reset (end_of_step)
+                        if _K_DTR and dtr_every > 0 and step[c] % dtr_every == 0:  # fix dt/reset (end_of_step)
                             new = _clamp(low[0], natom, dtr_par[c])
                             if new != dt[c]:
                                 atime[c] = atime[c] + (step[c] - atimestep[c]) * dt[c]
@@ -1260,7 +1396,7 @@ if njit is not None:
                                 dt[c] = new
                         if stepwise > 0:
                             stepwise -= 1
-                        if time_mode:
+                        if _K_TIME and time_mode:
                             new_base = dt[c] if dt[c] != sdt else base
                             if landing or new_base != dt[c]:  # at a fixed dt: time = atime + n dt (no sum)
                                 now = atime[c] + (step[c] - atimestep[c]) * dt[c]
@@ -1269,9 +1405,9 @@ if njit is not None:
                             dt[c] = new_base
                             if landing:
                                 break
-                    if ism < nsm and done == sm_at[ism]:  # a sample step: the outputs of Engine.sample
-                        _sample_faces(c, (done - 1) * vary, X, RAD, groups, sf_meta, sf_val, sm_face[c, ism])
-                        if rg_meta.shape[0]:
+                    if _K_SAMPLES and ism < nsm and done == sm_at[ism]:  # a sample step: the outputs of Engine.sample
+                        _sample_faces(c, (done - 1) * vary, X, RAD, groups, sf_meta, sf_val, tb, sm_face[c, ism])
+                        if _K_REGION and rg_meta.shape[0]:
                             _sample_regions(c, X, RAD, groups, rg_meta, rg_geo, rg_val, RBS, sm_reg[c, ism])
                         for a in range(natom):
                             KS[a] = _th_mv2(M[a], V[0, a], V[1, a], V[2, a])
@@ -1285,10 +1421,10 @@ if njit is not None:
                             sm_rstat[c, ism, k, 1] = rf_stat[c, k, 1]
                             rf_stat[c, k, 0] = 0.0
                             rf_stat[c, k, 1] = 0.0
-                        for k in range(fx_meta.shape[0]):  # the fixes' accumulators (ecouple)
+                        for k in range(fx_meta.shape[0] if _K_FIXES else 0):  # the fixes' accumulators (ecouple)
                             for j in range(4):
                                 sm_fx[c, ism, k, j] = fx[2][c, k, j]
-                        if sm_chain.shape[2]:  # fix nvt's chain: eta, eta_dot, eta_mass, t_target
+                        if _K_FIXES and sm_chain.shape[2]:  # fix nvt's chain: eta, eta_dot, eta_mass, t_target
                             j = 0
                             for m in range(fx[3].shape[1]):
                                 sm_chain[c, ism, j] = fx[3][c, m]
@@ -1303,20 +1439,20 @@ if njit is not None:
                         sm_cross[c, ism] = fl_cross[0]  # flow redraws since the last sample (take_crossings)
                         fl_cross[0] = 0.0
                         ism += 1
-                if not math.isfinite(dt[c]):
-                    return 3
+                finite = math.isfinite(dt[c])
                 for a in range(natom):
                     for d in range(3):
-                        if not (math.isfinite(X[d, a]) and math.isfinite(V[d, a])):
-                            return 3
+                        finite = finite & math.isfinite(X[d, a]) & math.isfinite(V[d, a])
                         xo[c, a, d] = X[d, a]
                         vo[c, a, d] = V[d, a]
                         fo[c, a, d] = F[d, a]
-                if langevin >= 0:
+                if not finite:
+                    return 3
+                if _K_FIXES and langevin >= 0:
                     for a in range(natom):
                         for d in range(3):
                             fx[13][c, a, d] = FL[d, a]
-            return 0
+            return 5 if nsteps == -fingerprint else 0  # never 5: ties the on-disk cache to the styles (_fingerprint)
         return _run_chunk
 
     @jit
@@ -1441,7 +1577,7 @@ if njit is not None:
                 if extra[j].startswith(VECTOR_MARK):
                     namespace[f"_VEXTRA_{j}"] = force
                 else:
-                    namespace[f"_EXTRA_{j}"] = njit(nogil=True, error_model="numpy")(
+                    namespace[f"_EXTRA_{j}"] = njit(**_SCENE)(
                         cutoff_functions(force, force, SHIFT, _switch)[0])
             filename = module.__file__
         else:
@@ -1449,28 +1585,29 @@ if njit is not None:
             source = _dispatch_source(soft)
             exec(compile(source, "<wallbatch soft-face dispatch>", "exec"), namespace)  # noqa: S102 - generated here
         soft_face = njit(nogil=True, error_model="numpy", inline="always")(namespace["_soft_face"])
-        osource = _outputs_dispatch_source(soft)
+        osource = _outputs_source(soft)
         source += osource
         exec(compile(osource, "<wallbatch soft-face outputs dispatch>", "exec"), namespace)  # noqa: S102 - generated here
         face_out = njit(nogil=True, error_model="numpy", inline="always")(namespace["_face_out"])
-        sample_faces = njit(nogil=True, error_model="numpy")(_relink(_sample_faces, _face_out=face_out))
+        sample_faces = njit(**_SCENE)(
+            _relink(_sample_faces, _face_out=face_out, _table_out=_table_out if tables else _no_table_out))
         region_walls = _no_region_walls
         sample_regions = _no_sample_regions
         if region:
             namespace.update({f"_ENERGY_{i}_{m}": MODE_ENERGIES[(i, m)] for i, m in region if (i, m) in MODE_ENERGIES})
             namespace["_rout"] = _rout
-            rsource = _region_dispatch_source(region) + _region_outputs_source(region)
+            rsource = _region_dispatch_source(region) + _outputs_source(region, "region")
             source += rsource
             exec(compile(rsource, "<wallbatch region dispatch>", "exec"), namespace)  # noqa: S102 - generated here
             region_force = njit(nogil=True, error_model="numpy", inline="always")(namespace["_region_force"])
-            region_walls = njit(nogil=True, error_model="numpy")(_relink(_region_walls, _region_force=region_force))
+            region_walls = njit(**_SCENE)(_relink(_region_walls, _region_force=region_force))
             region_out = njit(nogil=True, error_model="numpy", inline="always")(namespace["_region_out"])
-            sample_regions = njit(nogil=True, error_model="numpy")(_relink(_sample_regions, _region_out=region_out))
+            sample_regions = njit(**_SCENE)(_relink(_sample_regions, _region_out=region_out))
         flow_step = _no_flow_step
         if flow:
             from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
 
-            flow_step = njit(nogil=True, error_model="numpy")(_relink(_flow_step, flow_compiled=flow_compiled))
+            flow_step = njit(**_SCENE)(_relink(_flow_step, flow_compiled=flow_compiled))
         vector_faces = _no_vector_faces
         if any(src.startswith(VECTOR_MARK) for src in extra):
             vector_faces = njit(nogil=True, error_model="numpy", inline="always")(namespace["_vector_faces"])
@@ -1490,38 +1627,43 @@ if njit is not None:
 
     def kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
                    extra: tuple[str, ...] = (), parallel: bool = False, fixes: bool = True, dtr: bool = True,
-                   tables: bool = False, stochastic: bool = False) -> Any:
+                   tables: bool = False, stochastic: bool = False, reflect: bool = True, time: bool = True,
+                   sampled: bool = True) -> Any:
         """The chunk kernel of one kind of scene (`_kernel_for`), one per specialisation and process;
-        `fixes`/`dtr` False: a scene without `fixes:` / fix dt/reset (their code left out)."""
+        False leaves that code out: `fixes` (`fixes:`), `dtr` (fix dt/reset), `reflect`
+        (wall/reflect), `time` (time-based runs, `FastPath.advance_to_time`), `sampled` (samples
+        recorded in the kernel, `FastPath.advance_sampled`)."""
         return _kernel_for(*_scene_args(soft, region, flow, extra, tables, stochastic), bool(parallel), bool(fixes),
-                           bool(dtr))
+                           bool(dtr), bool(reflect), bool(time), bool(sampled))
 
     @functools.lru_cache(maxsize=64)
     def _kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
                     extra: tuple[str, ...], tables: bool, stochastic: bool, parallel: bool, fixes: bool = True,
-                    dtr: bool = True) -> Any:
+                    dtr: bool = True, reflect: bool = True, time: bool = True, sampled: bool = True) -> Any:
         """The chunk kernel of one kind of scene (`pieces_for`; `parallel`: compiled with numba
         parallel=True, reserved for a two-thread variant, not used by the engine yet): this
-        module's chunk kernel re-linked to the scene's block and flow steps, named
-        `_run_chunk_<fingerprint>` so numba caches it on disk in its own index file (beside this
-        file, or with `extra` beside the generated module it is attributed to: compiled once,
-        loaded by later processes)."""
+        module's chunk kernel re-linked to the scene's block and flow steps and to its
+        KERNEL_FLAGS (what it leaves out), named `_run_chunk_<fingerprint>` so numba caches it on
+        disk in its own index file (beside this file, or with `extra` beside the generated module
+        it is attributed to: compiled once, loaded by later processes)."""
         p = _pieces_for(soft, region, flow, extra, tables, stochastic)
+        flags = {"_K_REFLECT": reflect, "_K_STOCHASTIC": stochastic, "_K_TABLES": tables,
+                 "_K_VECTOR": any(src.startswith(VECTOR_MARK) for src in extra), "_K_REGION": bool(region),
+                 "_K_FIXES": fixes, "_K_DTR": dtr, "_K_FLOW": flow, "_K_TIME": time, "_K_SAMPLES": sampled}
         fp = _fingerprint(tuple(sorted(set(soft) | set(region))), flow, parallel,
-                          p.source + ("" if fixes and dtr else f"\n# fixes {fixes}, dt/reset {dtr}"))
-        block_step, links = p.block_step, {}
-        if not (fixes and dtr):
-            gone = {}
-            if not fixes:
-                gone["_fix_post_force"] = _no_fix_post_force
-                links = {"_fix_pre": _no_fix_pre, "_fix_end": _no_fix_end}
-            if not dtr:
-                gone["_dt_candidate"] = _no_dt_candidate
-            block_step = njit(nogil=True, error_model="numpy", inline="always")(_relink(p.block_step, **gone))
+                          p.source + "\n# " + ", ".join(f"{k} {v}" for k, v in flags.items()))
+        gone: dict[str, Any] = {}
+        links: dict[str, Any] = {}
+        if not fixes:
+            gone["_fix_post_force"] = _no_fix_post_force
+            links = {"_fix_pre": _no_fix_pre, "_fix_end": _no_fix_end}
+        if not dtr:
+            gone["_dt_candidate"] = _no_dt_candidate
+        block_step = njit(nogil=True, error_model="numpy", inline="always")(_relink(p.block_step, **gone, **flags))
         fn = _relink(_make_run_chunk(fp), name=f"_run_chunk_{fp:015x}", filename=p.filename,
                      _block_step=block_step, _flow_step=p.flow_step, _sample_faces=p.sample_faces,
-                     _sample_regions=p.sample_regions, **links)
-        return njit(cache=True, nogil=True, error_model="numpy", parallel=parallel)(fn)
+                     _sample_regions=p.sample_regions, **links, **flags)
+        return njit(cache=True, nogil=True, error_model="numpy", parallel=parallel, no_cfunc_wrapper=True)(fn)
 
 
 # ----------------------------------------------------------------------------- the Python side
@@ -1909,6 +2051,7 @@ class FastPath:
         self.compiled_chunks = 0  # chunks run compiled (tests and benchmarks read these)
         self.sampled_calls = 0  # kernel calls that recorded samples themselves (advance_sampled)
         self.kernel: Any = None  # the scene kernel of the last chunk (kernel_for)
+        self.kernel_names: set[str] = set()  # every scene kernel this path ran (each is a compile)
         self.fallbacks = 0  # chunks handed back to NumPy
         self._spare: tuple[np.ndarray, ...] = ()  # output buffers for x, v, f (swapped with the state's)
         self._sampled_refused = False  # the scene's samples are not recorded in the kernel (sampled_eligible)
@@ -2017,20 +2160,29 @@ class FastPath:
         """Engine.advance_to_time compiled; False: let the NumPy loop do it."""
         return self._chunk(0, True, target)
 
+    def samples_in_kernel(self, at: np.ndarray) -> bool:
+        """Whether `advance_sampled` records the samples `at` (steps from now, increasing) in the
+        kernel; False: the caller goes one instant at a time (`advance`). Decided by the steps per
+        sample, not by a chunk's length, so a run keeps to one way (batch/runner.py warms it)."""
+        at = np.asarray(at, np.int64)
+        if self._sampled_refused or at.size == 0 or at[0] <= 0 or np.any(np.diff(at) <= 0):
+            return False
+        plan = self.plan_source()
+        if not (enabled() and eligible(plan) and sampled_eligible(plan)):
+            self._sampled_refused = True  # not asked again
+            return False
+        # one case with enough work between two samples for threads over its atoms
+        # (threads.plan_split): one instant at a time
+        return not _splits_atoms(plan, max(1, int(at[-1]) // at.size))
+
     def advance_sampled(self, at: np.ndarray) -> int:
         """Run to the sample steps `at` (counted from now, increasing), recording every sample
         inside the kernel (plan.record_samples); returns how many of them were run (the first ones;
-        0: nothing done, let the caller go sample by sample). `sampled_eligible` says which scenes
-        run here; one that does not is not asked again."""
+        0: nothing done, let the caller go sample by sample: `samples_in_kernel`)."""
+        if not self.samples_in_kernel(at):
+            return 0
         at = np.asarray(at, np.int64)
-        if self._sampled_refused or at.size == 0 or at[0] <= 0 or np.any(np.diff(at) <= 0):
-            return 0
         plan = self.plan_source()
-        if not (enabled() and eligible(plan) and sampled_eligible(plan)):
-            self._sampled_refused = True
-            return 0
-        if _splits_atoms(plan, int(at[-1])):
-            return 0  # one case in threads over its atoms (threads.plan_split): sample by sample
         # the sample arrays (C, S, ...) within SAMPLE_BUDGET doubles: fewer samples per call
         nfix = len(plan.ensemble.fixes) if plan.ensemble is not None else 0
         width = 6 + 5 * len(plan.region) + 3 * sum(len(w.faces) for w in plan.soft) + 2 * sum(len(w.faces) for w in plan.reflect) \
@@ -2162,8 +2314,12 @@ class FastPath:
         kernel = kernel_for(tuple(sorted({(int(r[0]), int(r[4])) for r in sf_meta if 0 <= r[0] < n})),
                             tuple(sorted({(int(r[2]), int(r[4])) for r in rg[0]})), fk is not None, tuple(extra),
                             fixes=bool(fx[0].shape[0]), dtr=dtr is not None,
-                            tables=bool(np.any(sf_meta[:, 0] == TABLE_STYLE)), stochastic=sk is not None)
+                            tables=bool(np.any(sf_meta[:, 0] == TABLE_STYLE)), stochastic=sk is not None,
+                            reflect=bool(rf_meta.shape[0]), time=time_mode,
+                            # one kernel for both ways of sampling (a second would be a second compile)
+                            sampled=sampled_eligible(plan))
         self.kernel = kernel  # the last chunk's kernel (tests read its cache statistics)
+        self.kernel_names.add(kernel.py_func.__qualname__)
         if not kernel.signatures:
             announce_compile(kernel, 30 if extra else COMPILE_SECONDS_FIXES if fx[0].shape[0] or dtr is not None
                              else COMPILE_SECONDS)  # generated forces: ~30 s
@@ -2354,12 +2510,13 @@ def _splits_atoms(plan: ChunkPlan, nsteps: int) -> bool:
 
 def sampled_eligible(plan: ChunkPlan) -> bool:
     """Scenes whose samples the kernel records itself (sampled chunks): `eligible` ones with
-    flat soft faces of registry styles whose energy it computes (`energy_compiled`), no
-    generated forces or wall/reflect/stochastic, wall/region fixes of such styles, and an engine that
-    takes the records."""
+    flat soft faces of registry styles whose energy it computes (`energy_compiled`) or of
+    wall/table (`_table_out`), no generated forces or wall/reflect/stochastic, wall/region fixes
+    of such styles, and an engine that takes the records."""
     if plan.record_samples is None or _lepton_extra(plan) or _stochastic_kernel(plan) is not None:
         return False
-    return all(type(w) is SoftWallKernel and energy_compiled(w.style) for w in plan.soft) and \
+    return all((type(w) is SoftWallKernel and energy_compiled(w.style)) or
+               (type(w) is CustomWallKernel and all(_is_table(st) for st in w.face_styles)) for w in plan.soft) and \
         all(energy_compiled(w.style) for w in plan.region)
 
 

@@ -74,6 +74,8 @@ class Engine:
             self.dtr_tmin = np.array([np.nan if c.dt_reset.tmin is None else c.dt_reset.tmin for c in cases])
             self.dtr_tmax = np.array([np.nan if c.dt_reset.tmax is None else c.dt_reset.tmax for c in cases])
         self.errors: dict[int, str] = {}
+        self._dtfm_key: tuple[np.ndarray, np.ndarray] | None = None  # (mass, dt) of the kept half_kick
+        self._dtfm: np.ndarray | None = None
         self.dump_fields = c0.dump_fields
         self.frames: list[tuple] = []  # (rows, time, x, v) per dump instant
         self.samples: list[dict[str, np.ndarray]] = []  # per sample: name -> (C_live, ...) arrays
@@ -171,10 +173,11 @@ class Engine:
         """Wrap periodic dimensions every step (x -= L past hi, x += L below lo, as LAMMPS)."""
         s = self.state
         for d in s.periodic:
-            length = s.box_hi[d] - s.box_lo[d]
-            xd = s.x[:, :, d]
-            xd[xd >= s.box_hi[d]] -= length
-            xd[xd < s.box_lo[d]] += length
+            lo, hi = s.box_lo[d], s.box_hi[d]
+            length = hi - lo
+            xd = s.x[:, :, d]  # a view: updated in place where the condition holds
+            np.subtract(xd, length, out=xd, where=xd >= hi)
+            np.add(xd, length, out=xd, where=xd < lo)
 
     def check_lost(self) -> None:
         """Fail cases with atoms outside a fixed boundary (LAMMPS: Lost atoms). Runs after the wall
@@ -182,6 +185,10 @@ class Engine:
         s = self.state
         for d in s.fixed:
             xd = s.x[:, :, d]
+            # pre-test on the extremes (fmin/fmax pass over NaN: a NaN position is not lost here)
+            if xd.size == 0 or not (np.fmin.reduce(xd, axis=None) < s.box_lo[d]
+                                    or np.fmax.reduce(xd, axis=None) > s.box_hi[d]):
+                continue
             lost = (xd < s.box_lo[d]) | (xd > s.box_hi[d])
             if lost.any():
                 ci, ai = np.nonzero(lost)
@@ -196,9 +203,9 @@ class Engine:
         """Force (and torque) clear, pair forces, then post_force walls; with `outputs`, the pair's
         energy and virial (key PAIR) and each wall fix's scalar and vector (key fix-ID)."""
         s = self.state
-        s.f[:] = 0.0
+        s.f.fill(0.0)
         if s.torque is not None:
-            s.torque[:] = 0.0
+            s.torque.fill(0.0)
         out: dict[str, tuple[np.ndarray, ...]] = {}
         if self.pair is not None:
             res = self.pair.compute(s.x, s.f, outputs)
@@ -236,13 +243,25 @@ class Engine:
         new = np.where(np.isnan(self.dtr_tmin), new, np.maximum(new, self.dtr_tmin))
         return np.where(np.isnan(self.dtr_tmax), new, np.minimum(new, self.dtr_tmax))
 
+    def half_kick(self, dt: np.ndarray) -> np.ndarray:
+        """dtfm = dt/2 ftm2v / m (C, N, 3), the same for x, y and z (a full array: the kicks
+        v += dtfm f then run over contiguous memory). Kept from step to step while dt and the
+        live cases stay the same."""
+        s = self.state
+        key = self._dtfm_key
+        if key is None or key[0] is not s.mass or key[1].shape != dt.shape or not (key[1] == dt).all():
+            per_atom = (0.5 * s.units.ftm2v) * dt[:, None] / s.mass
+            self._dtfm = np.repeat(per_atom[:, :, None], 3, axis=2)
+            self._dtfm_key = (s.mass, dt.copy())
+        return self._dtfm
+
     def step(self, dt: np.ndarray, outputs: bool, active: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """One velocity-Verlet step of every live case (`active` cases only advance in time)."""
         s = self.state
         s.step += 1 if active is None else active
         s.var_step = {}
         s.ctx = None
-        dtfm = ((0.5 * s.units.ftm2v) * dt[:, None] / s.mass)[:, :, None]
+        dtfm = self.half_kick(dt)
         self.initial_integrate(dt, dtfm)
         for w in self.reflect:
             w.apply(s, dt)

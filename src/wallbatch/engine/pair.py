@@ -28,13 +28,15 @@ Compiled path (pair_compiled.py; the default when numba imports and WALLBATCH_NU
 `compiled=False` forces NumPy): the same per-case rebuild decisions, a cell-list build per case
 (the same pairs, each once, in cell order; CSR rows in (C, ...) arrays) and a force pass per case
 that gathers each row's separations into contiguous buffers, computes the pair terms in one
-vectorised loop and adds them in list order. Each pair's values come from the NumPy path's
-operations in the same order; only the order of the sums differs, so the paths agree to rounding
+vectorised loop and adds them in list order (with outputs, the energy and virial in the same pass).
+Each pair's values come from the same functions (lj.py's `min_image`, `lj_terms`, compiled into
+the kernels); only the order of the sums differs, so the paths agree to rounding
 (tests: <= 1e-13 relative to the case's force, energy and virial scales). Each case is still
 computed alone, so its numbers never depend on its batch. For N = 4000 at density 0.8 (137k
-pairs): force pass ~0.7 ms, build ~2 ms. Scenes whose other fixes the chunk kernels run (flat
-soft walls, wall/region, one wall/flow) run whole chunks of steps in one compiled call per case
-(pair_compiled.PairChunks), with the same bits as this path step by step.
+pairs): force pass ~0.7 ms, build ~2 ms; for N = 97,556 (3.4M pairs) ~17 ms and ~33 ms. Scenes
+whose other fixes the chunk kernels run (flat soft walls, wall/region, one wall/flow) run whole
+chunks of steps in one compiled call per case (pair_compiled.PairChunks), with the same bits as
+this path step by step; a sampled chunk's outputs come from its last force pass (`remember`).
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from wallbatch.engine import backend
+from wallbatch.engine.lj import lj_terms, min_image
 
 # LAMMPS's default neighbor skin per unit style [length] (0.3 sigma in lj; 2 Angstrom in real/metal)
 DEFAULT_SKIN = {"lj": 0.3, "real": 2.0, "metal": 2.0}
@@ -55,12 +58,11 @@ def default_skin(units: str) -> float:
 def lj_pair(r2: np.ndarray, epsilon, sigma) -> tuple[np.ndarray, np.ndarray]:
     """Unshifted pair energy E(r) [energy] and fpair = F/r = -(dE/dr)/r [force/length] from r^2.
 
-    E = 4 eps (s6^2 - s6), fpair = 24 eps (2 s6^2 - s6) / r^2 with s6 = (sigma^2 / r^2)^3.
-    No cut-off here; everything broadcasts.
+    E = 4 eps (s6^2 - s6), fpair = 24 eps (2 s6^2 - s6) / r^2 with s6 = (sigma^2 / r^2)^3
+    (`lj_terms` without a cut-off); everything broadcasts.
     """
-    s2 = sigma * sigma / r2
-    s6 = s2 * s2 * s2
-    return 4.0 * epsilon * s6 * (s6 - 1.0), 24.0 * epsilon * s6 * (2.0 * s6 - 1.0) / r2
+    fpair, energy = lj_terms(r2, 24.0 * epsilon, 4.0 * epsilon, sigma * sigma, np.inf, 0.0)
+    return energy, fpair
 
 
 class PairLJCut:
@@ -109,7 +111,7 @@ class PairLJCut:
         self._bad = np.zeros(len(eps), dtype=bool)  # non-finite positions at the last build
         self._xref: np.ndarray | None = None  # (C, N, 3) positions at each case's last build
         self._flat: dict[str, np.ndarray] | None = None
-        self._work = np.empty((7, 0))
+        self._work = np.empty((5, 0))
         want = backend.numba_allowed() if compiled is None else bool(compiled)  # numba imported only if wanted
         self._nb = None  # the pair_compiled module on the compiled path
         if want:
@@ -125,6 +127,8 @@ class PairLJCut:
         self._first: np.ndarray | None = None  # compiled path: (C, N+1) CSR row starts per case
         self._owner = np.empty((len(eps), 0), dtype=np.int32)  # (C, N) atom of each CSR row
         self._neigh = np.empty((len(eps), 0), dtype=np.int32)  # (C, capacity) j of each pair
+        self._memo: tuple[np.ndarray, ...] | None = None  # remember(): outputs of a compiled chunk's last step
+        self._spare = np.empty(0, dtype=np.int32)  # a one-case batch's second pair array (spare_list)
 
     @property
     def ncases(self) -> int:
@@ -183,9 +187,7 @@ class PairLJCut:
         both = np.concatenate(self._pairs) if self._pairs else np.empty((0, 2), dtype=np.int64)
         i, j = both[:, 0] + case * natoms, both[:, 1] + case * natoms
         eps, sig, rc = self.epsilon, self.sigma, self.cutoff
-        e_rc, _ = lj_pair(rc * rc, eps, sig)
-        coef = {"eps": eps, "sig2": sig * sig, "rc2": rc * rc,
-                "offset": e_rc if self.shift else np.zeros_like(eps)}
+        coef = {"eps": eps, "sig2": sig * sig, "rc2": rc * rc, "offset": self.offsets()}
         uniform = len(eps) > 0 and all(np.all(v == v[0]) for v in coef.values())
         run = np.flatnonzero(np.r_[True, i[1:] != i[:-1]]) if len(i) else np.empty(0, dtype=np.int64)
         starts = np.r_[0, np.cumsum(counts)[:-1]].astype(np.int64)
@@ -195,7 +197,7 @@ class PairLJCut:
             flat[k] = float(v[0]) if uniform else v[case]
         self._flat = flat
         if self._work.shape[1] < len(i):  # reused work arrays (grow only): no fresh pages each step
-            self._work = np.empty((7, int(1.2 * len(i))))
+            self._work = np.empty((5, int(1.2 * len(i))))
 
     def _update(self, x: np.ndarray) -> None:
         """Rebuild the cases with an atom moved more than skin/2 since their last build."""
@@ -245,6 +247,24 @@ class PairLJCut:
         grown[:, :self._neigh.shape[1]] = self._neigh
         self._neigh = grown
 
+    def spare_list(self) -> np.ndarray:
+        """A one-case batch's spare pair array (capacity of the current one), for a compiled chunk
+        to build into while the current list stays intact (`adopt_list` swaps them)."""
+        if len(self._spare) < self._neigh.shape[1]:
+            self._spare = np.empty(self._neigh.shape[1], dtype=np.int32)
+        return self._spare
+
+    def adopt_list(self, c: int, neigh: np.ndarray) -> None:
+        """Case c's pairs are now neigh[:first[c, -1]] (owner and first already written): a
+        one-case batch takes the array itself (the old one becomes the spare), others copy."""
+        m = int(self._first[c, -1])
+        if self.ncases == 1 and neigh.dtype == np.int32 and neigh.flags.c_contiguous:
+            self._spare, self._neigh = self._neigh[0], neigh.reshape(1, -1)
+            return
+        if m > self._neigh.shape[1]:
+            self._grow(len(neigh))
+        self._neigh[c, :m] = neigh[:m]
+
     def _update_compiled(self, x: np.ndarray) -> None:
         """As _update, with the compiled displacement check and cell-list build."""
         C, N = x.shape[:2]
@@ -262,12 +282,34 @@ class PairLJCut:
             self._build_compiled(c, x[c])
             self._xref[c] = x[c]
 
+    def offsets(self) -> np.ndarray:
+        """Energy shift per case (C,) [energy]: E(rc) with `pair_modify shift yes`, else 0."""
+        eps, sig, rc = self.epsilon, self.sigma, self.cutoff
+        return lj_pair(rc * rc, eps, sig)[0] if self.shift else np.zeros_like(eps)
+
+    def remember(self, x: np.ndarray, f: np.ndarray, energy: np.ndarray, virial: np.ndarray) -> None:
+        """Keep the pair forces f (C, N, 3), energy and virial (C,) that the compiled chunk computed
+        at positions x (its last step): the next compute() at exactly these positions returns them
+        instead of a second pass (a sampled chunk's outputs). Any other call forgets them."""
+        self._memo = (np.array(x, dtype=float), f, energy, virial)
+
+    def _recall(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        memo, self._memo = self._memo, None
+        if memo is None or memo[0].shape != x.shape or not np.array_equal(memo[0], x):
+            return None
+        return memo[1:]
+
     def _compute_compiled(self, x: np.ndarray, f: np.ndarray, outputs: bool) -> tuple[np.ndarray, np.ndarray] | None:
-        """compute() with the fused kernel: per case, one pass over its half list."""
+        """compute() with the fused kernel: per case, one pass over its half list (forces, and
+        energy and virial with outputs)."""
         C = x.shape[0]
+        memo = self._recall(x)
+        if memo is not None:
+            f += memo[0]
+            return (memo[1].copy(), memo[2].copy()) if outputs else None
         self._update_compiled(x)
         eps, sig, rc = self.epsilon, self.sigma, self.cutoff
-        offset = lj_pair(rc * rc, eps, sig)[0] if self.shift else np.zeros_like(eps)
+        offset = self.offsets()
         direct = f.dtype == np.float64 and f.flags.c_contiguous
         out = f if direct else np.zeros(x.shape)
         energy, virial = np.zeros(C), np.zeros(C)
@@ -288,8 +330,7 @@ class PairLJCut:
     def compute(self, x: np.ndarray, f: np.ndarray, outputs: bool) -> tuple[np.ndarray, np.ndarray] | None:
         """Add pair forces [force] into f (C, N, 3) in place for positions x (C, N, 3) [length].
 
-        With `outputs`, return (energy (C,) [energy], virial W (C,) [energy]), W = sum r_ij . F_ij;
-        the energy is computed only then. A case whose positions are not finite gets NaN forces
+        With `outputs`, return (energy (C,) [energy], virial W (C,) [energy]), W = sum r_ij . F_ij. A case whose positions are not finite gets NaN forces
         (and NaN energy and virial).
         """
         if self.compiled:
@@ -298,30 +339,19 @@ class PairLJCut:
         self._update(x)
         p = self._flat
         i, j = p["i"], p["j"]
-        dx, dy, dz, r2, s6, fpair, t = self._work[:, :len(i)]
+        dx, dy, dz, r2, t = self._work[:, :len(i)]
         xt = np.ascontiguousarray(x.reshape(C * N, 3).T)  # (3, C*N): fast 1-D gathers
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             for k, dk in enumerate((dx, dy, dz)):  # d = x_i - x_j, minimum image
                 xt[k].take(i, out=dk, mode="clip")  # indices are valid; "clip" avoids a buffer copy
                 dk -= xt[k].take(j, out=t, mode="clip")
                 if self.periodic[k]:
-                    np.multiply(dk, 1.0 / self.length[k], out=t)
-                    np.rint(t, out=t)
-                    t *= self.length[k]
-                    dk -= t
+                    dk[:] = min_image(dk, 1.0 / self.length[k], self.length[k])
             np.multiply(dx, dx, out=r2)
             r2 += np.multiply(dy, dy, out=t)
             r2 += np.multiply(dz, dz, out=t)
-            inside = r2 < p["rc2"]
-            np.divide(p["sig2"], r2, out=t)  # (sigma/r)^2
-            np.multiply(t, t, out=s6)
-            s6 *= t  # (sigma/r)^6
-            np.multiply(s6, 2.0, out=fpair)  # fpair = 24 eps s6 (2 s6 - 1) / r^2 = F/r
-            fpair -= 1.0
-            fpair *= s6
-            fpair *= 24.0 * p["eps"]
-            fpair /= r2
-            fpair *= inside  # outside rc: finite values, zeroed
+            eps = p["eps"]
+            fpair, e = lj_terms(r2, 24.0 * eps, 4.0 * eps, p["sig2"], p["rc2"], p["offset"])
             for k, dk in enumerate((dx, dy, dz)):  # F_i += fpair d, F_j -= fpair d
                 np.multiply(fpair, dk, out=t)
                 fk = -np.bincount(j, t, C * N)
@@ -334,12 +364,7 @@ class PairLJCut:
                 return None
             energy, virial = np.zeros(C), np.zeros(C)
             if len(i):
-                np.subtract(s6, 1.0, out=t)  # E = 4 eps s6 (s6 - 1) - E(rc)
-                t *= s6
-                t *= 4.0 * p["eps"]
-                t -= p["offset"]
-                t *= inside
-                energy[p["case_nonempty"]] = np.add.reduceat(t, p["case_start"])
+                energy[p["case_nonempty"]] = np.add.reduceat(e, p["case_start"])
                 np.multiply(fpair, r2, out=t)  # r . F = fpair r^2
                 virial[p["case_nonempty"]] = np.add.reduceat(t, p["case_start"])
         energy[self._bad] = np.nan
@@ -356,6 +381,8 @@ class PairLJCut:
         """Keep only some cases (a boolean (C,) mask or indices), in the given order."""
         keep = np.asarray(keep)
         idx = np.flatnonzero(keep) if keep.dtype == bool else keep.astype(np.int64).ravel()
+        self._memo = None
+        self._spare = np.empty(0, dtype=np.int32)
         self.epsilon, self.sigma, self.cutoff = self.epsilon[idx], self.sigma[idx], self.cutoff[idx]
         self.case_builds = self.case_builds[idx]
         self._bad = self._bad[idx]

@@ -29,6 +29,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import hashlib
+import inspect
 import math
 from collections.abc import Callable
 from typing import Any
@@ -37,11 +39,16 @@ import numpy as np
 
 from wallbatch.engine import backend
 from wallbatch.engine import compiled as _compiled
+from wallbatch.engine.lj import lj_terms, min_image
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
 except Exception:  # noqa: BLE001 - any import failure means "no compiled path"
     njit = None
+
+
+# lj.py's per-pair arithmetic compiled into the build and force pass: part of the kernels' cache names
+_FORMULA_KEY = hashlib.sha256((inspect.getsource(lj_terms) + inspect.getsource(min_image)).encode()).hexdigest()[:12]
 
 
 def enabled() -> bool:
@@ -51,6 +58,14 @@ def enabled() -> bool:
 
 if njit is not None:
     jit = njit(cache=True, nogil=True, error_model="numpy")  # x/0 -> inf/nan as in NumPy
+    _image = njit(nogil=True, error_model="numpy", inline="always")(min_image)
+    _lj_pair = njit(nogil=True, error_model="numpy", inline="always")(lj_terms)
+
+    def _keyed(fn: Any) -> Any:
+        """fn jitted with its on-disk cache named by a digest of lj.py's `lj_terms` and
+        `min_image` too: numba keys a cached function by its own file only, and these are compiled
+        into the build and force pass (inlined), so an edit of them must not load a stale kernel."""
+        return jit(_compiled._relink(fn, name=f"{fn.__name__}_{_FORMULA_KEY}"))
 
     @jit
     def moved_cases(x: np.ndarray, xref: np.ndarray, length: np.ndarray, periodic: np.ndarray,
@@ -87,7 +102,6 @@ if njit is not None:
             return r, 0.0
         return (r if 0 <= r < n else -1), 0.0
 
-    @jit
     def build_case(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
                    owner: np.ndarray, first: np.ndarray, neigh: np.ndarray) -> int:
         """Half neighbor list of one case, each pair within reach once (minimum image in periodic
@@ -165,6 +179,7 @@ if njit is not None:
         inv1 = 1.0 / L1 if periodic[1] and n1 == 1 else 0.0
         inv2 = 1.0 / L2 if periodic[2] and n2 == 1 else 0.0
         per2 = periodic[2] and n2 > 1
+        image = inv0 != 0.0 or inv1 != 0.0 or inv2 != 0.0
         seg_lo = np.empty(32, np.int64)  # per cell: the sorted-atom ranges of its half stencil
         seg_hi = np.empty(32, np.int64)
         seg_sh = np.empty((32, 3))  # image shift of each range [length]
@@ -208,46 +223,64 @@ if njit is not None:
                     if m + hi_t - lo_t > cap:
                         return -1
                     y0, y1, y2 = xs[s, 0] - seg_sh[g, 0], xs[s, 1] - seg_sh[g, 1], xs[s, 2] - seg_sh[g, 2]
-                    for t in range(lo_t, hi_t):
-                        d0 = y0 - xs[t, 0]
-                        d0 -= np.rint(d0 * inv0) * L0
-                        d1 = y1 - xs[t, 1]
-                        d1 -= np.rint(d1 * inv1) * L1
-                        d2 = y2 - xs[t, 2]
-                        d2 -= np.rint(d2 * inv2) * L2
-                        neigh[m] = order[t]  # kept only if within reach (branch-free append)
-                        m += d0 * d0 + d1 * d1 + d2 * d2 <= reach2
+                    if image:
+                        for t in range(lo_t, hi_t):
+                            d0 = _image(y0 - xs[t, 0], inv0, L0)
+                            d1 = _image(y1 - xs[t, 1], inv1, L1)
+                            d2 = _image(y2 - xs[t, 2], inv2, L2)
+                            neigh[m] = order[t]  # kept only if within reach (branch-free append)
+                            m += d0 * d0 + d1 * d1 + d2 * d2 <= reach2
+                    else:  # no one-cell periodic dim: the image is d itself (d - rint(0 d) L = d)
+                        for t in range(lo_t, hi_t):
+                            d0 = y0 - xs[t, 0]
+                            d1 = y1 - xs[t, 1]
+                            d2 = y2 - xs[t, 2]
+                            neigh[m] = order[t]
+                            m += d0 * d0 + d1 * d1 + d2 * d2 <= reach2
         first[N] = m
         return m
 
-    @njit(nogil=True, error_model="numpy", inline="always")
-    def _pair_terms(n, gx, gy, gz, tx, ty, tz, e24, s2c, rcut2, inv0, inv1, inv2, L0, L1, L2):
-        """fpair d of n pairs from their raw separations g = x_i - x_j (contiguous buffers, no
-        indirect access: the loop vectorises): the minimum image, then the NumPy path's operations
-        (module docstring of `forces`), into t."""
-        for k in range(n):
-            d0 = gx[k]
-            d0 -= np.rint(d0 * inv0) * L0
-            d1 = gy[k]
-            d1 -= np.rint(d1 * inv1) * L1
-            d2 = gz[k]
-            d2 -= np.rint(d2 * inv2) * L2
-            r2 = d0 * d0 + d1 * d1 + d2 * d2
-            inside = 1.0 if r2 < rcut2 else 0.0
-            t = s2c / r2
-            s6 = t * t * t
-            fpair = (s6 * 2.0 - 1.0) * s6 * e24 / r2 * inside
-            tx[k] = fpair * d0
-            ty[k] = fpair * d1
-            tz[k] = fpair * d2
+    build_case = _keyed(build_case)
 
-    @jit
+    @njit(nogil=True, error_model="numpy", inline="always")
+    def _pair_terms(n, gx, gy, gz, tx, ty, tz, te, tw, outputs, e24, e4, s2c, rcut2, off, inv0, inv1, inv2,
+                    L0, L1, L2):
+        """fpair d of n pairs from their raw separations g = x_i - x_j (contiguous buffers, no
+        indirect access: the loop vectorises) into t: the minimum image (`_image`), then the
+        pair terms (`_lj_pair`, lj.py's lj_terms); with outputs also each pair's energy into
+        te and its virial fpair r^2 into tw (two loops: the branch stays out of the loop)."""
+        if outputs:
+            for k in range(n):
+                d0 = _image(gx[k], inv0, L0)
+                d1 = _image(gy[k], inv1, L1)
+                d2 = _image(gz[k], inv2, L2)
+                r2 = d0 * d0 + d1 * d1 + d2 * d2
+                fpair, e = _lj_pair(r2, e24, e4, s2c, rcut2, off)
+                tx[k] = fpair * d0
+                ty[k] = fpair * d1
+                tz[k] = fpair * d2
+                te[k] = e
+                tw[k] = fpair * r2
+        else:
+            for k in range(n):
+                d0 = _image(gx[k], inv0, L0)
+                d1 = _image(gy[k], inv1, L1)
+                d2 = _image(gz[k], inv2, L2)
+                r2 = d0 * d0 + d1 * d1 + d2 * d2
+                fpair, _ = _lj_pair(r2, e24, e4, s2c, rcut2, off)
+                tx[k] = fpair * d0
+                ty[k] = fpair * d1
+                tz[k] = fpair * d2
+
     def forces_case(xc: np.ndarray, fc: np.ndarray, ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, e24: float,
-                    s2c: float, rcut2: float, length: np.ndarray, periodic: np.ndarray) -> None:
-        """Add the pair forces of one case (positions xc (N, 3), half list ow/fr/nc) into fc (N, 3).
+                    e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray, periodic: np.ndarray,
+                    outputs: bool) -> tuple[float, float]:
+        """Add the pair forces of one case (positions xc (N, 3), half list ow/fr/nc) into fc (N, 3);
+        with outputs, return (energy, virial): the energy shifted by off per pair inside rc and
+        the virial sum fpair r^2, each summed over the list in order (else (0, 0)).
 
         Per row s of the list (atom i = ow[s]), three passes: gather the separations x_i - x_j
-        into contiguous buffers, compute fpair d for all of them in one vectorised loop
+        into contiguous buffers, compute the pair terms for all of them in one vectorised loop
         (`_pair_terms`), then add them in list order: F_i += sum (one sum, added at the end of the
         row) and F_j -= each. The additions are the ones of a single fused loop in the same order,
         so the bits do not depend on the split."""
@@ -259,8 +292,10 @@ if njit is not None:
         most = 0
         for s in range(nrow):
             most = max(most, fr[s + 1] - fr[s])
-        buf = np.empty((6, most))
+        buf = np.empty((8 if outputs else 6, most))
         gx, gy, gz, tx, ty, tz = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]
+        te, tw = (buf[6], buf[7]) if outputs else (buf[0], buf[0])
+        esum, wsum = 0.0, 0.0
         for s in range(nrow):
             i = ow[s]
             xi0, xi1, xi2 = xc[i, 0], xc[i, 1], xc[i, 2]
@@ -271,7 +306,8 @@ if njit is not None:
                 gx[k] = xi0 - xc[j, 0]
                 gy[k] = xi1 - xc[j, 1]
                 gz[k] = xi2 - xc[j, 2]
-            _pair_terms(n, gx, gy, gz, tx, ty, tz, e24, s2c, rcut2, inv0, inv1, inv2, L0, L1, L2)
+            _pair_terms(n, gx, gy, gz, tx, ty, tz, te, tw, outputs, e24, e4, s2c, rcut2, off, inv0, inv1, inv2,
+                        L0, L1, L2)
             fi0, fi1, fi2 = 0.0, 0.0, 0.0
             for k in range(n):
                 j = nc[k0 + k]
@@ -285,58 +321,36 @@ if njit is not None:
             fc[i, 0] += fi0
             fc[i, 1] += fi1
             fc[i, 2] += fi2
-
-    @jit
-    def outputs_case(xc: np.ndarray, ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, e24: float, e4: float,
-                     s2c: float, rcut2: float, off: float, length: np.ndarray, periodic: np.ndarray
-                     ) -> tuple[float, float]:
-        """Energy (shifted by off per pair inside rc) and virial sum fpair r^2 of one case, summed
-        over the list in order (the per-pair values of `_pair_terms`)."""
-        inv0 = 1.0 / length[0] if periodic[0] else 0.0
-        inv1 = 1.0 / length[1] if periodic[1] else 0.0
-        inv2 = 1.0 / length[2] if periodic[2] else 0.0
-        L0, L1, L2 = length[0], length[1], length[2]
-        esum, wsum = 0.0, 0.0
-        for s in range(len(ow)):
-            i = ow[s]
-            for q in range(fr[s], fr[s + 1]):
-                j = nc[q]
-                d0 = xc[i, 0] - xc[j, 0]
-                d0 -= np.rint(d0 * inv0) * L0
-                d1 = xc[i, 1] - xc[j, 1]
-                d1 -= np.rint(d1 * inv1) * L1
-                d2 = xc[i, 2] - xc[j, 2]
-                d2 -= np.rint(d2 * inv2) * L2
-                r2 = d0 * d0 + d1 * d1 + d2 * d2
-                inside = 1.0 if r2 < rcut2 else 0.0
-                t = s2c / r2
-                s6 = t * t * t
-                fpair = (s6 * 2.0 - 1.0) * s6 * e24 / r2 * inside
-                esum += ((s6 - 1.0) * s6 * e4 - off) * inside
-                wsum += fpair * r2
+            if outputs:
+                for k in range(n):
+                    esum += te[k]
+                    wsum += tw[k]
         return esum, wsum
 
-    @jit
+    forces_case = _keyed(forces_case)
+
     def forces(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray,
                eps: np.ndarray, sig2: np.ndarray, rc2: np.ndarray, offset: np.ndarray, length: np.ndarray,
                periodic: np.ndarray, bad: np.ndarray, outputs: bool, energy: np.ndarray,
                virial: np.ndarray) -> None:
         """Add the pair forces of every case that is not bad into f (C, N, 3) (`forces_case`); with
         outputs, also energy[c] (shifted by offset[c] per pair inside rc) and virial[c] = sum
-        fpair r^2 (`outputs_case`).
+        fpair r^2, in the same pass.
 
         Per pair, the NumPy path's operations: d = x_i - x_j, d -= rint(d (1/L)) L in periodic
-        dims (bad cases are skipped, so d is finite), r2, s6 = ((sig2/r2)^2)(sig2/r2),
-        fpair = (((2 s6) - 1) s6)(24 eps)/r2, times (r2 < rc2): computed for every listed pair,
-        then zeroed outside rc (no branch).
+        dims (bad cases are skipped, so d is finite), then lj.py's lj_terms: r2,
+        s6 = ((sig2/r2)^2)(sig2/r2), fpair = (((2 s6) - 1) s6)(24 eps)/r2, times (r2 < rc2):
+        computed for every listed pair, then zeroed outside rc (no branch).
         """
         for c in range(x.shape[0]):
             if bad[c]:
                 continue
-            forces_case(x[c], f[c], owner[c], first[c], neigh[c], 24.0 * eps[c], sig2[c], rc2[c], length, periodic)
+            e, w = forces_case(x[c], f[c], owner[c], first[c], neigh[c], 24.0 * eps[c], 4.0 * eps[c], sig2[c],
+                               rc2[c], offset[c], length, periodic, outputs)
             if outputs:
-                energy[c], virial[c] = outputs_case(x[c], owner[c], first[c], neigh[c], 24.0 * eps[c], 4.0 * eps[c],
-                                                    sig2[c], rc2[c], offset[c], length, periodic)
+                energy[c], virial[c] = e, w
+
+    forces = _keyed(forces)
 
 
 # ----------------------------------------------------------------------------- fused pair chunks
@@ -345,9 +359,6 @@ if njit is not None:
 # kernels of engine/compiled.py (the registry's compiled functions, imported, not copied).
 
 if njit is not None:
-    import hashlib
-    import inspect
-
     from wallbatch.engine.compiled import BLOCK
 
     def _soft_face(*args):  # noqa: ANN002, ANN202 - placeholders: pair_chunk_for links the scene's pieces
@@ -375,15 +386,20 @@ if njit is not None:
 
         @jit
         def pair_chunk(nsteps, x, v, f, mass, radius, dt, ftm2v, lo, hi, box_per, length, pair_per, reach,
-                       limit2, e24, s2c, rcut2, xref, owner, first, neigh, sf_meta, sf_val, groups, rg_meta,
-                       rg_geo, rg_val, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng):
+                       limit2, e24, e4, s2c, rcut2, off, sample, fpair, ew, xref, owner, first, neigh, spare, sf_meta,
+                       sf_val, groups, rg_meta, rg_geo, rg_val, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend,
+                       fl_prev, fl_cross, fl_rng):
             """Advance one case (x, v, f: (N, 3), written in place) by nsteps velocity-Verlet steps
             of engine.Engine.step: v += dtfm f, x += dt v; periodic wrap; the pair list rebuilt
             (`build_case`) when an atom moved more than skin/2 since xref; f = 0, pair forces
             (`forces_case`), soft flat faces and wall/region fixes (compiled.py's kernels), lost
-            atoms; v += dtfm f; wall/flow (fl_int[0] != 0). Returns (status, builds, neigh):
+            atoms; v += dtfm f; wall/flow (fl_int[0] != 0). With `sample`, the last step's pair pass
+            also gives the pair energy and virial (ew[0], ew[1]) and its pair forces are copied to
+            fpair (N, 3) (the outputs of that step, without a second pass). Returns (status, builds, neigh):
             status 0, 1 (an atom on/behind a wall), 2 (a lost atom) or 3 (a non-finite value; the
-            caller then hands the chunk back to NumPy); neigh is a longer array when the list grew."""
+            caller then hands the chunk back to NumPy); neigh is the list after the chunk: the caller's
+            (not written) if no build ran, else `spare` (the first build writes there, so the
+            caller's list survives a chunk handed back) or a longer array when the list grew."""
             if nsteps == -fingerprint:  # never: ties the on-disk cache to the wall kernels
                 return 5, 0, neigh
             N = x.shape[0]
@@ -417,16 +433,22 @@ if njit is not None:
                         for d in range(3):
                             if not math.isfinite(x[a, d]):
                                 return 3, builds, neigh
-                    m = build_case(x, lo, length, pair_per, reach, owner, first, neigh)
+                    target = neigh if builds > 0 else spare
+                    m = build_case(x, lo, length, pair_per, reach, owner, first, target)
                     while m < 0:
-                        neigh = np.empty(2 * len(neigh) + 4 * N, np.int32)
-                        m = build_case(x, lo, length, pair_per, reach, owner, first, neigh)
+                        target = np.empty(2 * len(target) + 4 * N, np.int32)
+                        m = build_case(x, lo, length, pair_per, reach, owner, first, target)
+                    neigh = target
                     xref[:] = x
                     builds += 1
                 for a in range(N):  # force clear, pair forces
                     for d in range(3):
                         f[a, d] = 0.0
-                forces_case(x, f, owner, first, neigh, e24, s2c, rcut2, length, pair_per)
+                last = sample and step == nsteps - 1
+                e, w = forces_case(x, f, owner, first, neigh, e24, e4, s2c, rcut2, off, length, pair_per, last)
+                if last:
+                    ew[0], ew[1] = e, w
+                    fpair[:] = f
                 nbad = 0
                 for k in range(sf_meta.shape[0]):  # soft flat walls, fix order
                     nbad += _soft_face(sf_meta[k, 0], sf_meta[k, 4], X, F, radius, groups, sf_meta[k, 3],
@@ -547,6 +569,9 @@ class PairChunks:
         box_per[s.periodic] = 1
         lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)
         rc2 = pair.cutoff * pair.cutoff
+        offset = pair.offsets()
+        fpair = np.empty((C, N, 3) if sample else (C, 0, 3))  # a sampled chunk's last pair pass: its outputs
+        ew = np.zeros((C, 2))
         fk = plan.flow[0] if plan.flow else None
         if fk is not None:
             rng_states = [r.bit_generator.state for r in fk.rngs]
@@ -561,7 +586,8 @@ class PairChunks:
         for c in range(C):
             x, v, f = s.x[c].copy(), s.v[c].copy(), s.f[c].copy()
             xref, owner, first = pair._xref[c].copy(), pair._owner[c].copy(), pair._first[c].copy()
-            neigh = pair._neigh[c].copy()
+            neigh = pair._neigh[c]  # read only: a build in the chunk writes into `spare`
+            spare = pair.spare_list() if C == 1 else np.empty(pair._neigh.shape[1], np.int32)
             if fk is None:
                 fl = _compiled._NO_FLOW
             else:
@@ -573,7 +599,8 @@ class PairChunks:
                 int(nsteps), x, v, f, np.ascontiguousarray(s.mass[c], dtype=float),
                 np.ascontiguousarray(s.radius[c], dtype=float), float(s.dt[c]), float(s.units.ftm2v), lo, hi, box_per,
                 pair.length, pair.periodic, float(pair.cutoff[c] + pair.skin), (0.5 * pair.skin) ** 2,
-                24.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2), float(rc2[c]), xref, owner, first, neigh,
+                24.0 * float(pair.epsilon[c]), 4.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2),
+                float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
                 sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl)
             if status != 0:
                 if fk is not None:  # the NumPy loop re-runs the chunk with the same random numbers
@@ -585,11 +612,12 @@ class PairChunks:
         for c, (x, v, f, xref, owner, first, neigh, builds) in enumerate(done):
             s.x[c], s.v[c], s.f[c] = x, v, f
             pair._xref[c], pair._owner[c], pair._first[c] = xref, owner, first
-            if len(neigh) > pair._neigh.shape[1]:
-                pair._grow(len(neigh))
-            pair._neigh[c, :len(neigh)] = neigh
+            if builds:
+                pair.adopt_list(c, neigh)
             pair.builds += builds
             pair.case_builds[c] += builds
+        if sample:  # the sample's pair.compute at these positions takes them instead of a second pass
+            pair.remember(s.x, fpair, ew[:, 0].copy(), ew[:, 1].copy())
         s.step += nsteps
         s.ctx = None
         s.var_step = {}

@@ -164,6 +164,8 @@ class FaceValues:
         self.label, self.name, self.dim, self.side, self.scale = f0.label, f0.name, f0.dim, f0.side, f0.scale
         self.coord = stack_values([f.coord for f in faces], f"{f0.label} coord")
         self.params = {k: stack_values([f.params[k] for f in faces], f"{f0.label} {k}") for k in f0.params}
+        # numbers only, no variable: position() and param() are these arrays at every step
+        self.constant = all(isinstance(v, np.ndarray) for v in (self.coord, *self.params.values()))
 
     def take(self, keep: np.ndarray) -> None:
         if isinstance(self.coord, np.ndarray):

@@ -75,21 +75,25 @@ class SoftWallKernel:
         """This step's parameters of a face (C,) and its group atoms within the cut-off: case and
         atom indices and their distance delta from the wall (§3.2). A variable epsilon, sigma, D0
         or r0 below 0 fails its case (LAMMPS: Variable evaluation in fix wall gave bad value)."""
-        coord = face.position(state)
-        p = {key: face.param(key, state) for key in face.params}
-        for prm in self.style.parameters:  # variables only: constants are checked up front
-            key, low = prm.name, prm.min
-            if low is not None and isinstance(face.params.get(key), str) and np.any(bad := p[key] < low):
-                state.fail(np.nonzero(bad)[0],
-                           lambda c: f"walls.{self.fix_id} {face.name}: variable {key} evaluated to "
-                           f"{p[key][c]:g} < {low:g}: Variable evaluation in fix wall gave bad value")
+        if face.constant:  # numbers only (the usual case): nothing to evaluate or check this step
+            coord, p = face.coord, face.params
+        else:
+            coord = face.position(state)
+            p = {key: face.param(key, state) for key in face.params}
+            for prm in self.style.parameters:  # variables only: constants are checked up front
+                key, low = prm.name, prm.min
+                if low is not None and isinstance(face.params.get(key), str) and np.any(bad := p[key] < low):
+                    state.fail(np.nonzero(bad)[0],
+                               lambda c: f"walls.{self.fix_id} {face.name}: variable {key} evaluated to "
+                               f"{p[key][c]:g} < {low:g}: Variable evaluation in fix wall gave bad value")
         pos = state.x[:, :, face.dim]
         delta = pos - coord[:, None] if face.side < 0 else coord[:, None] - pos
         near = delta < p["cutoff"][:, None]
         if not self.all_atoms:
             near &= self.group
-        ci, ai = np.nonzero(near)
-        return p, ci, ai, delta[ci, ai]
+        flat = near.ravel().nonzero()[0]  # c * N + a (1-D: cheaper than 2-D nonzero and indexing)
+        ci, ai = np.divmod(flat, near.shape[1])
+        return p, ci, ai, delta.ravel()[flat]
 
     def _fail_inside(self, state: "BatchState", ci: np.ndarray, ai: np.ndarray, r: np.ndarray,
                      face: str) -> None:

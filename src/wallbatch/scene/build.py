@@ -86,14 +86,15 @@ def _cells(s: np.ndarray, boxsize: np.ndarray, ncell: np.ndarray) -> np.ndarray:
     return np.clip(c, 0, ncell - 1)
 
 
-def _close_pairs(a: np.ndarray, b: np.ndarray | None, boxsize: np.ndarray,
-                 r: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _close_pairs(a: np.ndarray, b: np.ndarray | None, boxsize: np.ndarray, r: float,
+                 dense: bool | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pairs (i, j, d2) of points a[i], b[j] (b None: pairs i < j within a) whose squared distance
     d2 in the periodic metric of `boxsize` (per dimension min(|dx|, L - |dx|)) is at most about r^2:
     every pair with d <= r is in, and others in neighbouring cells too (the caller applies its own
     rule to d2). A cell list (cells at least r wide, found by sorting cell keys; 27 neighbour
     offsets, fewer when a dimension has under 3 cells), vectorised over the points; the points are
-    wrapped into [0, boxsize)."""
+    wrapped into [0, boxsize). `dense` (None: chosen by size) looks the cells up in a table of
+    every cell or by binary search of the sorted keys: the same pairs in the same order."""
     same = b is None
     b = a if same else b
     ncell = np.clip(np.floor(boxsize / (r * (1.0 + 1e-9))), 1, 1 << 20).astype(np.int64)
@@ -101,26 +102,34 @@ def _close_pairs(a: np.ndarray, b: np.ndarray | None, boxsize: np.ndarray,
     key = (cb[:, 0] * ncell[1] + cb[:, 1]) * ncell[2] + cb[:, 2]
     order = np.argsort(key, kind="stable")
     ncells = int(np.prod(ncell))
-    dense = ncells <= 8 * len(b) + 4096  # a table of every cell's first point and count
+    # a table of every cell's first point and count, unless it would dwarf the 27 lookups per point
+    # of `a` (which a binary search of the sorted keys then answers: the same first point and count)
+    if dense is None:
+        dense = ncells <= 8 * (len(b) + 27 * len(a)) + 4096
     if dense:
         per_cell = np.bincount(key, minlength=ncells)
         first_in = np.cumsum(per_cell) - per_cell
     else:
         sorted_key = key[order]
-    grids = np.meshgrid(*[sorted({o % int(n) for o in (-1, 0, 1)}) for n in ncell], indexing="ij")
-    offsets = np.stack([g.ravel() for g in grids], axis=1)  # (K, 3) neighbour cells, no repeats
-    block = max(1, (1 << 16) // len(offsets))
+    # neighbour cell offsets per dimension, no repeats; the K = kx ky kz cells of a point in the
+    # order of np.meshgrid(..., indexing="ij") of these (x slowest)
+    offsets = [np.array(sorted({o % int(n) for o in (-1, 0, 1)}), np.int64) for n in ncell]
+    nk = len(offsets[0]) * len(offsets[1]) * len(offsets[2])
+    block = max(1, (1 << 16) // nk)
     out_i, out_j, out_d = [], [], []
     for start in range(0, len(a), block):  # blocks of target points, all offsets at once
         stop = min(len(a), start + block)
-        nb = (ca[start:stop, None, :] + offsets[None, :, :]) % ncell
-        want = ((nb[..., 0] * ncell[1] + nb[..., 1]) * ncell[2] + nb[..., 2]).ravel()
-        target = np.repeat(np.arange(start, stop), len(offsets))
+        nb = [(ca[start:stop, d, None] + offsets[d][None, :]) % ncell[d] for d in range(3)]  # (points, k_d)
+        want = ((nb[0][:, :, None, None] * ncell[1] + nb[1][:, None, :, None]) * ncell[2]
+                + nb[2][:, None, None, :]).ravel()
+        target = np.repeat(np.arange(start, stop), nk)
         if dense:
             lo, count = first_in[want], per_cell[want]
         else:
             lo = np.searchsorted(sorted_key, want, "left")
             count = np.searchsorted(sorted_key, want, "right") - lo
+        full = count > 0  # cells holding points (the others add no pair)
+        want, target, lo, count = want[full], target[full], lo[full], count[full]
         ends = np.cumsum(count)
         first = 0
         while first < len(want):  # runs of entries with at most ~PAIR_CHUNK pairs

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -128,7 +129,7 @@ class WallStyle:
         """Every key of a face's config mapping besides coord (``params`` and the mappings)."""
         return tuple(p.name for p in self.parameters)
 
-    @property
+    @cached_property  # read at every NumPy step (args)
     def args_names(self) -> tuple[str, ...]:
         """The parameters passed as p0, p1, p2 (the numbers, but the cutoff)."""
         return tuple(p.name for p in self.parameters if p.name != "cutoff" and p.numeric)

@@ -314,13 +314,17 @@ class WallTable:
                 spline_lookup(r, i, self.r, self.f, self.f2, self.invdelta, self.deltasq6))
 
     def kernel_rows(self) -> np.ndarray:
-        """The table as data for the compiled path: rows (3, N) = grid r, force F and, per
-        tabstyle, the force differences dF (linear; padded with a 0 to N) or the spline's second
-        derivatives F2 (spline). The compiled chunk kernel takes every face's rows concatenated
-        and looks them up with the same :func:`linear_lookup` / :func:`spline_lookup` as
-        :meth:`lookup` (jitted), so the two agree bit for bit and no table needs its own compile."""
-        d = np.append(self.df, 0.0) if self.tabstyle == "linear" else self.f2
-        return np.ascontiguousarray(np.stack([self.r, self.f, d]))
+        """The table as data for the compiled path: rows (6, N) = grid r, force F, and per
+        tabstyle the force differences dF (linear; padded with a 0 to N) or the spline's second
+        derivatives F2 (spline); energy E, dE or E2 likewise; and dE again (the offset at the
+        cut-off is a linear lookup for either tabstyle). The compiled chunk kernel takes every
+        face's rows concatenated and looks them up with the same :func:`linear_lookup` /
+        :func:`spline_lookup` as :meth:`lookup` (jitted), so the two agree bit for bit and no
+        table needs its own compile."""
+        spline = self.tabstyle != "linear"
+        de = np.append(self.de, 0.0)
+        d = self.f2 if spline else np.append(self.df, 0.0)
+        return np.ascontiguousarray(np.stack([self.r, self.f, d, self.e, self.e2 if spline else de, de]))
 
     def offset(self, cutoff: float) -> float:
         """E_lin(rc): the energy subtracted so the wall energy is 0 at the cut-off [energy]."""
