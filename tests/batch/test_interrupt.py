@@ -31,6 +31,12 @@ sweep:
     n: {path: atoms.0.create.random.count, values: {range: [40, 52, 1]}}
 """
 TOTAL = 12
+# `wallbatch run` with windows of 2 cases: by default this 540-atom sweep makes 2 windows of 6
+# cases (a window holds at least runner.MIN_WINDOW_ATOMS atoms), one per worker; both finish at
+# about the same moment and save their 6 parts together, so a signal sent after the first parts
+# would land after the last. 8 windows of 2 finish in 4 rounds, and an interrupt lands between them.
+_ENTRY = ("import sys; import wallbatch.batch.runner as r; r.MIN_WINDOW_ATOMS = 1; "
+          "from wallbatch.cli import app; sys.argv[0] = 'wallbatch'; app()")
 
 
 def _children(pid: int) -> set[int]:
@@ -75,7 +81,7 @@ def sweep(tmp_path: Path) -> Path:
 
 def _start(sweep: Path, out: Path, *extra: str) -> tuple[subprocess.Popen, Path]:
     log = sweep.parent / "run.log"
-    cmd = [sys.executable, "-m", "wallbatch.cli", "run", str(sweep), "-o", str(out), "--jobs", "2", *extra]
+    cmd = [sys.executable, "-c", _ENTRY, "run", str(sweep), "-o", str(out), "--jobs", "2", *extra]
     proc = subprocess.Popen(cmd, cwd=sweep.parent, stdout=log.open("w"), stderr=subprocess.STDOUT,
                             start_new_session=True)  # its own process group, as a shell job is
     return proc, log
