@@ -114,6 +114,8 @@ class Section:
 def _strip(ann: Any) -> tuple[Any, list[Any]]:
     """(bare annotation, metadata) of a possibly Annotated annotation."""
     meta: list[Any] = []
+    if hasattr(ann, "full_annotation"):  # a type validated on demand (config/models.py Wall): what it stands for
+        ann = ann.full_annotation()
     while get_origin(ann) is typing.Annotated:
         args = get_args(ann)
         ann, meta = args[0], meta + list(args[1:])

@@ -7,8 +7,10 @@ Every problem is reported as `file:line:col: dotted.path: message` through `Conf
 
 from __future__ import annotations
 
+import functools
 import math
 import re
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal, Union
 
@@ -20,12 +22,16 @@ from pydantic import (
     NonNegativeInt,
     PositiveFloat,
     PositiveInt,
+    GetCoreSchemaHandler,
+    GetJsonSchemaHandler,
     PrivateAttr,
+    TypeAdapter,
     ValidationError,
     create_model,
     field_validator,
     model_validator,
 )
+from pydantic_core import CoreSchema, PydanticKnownError, core_schema
 
 from wallbatch.config.profiles import Averages, Profile, check_profiles
 from wallbatch.config.source import FACES, ConfigError, SourceMap, load_yaml
@@ -118,6 +124,11 @@ Vec3 = tuple[float, float, float]
 class Model(BaseModel):
     # every float finite: .inf / .nan / 'NaN' are refused ("no bound" is written INF or NULL where allowed)
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+# the wall models are validators built when first used (a config uses a few of the 14 wall
+# styles; building them all costs tens of milliseconds of every start-up): see `wall_model`
+_ON_USE = ConfigDict(defer_build=True)
 
 
 # ----------------------------------------------------------------------------- scene parts
@@ -276,6 +287,8 @@ class Region(Model):
 
 
 class ReflectFace(Model):
+    model_config = _ON_USE
+
     coord: Coord
 
 
@@ -296,6 +309,8 @@ def _faces_from_positional(data: Any, order: tuple[str, ...]) -> Any:
 
 
 class _FaceWall(Model):
+    model_config = _ON_USE  # and its subclasses
+
     group: str = "all"
     units: Literal["lattice", "box"] = "lattice"
     energy: bool = False
@@ -371,6 +386,12 @@ def _optional_elsewhere(name: str) -> list[str]:
     return [s.name for s in STYLES.values() if any(q.name == name and not q.required for q in s.parameters)]
 
 
+class _FaceBase(Model):
+    """Base of the registry styles' face models (built on first use, `wall_model`)."""
+
+    model_config = _ON_USE
+
+
 def _face_model(style: WallStyle) -> type[Model]:
     """The face model of a style: coord and its parameters. A required parameter that another
     style may leave out is checked here, with a message naming the styles that may."""
@@ -396,7 +417,7 @@ def _face_model(style: WallStyle) -> type[Model]:
         return self
 
     validators = {"_required": model_validator(mode="after")(_required)} if late else {}
-    return create_model(f"{style.name.capitalize()}Face", __base__=Model, __validators__=validators,
+    return create_model(f"{style.name.capitalize()}Face", __base__=_FaceBase, __validators__=validators,
                         __doc__=f"One face of wall/{style.name}: `{' '.join(style.positional)}` (LAMMPS order).",
                         **fields)
 
@@ -414,8 +435,32 @@ def _wall_model(style: WallStyle) -> type[SoftWall]:
     return model
 
 
+class _WallModels(Mapping):
+    """style name -> wall model of every registered style (STYLES, the one place a style is
+    defined), each model made from its registry entry when first asked for."""
+
+    def __init__(self) -> None:
+        self._made: dict[str, type[SoftWall]] = {}
+
+    def __getitem__(self, name: str) -> type[SoftWall]:
+        model = self._made.get(name)
+        if model is None:
+            model = self._made[name] = _wall_model(STYLES[name])
+        return model
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(STYLES)
+
+    def __len__(self) -> int:
+        return len(STYLES)
+
+    def made(self) -> tuple[str, ...]:
+        """The styles whose models exist so far."""
+        return tuple(self._made)
+
+
 # one model per registered wall style with per-face parameters
-WALL_MODELS: dict[str, type[SoftWall]] = {name: _wall_model(style) for name, style in STYLES.items()}
+WALL_MODELS = _WallModels()
 
 
 class ReflectWall(_FaceWall):
@@ -441,6 +486,8 @@ class ReflectWall(_FaceWall):
 class StochasticFace(Model):
     """One face of wall/reflect/stochastic: position, wall temperature, wall velocity (in the wall's
     plane) and accommodation coefficients (none for diffusive, one for maxwell, three for ccl)."""
+
+    model_config = _ON_USE
 
     coord: Union[float, Literal["EDGE"]]
     temp: PositiveFloat
@@ -487,6 +534,8 @@ class StochasticWall(_FaceWall):
 class FlowWall(Model):
     """fix wall/flow (docs/physics.md §8)."""
 
+    model_config = _ON_USE
+
     style: Literal["flow"]
     group: str = "all"
     axis: Literal["x", "y", "z"]
@@ -499,6 +548,8 @@ class FlowWall(Model):
 
 
 class _RegionWallHead(Model):
+    model_config = _ON_USE  # and RegionWall
+
     style: Literal["region"]
     group: str = "all"
     region: str
@@ -507,6 +558,8 @@ class _RegionWallHead(Model):
 
 class RegionEESWall(Model):
     """fix wall/region/ees."""
+
+    model_config = _ON_USE
 
     style: Literal["region/ees"]
     group: str = "all"
@@ -529,11 +582,68 @@ RegionWall = create_model(
     cutoff_mode=(Literal[CUTOFF_MODES], Field("shift", description="cut-off treatment, as for flat walls")),  # type: ignore[valid-type]
     switch_on=(NonNegativeFloat | None, Field(None, description="smooth: where the switch starts [distance]")))
 
-Wall = Annotated[
-    Union[(*WALL_MODELS.values(), ReflectWall, StochasticWall, FlowWall, RegionWall,
-           RegionEESWall)],  # type: ignore[valid-type]
-    Field(discriminator="style"),
-]
+OTHER_WALLS: dict[str, type[Model]] = {"reflect": ReflectWall, "reflect/stochastic": StochasticWall, "flow": FlowWall,
+                                       "region": RegionWall, "region/ees": RegionEESWall}
+WALL_STYLES: tuple[str, ...] = (*STYLES, *OTHER_WALLS)  # every `style:` of a wall, in the schema's order
+
+
+def wall_model(style: str) -> type[Model]:
+    """The model of wall style `style` (KeyError if there is none), built on first use."""
+    return OTHER_WALLS[style] if style in OTHER_WALLS else WALL_MODELS[style]
+
+
+@functools.cache
+def _tagged(style: str) -> TypeAdapter:
+    """Validates {style: wall}: the errors' places name the style after the fix-ID
+    (walls.ID.STYLE.key), as a union tagged by `style` puts them."""
+    model = wall_model(style)
+    model.model_rebuild()  # its own validator and serializer too (dumping a config serializes it)
+    return TypeAdapter(dict[str, model])  # type: ignore[valid-type]
+
+
+def _validate_wall(value: Any) -> Any:
+    """One wall: the model of its `style` validates it. The errors are those of a union of
+    every wall model tagged by `style` (`_all_walls`), which is built only for the JSON schema."""
+    if isinstance(value, dict):
+        if "style" not in value:
+            raise PydanticKnownError("union_tag_not_found", {"discriminator": "'style'"})
+        tag = value["style"]
+    elif isinstance(value, BaseModel) and hasattr(value, "style"):
+        tag = value.style
+    else:
+        raise PydanticKnownError("model_attributes_type")
+    if not (isinstance(tag, str) and tag in WALL_STYLES):
+        raise PydanticKnownError("union_tag_invalid", {
+            "discriminator": "'style'", "tag": str(tag), "expected_tags": ", ".join(f"'{t}'" for t in WALL_STYLES)})
+    return _tagged(tag).validate_python({tag: value})[tag]
+
+
+def _all_walls() -> Any:
+    """Every wall model as one union tagged by `style` (builds every model: the JSON schema)."""
+    return Annotated[Union[tuple(wall_model(t) for t in WALL_STYLES)],  # type: ignore[misc]
+                     Field(discriminator="style")]
+
+
+class _WallField:
+    """The type of a wall under `walls:`: validated by `_validate_wall`; its JSON schema is the
+    tagged union of every wall model."""
+
+    @classmethod
+    def __get_pydantic_core_schema__(cls, source: Any, handler: GetCoreSchemaHandler) -> CoreSchema:
+        return core_schema.no_info_plain_validator_function(_validate_wall)
+
+    @classmethod
+    def __get_pydantic_json_schema__(cls, schema: CoreSchema, handler: GetJsonSchemaHandler) -> Any:
+        return handler(TypeAdapter(_all_walls()).core_schema)
+
+    @classmethod
+    def full_annotation(cls) -> Any:
+        """The annotation this type stands for (for tools that read the models' annotations, like
+        the docs' reference generator): the tagged union of every wall model."""
+        return _all_walls()
+
+
+Wall = _WallField
 
 
 # ----------------------------------------------------------------------------- the rest
