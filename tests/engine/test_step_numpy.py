@@ -125,6 +125,13 @@ PINNED = {  # the NumPy step's results before the step was fused (issue 15): bit
 }
 
 
+PINNED_ONE = {  # the same, one case (seed 11)
+    "lj93": "fd3494bdf7d4905ce8e25c0fcfb97f5f592eea8364157485abc24cc282550f7c",
+    "harmonic-virial": "8bd62941fd16b7fd8500a9bfbe1f5ece42ef955328a4f5349a1320c3bada1e45",
+    "morse-group-reflect": "754cea9c9ee73b6b02bbb692bfd27284cd668bb57ce03ccf785dcfa90ced2347",
+}
+
+
 def _pinned_scene(kind: str) -> dict:
     if kind == "lj93":
         lj = {"coord": "EDGE", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5}
@@ -140,12 +147,13 @@ def _pinned_scene(kind: str) -> dict:
                     thermo=60, output=["step", "time", "ke", "pe", "etot", "press"] if kind != "lj93" else None)
 
 
+@pytest.mark.parametrize("ncases", [1, 3])
 @pytest.mark.parametrize("kind", sorted(PINNED))
-def test_numpy_step_results_pinned_bit_for_bit(kind):
-    """Three cases of a wall scene (differently seeded) over 300 NumPy steps: final x, v, f and
-    every sample hash to the digest taken before the step was rewritten for speed."""
+def test_numpy_step_results_pinned_bit_for_bit(kind, ncases):
+    """One or three cases of a wall scene (differently seeded) over 300 NumPy steps: final x, v,
+    f and every sample hash to the digest taken before the step was rewritten for speed."""
     cases = []
-    for seed in (11, 12, 13):
+    for seed in (11, 12, 13)[:ncases]:
         d = _pinned_scene(kind)
         d["seed"] = seed
         cases.append(build_case(config_from_dict(d)))
@@ -156,6 +164,6 @@ def test_numpy_step_results_pinned_bit_for_bit(kind):
         eng.setup()
         for _ in range(5):
             eng.advance_numpy(60)
-    assert eng.state.ncases == 3 and not eng.state.failed
+    assert eng.state.ncases == ncases and not eng.state.failed
     assert all(np.any(rec["pe"] != 0.0) for rec in eng.samples[1:])  # atoms feel the walls
-    assert _fingerprint(eng) == PINNED[kind]
+    assert _fingerprint(eng) == (PINNED[kind] if ncases == 3 else PINNED_ONE[kind])
