@@ -167,3 +167,20 @@ def test_numpy_step_results_pinned_bit_for_bit(kind, ncases):
     assert eng.state.ncases == ncases and not eng.state.failed
     assert all(np.any(rec["pe"] != 0.0) for rec in eng.samples[1:])  # atoms feel the walls
     assert _fingerprint(eng) == (PINNED[kind] if ncases == 3 else PINNED_ONE[kind])
+
+
+def test_wrap_leaves_a_batch_inside_the_box_alone_and_still_wraps_beside_a_nan():
+    """The wrap's pre-test: nothing inside the box moves (bit for bit); a NaN does not hide an
+    atom that crossed in the same dimension."""
+    eng = _engine(_gas(), cases=2)
+    s = eng.state
+    inside = s.x.copy()
+    eng.wrap()
+    np.testing.assert_array_equal(s.x, inside)
+    s.x[1, 4, 0] = np.nan
+    s.x[1, 5, 0] = s.box_hi[0] + 0.25
+    s.x[0, 6, 1] = s.box_lo[1] - 0.25
+    eng.wrap()
+    assert s.x[1, 5, 0] == s.box_hi[0] + 0.25 - (s.box_hi[0] - s.box_lo[0])
+    assert s.x[0, 6, 1] == s.box_lo[1] - 0.25 + (s.box_hi[1] - s.box_lo[1])
+    assert np.isnan(s.x[1, 4, 0])

@@ -20,6 +20,13 @@ from wallbatch.styles.base import WallStyle
 from wallbatch.styles.cutoff import CutoffStyle
 
 
+def at_atoms(p: dict[str, np.ndarray], ci: np.ndarray, ncases: int) -> dict[str, np.ndarray]:
+    """A face's per-case parameters (C,) at the selected atoms of cases `ci`. With one case its
+    (1,) arrays stay as they are: they broadcast against the atoms' distances to the same numbers,
+    without a gather per parameter per step."""
+    return dict(p) if ncases == 1 else {key: val[ci] for key, val in p.items()}
+
+
 class SoftWallKernel:
     """fix wall/lj93 | lj126 | lj1043 | colloid | harmonic | morse over a batch (physics.md §3-4)."""
 
@@ -51,7 +58,7 @@ class SoftWallKernel:
             p, ci, ai, r = self.face_atoms(state, face)
             if ci.size == 0:
                 continue
-            pa = {key: val[ci] for key, val in p.items()}
+            pa = at_atoms(p, ci, C)
             if self.style.needs_radius:
                 pa["radius"] = state.radius[ci, ai]
             bad = r <= self.style.too_close(pa)
@@ -59,7 +66,7 @@ class SoftWallKernel:
                 self._fail_inside(state, ci[bad], ai[bad], r[bad], face.name)
                 ok = ~bad
                 ci, ai, r = ci[ok], ai[ok], r[ok]
-                pa = {key: val[ok] for key, val in pa.items()}
+                pa = {key: val[ok] if val.shape == ok.shape else val for key, val in pa.items()}
             f = self.cutoff.force(r, pa)
             state.f[ci, ai, face.dim] -= face.side * f
             if outputs:
@@ -92,7 +99,10 @@ class SoftWallKernel:
         if not self.all_atoms:
             near &= self.group
         flat = near.ravel().nonzero()[0]  # c * N + a (1-D: cheaper than 2-D nonzero and indexing)
-        ci, ai = np.divmod(flat, near.shape[1])
+        if near.shape[0] == 1:  # one case: the flat index is the atom's
+            ci, ai = np.zeros(flat.size, flat.dtype), flat
+        else:
+            ci, ai = np.divmod(flat, near.shape[1])
         return p, ci, ai, delta.ravel()[flat]
 
     def _fail_inside(self, state: "BatchState", ci: np.ndarray, ai: np.ndarray, r: np.ndarray,
