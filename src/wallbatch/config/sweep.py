@@ -18,7 +18,7 @@ from typing import Annotated, Any, Union
 
 import numpy as np
 import yaml
-from pydantic import Field, PositiveInt, ValidationError, field_validator
+from pydantic import ConfigDict, Field, PositiveInt, ValidationError, field_validator
 
 from wallbatch.config.models import Config, Model, validate_data
 from wallbatch.config.source import ConfigError, SourceMap, _Loader, load_yaml, read_config_text
@@ -26,15 +26,20 @@ from wallbatch.config.source import ConfigError, SourceMap, _Loader, load_yaml, 
 # ----------------------------------------------------------------------------- the sweep models
 
 
-class Linspace(Model):
+class _SweepModel(Model):
+    # built when a sweep is first validated: a config without one never pays for them
+    model_config = ConfigDict(defer_build=True)
+
+
+class Linspace(_SweepModel):
     linspace: tuple[float, float, PositiveInt]
 
 
-class Logspace(Model):
+class Logspace(_SweepModel):
     logspace: tuple[float, float, PositiveInt]
 
 
-class Range(Model):
+class Range(_SweepModel):
     range: tuple[float, float, float]
 
     @field_validator("range")
@@ -48,17 +53,17 @@ class Range(Model):
 Values = Union[Annotated[list[Any], Field(min_length=1)], Linspace, Logspace, Range]
 
 
-class Param(Model):
+class Param(_SweepModel):
     path: Union[str, Annotated[list[str], Field(min_length=1)]]
     values: Values
 
 
-class Zip(Model):
+class Zip(_SweepModel):
     dim: Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")]
     params: Annotated[dict[str, Param], Field(min_length=1)]
 
 
-class Sweep(Model):
+class Sweep(_SweepModel):
     product: dict[str, Union[Param, Values]] = {}
     zip: Zip | None = None
     replicas: PositiveInt | None = None
