@@ -182,16 +182,19 @@ def test_start_up_runs_without_garbage_collection_then_resumes_it(tmp_path, args
 
 def test_only_the_wall_styles_a_config_uses_get_their_models_built(tmp_path):
     """Start-up builds the Pydantic model of a registered wall style when a config first uses it
-    (`wallbatch run` of an lj93 slit builds lj93's only; the other non-registry wall models and the
-    sweep models stay unbuilt too); the JSON schema still holds every style and builds them all."""
+    (`wallbatch run` of an lj93 slit builds lj93's only; the other non-registry wall models, the
+    fixes' and the sweep's stay unbuilt too); the JSON schema still holds every style and builds
+    them all."""
     (tmp_path / "scene.yaml").write_text(SCENE.replace("steps: 4000", "steps: 40"))
     probe = ("import sys; sys.argv = ['wallbatch', 'run', 'scene.yaml', '-o', 'o.nc', '--force']\n"
              "from wallbatch.cli import app\ntry:\n    app()\nexcept SystemExit:\n    pass\n"
              "from wallbatch.config import models as m\n"
              "print('made:' + ','.join(m.WALL_MODELS.made()))\n"
              "from wallbatch.config import sweep as sw\n"
+             "from wallbatch.config.ensemble import FIX_MODELS\n"
              "print('built:' + ','.join([k for k, c in m.OTHER_WALLS.items() if c.__pydantic_complete__]\n"
-             "                          + [c.__name__ for c in (sw.Sweep, sw.Param) if c.__pydantic_complete__]))\n"
+             "                          + [c.__name__ for c in (sw.Sweep, sw.Param) if c.__pydantic_complete__]\n"
+             "                          + [k for k, c in FIX_MODELS.items() if c.__pydantic_complete__]))\n"
              "from wallbatch.config.schema import json_schema\n"
              "tags = json_schema()['$defs']['Config']['properties']['walls']['additionalProperties']['anyOf'][0]\n"
              "print('schema:' + ','.join(sorted(tags['discriminator']['mapping'])))\n"

@@ -26,6 +26,7 @@ from pydantic import (
 )
 
 from wallbatch.config.fixline import FixLineError, _Words
+from wallbatch.config.ondemand import tagged_on_demand
 
 INTEGRATORS = ("nve", "nve/asphere", "nvt")
 THERMOSTATS = ("nvt", "langevin", "temp/berendsen", "temp/rescale")
@@ -37,7 +38,8 @@ Temps = tuple[NonNegativeFloat, NonNegativeFloat]
 
 
 class _Fix(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # built when a config first uses the style (EnsembleFix)
+    model_config = ConfigDict(extra="forbid", frozen=True, defer_build=True)
 
     group: GroupName = "all"
 
@@ -109,8 +111,11 @@ class Enforce2dFix(_Fix):
     style: Literal["enforce2d"]
 
 
-EnsembleFix = Annotated[NveFix | NveAsphereFix | NvtFix | LangevinFix | BerendsenFix | RescaleFix | Enforce2dFix,
-                        Field(discriminator="style")]
+FIX_MODELS: dict[str, type[_Fix]] = {  # FIX_STYLES' models, in its order
+    "nve": NveFix, "nve/asphere": NveAsphereFix, "nvt": NvtFix, "langevin": LangevinFix,
+    "temp/berendsen": BerendsenFix, "temp/rescale": RescaleFix, "enforce2d": Enforce2dFix}
+# a fix under `fixes:`: validated by the model of its style alone (built on first use)
+EnsembleFix = tagged_on_demand(FIX_STYLES, FIX_MODELS.__getitem__)
 
 
 # ----------------------------------------------------------------------------- fix lines

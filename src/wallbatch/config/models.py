@@ -7,7 +7,6 @@ Every problem is reported as `file:line:col: dotted.path: message` through `Conf
 
 from __future__ import annotations
 
-import functools
 import math
 import re
 from collections.abc import Iterator, Mapping
@@ -22,17 +21,14 @@ from pydantic import (
     NonNegativeInt,
     PositiveFloat,
     PositiveInt,
-    GetCoreSchemaHandler,
-    GetJsonSchemaHandler,
     PrivateAttr,
-    TypeAdapter,
     ValidationError,
     create_model,
     field_validator,
     model_validator,
 )
-from pydantic_core import CoreSchema, PydanticKnownError, core_schema
 
+from wallbatch.config.ondemand import tagged_on_demand
 from wallbatch.config.profiles import Averages, Profile, check_profiles
 from wallbatch.config.source import FACES, ConfigError, SourceMap, load_yaml
 from wallbatch.styles import STYLES, WallStyle, region_styles
@@ -592,58 +588,8 @@ def wall_model(style: str) -> type[Model]:
     return OTHER_WALLS[style] if style in OTHER_WALLS else WALL_MODELS[style]
 
 
-@functools.cache
-def _tagged(style: str) -> TypeAdapter:
-    """Validates {style: wall}: the errors' places name the style after the fix-ID
-    (walls.ID.STYLE.key), as a union tagged by `style` puts them."""
-    model = wall_model(style)
-    model.model_rebuild()  # its own validator and serializer too (dumping a config serializes it)
-    return TypeAdapter(dict[str, model])  # type: ignore[valid-type]
-
-
-def _validate_wall(value: Any) -> Any:
-    """One wall: the model of its `style` validates it. The errors are those of a union of
-    every wall model tagged by `style` (`_all_walls`), which is built only for the JSON schema."""
-    if isinstance(value, dict):
-        if "style" not in value:
-            raise PydanticKnownError("union_tag_not_found", {"discriminator": "'style'"})
-        tag = value["style"]
-    elif isinstance(value, BaseModel) and hasattr(value, "style"):
-        tag = value.style
-    else:
-        raise PydanticKnownError("model_attributes_type")
-    if not (isinstance(tag, str) and tag in WALL_STYLES):
-        raise PydanticKnownError("union_tag_invalid", {
-            "discriminator": "'style'", "tag": str(tag), "expected_tags": ", ".join(f"'{t}'" for t in WALL_STYLES)})
-    return _tagged(tag).validate_python({tag: value})[tag]
-
-
-def _all_walls() -> Any:
-    """Every wall model as one union tagged by `style` (builds every model: the JSON schema)."""
-    return Annotated[Union[tuple(wall_model(t) for t in WALL_STYLES)],  # type: ignore[misc]
-                     Field(discriminator="style")]
-
-
-class _WallField:
-    """The type of a wall under `walls:`: validated by `_validate_wall`; its JSON schema is the
-    tagged union of every wall model."""
-
-    @classmethod
-    def __get_pydantic_core_schema__(cls, source: Any, handler: GetCoreSchemaHandler) -> CoreSchema:
-        return core_schema.no_info_plain_validator_function(_validate_wall)
-
-    @classmethod
-    def __get_pydantic_json_schema__(cls, schema: CoreSchema, handler: GetJsonSchemaHandler) -> Any:
-        return handler(TypeAdapter(_all_walls()).core_schema)
-
-    @classmethod
-    def full_annotation(cls) -> Any:
-        """The annotation this type stands for (for tools that read the models' annotations, like
-        the docs' reference generator): the tagged union of every wall model."""
-        return _all_walls()
-
-
-Wall = _WallField
+# a wall under `walls:`: validated by the model of its style alone (built on first use)
+Wall = tagged_on_demand(WALL_STYLES, wall_model)
 
 
 # ----------------------------------------------------------------------------- the rest
