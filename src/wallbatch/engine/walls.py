@@ -20,11 +20,11 @@ from wallbatch.styles.base import WallStyle
 from wallbatch.styles.cutoff import CutoffStyle
 
 
-def at_atoms(p: dict[str, np.ndarray], ci: np.ndarray, ncases: int) -> dict[str, np.ndarray]:
-    """A face's per-case parameters (C,) at the selected atoms of cases `ci`. With one case its
-    (1,) arrays stay as they are: they broadcast against the atoms' distances to the same numbers,
-    without a gather per parameter per step."""
-    return dict(p) if ncases == 1 else {key: val[ci] for key, val in p.items()}
+def at_atoms(p: dict[str, np.ndarray], ci: np.ndarray) -> dict[str, np.ndarray]:
+    """A face's per-case parameters (C,) at the selected atoms of cases `ci`. A (1,) array (one
+    case) stays as it is: it broadcasts against the atoms' distances to the same numbers as its
+    gather would give, without a gather per parameter per step."""
+    return {key: val if val.shape == (1,) else val[ci] for key, val in p.items()}
 
 
 class SoftWallKernel:
@@ -58,7 +58,7 @@ class SoftWallKernel:
             p, ci, ai, r = self.face_atoms(state, face)
             if ci.size == 0:
                 continue
-            pa = at_atoms(p, ci, C)
+            pa = at_atoms(p, ci)
             if self.style.needs_radius:
                 pa["radius"] = state.radius[ci, ai]
             bad = r <= self.style.too_close(pa)
