@@ -653,7 +653,7 @@ if njit is not None:
         return njit(cache=True, nogil=True, error_model="numpy")(fn)
 
 
-THREAD_MIN_ATOMS = 16_384  # atoms per thread below which one case's chunk runs in one call (`_chunk_threaded`)
+THREAD_MIN_ATOMS = 8_192  # atoms per thread below which one case's chunk runs in one call (`_chunk_threaded`)
 
 
 def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
