@@ -383,12 +383,13 @@ if njit is not None:
                 mark[nc[k]] = 1
 
     def forces_part(xc: np.ndarray, fc: np.ndarray, ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, s_lo: int,
-                    s_hi: int, part: int, firstp: np.ndarray, lj: np.ndarray, lv: np.ndarray, q0: int, e24: float,
+                    s_hi: int, part: int, firstp: np.ndarray, mixed: np.ndarray, lj: np.ndarray, lv: np.ndarray,
+                    q0: int, e24: float,
                     e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray, periodic: np.ndarray) -> int:
         """The rows s_lo .. s_hi - 1 of `forces_case` (forces only), part `part` of a `RowSplit`:
         each pair's terms and each row's sum as there; an addition to an atom this part touches
         first (firstp) goes into fc at once, any other waits in the log (lj: the atom, lv: the
-        value added, from q0 on) for `_replay`, which adds it after the parts before. Returns the
+        value added, from q0 on; only rows with mixed[s] have partners of other parts) for `_replay`, which adds it after the parts before. Returns the
         end of the log written. Parts run at once in threads: each writes only its own atoms of fc."""
         inv0 = 1.0 / length[0] if periodic[0] else 0.0
         inv1 = 1.0 / length[1] if periodic[1] else 0.0
@@ -413,20 +414,31 @@ if njit is not None:
             _pair_terms(n, gx, gy, gz, tx, ty, tz, buf[0], buf[0], False, e24, e4, s2c, rcut2, off, inv0, inv1,
                         inv2, L0, L1, L2)
             fi0, fi1, fi2 = 0.0, 0.0, 0.0
-            for k in range(n):
-                j = nc[k0 + k]
-                a, b, c = tx[k], ty[k], tz[k]
-                fi0 += a
-                fi1 += b
-                fi2 += c
-                if firstp[j] == part:
+            if mixed[s]:  # some partner is another part's first: its additions wait in the log
+                for k in range(n):
+                    j = nc[k0 + k]
+                    a, b, c = tx[k], ty[k], tz[k]
+                    fi0 += a
+                    fi1 += b
+                    fi2 += c
+                    if firstp[j] == part:
+                        fc[j, 0] -= a
+                        fc[j, 1] -= b
+                        fc[j, 2] -= c
+                    else:  # x - a and x + (-a) are the same number
+                        lj[q] = j
+                        lv[q, 0], lv[q, 1], lv[q, 2] = -a, -b, -c
+                        q += 1
+            else:  # forces_case's loop
+                for k in range(n):
+                    j = nc[k0 + k]
+                    a, b, c = tx[k], ty[k], tz[k]
+                    fi0 += a
+                    fi1 += b
+                    fi2 += c
                     fc[j, 0] -= a
                     fc[j, 1] -= b
                     fc[j, 2] -= c
-                else:  # x - a and x + (-a) are the same number
-                    lj[q] = j
-                    lv[q, 0], lv[q, 1], lv[q, 2] = -a, -b, -c
-                    q += 1
             if firstp[i] == part:
                 fc[i, 0] += fi0
                 fc[i, 1] += fi1
@@ -438,6 +450,16 @@ if njit is not None:
         return q
 
     forces_part = _keyed(forces_part)
+
+    @jit
+    def _mixed(ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, s_lo: int, s_hi: int, part: int, firstp: np.ndarray,
+               mixed: np.ndarray) -> None:
+        """mixed[s] = some partner of row s (s_lo <= s < s_hi, rows of `part`) has another first part."""
+        for s in range(s_lo, s_hi):
+            m = 0
+            for k in range(fr[s], fr[s + 1]):
+                m |= firstp[nc[k]] != part
+            mixed[s] = m
 
     @jit
     def _replay(fc: np.ndarray, lj: np.ndarray, lv: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> None:
@@ -702,7 +724,10 @@ class RowSplit:
         rb = self.rb
         threads._in_threads([lambda p=p: _touch(owner, first, neigh, int(rb[p]), int(rb[p + 1]), marks[p])
                              for p in range(parts)])
-        self.firstp = np.argmax(marks, axis=0).astype(np.int32)  # the first part with a mark (0: none)
+        self.firstp = np.argmax(marks, axis=0).astype(np.uint8)  # the first part with a mark (0: none)
+        self.mixed = marks[0]  # reused: mixed[s] for the rows s (`_mixed`)
+        threads._in_threads([lambda p=p: _mixed(owner, first, neigh, int(rb[p]), int(rb[p + 1]), p, self.firstp,
+                                                self.mixed) for p in range(parts)])
         room = (first[rb[1:]] - first[rb[:-1]]) + (rb[1:] - rb[:-1])
         room[0] = 0  # part 0 is the first to touch every atom it touches
         self.logs = np.concatenate(([0], np.cumsum(room))).astype(np.int64)
@@ -719,33 +744,61 @@ def forces_threaded(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.n
     rb, logs = split.rb, split.logs
 
     def part(p: int) -> int:
-        return forces_part(x, f, owner, first, neigh, int(rb[p]), int(rb[p + 1]), p, split.firstp, split.lj,
-                           split.lv, int(logs[p]), e24, e4, s2c, rcut2, off, length, periodic)
+        return forces_part(x, f, owner, first, neigh, int(rb[p]), int(rb[p + 1]), p, split.firstp, split.mixed,
+                           split.lj, split.lv, int(logs[p]), e24, e4, s2c, rcut2, off, length, periodic)
 
     ends = np.asarray(threads._in_threads([lambda p=p: part(p) for p in range(len(rb) - 1)]), np.int64)
     _replay(f, split.lj, split.lv, logs[:-1], ends)
 
 
 def _chunk_threaded(kernel: Any, args: tuple, parts: int) -> tuple[int, int, np.ndarray]:
-    """`kernel(*args)` (a `pair_chunk` call of one case) with the list builds and the pair force
-    passes over `parts` threads (`build_threaded`, `forces_threaded`): step by step, `_pre_step`
-    (drift, wrap, list check), the build if due, the pair forces, then the kernel with `post` for
-    the rest of the step (walls, lost atoms, final_integrate, wall/flow). A sampled chunk's last
-    pair pass runs in one call (`forces_case` with outputs: its energy and virial sums in list
-    order). Every value is that of the one call, bit for bit; returns what it returns."""
+    """`kernel(*args)` (a `pair_chunk` call of one case) over `parts` threads, step by step:
+    the list build if due (`build_threaded`), the pair forces (`forces_threaded`), then on runs of
+    atoms the kernel with `post` for the rest of the step (walls, lost atoms, final_integrate) and
+    `_pre_step` for the start of the next (drift, wrap, list check): two meetings of the threads a
+    step. With wall/flow the rest of the step runs on all atoms in one call (its random stream is
+    drawn atom after atom). A sampled chunk's last pair pass runs in one call (`forces_case` with
+    outputs: its energy and virial sums in list order). Every value is that of the one call, bit
+    for bit; returns what it returns (a chunk with trouble may stop at another step of it: the
+    caller discards it and the NumPy loop re-runs it)."""
     a = dict(zip(_signature_names(kernel), args))
     nsteps, x, v, f, xref = a["nsteps"], a["x"], a["v"], a["f"], a["xref"]
     owner, first, neigh, spare = a["owner"], a["first"], a["neigh"], a["spare"]
     lo, hi, box_per, length, per = a["lo"], a["hi"], a["box_per"], a["length"], a["pair_per"]
-    lj = (a["e24"], a["e4"], a["s2c"], a["rcut2"], a["off"])
+    dt, limit2, lj = a["dt"], a["limit2"], (a["e24"], a["e4"], a["s2c"], a["rcut2"], a["off"])
     N = x.shape[0]
-    dtfm = _dtfm(a["mass"], a["dt"], a["ftm2v"])
+    dtfm = _dtfm(a["mass"], dt, a["ftm2v"])
     sf_val, sample = a["sf_val"], a["sample"]
     vary = sf_val.shape[0] > 1
+    runs = [slice(N * p // parts, N * (p + 1) // parts) for p in range(parts)]
+    a.update(nsteps=1, post=True, sample=False)
+    if int(a["fl_int"][0]) != 0:  # wall/flow: the rest of the step on all atoms
+        tails = [a]
+    else:
+        tails = [dict(a, x=x[r], v=v[r], f=f[r], mass=a["mass"][r], radius=a["radius"][r],
+                      groups=np.ascontiguousarray(a["groups"][:, r])) for r in runs]
+
+    def pre(r: slice) -> int:
+        return _pre_step(x[r], v[r], f[r], dtfm[r], dt, lo, hi, box_per, xref[r], length, per, limit2)
+
+    def tail_pre(p: int, step: int) -> tuple[int, int]:
+        """The rest of step `step` on part p's atoms (all atoms with wall/flow: tails[0]), then,
+        but after the last step, the first part of the next one: (its status, `pre`'s)."""
+        t = tails[p] if p < len(tails) else None
+        if t is not None:
+            t.update(neigh=neigh, sf_val=sf_val[step:step + 1] if vary else sf_val)
+            st = kernel(*t.values())[0]
+            if st != 0:
+                return st, 0
+        return 0, (pre(runs[p]) if step + 1 < nsteps and len(tails) == parts else 0)
+
+    def pres() -> int:
+        return max(threads._in_threads([lambda r=r: pre(r) for r in runs]))  # 3: a non-finite position
+
     split = None
     builds = 0
+    st = pres()
     for step in range(nsteps):
-        st = _pre_step(x, v, f, dtfm, a["dt"], lo, hi, box_per, xref, length, per, a["limit2"])
         if st == 3:
             return 3, builds, neigh
         if st == 1:
@@ -766,10 +819,16 @@ def _chunk_threaded(kernel: Any, args: tuple, parts: int) -> tuple[int, int, np.
             if split is None:
                 split = RowSplit(owner, first, neigh, parts)
             forces_threaded(x, f, owner, first, neigh, split, *lj, length, per)
-        a.update(nsteps=1, post=True, neigh=neigh, sf_val=sf_val[step:step + 1] if vary else sf_val, sample=False)
-        st, _, _ = kernel(*a.values())
-        if st != 0:
-            return st, builds, neigh
+        if len(tails) == parts:  # the rest of this step and the start of the next, atoms in parts
+            got = threads._in_threads([lambda p=p: tail_pre(p, step) for p in range(parts)])
+        else:  # wall/flow: the rest of the step on all atoms, then the next start in parts
+            got = [tail_pre(0, step)]
+            if got[0][0] == 0 and step + 1 < nsteps:
+                got.append((0, pres()))
+        bad = next((g[0] for g in got if g[0] != 0), 0)
+        if bad != 0:
+            return bad, builds, neigh
+        st = max(g[1] for g in got)
     return 0, builds, neigh
 
 
@@ -880,7 +939,7 @@ class PairChunks:
                     24.0 * float(pair.epsilon[c]), 4.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2),
                     float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
                     sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl)
-            parts = min(threads.count(), N // THREAD_MIN_ATOMS)
+            parts = min(threads.count(), N // THREAD_MIN_ATOMS, 64)
             if parts >= 2:
                 status, builds, neigh = _chunk_threaded(kernel, args, parts)
                 self.threaded_chunks += 1
