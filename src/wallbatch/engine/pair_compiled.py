@@ -32,6 +32,7 @@ import functools
 import hashlib
 import inspect
 import math
+import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -679,9 +680,10 @@ THREAD_MIN_ATOMS = 8_192  # atoms per thread below which one case's chunk runs i
 
 
 def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
-                   owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int) -> int:
+                   owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int,
+                   run: Callable[[list], list] = threads._in_threads) -> int:
     """`build_case` with its scan of the cells cut in `parts` runs of cells (about equal atoms), one
-    per thread (threads._in_threads): part p writes its rows into its share of neigh (in
+    per thread (`run`: threads._in_threads or a `Crew`): part p writes its rows into its share of neigh (in
     proportion to its atoms), `_compact` then joins them. The same list, bit for bit; -1 if some
     part's share was too short (call again with a longer neigh)."""
     N = pos.shape[0]
@@ -701,7 +703,7 @@ def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic
         return _scan(xs, cstart, nb, owner, length, periodic, reach, int(qb[p]), int(qb[p + 1]), int(edges[p]),
                      int(edges[p + 1]), first, neigh)
 
-    ends = np.asarray(threads._in_threads([lambda p=p: scan(p) for p in range(parts)]), np.int64)
+    ends = np.asarray(run([lambda p=p: scan(p) for p in range(parts)]), np.int64)
     if (ends < 0).any():
         return -1
     m = _compact(first, neigh, rs, base, ends)
@@ -715,19 +717,20 @@ class RowSplit:
     adds into f[j] at once: a later part logs its additions to j (lj, lv; part p's from logs[p],
     room for all of its rows' additions, pages touched only as written) for `_replay`."""
 
-    def __init__(self, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int):
+    def __init__(self, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int,
+                 run: Callable[[list], list] = threads._in_threads):
         nrow = len(owner)
         total = int(first[nrow])
         self.rb = np.append(np.searchsorted(first[:nrow + 1], [total * p // parts for p in range(parts)]),
                             nrow).astype(np.int64)
         marks = np.zeros((parts, nrow), np.uint8)
         rb = self.rb
-        threads._in_threads([lambda p=p: _touch(owner, first, neigh, int(rb[p]), int(rb[p + 1]), marks[p])
+        run([lambda p=p: _touch(owner, first, neigh, int(rb[p]), int(rb[p + 1]), marks[p])
                              for p in range(parts)])
         self.firstp = np.argmax(marks, axis=0).astype(np.uint8)  # the first part with a mark (0: none)
         self.mixed = marks[0]  # reused: mixed[s] for the rows s (`_mixed`)
-        threads._in_threads([lambda p=p: _mixed(owner, first, neigh, int(rb[p]), int(rb[p + 1]), p, self.firstp,
-                                                self.mixed) for p in range(parts)])
+        run([lambda p=p: _mixed(owner, first, neigh, int(rb[p]), int(rb[p + 1]), p, self.firstp, self.mixed)
+             for p in range(parts)])
         room = (first[rb[1:]] - first[rb[:-1]]) + (rb[1:] - rb[:-1])
         room[0] = 0  # part 0 is the first to touch every atom it touches
         self.logs = np.concatenate(([0], np.cumsum(room))).astype(np.int64)
@@ -737,7 +740,7 @@ class RowSplit:
 
 def forces_threaded(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray,
                     split: RowSplit, e24: float, e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray,
-                    periodic: np.ndarray) -> None:
+                    periodic: np.ndarray, run: Callable[[list], list] = threads._in_threads) -> None:
     """`forces_case` (forces only) with its rows cut in the parts of `split`, one per thread, then
     the logged additions (`_replay`): every atom's force gets the same additions in the same order
     as in `forces_case`, so the same bits."""
@@ -747,8 +750,59 @@ def forces_threaded(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.n
         return forces_part(x, f, owner, first, neigh, int(rb[p]), int(rb[p + 1]), p, split.firstp, split.mixed,
                            split.lj, split.lv, int(logs[p]), e24, e4, s2c, rcut2, off, length, periodic)
 
-    ends = np.asarray(threads._in_threads([lambda p=p: part(p) for p in range(len(rb) - 1)]), np.int64)
+    ends = np.asarray(run([lambda p=p: part(p) for p in range(len(rb) - 1)]), np.int64)
     _replay(f, split.lj, split.lv, logs[:-1], ends)
+
+
+class Crew:
+    """Threads kept for the calls of one chunk: `crew(calls)` runs calls[0] here and calls[k] on
+    worker k (at most `size` calls), and returns their results (an exception is re-raised); cheaper
+    than new threads at each of a step's meetings (threads._in_threads). `close()` ends them."""
+
+    def __init__(self, size: int):
+        self._go = [threading.Semaphore(0) for _ in range(size - 1)]
+        self._done = threading.Semaphore(0)
+        self._jobs: list[Any] = [None] * (size - 1)
+        self._out: list[Any] = [None] * size
+        self._workers = [threading.Thread(target=self._work, args=(k,), name=f"wallbatch-pair-{k + 1}", daemon=True)
+                         for k in range(size - 1)]
+        for t in self._workers:
+            t.start()
+
+    def _work(self, k: int) -> None:
+        while True:
+            self._go[k].acquire()
+            job = self._jobs[k]
+            if job is None:
+                return
+            try:
+                self._out[k + 1] = job()
+            except BaseException as exc:  # noqa: BLE001 - handed to the calling thread
+                self._out[k + 1] = exc
+            self._done.release()
+
+    def __call__(self, calls: list[Callable[[], Any]]) -> list[Any]:
+        n = len(calls)
+        for k in range(1, n):
+            self._jobs[k - 1] = calls[k]
+            self._go[k - 1].release()
+        try:
+            first = calls[0]()
+        finally:
+            for _ in range(1, n):
+                self._done.acquire()
+        out = [first] + self._out[1:n]
+        for r in out:
+            if isinstance(r, BaseException):
+                raise r
+        return out
+
+    def close(self) -> None:
+        for k, go in enumerate(self._go):
+            self._jobs[k] = None
+            go.release()
+        for t in self._workers:
+            t.join()
 
 
 def _chunk_threaded(kernel: Any, args: tuple, parts: int) -> tuple[int, int, np.ndarray]:
@@ -761,6 +815,15 @@ def _chunk_threaded(kernel: Any, args: tuple, parts: int) -> tuple[int, int, np.
     outputs: its energy and virial sums in list order). Every value is that of the one call, bit
     for bit; returns what it returns (a chunk with trouble may stop at another step of it: the
     caller discards it and the NumPy loop re-runs it)."""
+    crew = Crew(parts)
+    try:
+        return _chunk_steps(kernel, args, parts, crew)
+    finally:
+        crew.close()
+
+
+def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int, int, np.ndarray]:
+    """`_chunk_threaded`'s steps, the threads' calls run by `crew`."""
     a = dict(zip(_signature_names(kernel), args))
     nsteps, x, v, f, xref = a["nsteps"], a["x"], a["v"], a["f"], a["xref"]
     owner, first, neigh, spare = a["owner"], a["first"], a["neigh"], a["spare"]
@@ -793,7 +856,7 @@ def _chunk_threaded(kernel: Any, args: tuple, parts: int) -> tuple[int, int, np.
         return 0, (pre(runs[p]) if step + 1 < nsteps and len(tails) == parts else 0)
 
     def pres() -> int:
-        return max(threads._in_threads([lambda r=r: pre(r) for r in runs]))  # 3: a non-finite position
+        return max(crew([lambda r=r: pre(r) for r in runs]))  # 3: a non-finite position
 
     split = None
     builds = 0
@@ -803,10 +866,10 @@ def _chunk_threaded(kernel: Any, args: tuple, parts: int) -> tuple[int, int, np.
             return 3, builds, neigh
         if st == 1:
             target = neigh if builds > 0 else spare
-            m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts)
+            m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew)
             while m < 0:
                 target = np.empty(2 * len(target) + 4 * N, np.int32)
-                m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts)
+                m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew)
             neigh = target
             xref[:] = x
             builds += 1
@@ -817,10 +880,10 @@ def _chunk_threaded(kernel: Any, args: tuple, parts: int) -> tuple[int, int, np.
             a["fpair"][:] = f
         else:
             if split is None:
-                split = RowSplit(owner, first, neigh, parts)
-            forces_threaded(x, f, owner, first, neigh, split, *lj, length, per)
+                split = RowSplit(owner, first, neigh, parts, crew)
+            forces_threaded(x, f, owner, first, neigh, split, *lj, length, per, crew)
         if len(tails) == parts:  # the rest of this step and the start of the next, atoms in parts
-            got = threads._in_threads([lambda p=p: tail_pre(p, step) for p in range(parts)])
+            got = crew([lambda p=p: tail_pre(p, step) for p in range(parts)])
         else:  # wall/flow: the rest of the step on all atoms, then the next start in parts
             got = [tail_pre(0, step)]
             if got[0][0] == 0 and step + 1 < nsteps:
