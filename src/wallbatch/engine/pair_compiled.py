@@ -21,6 +21,12 @@ compiled.py's `_flow_step`), so no Python runs between steps. It calls the very 
 per-step compiled path, so both give the same bits; trouble hands the chunk back to NumPy. Not
 fused: wall/reflect, dt/reset, thermostats and other fixes, wall/lepton faces, time-based runs.
 
+One large case over threads (`_chunk_threaded`, THREAD_MIN_ATOMS atoms per thread at least):
+the same step in pieces, with the list build (runs of cells, `build_threaded`) and the force pass
+(runs of rows, `forces_threaded`) split over threads, and the rest of the step over runs of atoms.
+Each atom gets its force additions in the one-thread order (an addition to an atom an earlier part
+touches waits in a log), so the results are those of one thread, bit for bit.
+
 All kernels are `@njit(cache=True)` without fastmath (results are reproducible) and take
 C-contiguous arrays (float64 positions, int32/int64 lists, bool flags: one compiled signature each).
 """
