@@ -53,11 +53,15 @@ def test_threaded_build_and_forces_are_the_one_thread_bits(parts):
     np.testing.assert_array_equal(o2, owner)
     np.testing.assert_array_equal(fr2, first)
     np.testing.assert_array_equal(n2[:m], neigh[:m])
-    split = pair_compiled.RowSplit(o2, fr2, n2, parts)
-    assert len(np.unique(split.firstp)) == parts and split.rb[1] > 0
-    f2 = np.zeros_like(x)
-    pair_compiled.forces_threaded(x, f2, o2, fr2, n2, split, E24, E4, SIG2, RC2, OFF, length, per)
-    np.testing.assert_array_equal(f2, f1)
+    marks, rows = np.zeros((parts, len(x)), np.uint8), np.empty(parts + 1, np.int64)
+    assert pair_compiled.build_threaded(x, lo, length, per, 2.8, o2, fr2, n2, parts, marks=marks, rows=rows) == m
+    np.testing.assert_array_equal(n2[:m], neigh[:m])
+    for split in (pair_compiled.RowSplit(o2, fr2, n2, parts),  # parts of equal pairs, marked by itself
+                  pair_compiled.RowSplit(o2, fr2, n2, parts, marks=marks, rows=rows)):  # the build's parts
+        assert len(np.unique(split.firstp)) == parts and split.rb[1] > 0 and split.mixed.any()
+        f2 = np.zeros_like(x)
+        pair_compiled.forces_threaded(x, f2, o2, fr2, n2, split, E24, E4, SIG2, RC2, OFF, length, per)
+        np.testing.assert_array_equal(f2, f1)
     assert np.abs(f1).max() > 10.0  # real forces, summing to 0 (Newton's third law) to rounding
     assert np.abs(f1.sum(axis=0)).max() < 1e-12 * np.abs(f1).sum()
 

@@ -176,11 +176,13 @@ if njit is not None:
 
     def _scan(xs: np.ndarray, cstart: np.ndarray, nb: np.ndarray, order: np.ndarray, length: np.ndarray,
               periodic: np.ndarray, reach: float, q_lo: int, q_hi: int, m0: int, cap: int, first: np.ndarray,
-              neigh: np.ndarray) -> int:
+              neigh: np.ndarray, mark: np.ndarray) -> int:
         """The rows of the cells q_lo .. q_hi - 1 (`_bin`) of `build_case`'s list: first[s] for
-        their sorted atoms s and their partners written into neigh from m0 on, not beyond cap.
-        Returns the end of the written pairs, or -1 if they do not fit."""
+        their sorted atoms s and their partners written into neigh from m0 on, not beyond cap; with
+        a mark array (N,) (else of length 0), mark[j] = 1 for each atom the rows touch. Returns the
+        end of the written pairs, or -1 if they do not fit."""
         reach2 = reach * reach
+        marking = len(mark) > 0
         # Half stencil: cell offsets (a, b, g) lexicographically after (0, 0, 0), and the atoms
         # after s in its own cell. Cells along z are contiguous in the sorted order, so each
         # (a, b) row is one range of sorted atoms, or two when it wraps a periodic z.
@@ -249,6 +251,10 @@ if njit is not None:
                             d2 = y2 - xs[t, 2]
                             neigh[m] = order[t]
                             m += d0 * d0 + d1 * d1 + d2 * d2 <= reach2
+                if marking:  # the atoms this row touches (`RowSplit`)
+                    mark[order[s]] = 1
+                    for k in range(first[s], m):
+                        mark[neigh[k]] = 1
         return m
 
     _scan = _keyed(_scan)
@@ -265,7 +271,8 @@ if njit is not None:
             first[N] = 0
             return 0
         xs, cstart, nb = _bin(pos, lo, length, periodic, reach, owner)
-        m = _scan(xs, cstart, nb, owner, length, periodic, reach, 0, len(cstart) - 1, 0, len(neigh), first, neigh)
+        m = _scan(xs, cstart, nb, owner, length, periodic, reach, 0, len(cstart) - 1, 0, len(neigh), first, neigh,
+                  np.empty(0, np.uint8))
         if m >= 0:
             first[N] = m
         return m
@@ -459,13 +466,17 @@ if njit is not None:
     forces_part = _keyed(forces_part)
 
     @jit
-    def _mixed(ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, s_lo: int, s_hi: int, part: int, firstp: np.ndarray,
+    def _mixed(fr: np.ndarray, nc: np.ndarray, s_lo: int, s_hi: int, rb: np.ndarray, firstp: np.ndarray,
                mixed: np.ndarray) -> None:
-        """mixed[s] = some partner of row s (s_lo <= s < s_hi, rows of `part`) has another first part."""
+        """mixed[s] = some partner of row s (s_lo <= s < s_hi) is first touched by a part before the
+        row's own (rows rb[p] .. rb[p+1] - 1 are part p's)."""
+        p = 0
         for s in range(s_lo, s_hi):
+            while rb[p + 1] <= s:
+                p += 1
             m = 0
             for k in range(fr[s], fr[s + 1]):
-                m |= firstp[nc[k]] != part
+                m |= firstp[nc[k]] != p
             mixed[s] = m
 
     @jit
@@ -687,13 +698,18 @@ THREAD_MIN_ATOMS = 8_192  # atoms per thread below which one case's chunk runs i
 
 def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
                    owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int,
-                   run: Callable[[list], list] = threads._in_threads) -> int:
+                   run: Callable[[list], list] = threads._in_threads, marks: np.ndarray | None = None,
+                   rows: np.ndarray | None = None) -> int:
     """`build_case` with its scan of the cells cut in `parts` runs of cells (about equal atoms), one
     per thread (`run`: threads._in_threads or a `Crew`): part p writes its rows into its share of neigh (in
     proportion to its atoms), `_compact` then joins them. The same list, bit for bit; -1 if some
-    part's share was too short (call again with a longer neigh)."""
+    part's share was too short (call again with a longer neigh). With `marks` (parts, N) uint8
+    zeros and `rows` (parts + 1,): marks[p] = the atoms part p's rows touch, rows = the parts' first
+    rows (for `RowSplit`)."""
     N = pos.shape[0]
-    if N < 2 * parts:
+    if N < 2 * parts:  # (no marks: RowSplit marks itself)
+        if rows is not None:
+            rows[:] = -1
         return build_case(pos, lo, length, periodic, reach, owner, first, neigh)
     first[0] = 0
     xs, cstart, nb = _bin(pos, lo, length, periodic, reach, owner)
@@ -705,38 +721,46 @@ def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic
     base = (cap * rs[:-1]) // N
     edges = np.append(base, cap)
 
+    none = np.empty(0, np.uint8)
+
     def scan(p: int) -> int:
         return _scan(xs, cstart, nb, owner, length, periodic, reach, int(qb[p]), int(qb[p + 1]), int(edges[p]),
-                     int(edges[p + 1]), first, neigh)
+                     int(edges[p + 1]), first, neigh, none if marks is None else marks[p])
 
     ends = np.asarray(run([lambda p=p: scan(p) for p in range(parts)]), np.int64)
     if (ends < 0).any():
         return -1
     m = _compact(first, neigh, rs, base, ends)
     first[N] = m
+    if rows is not None:
+        rows[:] = rs
     return m
 
 
 class RowSplit:
     """The parts of a list's threaded force pass: rows rb[p] .. rb[p+1] - 1 for part p (about equal
-    pairs); firstp[j] = the first part whose rows touch atom j (owner or partner), the one that
+    pairs, or `build_threaded`'s parts with its marks); firstp[j] = the first part whose rows touch atom j (owner or partner), the one that
     adds into f[j] at once: a later part logs its additions to j (lj, lv; part p's from logs[p],
     room for all of its rows' additions, pages touched only as written) for `_replay`."""
 
     def __init__(self, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int,
-                 run: Callable[[list], list] = threads._in_threads):
+                 run: Callable[[list], list] = threads._in_threads, marks: np.ndarray | None = None,
+                 rows: np.ndarray | None = None):
         nrow = len(owner)
         total = int(first[nrow])
-        self.rb = np.append(np.searchsorted(first[:nrow + 1], [total * p // parts for p in range(parts)]),
-                            nrow).astype(np.int64)
-        marks = np.zeros((parts, nrow), np.uint8)
+        if marks is None or rows is None or rows[0] < 0:  # parts of about equal pairs, marked here
+            self.rb = np.append(np.searchsorted(first[:nrow + 1], [total * p // parts for p in range(parts)]),
+                                nrow).astype(np.int64)
+            marks = np.zeros((parts, nrow), np.uint8)
+            rb = self.rb
+            run([lambda p=p: _touch(owner, first, neigh, int(rb[p]), int(rb[p + 1]), marks[p]) for p in range(parts)])
+        else:  # the parts of `build_threaded` (about equal atoms) and its marks
+            self.rb = rows.astype(np.int64)
         rb = self.rb
-        run([lambda p=p: _touch(owner, first, neigh, int(rb[p]), int(rb[p + 1]), marks[p])
-                             for p in range(parts)])
         self.firstp = np.argmax(marks, axis=0).astype(np.uint8)  # the first part with a mark (0: none)
-        self.mixed = marks[0]  # reused: mixed[s] for the rows s (`_mixed`)
-        run([lambda p=p: _mixed(owner, first, neigh, int(rb[p]), int(rb[p + 1]), p, self.firstp, self.mixed)
-             for p in range(parts)])
+        self.mixed = np.zeros(nrow, np.uint8)  # rows of part 0 have none; the others' rows shared out
+        cut = [int(rb[1]) + (nrow - int(rb[1])) * p // parts for p in range(parts + 1)]
+        run([lambda p=p: _mixed(first, neigh, cut[p], cut[p + 1], rb, self.firstp, self.mixed) for p in range(parts)])
         room = (first[rb[1:]] - first[rb[:-1]]) + (rb[1:] - rb[:-1])
         room[0] = 0  # part 0 is the first to touch every atom it touches
         self.logs = np.concatenate(([0], np.cumsum(room))).astype(np.int64)
@@ -866,27 +890,32 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
 
     split = None
     builds = 0
+    built = False  # the list is this chunk's build: its marks and parts serve RowSplit
+    marks, rows = np.zeros((parts, N), np.uint8), np.empty(parts + 1, np.int64)
     st = pres()
     for step in range(nsteps):
         if st == 3:
             return 3, builds, neigh
         if st == 1:
             target = neigh if builds > 0 else spare
-            m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew)
+            marks[:] = 0
+            m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows)
             while m < 0:
                 target = np.empty(2 * len(target) + 4 * N, np.int32)
-                m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew)
+                marks[:] = 0
+                m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows)
             neigh = target
             xref[:] = x
             builds += 1
             split = None
+            built = True
         if sample and step == nsteps - 1:
             e, w = forces_case(x, f, owner, first, neigh, *lj, length, per, True)
             a["ew"][0], a["ew"][1] = e, w
             a["fpair"][:] = f
         else:
             if split is None:
-                split = RowSplit(owner, first, neigh, parts, crew)
+                split = RowSplit(owner, first, neigh, parts, crew, *((marks, rows) if built else ()))
             forces_threaded(x, f, owner, first, neigh, split, *lj, length, per, crew)
         if len(tails) == parts:  # the rest of this step and the start of the next, atoms in parts
             got = crew([lambda p=p: tail_pre(p, step) for p in range(parts)])
