@@ -80,6 +80,7 @@ def run_threads(monkeypatch, config: dict, n: int):
     monkeypatch.setenv("WALLBATCH_NUMBA", "1")
     monkeypatch.setenv("WALLBATCH_THREADS", str(n))
     monkeypatch.setattr(pair_compiled, "THREAD_MIN_ATOMS", 2)
+    monkeypatch.setattr(pair_compiled, "THREAD_MIN_USE", 0.0)  # never judged busy (a loaded test machine)
     eng = Engine(cases_of(config))
     assert isinstance(eng.fast, PairChunks)
     return eng.run(), eng
@@ -123,3 +124,18 @@ def test_few_atoms_per_thread_stay_one_call(monkeypatch):
     eng = Engine(cases_of(slit()))
     assert eng.run()[0].status == "ok"
     assert eng.fast.compiled_chunks == 4 and eng.fast.threaded_chunks == 0
+
+
+def test_busy_cores_run_chunks_in_one_call_for_a_while(monkeypatch):
+    """A threaded chunk that used less of its cores than THREAD_MIN_USE (here: any) is followed by
+    BUSY_SKIP chunks in one call, then threads again; the bits stay those of one thread."""
+    config = slit(steps=80, thermo=10)
+    ref, _ = run_threads(monkeypatch, config, 1)
+    monkeypatch.setattr(pair_compiled, "BUSY_MIN_WALL", 0.0)
+    monkeypatch.setattr(pair_compiled, "BUSY_SKIP", 3)
+    monkeypatch.setenv("WALLBATCH_THREADS", "2")
+    monkeypatch.setattr(pair_compiled, "THREAD_MIN_USE", 1e9)  # every threaded chunk looks starved
+    eng = Engine(cases_of(config))
+    got = eng.run()
+    assert_bits(got, ref)
+    assert eng.fast.compiled_chunks == 8 and eng.fast.threaded_chunks == 2  # chunks 1 and 5 on threads

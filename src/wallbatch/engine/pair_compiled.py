@@ -39,6 +39,7 @@ import hashlib
 import inspect
 import math
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -694,6 +695,12 @@ if njit is not None:
 
 
 THREAD_MIN_ATOMS = 8_192  # atoms per thread below which one case's chunk runs in one call (`_chunk_threaded`)
+# A threaded chunk whose process used less than THREAD_MIN_USE of its threads' cores (CPU time over
+# wall time: the cores were busy with other work, and threads that meet twice a step wait for each
+# other) is followed by BUSY_SKIP case chunks in one call (the same bits either way), then threads again.
+THREAD_MIN_USE = 0.6
+BUSY_SKIP = 4
+BUSY_MIN_WALL = 0.05  # [s] a shorter chunk is not judged
 
 
 def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
@@ -966,6 +973,7 @@ class PairChunks:
         self.compiled_chunks = 0
         self.fallbacks = 0
         self.threaded_chunks = 0  # case chunks run by `_chunk_threaded`
+        self.busy_skip = 0  # case chunks to run in one call before trying threads again
 
     def advance_to_time(self, target: float) -> bool:
         return False
@@ -1038,9 +1046,16 @@ class PairChunks:
                     float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
                     sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl)
             parts = min(threads.count(), N // THREAD_MIN_ATOMS, 64)
+            if parts >= 2 and self.busy_skip > 0:  # the cores were busy with other work: one thread
+                self.busy_skip -= 1
+                parts = 1
             if parts >= 2:
+                wall, cpu = time.perf_counter(), time.process_time()
                 status, builds, neigh = _chunk_threaded(kernel, args, parts)
+                wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
                 self.threaded_chunks += 1
+                if wall > BUSY_MIN_WALL and cpu < THREAD_MIN_USE * parts * wall:
+                    self.busy_skip = BUSY_SKIP
             else:
                 status, builds, neigh = kernel(*args)
             if status != 0:
