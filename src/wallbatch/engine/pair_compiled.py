@@ -481,6 +481,18 @@ if njit is not None:
             mixed[s] = m
 
     @jit
+    def _replay_atoms(fc: np.ndarray, lj: np.ndarray, lv: np.ndarray, starts: np.ndarray, ends: np.ndarray,
+                      a_lo: int, a_hi: int) -> None:
+        """`_replay` for the atoms a_lo <= j < a_hi only (threads replay their own atoms at once)."""
+        for p in range(len(starts)):
+            for q in range(starts[p], ends[p]):
+                j = lj[q]
+                if a_lo <= j < a_hi:
+                    fc[j, 0] += lv[q, 0]
+                    fc[j, 1] += lv[q, 1]
+                    fc[j, 2] += lv[q, 2]
+
+    @jit
     def _replay(fc: np.ndarray, lj: np.ndarray, lv: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> None:
         """Add the logged additions of the parts (`forces_part`; part p's at starts[p] .. ends[p] - 1)
         into fc, part after part, each in order."""
@@ -706,13 +718,14 @@ BUSY_MIN_WALL = 0.05  # [s] a shorter chunk is not judged
 def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
                    owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int,
                    run: Callable[[list], list] = threads._in_threads, marks: np.ndarray | None = None,
-                   rows: np.ndarray | None = None) -> int:
+                   rows: np.ndarray | None = None, shares: np.ndarray | None = None) -> int:
     """`build_case` with its scan of the cells cut in `parts` runs of cells (about equal atoms), one
     per thread (`run`: threads._in_threads or a `Crew`): part p writes its rows into its share of neigh (in
     proportion to its atoms), `_compact` then joins them. The same list, bit for bit; -1 if some
     part's share was too short (call again with a longer neigh). With `marks` (parts, N) uint8
     zeros and `rows` (parts + 1,): marks[p] = the atoms part p's rows touch, rows = the parts' first
-    rows (for `RowSplit`)."""
+    rows (for `RowSplit`). `shares` (parts + 1,), from 0 up to 1: part p starts at about atom
+    shares[p] N (default p / parts)."""
     N = pos.shape[0]
     if N < 2 * parts:  # (no marks: RowSplit marks itself)
         if rows is not None:
@@ -721,7 +734,8 @@ def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic
     first[0] = 0
     xs, cstart, nb = _bin(pos, lo, length, periodic, reach, owner)
     ncell = len(cstart) - 1
-    qb = np.searchsorted(cstart, [N * p // parts for p in range(parts)], side="left").astype(np.int64)
+    starts = [N * p // parts for p in range(parts)] if shares is None else [int(N * shares[p]) for p in range(parts)]
+    qb = np.maximum.accumulate(np.searchsorted(cstart, starts, side="left")).astype(np.int64)
     qb = np.append(np.minimum(qb, ncell), ncell)
     rs = cstart[qb]  # the first row of each part
     cap = len(neigh)
@@ -777,18 +791,25 @@ class RowSplit:
 
 def forces_threaded(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray,
                     split: RowSplit, e24: float, e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray,
-                    periodic: np.ndarray, run: Callable[[list], list] = threads._in_threads) -> None:
+                    periodic: np.ndarray, run: Callable[[list], list] = threads._in_threads,
+                    replay: bool = True) -> np.ndarray:
     """`forces_case` (forces only) with its rows cut in the parts of `split`, one per thread, then
     the logged additions (`_replay`): every atom's force gets the same additions in the same order
-    as in `forces_case`, so the same bits."""
+    as in `forces_case`, so the same bits. Returns each part's CPU seconds (its thread's). Without
+    `replay` the logs' ends are left in split.ends for the caller to replay (`_replay_atoms`)."""
     rb, logs = split.rb, split.logs
 
-    def part(p: int) -> int:
-        return forces_part(x, f, owner, first, neigh, int(rb[p]), int(rb[p + 1]), p, split.firstp, split.mixed,
-                           split.lj, split.lv, int(logs[p]), e24, e4, s2c, rcut2, off, length, periodic)
+    def part(p: int) -> tuple[int, float]:
+        t = time.thread_time()
+        q = forces_part(x, f, owner, first, neigh, int(rb[p]), int(rb[p + 1]), p, split.firstp, split.mixed,
+                        split.lj, split.lv, int(logs[p]), e24, e4, s2c, rcut2, off, length, periodic)
+        return q, time.thread_time() - t
 
-    ends = np.asarray(run([lambda p=p: part(p) for p in range(len(rb) - 1)]), np.int64)
-    _replay(f, split.lj, split.lv, logs[:-1], ends)
+    got = run([lambda p=p: part(p) for p in range(len(rb) - 1)])
+    split.ends = np.array([g[0] for g in got], np.int64)
+    if replay:
+        _replay(f, split.lj, split.lv, logs[:-1], split.ends)
+    return np.array([g[1] for g in got])
 
 
 class Crew:
@@ -885,6 +906,9 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
         """The rest of step `step` on part p's atoms (all atoms with wall/flow: tails[0]), then,
         but after the last step, the first part of the next one: (its status, `pre`'s)."""
         t = tails[p] if p < len(tails) else None
+        if pending is not None:  # this part's atoms' logged pair forces first
+            r = runs[p] if len(tails) == parts else slice(0, N)
+            _replay_atoms(f, pending.lj, pending.lv, pending.logs[:-1], pending.ends, r.start, r.stop)
         if t is not None:
             t.update(neigh=neigh, sf_val=sf_val[step:step + 1] if vary else sf_val)
             st = kernel(*t.values())[0]
@@ -895,10 +919,11 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
     def pres() -> int:
         return max(crew([lambda r=r: pre(r) for r in runs]))  # 3: a non-finite position
 
-    split = None
+    split = pending = None
     builds = 0
     built = False  # the list is this chunk's build: its marks and parts serve RowSplit
     marks, rows = np.zeros((parts, N), np.uint8), np.empty(parts + 1, np.int64)
+    shares = np.arange(parts + 1) / parts
     st = pres()
     for step in range(nsteps):
         if st == 3:
@@ -906,11 +931,12 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
         if st == 1:
             target = neigh if builds > 0 else spare
             marks[:] = 0
-            m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows)
+            m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows, shares)
             while m < 0:
                 target = np.empty(2 * len(target) + 4 * N, np.int32)
                 marks[:] = 0
-                m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows)
+                m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows,
+                                   shares)
             neigh = target
             xref[:] = x
             builds += 1
@@ -923,18 +949,32 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
         else:
             if split is None:
                 split = RowSplit(owner, first, neigh, parts, crew, *((marks, rows) if built else ()))
-            forces_threaded(x, f, owner, first, neigh, split, *lj, length, per, crew)
+            cpu = forces_threaded(x, f, owner, first, neigh, split, *lj, length, per, crew, replay=False)
+            pending = split  # its logs are replayed by tail_pre, each part its own atoms
+            if built and rows[0] >= 0 and cpu.min() > 0:  # next build: parts of about equal force time
+                shares = _rebalance(shares, rows / N, cpu)
         if len(tails) == parts:  # the rest of this step and the start of the next, atoms in parts
             got = crew([lambda p=p: tail_pre(p, step) for p in range(parts)])
         else:  # wall/flow: the rest of the step on all atoms, then the next start in parts
             got = [tail_pre(0, step)]
             if got[0][0] == 0 and step + 1 < nsteps:
                 got.append((0, pres()))
+        pending = None
         bad = next((g[0] for g in got if g[0] != 0), 0)
         if bad != 0:
             return bad, builds, neigh
         st = max(g[1] for g in got)
     return 0, builds, neigh
+
+
+def _rebalance(shares: np.ndarray, bounds: np.ndarray, cpu: np.ndarray) -> np.ndarray:
+    """The parts' starting shares of the atoms for the next build, from the shares the list has
+    (`bounds`, parts + 1 fractions) and the CPU seconds each part's force pass took: each part's
+    atoms scaled by its speed (atoms per second), half way from `shares` (the results do not depend
+    on the split, only the time)."""
+    speed = np.diff(bounds) / cpu
+    want = np.concatenate(([0.0], np.cumsum(speed) / speed.sum()))
+    return 0.5 * (shares + want)
 
 
 def _signature_names(kernel: Any) -> tuple[str, ...]:
