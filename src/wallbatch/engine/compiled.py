@@ -325,15 +325,29 @@ if njit is not None:
     _SHIFTED = {i: njit(**_INNER)(st.shifted_fn) for i, st in enumerate(COMPILED_STYLES)
                 if len(_modes(st)) > 1}
     _switch = njit(**_INNER)(_cutoff.switch)
-    MODE_FORCES = {(i, m): njit(**_INNER)(
-        cutoff_functions(FORCES[i], _SHIFTED.get(i, FORCES[i]), m, _switch)[0])
+
+    def _renamed(fn: Any, name: str) -> Any:
+        """A copy of the Python function `fn` (same code, globals, closure) named `name`. numba's
+        symbol of a compiled function is its module, name, argument types and a number counted
+        per process, and a kernel loaded from the disk cache brings the functions it calls with
+        it: two different functions of one name (styles.cutoff's closures of two styles, the
+        pieces of two scenes) compiled in two processes can get one symbol, and a process that
+        loads both kernels links both to one of them. So every function compiled on its own
+        (not inlined) whose code differs by style or scene gets a name of its own."""
+        out = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__, fn.__defaults__, fn.__closure__)
+        out.__kwdefaults__ = fn.__kwdefaults__
+        out.__qualname__ = name
+        return out
+
+    MODE_FORCES = {(i, m): njit(**_INNER)(_renamed(
+        cutoff_functions(FORCES[i], _SHIFTED.get(i, FORCES[i]), m, _switch)[0], f"force_{st.name}_{m}"))
         for i, st in enumerate(COMPILED_STYLES) for m in _modes(st)}
     # each style's reported energy under each cut-off mode (sampled chunks): styles.cutoff's
     # closures around the compiled force and E(r) - E(rc), as the NumPy CutoffStyle.energy
     _SHIFTED_E = {i: _SHIFTED[i] if i in _SHIFTED else njit(**_INNER)(st.shifted_fn)
                   for i, st in enumerate(COMPILED_STYLES) if energy_compiled(st)}
-    MODE_ENERGIES = {(i, m): njit(**_INNER)(
-        cutoff_functions(FORCES[i], _SHIFTED_E[i], m, _switch)[1])
+    MODE_ENERGIES = {(i, m): njit(**_INNER)(_renamed(
+        cutoff_functions(FORCES[i], _SHIFTED_E[i], m, _switch)[1], f"energy_{st.name}_{m}"))
         for i, st in enumerate(COMPILED_STYLES) if i in _SHIFTED_E for m in _modes(st)}
     _dt_candidate = njit(nogil=True, error_model="numpy", inline="always")(dt_candidate)
 
@@ -1593,6 +1607,8 @@ if njit is not None:
         on disk. The pieces are this module's functions re-linked (the same code objects, new
         globals) to the scene's generated dispatch."""
         pairs = tuple(sorted(set(soft) | set(region)))
+        # the name of each piece compiled on its own (`_renamed`): the scene's specialisation
+        tag = hashlib.sha256(repr((soft, region, flow, extra, tables, stochastic)).encode()).hexdigest()[:15]
         base: dict[str, Any] = {"_face": _face, "_rface": _rface, "_eface": _eface, "_nan": math.nan,
                                 **{f"_FORCE_{i}_{m}": MODE_FORCES[(i, m)] for i, m in pairs},
                                 **{f"_ENERGY_{i}_{m}": MODE_ENERGIES[(i, m)] for i, m in soft
@@ -1610,7 +1626,7 @@ if njit is not None:
                     namespace[f"_VEXTRA_{j}"] = force
                 else:
                     namespace[f"_EXTRA_{j}"] = njit(**_SCENE)(
-                        cutoff_functions(force, force, SHIFT, _switch)[0])
+                        _renamed(cutoff_functions(force, force, SHIFT, _switch)[0], f"_extra_{j}_{tag}"))
             filename = module.__file__
         else:
             namespace = base
@@ -1622,7 +1638,8 @@ if njit is not None:
         exec(compile(osource, "<wallbatch soft-face outputs dispatch>", "exec"), namespace)  # noqa: S102 - generated here
         face_out = njit(nogil=True, error_model="numpy", inline="always")(namespace["_face_out"])
         sample_faces = njit(**_SCENE)(
-            _relink(_sample_faces, _face_out=face_out, _table_out=_table_out if tables else _no_table_out))
+            _relink(_sample_faces, name=f"_sample_faces_{tag}", _face_out=face_out,
+                    _table_out=_table_out if tables else _no_table_out))
         region_walls = _no_region_walls
         sample_regions = _no_sample_regions
         if region:
@@ -1632,9 +1649,10 @@ if njit is not None:
             source += rsource
             exec(compile(rsource, "<wallbatch region dispatch>", "exec"), namespace)  # noqa: S102 - generated here
             region_force = njit(nogil=True, error_model="numpy", inline="always")(namespace["_region_force"])
-            region_walls = njit(**_SCENE)(_relink(_region_walls, _region_force=region_force))
+            region_walls = njit(**_SCENE)(_relink(_region_walls, name=f"_region_walls_{tag}", _region_force=region_force))
             region_out = njit(nogil=True, error_model="numpy", inline="always")(namespace["_region_out"])
-            sample_regions = njit(**_SCENE)(_relink(_sample_regions, _region_out=region_out))
+            sample_regions = njit(**_SCENE)(_relink(_sample_regions, name=f"_sample_regions_{tag}",
+                                                    _region_out=region_out))
         flow_step = _no_flow_step
         if flow:
             from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
