@@ -51,9 +51,9 @@ negative variable parameter) leaves the state as it was at its start and is hand
 NumPy loop, which re-runs it and reports exactly as always. `WALLBATCH_NUMBA=0` (or numba not
 importable) selects the NumPy path everywhere. Kernels are built per kind of scene (`kernel_for`:
 only the styles, cut-off modes, region and flow code it has; KERNEL_FLAGS leave out the code of
-what it does not use: wall/reflect, fixes, dt/reset, time-based runs, in-kernel samples, ...) and
-cached on disk by numba under their own names; a kernel not yet cached is announced on stderr
-before it compiles.
+what it does not use: wall/reflect, fixes, dt/reset, time-based runs, in-kernel samples, ...; the
+arguments only that code reads are None in such a kernel: `SceneKernel`) and cached on disk by
+numba under their own names; a kernel not yet cached is announced on stderr before it compiles.
 """
 
 from __future__ import annotations
@@ -113,8 +113,8 @@ REGION_KINDS: dict[tuple[str, str], int] = {("block", "in"): 0, ("block", "out")
                                             ("sphere", "out"): 3, ("cylinder", "in"): 4, ("cylinder", "out"): 5}
 # this file's code and the generated kernels' helpers: part of the key of the generated lepton chunk kernels
 _SOURCE_DIGEST = hashlib.sha256(Path(__file__).read_bytes() + inspect.getsource(_lepton_helpers).encode()).hexdigest()[:16]
-COMPILE_SECONDS = 8  # typical compile of one scene kernel on a 2-core machine (flat walls: measured 7-8 s CPU; the message's estimate)
-COMPILE_SECONDS_FIXES = 14  # the same with thermostats or dt/reset in the kernel (measured 10-13.5 s CPU)
+COMPILE_SECONDS = 5  # typical compile of one scene kernel on a 2-core machine (flat walls: measured 5-6 s CPU; the message's estimate)
+COMPILE_SECONDS_FIXES = 12  # the same with thermostats or dt/reset in the kernel (fix nvt: measured 11-12 s CPU, others up to ~14 s)
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
 SAMPLE_BUDGET = 4_000_000  # sample outputs of a sampled chunk held at once (doubles): fewer samples per call
 MAX_CHAIN = 10  # the longest Nose-Hoover chain counted in that budget (longer ones only take more memory)
@@ -278,6 +278,9 @@ if njit is not None:
     _INNER = {"nogil": True, "error_model": "numpy", "no_cfunc_wrapper": True}
     _SCENE = {**_INNER, "no_cpython_wrapper": True}
     jit = njit(cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True)
+    # called from compiled code only: no CPython wrapper either (the fixes' take the 14-tuple fx,
+    # whose wrapper alone costs a good part of a second to compile)
+    jit_inner = njit(cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True, no_cpython_wrapper=True)
     inline = njit(cache=True, nogil=True, error_model="numpy", inline="always")  # inlined in numba IR
 
     @overload(_dtr.select)
@@ -869,7 +872,7 @@ if njit is not None:
                         F[2, i] = 0.0
                         V[2, i] = 0.0
 
-    @jit
+    @jit_inner
     def _group_temperature(V, M, groups, g, dof, mvv2e, boltz, KB):
         """thermostats.temperature of one case's group g: sum m v^2 (NumPy's pairwise order)."""
         n = V.shape[1]
@@ -879,7 +882,7 @@ if njit is not None:
             KB[i] = _th_mv2(M[i], V[0, i], V[1, i], V[2, i]) if groups[g, i] != 0 else 0.0
         return (0.0 + _th_pairwise(KB, 0, n)) * (mvv2e / (dof * boltz))
 
-    @jit
+    @jit_inner
     def _scale_group(V, groups, g, factor):
         """thermostats.scale_group for one case: v *= factor on the group atoms."""
         for d in range(3):
@@ -887,7 +890,7 @@ if njit is not None:
                 if groups[g, i] != 0:
                     V[d, i] = V[d, i] * factor
 
-    @jit
+    @jit_inner
     def _fix_pre(c, stepn, dtc, V, M, groups, fx, rng, SQM, FR, KB):
         """Before the step's atoms move: fix nvt's first chain half step and velocity scaling
         (Ensemble.initial_integrate), and fix langevin's random forces of the step (the case's
@@ -943,7 +946,7 @@ if njit is not None:
                         FR[2, i] = FR[2, i] - m2
         return 0
 
-    @jit
+    @jit_inner
     def _fix_end(c, stepn, dtc, V, M, groups, fx, KB, FL):
         """After the step's final kick: fix nvt's second half step (Ensemble.final_integrate), then
         Ensemble.end_of_step: temp/berendsen, temp/rescale (every N), the Langevin tally. Returns 6
