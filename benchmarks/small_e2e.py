@@ -44,7 +44,7 @@ def main() -> None:
         "python -c pass": [py, "-c", "pass"],
         "import numpy, pydantic, typer": [py, "-c", "import numpy, pydantic, typer"],
         "import wallbatch.cli": [py, "-c", "import wallbatch.cli"],
-        "run imports (--help)": [py, "-m", "wallbatch.cli", "run", "--help"],
+        "wallbatch run --help": [py, "-m", "wallbatch.cli", "run", "--help"],
         "wallbatch run (N=1000, 2000 steps)": [py, "-m", "wallbatch.cli", "run", "small.yaml", "-o", "small.nc",
                                                "--force", "-j", "1"],
     }
