@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import gc
 import hashlib
 import json
 import math
@@ -391,6 +392,22 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
                 p.join(1.0)
 
 
+@contextlib.contextmanager
+def _frozen_for_fork() -> Iterator[None]:
+    """While forking workers: every object of this process in the collector's permanent
+    generation (gc.freeze, as Python's documentation advises before fork), so a worker's
+    collections never walk what it inherited (numba's ~300k objects: time, and copy-on-write
+    copies of the pages they touch). This process is as it was afterwards (gc.unfreeze), unless
+    something was frozen before (the command line freezes its start-up): then it stays frozen."""
+    frozen_before = gc.get_freeze_count() > 0
+    gc.freeze()
+    try:
+        yield
+    finally:
+        if not frozen_before:
+            gc.unfreeze()
+
+
 def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
             scheduler: str | None = None, plan: SweepPlan | None = None) -> Iterator[tuple[int, list[Outcome]]]:
     """Run windows (see `_run_window`; in this process from `plan`); yield (window index, outcomes)
@@ -419,7 +436,8 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=_fork_context(), initializer=_worker_init,
                                    initargs=(os.getpid(), max(1, usable_cores() // workers)))
         try:
-            futures = {pool.submit(_run_window, t, None, backend.numba_allowed()): k for k, t in enumerate(tasks)}
+            with _frozen_for_fork():  # the pool forks its workers at the first submit
+                futures = {pool.submit(_run_window, t, None, backend.numba_allowed()): k for k, t in enumerate(tasks)}
             for fut in as_completed(futures):
                 yield futures[fut], fut.result()
         except BaseException:
