@@ -25,7 +25,8 @@ from wallbatch.engine.engine import CaseResult, Engine, run_cases
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import Case
 
-__all__ = ["SceneLike", "atoms", "box_scene", "case_of", "config_of", "run_dataset", "run_ok", "run_one", "slab_gas", "slit_yaml"]
+__all__ = ["SceneLike", "atoms", "box_scene", "case_of", "config_of", "results_file_plans", "run_dataset", "run_ok",
+           "run_one", "slab_gas", "slit_yaml"]
 
 SceneLike = dict | str | Path | Config  # a config dict, YAML text, a config file, or a validated Config
 
@@ -129,6 +130,24 @@ walls:
     zhi: {{coord: 9.9, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}}
 run: {{steps: {steps}, thermo: {thermo}}}
 """
+
+
+def results_file_plans() -> dict:
+    """Shipped sweeps and scenes that exercise every kind of results-file content, by name, each a
+    loaded plan (`api.load`) shortened to run in about a second: zip parameters with string and
+    integer values, reflect statistics (3 x 3 x 3 grid), a time-based run, profiles after a
+    minimization, an object coordinate holding None. The results-file writer tests run them."""
+    from wallbatch import api  # noqa: PLC0415 (api sits above what the other factories import)
+
+    repo = Path(__file__).resolve().parents[1]
+    return {
+        "zip-strings-ints": api.load(repo / "sweeps" / "box-height-atoms-zip.yaml", ["run.steps=100"]),
+        "reflect-stats": api.load(repo / "sweeps" / "reflect-swiggle-amplitude-period.yaml", ["run.steps=100"]),
+        "time-based": api.load(repo / "configs" / "dt-reset-rescue.yaml"),
+        "profiles-minimize": api.load(repo / "configs" / "lj-slit-profiles.yaml",
+                                      ["run.steps=1000", "output.averages.start=500"]),
+        "none-in-coordinate": api.load(repo / "sweeps" / "lj93-slit-cutoff-modes.yaml", ["run.steps=100"]),
+    }
 
 
 def run_numpy_and_compiled(monkeypatch: Any, cases: list[Case]) -> tuple[list[CaseResult], list[CaseResult], Engine]:

@@ -14,33 +14,26 @@ import netCDF4
 import numpy as np
 import pytest
 import xarray as xr
+from factories import results_file_plans
 
-from wallbatch import api
-from wallbatch.config.sweep import SweepDim
 from wallbatch.batch.runner import Interrupted, _first_case, parts_dir, run_plan
+from wallbatch.config.sweep import SweepDim
 from wallbatch.engine.engine import CaseResult
 from wallbatch.io import netcdf
-from wallbatch.io.netcdf import build_results, case_blocks, case_bytes, write_netcdf, write_results_file
-
-REPO = Path(__file__).resolve().parents[2]
-
-
-def _plans():
-    return {
-        "zip-strings-ints": api.load(REPO / "sweeps" / "box-height-atoms-zip.yaml", ["run.steps=100"]),
-        "reflect-stats-3x3x3": api.load(REPO / "sweeps" / "reflect-swiggle-amplitude-period.yaml", ["run.steps=100"]),
-        "time-based": api.load(REPO / "configs" / "dt-reset-rescue.yaml"),
-        "profiles-minimize": api.load(REPO / "configs" / "lj-slit-profiles.yaml",
-                                      ["run.steps=1000", "output.averages.start=500"]),
-        "none-in-coordinate": api.load(REPO / "sweeps" / "lj93-slit-cutoff-modes.yaml", ["run.steps=100"]),
-    }
+from wallbatch.io.netcdf import (
+    build_results,
+    case_blocks,
+    case_bytes,
+    write_netcdf,
+    write_results_file,
+)
 
 
 @pytest.fixture(scope="module")
 def runs():
     """Per plan: (plan, first case, every case's result in plan order)."""
     out = {}
-    for name, plan in _plans().items():
+    for name, plan in results_file_plans().items():
         got: dict[int, CaseResult] = {}
         run_plan(plan, None, progress=False, as_xarray=False, on_result=lambda i, r: got.__setitem__(i, r))
         out[name] = (plan, _first_case(plan, set()), [got[i] for i in range(len(plan.cases))])
@@ -62,7 +55,7 @@ def _content(path: Path) -> dict:
     return out
 
 
-@pytest.mark.parametrize("name", ["zip-strings-ints", "reflect-stats-3x3x3", "time-based", "profiles-minimize",
+@pytest.mark.parametrize("name", ["zip-strings-ints", "reflect-stats", "time-based", "profiles-minimize",
                                   "none-in-coordinate"])
 def test_streamed_file_is_the_file_of_the_whole_results(runs, name, tmp_path):
     plan, c0, results = runs[name]
@@ -129,7 +122,7 @@ def test_final_pass_holds_about_one_block(runs, tmp_path):
 
 
 def test_interrupt_while_writing_keeps_every_part_and_resume_finishes(runs, tmp_path, monkeypatch):
-    plan, _, _ = runs["reflect-stats-3x3x3"]
+    plan, _, _ = runs["reflect-stats"]
     out = tmp_path / "r.nc"
     real = netcdf._file_data
     calls = itertools.count()

@@ -15,6 +15,7 @@ import netCDF4
 import numpy as np
 import pytest
 import xarray as xr
+from factories import results_file_plans
 
 from wallbatch import api
 from wallbatch.batch.runner import run_plan
@@ -64,20 +65,10 @@ def recording():
             setattr(cls, name, original)
 
 
-def _plans():
-    return {
-        "zip-strings-ints": api.load(REPO / "sweeps" / "box-height-atoms-zip.yaml", ["run.steps=100"]),
-        "reflect-stats": api.load(REPO / "sweeps" / "reflect-swiggle-amplitude-period.yaml", ["run.steps=100"]),
-        "time-based": api.load(REPO / "configs" / "dt-reset-rescue.yaml"),
-        "profiles-minimize": api.load(REPO / "configs" / "lj-slit-profiles.yaml",
-                                      ["run.steps=1000", "output.averages.start=500"]),
-        "none-in-coordinate": api.load(REPO / "sweeps" / "lj93-slit-cutoff-modes.yaml", ["run.steps=100"]),
-    }
-
 
 @pytest.fixture(scope="module")
 def results():
-    return {name: run_plan(plan, None, progress=False, as_xarray=False) for name, plan in _plans().items()}
+    return {name: run_plan(plan, None, progress=False, as_xarray=False) for name, plan in results_file_plans().items()}
 
 
 @pytest.mark.parametrize("name", ["zip-strings-ints", "reflect-stats", "time-based", "profiles-minimize",
