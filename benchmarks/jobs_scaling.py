@@ -10,7 +10,9 @@ cases), two runs give S = 2 T2 - T1 and W = 2 (T1 - T2), and the ratio T1 / T2 =
 (S + W / 2) tends to 2 as the sweep grows. --src runs the same table for other source trees
 (e.g. the main branch's src) in the same rounds: compare ratios within one run only, the
 machine is shared and its load moves. Rounds interleave -j 1 and -j 2 (and the trees); the best
-of the rounds is kept. The results files of -j 1 and -j 2 must be bit-identical.
+of the rounds is kept. The results files of -j 1 and -j 2 must be bit-identical. The CPU model
+ratio is T1 / T2 from CPU seconds (-j 1's; -j 2's parent, serially, then its slower worker),
+what two free cores would give: steadier than wall time on a loaded machine.
 """
 
 from __future__ import annotations
@@ -40,19 +42,43 @@ def sweep_config(steps: int, n: int = 1000) -> dict:
     return cfg
 
 
-def run_once(src: Path, work: Path, jobs: int, out: str) -> tuple[float, float]:
-    """(wall seconds, CPU seconds of the process and its workers) of one `wallbatch run`."""
+# `wallbatch run` as the console script runs it, each worker process noting its CPU seconds after
+# each window it ran (in WB_CPU_DIR/<pid>), for the CPU model below
+CPU_NOTES = """
+import os, sys, time
+from wallbatch.batch import runner
+parent, folder, real = os.getpid(), os.environ["WB_CPU_DIR"], runner._run_window
+def noted(*args, **kwargs):
+    out = real(*args, **kwargs)
+    if os.getpid() != parent:
+        with open(os.path.join(folder, str(os.getpid())), "w") as fh:
+            fh.write(repr(time.process_time()))
+    return out
+runner._run_window = noted
+from wallbatch.cli import app
+sys.argv = ["wallbatch"] + sys.argv[1:]
+app()
+"""
+
+
+def run_once(src: Path, work: Path, jobs: int, out: str, notes: bool = False) -> tuple[float, float, list[float]]:
+    """(wall seconds, CPU seconds of the process and its workers, each worker's CPU seconds) of one
+    `wallbatch run` (the workers' only with `notes`: run through CPU_NOTES)."""
     env = dict(os.environ, WALLBATCH_THREADS="1", PYTHONPATH=str(src))
     env.pop("PYTHONDONTWRITEBYTECODE", None)  # as a user's Python: the .pyc files are kept
-    cmd = [sys.executable, "-m", "wallbatch.cli", "run", "sweep.yaml", "-o", out, "--force", "-j", str(jobs)]
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, cwd=work, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
+    args = ["run", "sweep.yaml", "-o", out, "--force", "-j", str(jobs)]
+    cmd = [sys.executable, "-c", CPU_NOTES, *args] if notes else [sys.executable, "-m", "wallbatch.cli", *args]
+    with tempfile.TemporaryDirectory(prefix="wb_cpu_") as folder:
+        env["WB_CPU_DIR"] = folder
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(cmd, cwd=work, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t0
+        workers = [float(p.read_text()) for p in Path(folder).iterdir()]
     text = proc.stdout.read().decode(errors="replace") if proc.stdout else ""
     if os.waitstatus_to_exitcode(status) != 0:
         raise SystemExit(f"{' '.join(cmd)} failed:\n{text}")
-    return wall, usage.ru_utime + usage.ru_stime
+    return wall, usage.ru_utime + usage.ru_stime, workers
 
 
 def same_results(a: Path, b: Path) -> bool:
@@ -79,28 +105,37 @@ def main() -> None:
             work = Path(tmp) / str(steps)
             work.mkdir()
             (work / "sweep.yaml").write_text(yaml.safe_dump(sweep_config(steps), sort_keys=False))
-            best: dict[tuple[int, int], tuple[float, float]] = {}
+            best: dict[tuple[int, int], tuple[float, float, float]] = {}
             for src in trees:  # the kernels in each tree's numba cache, the files in the page cache
                 run_once(src, work, 1, "warm.nc")
             for _ in range(args.rounds):
                 for t, src in enumerate(trees):
                     for jobs in (1, 2):
-                        wall, cpu = run_once(src, work, jobs, f"t{t}j{jobs}.nc")
+                        wall, cpu, workers = run_once(src, work, jobs, f"t{t}j{jobs}.nc")
+                        # the CPU model: the parent's CPU serially, then the slower worker's
+                        model = cpu if jobs == 1 else cpu - sum(workers) + max(workers, default=0.0)
+                        if jobs == 2:  # the workers' CPU from a second run, noted (the timed run is the plain command)
+                            _, cpu_n, workers = run_once(src, work, jobs, f"t{t}n.nc", notes=True)
+                            model = cpu_n - sum(workers) + max(workers, default=0.0) if len(workers) == 2 else float("nan")
                         old = best.get((t, jobs))
-                        best[(t, jobs)] = (min(wall, old[0]), min(cpu, old[1])) if old else (wall, cpu)
+                        now = (wall, cpu, model)
+                        best[(t, jobs)] = tuple(min(a, b) for a, b in zip(old, now)) if old else now  # type: ignore[assignment]
             for t, src in enumerate(trees):
-                (t1, c1), (t2, c2) = best[(t, 1)], best[(t, 2)]
+                (t1, c1, m1), (t2, c2, m2) = best[(t, 1)], best[(t, 2)]
                 same = same_results(work / f"t{t}j1.nc", work / f"t{t}j2.nc")
-                rows.append((steps, src, t1, t2, t1 / t2, 2 * t2 - t1, 2 * (t1 - t2), c1, c2, same))
+                rows.append((steps, src, t1, t2, t1 / t2, 2 * t2 - t1, 2 * (t1 - t2), c1, c2, m1 / m2, same))
     load1 = os.getloadavg()[0]
     print(f"# --jobs 2 vs --jobs 1, 64 cases N = 1000 ({os.cpu_count()} cores; load average {load0:.2f} before, "
           f"{load1:.2f} after; best of {args.rounds})")
     print("| steps | source | -j 1 (s) | -j 2 (s) | ratio | S = 2 T2 - T1 (s) | W = 2 (T1 - T2) (s) | "
-          "CPU -j 1 / -j 2 (s) | -j 1 == -j 2 |")
-    print("| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |")
-    for steps, src, t1, t2, ratio, s, w, c1, c2, same in rows:
+          "CPU -j 1 / -j 2 (s) | CPU model ratio | -j 1 == -j 2 |")
+    print("| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |")
+    for steps, src, t1, t2, ratio, s, w, c1, c2, model, same in rows:
         print(f"| {steps} | {src} | {t1:.2f} | {t2:.2f} | {ratio:.2f}x | {s:.2f} | {w:.2f} | {c1:.2f} / {c2:.2f} | "
-              f"{'bit-identical' if same else 'DIFFER'} |")
+              f"{model:.2f}x | {'bit-identical' if same else 'DIFFER'} |")
+    print("CPU model ratio: -j 1's CPU seconds over (-j 2's parent CPU + its slower worker's CPU), each the best "
+          "of the rounds: the ratio two free cores would give, steadier than wall time when other programs load "
+          "the machine (a noted run of -j 2 gives the workers' CPU)")
 
 
 if __name__ == "__main__":
