@@ -1,7 +1,8 @@
 """First-run compile of a flat-wall scene, in CPU seconds (less noisy than wall clock on a shared
 machine): `wallbatch run` of the suite's small lj93 gas slit (N = 1000, 2000 steps) on the
 compiled path with an empty NUMBA_CACHE_DIR (cold), then again with the same cache (warm).
-Prints cold, warm and cold - warm, user + system CPU seconds of the child and wall seconds."""
+Prints cold, warm and cold - warm, user + system CPU seconds of the child and wall seconds.
+`--nvt`: the same scene with a fix nvt thermostat (the kernel with the fixes' code)."""
 
 from __future__ import annotations
 
@@ -30,6 +31,8 @@ def timed(cmd: list[str], cwd: Path, env: dict) -> tuple[float, float, str]:
 
 def main() -> None:
     cfg = gas_slit(SMALL["n"], "lj93", steps=SMALL["steps"], thermo=100)
+    if "--nvt" in sys.argv[1:]:
+        cfg["fixes"] = {"t": "fix t all nvt temp 1.0 1.0 0.1"}
     with tempfile.TemporaryDirectory(prefix="wb_compile_") as tmp:
         work = Path(tmp)
         write_yaml(work / "small.yaml", cfg)

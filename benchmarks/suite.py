@@ -597,6 +597,40 @@ def threads() -> dict:
     return out
 
 
+@row("threads-ljcut-1e5", at_least(1.6, "x one thread"))
+def threads_ljcut() -> dict:
+    """One LJ liquid slit case (pair lj/cut, N ~ 1e5) with two threads against one
+    (benchmarks/pair_threads.py: a new process each, WALLBATCH_THREADS and NUMBA_NUM_THREADS,
+    interleaved, best of two; final ke and pe must be the same bits); LAMMPS: `mpiexec -np 2 lmp`
+    on the exported scene, or serial without mpiexec."""
+    import pair_threads  # noqa: PLC0415
+
+    n = 100_000
+    steps = max(20, scaled(5e6, n))
+    best: dict[int, float] = {}
+    bits: set[str] = set()
+    atoms = 0
+    for _ in range(2):
+        for k in (1, 2):
+            sec, atoms, _, b = pair_threads.wallbatch_run(n, steps, k)
+            best[k] = min(best.get(k, sec), sec)
+            bits.add(b)
+    t1, t2 = best[1], best[2]
+    same = len(bits) == 1
+    out = {"scene": "one LJ liquid case (pair lj/cut), 2 threads vs 1", "N": atoms, "steps": steps,
+           "wb": f"{t2:.2f} s (1 thread {t1:.2f} s)", "value": t1 / t2 if same else 0.0, "wb_s": t2,
+           "note": f"2 threads/1: {t1 / t2:.2f}x; final ke, pe {'bit-identical' if same else 'DIFFER'}"}
+    loops = pair_threads.lammps_runs(n, steps, 1) if USE_LAMMPS else {}
+    if loops:
+        best_l = loops.get(2, loops[1])
+        out["lmp"] = (f"{best_l:.2f} s (np 2; serial {loops[1]:.2f} s)" if 2 in loops else
+                      f"{best_l:.2f} s (serial: no mpiexec)")
+        out["ratio"] = best_l / t2
+    else:
+        out["lmp"] = "n/a"
+    return out
+
+
 @row("memory-10k-cases", Target("peak <= 1.5 x the 1,000-case run's", lambda r: r["value"] <= 1.5))
 def memory_10k() -> dict:
     """`wallbatch run` of a 10,000-case sweep of the lj93 gas slit with N = 100 and 100 samples per

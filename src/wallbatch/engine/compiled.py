@@ -51,9 +51,9 @@ negative variable parameter) leaves the state as it was at its start and is hand
 NumPy loop, which re-runs it and reports exactly as always. `WALLBATCH_NUMBA=0` (or numba not
 importable) selects the NumPy path everywhere. Kernels are built per kind of scene (`kernel_for`:
 only the styles, cut-off modes, region and flow code it has; KERNEL_FLAGS leave out the code of
-what it does not use: wall/reflect, fixes, dt/reset, time-based runs, in-kernel samples, ...) and
-cached on disk by numba under their own names; a kernel not yet cached is announced on stderr
-before it compiles.
+what it does not use: wall/reflect, fixes, dt/reset, time-based runs, in-kernel samples, ...; the
+arguments only that code reads are None in such a kernel: `SceneKernel`) and cached on disk by
+numba under their own names; a kernel not yet cached is announced on stderr before it compiles.
 """
 
 from __future__ import annotations
@@ -113,8 +113,8 @@ REGION_KINDS: dict[tuple[str, str], int] = {("block", "in"): 0, ("block", "out")
                                             ("sphere", "out"): 3, ("cylinder", "in"): 4, ("cylinder", "out"): 5}
 # this file's code and the generated kernels' helpers: part of the key of the generated lepton chunk kernels
 _SOURCE_DIGEST = hashlib.sha256(Path(__file__).read_bytes() + inspect.getsource(_lepton_helpers).encode()).hexdigest()[:16]
-COMPILE_SECONDS = 8  # typical compile of one scene kernel on a 2-core machine (flat walls: measured 7-8 s CPU; the message's estimate)
-COMPILE_SECONDS_FIXES = 14  # the same with thermostats or dt/reset in the kernel (measured 10-13.5 s CPU)
+COMPILE_SECONDS = 5  # typical compile of one scene kernel on a 2-core machine (flat walls: measured 5-6 s CPU; the message's estimate)
+COMPILE_SECONDS_FIXES = 12  # the same with thermostats or dt/reset in the kernel (fix nvt: measured 11-12 s CPU, others up to ~14 s)
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
 SAMPLE_BUDGET = 4_000_000  # sample outputs of a sampled chunk held at once (doubles): fewer samples per call
 MAX_CHAIN = 10  # the longest Nose-Hoover chain counted in that budget (longer ones only take more memory)
@@ -129,6 +129,16 @@ KERNEL_FLAGS = ("_K_REFLECT", "_K_STOCHASTIC", "_K_TABLES", "_K_VECTOR", "_K_REG
                 "_K_FLOW", "_K_TIME", "_K_SAMPLES")
 _K_REFLECT = _K_STOCHASTIC = _K_TABLES = _K_VECTOR = _K_REGION = True
 _K_FIXES = _K_DTR = _K_FLOW = _K_TIME = _K_SAMPLES = True
+# The chunk kernel's arguments read only by the code of one of those features: a scene kernel
+# without it gets None in their place (`SceneKernel`), so its compiled entry point neither unboxes
+# them nor holds them (fewer arguments to convert and release: a shorter first compile)
+FLAG_ARGS: dict[str, tuple[str, ...]] = {
+    "_K_REFLECT": ("rf_meta", "rf_val", "rf_prev", "rf_stat"),
+    "_K_STOCHASTIC": ("st_meta", "st_val", "st_stat", "st_flag", "st_rng"),
+    "_K_TABLES": ("tb_meta", "tb_par", "tb_data"), "_K_VECTOR": ("lp_val",),
+    "_K_REGION": ("rg_meta", "rg_geo", "rg_val"), "_K_FIXES": ("fx", "fx_rng"), "_K_DTR": ("dtr_par",),
+    "_K_FLOW": ("fl_int", "fl_f", "fl_walls", "fl_grp", "fl_phys", "fl_pend", "fl_prev", "fl_cross", "fl_rng"),
+    "_K_SAMPLES": ("sm",)}
 
 
 
@@ -268,6 +278,9 @@ if njit is not None:
     _INNER = {"nogil": True, "error_model": "numpy", "no_cfunc_wrapper": True}
     _SCENE = {**_INNER, "no_cpython_wrapper": True}
     jit = njit(cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True)
+    # called from compiled code only: no CPython wrapper either (the fixes' take the 14-tuple fx,
+    # whose wrapper alone costs a good part of a second to compile)
+    jit_inner = njit(cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True, no_cpython_wrapper=True)
     inline = njit(cache=True, nogil=True, error_model="numpy", inline="always")  # inlined in numba IR
 
     @overload(_dtr.select)
@@ -315,15 +328,29 @@ if njit is not None:
     _SHIFTED = {i: njit(**_INNER)(st.shifted_fn) for i, st in enumerate(COMPILED_STYLES)
                 if len(_modes(st)) > 1}
     _switch = njit(**_INNER)(_cutoff.switch)
-    MODE_FORCES = {(i, m): njit(**_INNER)(
-        cutoff_functions(FORCES[i], _SHIFTED.get(i, FORCES[i]), m, _switch)[0])
+
+    def _renamed(fn: Any, name: str) -> Any:
+        """A copy of the Python function `fn` (same code, globals, closure) named `name`. numba's
+        symbol of a compiled function is its module, name, argument types and a number counted
+        per process, and a kernel loaded from the disk cache brings the functions it calls with
+        it: two different functions of one name (styles.cutoff's closures of two styles, the
+        pieces of two scenes) compiled in two processes can get one symbol, and a process that
+        loads both kernels links both to one of them. So every function compiled on its own
+        (not inlined) whose code differs by style or scene gets a name of its own."""
+        out = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__, fn.__defaults__, fn.__closure__)
+        out.__kwdefaults__ = fn.__kwdefaults__
+        out.__qualname__ = name
+        return out
+
+    MODE_FORCES = {(i, m): njit(**_INNER)(_renamed(
+        cutoff_functions(FORCES[i], _SHIFTED.get(i, FORCES[i]), m, _switch)[0], f"force_{st.name}_{m}"))
         for i, st in enumerate(COMPILED_STYLES) for m in _modes(st)}
     # each style's reported energy under each cut-off mode (sampled chunks): styles.cutoff's
     # closures around the compiled force and E(r) - E(rc), as the NumPy CutoffStyle.energy
     _SHIFTED_E = {i: _SHIFTED[i] if i in _SHIFTED else njit(**_INNER)(st.shifted_fn)
                   for i, st in enumerate(COMPILED_STYLES) if energy_compiled(st)}
-    MODE_ENERGIES = {(i, m): njit(**_INNER)(
-        cutoff_functions(FORCES[i], _SHIFTED_E[i], m, _switch)[1])
+    MODE_ENERGIES = {(i, m): njit(**_INNER)(_renamed(
+        cutoff_functions(FORCES[i], _SHIFTED_E[i], m, _switch)[1], f"energy_{st.name}_{m}"))
         for i, st in enumerate(COMPILED_STYLES) if i in _SHIFTED_E for m in _modes(st)}
     _dt_candidate = njit(nogil=True, error_model="numpy", inline="always")(dt_candidate)
 
@@ -845,7 +872,7 @@ if njit is not None:
                         F[2, i] = 0.0
                         V[2, i] = 0.0
 
-    @jit
+    @jit_inner
     def _group_temperature(V, M, groups, g, dof, mvv2e, boltz, KB):
         """thermostats.temperature of one case's group g: sum m v^2 (NumPy's pairwise order)."""
         n = V.shape[1]
@@ -855,7 +882,7 @@ if njit is not None:
             KB[i] = _th_mv2(M[i], V[0, i], V[1, i], V[2, i]) if groups[g, i] != 0 else 0.0
         return (0.0 + _th_pairwise(KB, 0, n)) * (mvv2e / (dof * boltz))
 
-    @jit
+    @jit_inner
     def _scale_group(V, groups, g, factor):
         """thermostats.scale_group for one case: v *= factor on the group atoms."""
         for d in range(3):
@@ -863,7 +890,7 @@ if njit is not None:
                 if groups[g, i] != 0:
                     V[d, i] = V[d, i] * factor
 
-    @jit
+    @jit_inner
     def _fix_pre(c, stepn, dtc, V, M, groups, fx, rng, SQM, FR, KB):
         """Before the step's atoms move: fix nvt's first chain half step and velocity scaling
         (Ensemble.initial_integrate), and fix langevin's random forces of the step (the case's
@@ -919,7 +946,7 @@ if njit is not None:
                         FR[2, i] = FR[2, i] - m2
         return 0
 
-    @jit
+    @jit_inner
     def _fix_end(c, stepn, dtc, V, M, groups, fx, KB, FL):
         """After the step's final kick: fix nvt's second half step (Ensemble.final_integrate), then
         Ensemble.end_of_step: temp/berendsen, temp/rescale (every N), the Langevin tally. Returns 6
@@ -1024,9 +1051,10 @@ if njit is not None:
         # the periodic wrap joins the drift unless something between them reads or moves a
         # periodic coordinate (a wall/reflect face on a periodic dimension, wall/reflect/stochastic);
         # the force clear joins it too (nothing reads F before the clear): the same values, fewer passes
-        early = st[0].shape[0] == 0
-        for k in range(rf_meta.shape[0]):
-            early = early and box[2, rf_meta[k, 0]] == 0.0
+        early = not (_K_STOCHASTIC and st[0].shape[0])
+        if _K_REFLECT:
+            for k in range(rf_meta.shape[0]):
+                early = early and box[2, rf_meta[k, 0]] == 0.0
         for d in range(3):  # initial_integrate: v += dtfm f; x += dt v (then wrap, f = 0)
             if early and box[2, d] != 0.0:
                 lod = box[0, d]
@@ -1088,7 +1116,9 @@ if njit is not None:
                     nlost += (X[d, i] < lod) | (X[d, i] > hid)
         if nlost:
             return 2, 0.0
-        xmax, emax, tmax = dtr_par[c, 0], dtr_par[c, 1], dtr_par[c, 3]
+        xmax = emax = tmax = 0.0
+        if _K_DTR and due:  # (dtr_par is None in a kernel without dt/reset: `SceneKernel`)
+            xmax, emax, tmax = dtr_par[c, 0], dtr_par[c, 1], dtr_par[c, 3]
         if not _K_DTR or not due or tmax != tmax:
             for d in range(3):  # final_integrate: v += dtfm f
                 for i in range(u0, u1):
@@ -1204,12 +1234,14 @@ if njit is not None:
             step, dt, atime, atimestep; reflect statistics and flow redraws since the last sample;
             the fixes' accumulators and chain), as Engine.sample would record them."""
             # (each return releases every live array: a few returns only, for a shorter compile)
+            # (the arguments of what the kernel leaves out are None: `SceneKernel`; their code is under
+            # the feature's flag, so numba drops it before typing)
             ncase, natom = x.shape[0], x.shape[1]
-            nrf = rf_meta.shape[0]
+            nrf = rf_meta.shape[0] if _K_REFLECT else 0
             hf = 0.5 * ftm2v
-            vary = 1 if (sf_val.shape[1] > 1 or rf_val.shape[1] > 1) else 0
+            vary = 1 if (sf_val.shape[1] > 1 or (_K_REFLECT and rf_val.shape[1] > 1)) else 0
             # wall/reflect/stochastic draws for the atoms of a face in atom order: one block of all atoms
-            blk = (natom if natom > 1 else 1) if st_meta.shape[0] else BLOCK
+            blk = (natom if natom > 1 else 1) if _K_STOCHASTIC and st_meta.shape[0] else BLOCK
             nblock = (natom + blk - 1) // blk
             box = np.empty((3, 3))
             for d in range(3):
@@ -1223,10 +1255,11 @@ if njit is not None:
             RAD = np.empty(natom)
             DTFM = np.empty(natom)
             CAND = np.empty(natom)
-            speculate = dtr_every > 0 and not time_mode
-            XS = np.empty((3, natom if speculate else 0))  # window start, to undo a window
-            VS = np.empty((3, natom if speculate else 0))
-            FS = np.empty((3, natom if speculate else 0))
+            speculate = _K_DTR and dtr_every > 0 and not time_mode
+            if _K_DTR:
+                XS = np.empty((3, natom if speculate else 0))  # window start, to undo a window
+                VS = np.empty((3, natom if speculate else 0))
+                FS = np.empty((3, natom if speculate else 0))
             # (plain conditionals for min/max and np.empty for np.zeros: each overload is a compile)
             nrow = nsteps if dtr_every == 0 else (WINDOW if WINDOW < nsteps else nsteps)
             nrow = nrow if nrow > 1 else 1
@@ -1235,44 +1268,55 @@ if njit is not None:
             low = np.empty(nrow)  # smallest dt/reset candidate per step of a window
             # wall/region: one argument (a call of more than 30 arguments is compiled by CPython as
             # f(*args), which numba cannot inline); RB holds a block's contacts (_region_contacts)
-            rg = (rg_meta, rg_geo, rg_val, np.empty((6, 5, blk)))
+            rg = (rg_meta, rg_geo, rg_val, np.empty((6, 5, blk)) if _K_REGION else None)
             # wall/flow (fl_int[0] != 0; the chunk then holds one case): step by step over all blocks
+            flowing = False
             if _K_FLOW:
+                flowing = fl_int[0] != 0
                 CI = np.empty(natom if fl_int[0] != 0 else 0, np.int64)
                 DIR = np.empty(natom if fl_int[0] != 0 else 0)
             # fixes (fx: see _fix_pre; fx[0] = fx_meta): thermostats couple the atoms every step, so
             # a chunk with one goes step by step over all blocks; enforce2d alone keeps the windows
-            fx_meta = fx[0]
             thermo = False
             langevin = -1
             rescale_only = True  # temp/rescale alone: windows up to its next due step
-            for k in range(fx_meta.shape[0]):
-                thermo = thermo or fx_meta[k, 0] != FIX_ENFORCE2D
-                if fx_meta[k, 0] == FIX_LANGEVIN:
-                    langevin = k
-                if fx_meta[k, 0] != FIX_ENFORCE2D and fx_meta[k, 0] != FIX_RESCALE:
-                    rescale_only = False
-            nfx = natom if fx_meta.shape[0] else 0
-            SQM = np.empty(nfx)  # sqrt(m): the Langevin random force's per-atom factor
-            G1 = np.empty(nfx)  # the Langevin drag per atom
-            FR = np.empty((3, nfx))  # this step's Langevin random forces
-            FL = np.empty((3, nfx))  # this step's Langevin forces (the tally's)
-            for d in range(3):
-                for a in range(nfx):
-                    FR[d, a] = 0.0
-                    FL[d, a] = 0.0
-            KB = np.empty(nfx)  # per-atom terms of a sum over atoms
-            fxp = (fx_meta, G1, FR, FL)
-            sm_at, sm_mv2, sm_clock, sm_face, sm_rstat, sm_fx, sm_chain, sm_cross, sm_reg = sm
-            nsm = sm_at.shape[0]
-            KS = np.empty(natom if nsm else 0)  # m v^2 per atom at a sample
-            RBS = np.empty((6, 5, natom if nsm and rg_meta.shape[0] else 0))  # a case's region contacts
-            tb = (tb_meta, tb_par, tb_data,  # wall/table faces (`_table_faces`) and their scratch bytes
-                  np.zeros(((blk + 63) // 64) * 64 if tb_meta.shape[0] else 0, np.uint8))
-            nst = natom if st_meta.shape[0] else 0
-            # scratch of the stochastic faces (a scene without them: `periodic`, an int64 array never read)
-            sto = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(nst, np.int64) if _K_STOCHASTIC else periodic,
-                   np.empty((4, nst)))
+            if _K_FIXES:
+                fx_meta = fx[0]
+                for k in range(fx_meta.shape[0]):
+                    thermo = thermo or fx_meta[k, 0] != FIX_ENFORCE2D
+                    if fx_meta[k, 0] == FIX_LANGEVIN:
+                        langevin = k
+                    if fx_meta[k, 0] != FIX_ENFORCE2D and fx_meta[k, 0] != FIX_RESCALE:
+                        rescale_only = False
+                nfx = natom if fx_meta.shape[0] else 0
+                SQM = np.empty(nfx)  # sqrt(m): the Langevin random force's per-atom factor
+                G1 = np.empty(nfx)  # the Langevin drag per atom
+                FR = np.empty((3, nfx))  # this step's Langevin random forces
+                FL = np.empty((3, nfx))  # this step's Langevin forces (the tally's)
+                for d in range(3):
+                    for a in range(nfx):
+                        FR[d, a] = 0.0
+                        FL[d, a] = 0.0
+                KB = np.empty(nfx)  # per-atom terms of a sum over atoms
+                fxp = (fx_meta, G1, FR, FL)
+            else:
+                fxp = None
+            nsm = 0
+            if _K_SAMPLES:
+                sm_at, sm_mv2, sm_clock, sm_face, sm_rstat, sm_fx, sm_chain, sm_cross, sm_reg = sm
+                nsm = sm_at.shape[0]
+                KS = np.empty(natom if nsm else 0)  # m v^2 per atom at a sample
+                if _K_REGION:
+                    RBS = np.empty((6, 5, natom if nsm and rg_meta.shape[0] else 0))  # a case's region contacts
+            if _K_TABLES:  # wall/table faces (`_table_faces`) and their scratch bytes
+                tb = (tb_meta, tb_par, tb_data, np.zeros(((blk + 63) // 64) * 64 if tb_meta.shape[0] else 0, np.uint8))
+            else:
+                tb = (tb_meta, tb_par, tb_data, None)
+            if _K_STOCHASTIC:  # the stochastic faces and their scratch
+                nst = natom if st_meta.shape[0] else 0
+                sto = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(nst, np.int64), np.empty((4, nst)))
+            else:
+                sto = (st_meta, st_val, st_stat, st_flag, st_rng, None, None)
             tbst = (tb, sto, lp_val)  # wall/reflect/stochastic, lepton parameter rows
             for c in range(ncase):
                 for a in range(natom):
@@ -1304,7 +1348,7 @@ if njit is not None:
                         break
                     # a window of nwin steps at one dt, block by block; or one step (time-based runs, and
                     # dt/reset while dt changes), which is a window of one step followed by its dt update
-                    window = (not time_mode and (dtr_every == 0 or stepwise == 0) and fl_int[0] == 0
+                    window = (not time_mode and (dtr_every == 0 or stepwise == 0) and not flowing
                               and (rescale_only or not thermo))
                     nwin = 1
                     if window:
@@ -1339,11 +1383,12 @@ if njit is not None:
                         _copy3(FS, F)
                     for s in range(nwin):
                         low[s] = np.inf
-                        for k in range(nrf if _K_REFLECT else 0):
-                            prev = rf_prev[c, k] if s == 0 else rf_val[c, (done + s - 1) * vary, k]
-                            vw[s, k] = (rf_val[c, (done + s) * vary, k] - prev) / dtc if dtc > 0 else 0.0
-                            rstat[s, k, 0] = 0.0
-                            rstat[s, k, 1] = 0.0
+                        if _K_REFLECT:
+                            for k in range(nrf):
+                                prev = rf_prev[c, k] if s == 0 else rf_val[c, (done + s - 1) * vary, k]
+                                vw[s, k] = (rf_val[c, (done + s) * vary, k] - prev) / dtc if dtc > 0 else 0.0
+                                rstat[s, k, 0] = 0.0
+                                rstat[s, k, 1] = 0.0
                     if _K_FIXES and thermo:  # fix nvt's first half step, the Langevin random forces
                         _fix_pre(c, step[c] + 1, dtc, V, M, groups, fx, fx_rng, SQM, FR, KB)
                     for b in range(nblock):
@@ -1380,12 +1425,13 @@ if njit is not None:
                             continue
                         backoff = 0
                     step[c] += nwin
-                    for s in range(nwin if _K_REFLECT else 0):
+                    if _K_REFLECT:
+                        for s in range(nwin):
+                            for k in range(nrf):
+                                rf_stat[c, k, 0] += rstat[s, k, 0]
+                                rf_stat[c, k, 1] += rstat[s, k, 1]
                         for k in range(nrf):
-                            rf_stat[c, k, 0] += rstat[s, k, 0]
-                            rf_stat[c, k, 1] += rstat[s, k, 1]
-                    for k in range(nrf):
-                        rf_prev[c, k] = rf_val[c, (done + nwin - 1) * vary, k]
+                            rf_prev[c, k] = rf_val[c, (done + nwin - 1) * vary, k]
                     done += nwin
                     if not window:
                         if _K_DTR and dtr_every > 0 and step[c] % dtr_every == 0:  # fix dt/reset (end_of_step)
@@ -1416,14 +1462,16 @@ if njit is not None:
                         sm_clock[c, ism, 1] = dt[c]
                         sm_clock[c, ism, 2] = atime[c]
                         sm_clock[c, ism, 3] = atimestep[c]
-                        for k in range(nrf):  # reflect statistics since the last sample (take_stats)
-                            sm_rstat[c, ism, k, 0] = rf_stat[c, k, 0]
-                            sm_rstat[c, ism, k, 1] = rf_stat[c, k, 1]
-                            rf_stat[c, k, 0] = 0.0
-                            rf_stat[c, k, 1] = 0.0
-                        for k in range(fx_meta.shape[0] if _K_FIXES else 0):  # the fixes' accumulators (ecouple)
-                            for j in range(4):
-                                sm_fx[c, ism, k, j] = fx[2][c, k, j]
+                        if _K_REFLECT:
+                            for k in range(nrf):  # reflect statistics since the last sample (take_stats)
+                                sm_rstat[c, ism, k, 0] = rf_stat[c, k, 0]
+                                sm_rstat[c, ism, k, 1] = rf_stat[c, k, 1]
+                                rf_stat[c, k, 0] = 0.0
+                                rf_stat[c, k, 1] = 0.0
+                        if _K_FIXES:
+                            for k in range(fx[0].shape[0]):  # the fixes' accumulators (ecouple)
+                                for j in range(4):
+                                    sm_fx[c, ism, k, j] = fx[2][c, k, j]
                         if _K_FIXES and sm_chain.shape[2]:  # fix nvt's chain: eta, eta_dot, eta_mass, t_target
                             j = 0
                             for m in range(fx[3].shape[1]):
@@ -1436,8 +1484,9 @@ if njit is not None:
                                 sm_chain[c, ism, j] = fx[6][c, m]
                                 j += 1
                             sm_chain[c, ism, j] = fx[8][c]
-                        sm_cross[c, ism] = fl_cross[0]  # flow redraws since the last sample (take_crossings)
-                        fl_cross[0] = 0.0
+                        sm_cross[c, ism] = fl_cross[0] if _K_FLOW else 0.0  # flow redraws since the last sample
+                        if _K_FLOW:  # (take_crossings)
+                            fl_cross[0] = 0.0
                         ism += 1
                 finite = math.isfinite(dt[c])
                 for a in range(natom):
@@ -1561,6 +1610,8 @@ if njit is not None:
         on disk. The pieces are this module's functions re-linked (the same code objects, new
         globals) to the scene's generated dispatch."""
         pairs = tuple(sorted(set(soft) | set(region)))
+        # the name of each piece compiled on its own (`_renamed`): the scene's specialisation
+        tag = hashlib.sha256(repr((soft, region, flow, extra, tables, stochastic)).encode()).hexdigest()[:15]
         base: dict[str, Any] = {"_face": _face, "_rface": _rface, "_eface": _eface, "_nan": math.nan,
                                 **{f"_FORCE_{i}_{m}": MODE_FORCES[(i, m)] for i, m in pairs},
                                 **{f"_ENERGY_{i}_{m}": MODE_ENERGIES[(i, m)] for i, m in soft
@@ -1578,7 +1629,7 @@ if njit is not None:
                     namespace[f"_VEXTRA_{j}"] = force
                 else:
                     namespace[f"_EXTRA_{j}"] = njit(**_SCENE)(
-                        cutoff_functions(force, force, SHIFT, _switch)[0])
+                        _renamed(cutoff_functions(force, force, SHIFT, _switch)[0], f"_extra_{j}_{tag}"))
             filename = module.__file__
         else:
             namespace = base
@@ -1590,7 +1641,8 @@ if njit is not None:
         exec(compile(osource, "<wallbatch soft-face outputs dispatch>", "exec"), namespace)  # noqa: S102 - generated here
         face_out = njit(nogil=True, error_model="numpy", inline="always")(namespace["_face_out"])
         sample_faces = njit(**_SCENE)(
-            _relink(_sample_faces, _face_out=face_out, _table_out=_table_out if tables else _no_table_out))
+            _relink(_sample_faces, name=f"_sample_faces_{tag}", _face_out=face_out,
+                    _table_out=_table_out if tables else _no_table_out))
         region_walls = _no_region_walls
         sample_regions = _no_sample_regions
         if region:
@@ -1600,9 +1652,10 @@ if njit is not None:
             source += rsource
             exec(compile(rsource, "<wallbatch region dispatch>", "exec"), namespace)  # noqa: S102 - generated here
             region_force = njit(nogil=True, error_model="numpy", inline="always")(namespace["_region_force"])
-            region_walls = njit(**_SCENE)(_relink(_region_walls, _region_force=region_force))
+            region_walls = njit(**_SCENE)(_relink(_region_walls, name=f"_region_walls_{tag}", _region_force=region_force))
             region_out = njit(nogil=True, error_model="numpy", inline="always")(namespace["_region_out"])
-            sample_regions = njit(**_SCENE)(_relink(_sample_regions, _region_out=region_out))
+            sample_regions = njit(**_SCENE)(_relink(_sample_regions, name=f"_sample_regions_{tag}",
+                                                    _region_out=region_out))
         flow_step = _no_flow_step
         if flow:
             from wallbatch.engine import flow_compiled  # lazy: scipy.special, only for flow walls
@@ -1663,7 +1716,29 @@ if njit is not None:
         fn = _relink(_make_run_chunk(fp), name=f"_run_chunk_{fp:015x}", filename=p.filename,
                      _block_step=block_step, _flow_step=p.flow_step, _sample_faces=p.sample_faces,
                      _sample_regions=p.sample_regions, **links, **flags)
-        return njit(cache=True, nogil=True, error_model="numpy", parallel=parallel, no_cfunc_wrapper=True)(fn)
+        dispatcher = njit(cache=True, nogil=True, error_model="numpy", parallel=parallel, no_cfunc_wrapper=True)(fn)
+        return SceneKernel(dispatcher, frozenset(a for k, on in flags.items() if not on for a in FLAG_ARGS.get(k, ())))
+
+    class SceneKernel:
+        """A scene's chunk kernel (`kernel_for`): its numba dispatcher, called with the chunk
+        kernel's full argument list (engine/threads.py splits that list by name: `py_func`) but
+        with None in place of the arguments of the features the kernel leaves out (FLAG_ARGS), so
+        its compiled entry point does not convert them. Every other attribute is the dispatcher's."""
+
+        def __init__(self, dispatcher: Any, dropped: frozenset[str]):
+            self.dispatcher = dispatcher
+            self.dropped = dropped
+            self._keep = tuple(name not in dropped for name in inspect.signature(dispatcher.py_func).parameters)
+
+        def __call__(self, *args: Any) -> int:
+            if len(args) != len(self._keep):
+                raise TypeError(f"the chunk kernel takes {len(self._keep)} arguments, {len(args)} given")
+            return self.dispatcher(*[a if keep else None for keep, a in zip(self._keep, args)])
+
+        def __getattr__(self, name: str) -> Any:
+            if name in ("dispatcher", "dropped", "_keep"):  # not set yet (copy, pickle)
+                raise AttributeError(name)
+            return getattr(self.dispatcher, name)
 
 
 # ----------------------------------------------------------------------------- the Python side

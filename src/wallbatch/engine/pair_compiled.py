@@ -21,6 +21,12 @@ compiled.py's `_flow_step`), so no Python runs between steps. It calls the very 
 per-step compiled path, so both give the same bits; trouble hands the chunk back to NumPy. Not
 fused: wall/reflect, dt/reset, thermostats and other fixes, wall/lepton faces, time-based runs.
 
+One large case over threads (`_chunk_threaded`, THREAD_MIN_ATOMS atoms per thread at least):
+the same step in pieces, with the list build (runs of cells, `build_threaded`) and the force pass
+(runs of rows, `forces_threaded`) split over threads, and the rest of the step over runs of atoms.
+Each atom gets its force additions in the one-thread order (an addition to an atom an earlier part
+touches waits in a log), so the results are those of one thread, bit for bit.
+
 All kernels are `@njit(cache=True)` without fastmath (results are reproducible) and take
 C-contiguous arrays (float64 positions, int32/int64 lists, bool flags: one compiled signature each).
 """
@@ -32,6 +38,8 @@ import functools
 import hashlib
 import inspect
 import math
+import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -39,6 +47,7 @@ import numpy as np
 
 from wallbatch.engine import backend
 from wallbatch.engine import compiled as _compiled
+from wallbatch.engine import threads
 from wallbatch.engine.lj import lj_terms, min_image
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
@@ -102,18 +111,14 @@ if njit is not None:
             return r, 0.0
         return (r if 0 <= r < n else -1), 0.0
 
-    def build_case(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
-                   owner: np.ndarray, first: np.ndarray, neigh: np.ndarray) -> int:
-        """Half neighbor list of one case, each pair within reach once (minimum image in periodic
-        dims), written into owner (N,) int32, first (N+1,) int64 and neigh (capacity,) int32: the
-        partners of atom owner[s] are neigh[first[s]:first[s+1]]. Returns the number of pairs, or
-        -1 if neigh is too short (then call again with a longer one)."""
+    @jit
+    def _bin(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
+             owner: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The cells of `build_case` (N >= 2 atoms): owner (N,) = the atoms sorted by cell (a
+        counting sort, ascending index within a cell); returns their positions from lo (wrapped in
+        periodic dims) in that order xs (N, 3), the cell starts cstart (ncell + 1,) into the
+        sorted atoms and the cells per dim nb (3,)."""
         N = pos.shape[0]
-        first[0] = 0
-        if N < 2:
-            first[N] = 0
-            return 0
-        reach2 = reach * reach
         p = np.empty((N, 3))  # from lo, wrapped into [0, L) (periodic dims), or from the lowest atom
         ext = np.empty(3)
         nb = np.empty(3, np.int64)
@@ -168,6 +173,17 @@ if njit is not None:
             order[s] = i
             for k in range(3):
                 xs[s, k] = p[i, k]
+        return xs, cstart, nb
+
+    def _scan(xs: np.ndarray, cstart: np.ndarray, nb: np.ndarray, order: np.ndarray, length: np.ndarray,
+              periodic: np.ndarray, reach: float, q_lo: int, q_hi: int, m0: int, cap: int, first: np.ndarray,
+              neigh: np.ndarray, mark: np.ndarray) -> int:
+        """The rows of the cells q_lo .. q_hi - 1 (`_bin`) of `build_case`'s list: first[s] for
+        their sorted atoms s and their partners written into neigh from m0 on, not beyond cap; with
+        a mark array (N,) (else of length 0), mark[j] = 1 for each atom the rows touch. Returns the
+        end of the written pairs, or -1 if they do not fit."""
+        reach2 = reach * reach
+        marking = len(mark) > 0
         # Half stencil: cell offsets (a, b, g) lexicographically after (0, 0, 0), and the atoms
         # after s in its own cell. Cells along z are contiguous in the sorted order, so each
         # (a, b) row is one range of sorted atoms, or two when it wraps a periodic z.
@@ -183,9 +199,8 @@ if njit is not None:
         seg_lo = np.empty(32, np.int64)  # per cell: the sorted-atom ranges of its half stencil
         seg_hi = np.empty(32, np.int64)
         seg_sh = np.empty((32, 3))  # image shift of each range [length]
-        cap = len(neigh)
-        m = 0
-        for q in range(ncell):
+        m = m0
+        for q in range(q_lo, q_hi):
             if cstart[q] == cstart[q + 1]:
                 continue
             c0, c1, c2 = q // (n1 * n2), (q // n2) % n1, q % n2
@@ -237,7 +252,30 @@ if njit is not None:
                             d2 = y2 - xs[t, 2]
                             neigh[m] = order[t]
                             m += d0 * d0 + d1 * d1 + d2 * d2 <= reach2
-        first[N] = m
+                if marking:  # the atoms this row touches (`RowSplit`)
+                    mark[order[s]] = 1
+                    for k in range(first[s], m):
+                        mark[neigh[k]] = 1
+        return m
+
+    _scan = _keyed(_scan)
+
+    def build_case(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
+                   owner: np.ndarray, first: np.ndarray, neigh: np.ndarray) -> int:
+        """Half neighbor list of one case, each pair within reach once (minimum image in periodic
+        dims), written into owner (N,) int32, first (N+1,) int64 and neigh (capacity,) int32: the
+        partners of atom owner[s] are neigh[first[s]:first[s+1]]. Returns the number of pairs, or
+        -1 if neigh is too short (then call again with a longer one)."""
+        N = pos.shape[0]
+        first[0] = 0
+        if N < 2:
+            first[N] = 0
+            return 0
+        xs, cstart, nb = _bin(pos, lo, length, periodic, reach, owner)
+        m = _scan(xs, cstart, nb, owner, length, periodic, reach, 0, len(cstart) - 1, 0, len(neigh), first, neigh,
+                  np.empty(0, np.uint8))
+        if m >= 0:
+            first[N] = m
         return m
 
     build_case = _keyed(build_case)
@@ -329,6 +367,142 @@ if njit is not None:
 
     forces_case = _keyed(forces_case)
 
+    # ------------------------------------------------------------------ one case over threads
+    # The list build and the force pass of one case cut in parts run by threads (`build_threaded`,
+    # `forces_threaded`), with the bits of the one-thread kernels: the parts of the build are runs
+    # of cells, each writing its rows where the one-thread build would (after `_compact`); the
+    # force pass keeps each atom's additions in list order (`RowSplit`, `forces_part`, `_replay`).
+
+    @jit
+    def _compact(first: np.ndarray, neigh: np.ndarray, rs: np.ndarray, base: np.ndarray, ends: np.ndarray) -> int:
+        """Join the parts of a threaded build: part p wrote the rows rs[p] .. rs[p+1] - 1 into
+        neigh[base[p]:ends[p]] (base[0] = 0); move each part to follow the one before (first[s]
+        shifted with it) and return the number of pairs. The list is then the one-thread list."""
+        m = ends[0]
+        for p in range(1, len(base)):
+            shift = m - base[p]
+            if shift != 0:
+                for k in range(base[p], ends[p]):  # shift <= 0: a forward copy is safe
+                    neigh[k + shift] = neigh[k]
+                for s in range(rs[p], rs[p + 1]):
+                    first[s] += shift
+            m += ends[p] - base[p]
+        return m
+
+    @jit
+    def _touch(ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, s_lo: int, s_hi: int, mark: np.ndarray) -> None:
+        """mark[j] = 1 for every atom the rows s_lo .. s_hi - 1 of a list touch (owner or partner)."""
+        for s in range(s_lo, s_hi):
+            mark[ow[s]] = 1
+            for k in range(fr[s], fr[s + 1]):
+                mark[nc[k]] = 1
+
+    def forces_part(xc: np.ndarray, fc: np.ndarray, ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, s_lo: int,
+                    s_hi: int, part: int, firstp: np.ndarray, mixed: np.ndarray, lj: np.ndarray, lv: np.ndarray,
+                    q0: int, e24: float,
+                    e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray, periodic: np.ndarray) -> int:
+        """The rows s_lo .. s_hi - 1 of `forces_case` (forces only), part `part` of a `RowSplit`:
+        each pair's terms and each row's sum as there; an addition to an atom this part touches
+        first (firstp) goes into fc at once, any other waits in the log (lj: the atom, lv: the
+        value added, from q0 on; only rows with mixed[s] have partners of other parts) for `_replay`, which adds it after the parts before. Returns the
+        end of the log written. Parts run at once in threads: each writes only its own atoms of fc."""
+        inv0 = 1.0 / length[0] if periodic[0] else 0.0
+        inv1 = 1.0 / length[1] if periodic[1] else 0.0
+        inv2 = 1.0 / length[2] if periodic[2] else 0.0
+        L0, L1, L2 = length[0], length[1], length[2]
+        most = 0
+        for s in range(s_lo, s_hi):
+            most = max(most, fr[s + 1] - fr[s])
+        buf = np.empty((6, most))
+        gx, gy, gz, tx, ty, tz = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]
+        q = q0
+        for s in range(s_lo, s_hi):
+            i = ow[s]
+            xi0, xi1, xi2 = xc[i, 0], xc[i, 1], xc[i, 2]
+            k0 = fr[s]
+            n = fr[s + 1] - k0
+            for k in range(n):
+                j = nc[k0 + k]
+                gx[k] = xi0 - xc[j, 0]
+                gy[k] = xi1 - xc[j, 1]
+                gz[k] = xi2 - xc[j, 2]
+            _pair_terms(n, gx, gy, gz, tx, ty, tz, buf[0], buf[0], False, e24, e4, s2c, rcut2, off, inv0, inv1,
+                        inv2, L0, L1, L2)
+            fi0, fi1, fi2 = 0.0, 0.0, 0.0
+            if mixed[s]:  # some partner is another part's first: its additions wait in the log
+                for k in range(n):
+                    j = nc[k0 + k]
+                    a, b, c = tx[k], ty[k], tz[k]
+                    fi0 += a
+                    fi1 += b
+                    fi2 += c
+                    if firstp[j] == part:
+                        fc[j, 0] -= a
+                        fc[j, 1] -= b
+                        fc[j, 2] -= c
+                    else:  # x - a and x + (-a) are the same number
+                        lj[q] = j
+                        lv[q, 0], lv[q, 1], lv[q, 2] = -a, -b, -c
+                        q += 1
+            else:  # forces_case's loop
+                for k in range(n):
+                    j = nc[k0 + k]
+                    a, b, c = tx[k], ty[k], tz[k]
+                    fi0 += a
+                    fi1 += b
+                    fi2 += c
+                    fc[j, 0] -= a
+                    fc[j, 1] -= b
+                    fc[j, 2] -= c
+            if firstp[i] == part:
+                fc[i, 0] += fi0
+                fc[i, 1] += fi1
+                fc[i, 2] += fi2
+            else:
+                lj[q] = i
+                lv[q, 0], lv[q, 1], lv[q, 2] = fi0, fi1, fi2
+                q += 1
+        return q
+
+    forces_part = _keyed(forces_part)
+
+    @jit
+    def _mixed(fr: np.ndarray, nc: np.ndarray, s_lo: int, s_hi: int, rb: np.ndarray, firstp: np.ndarray,
+               mixed: np.ndarray) -> None:
+        """mixed[s] = some partner of row s (s_lo <= s < s_hi) is first touched by a part before the
+        row's own (rows rb[p] .. rb[p+1] - 1 are part p's)."""
+        p = 0
+        for s in range(s_lo, s_hi):
+            while rb[p + 1] <= s:
+                p += 1
+            m = 0
+            for k in range(fr[s], fr[s + 1]):
+                m |= firstp[nc[k]] != p
+            mixed[s] = m
+
+    @jit
+    def _replay_atoms(fc: np.ndarray, lj: np.ndarray, lv: np.ndarray, starts: np.ndarray, ends: np.ndarray,
+                      a_lo: int, a_hi: int) -> None:
+        """`_replay` for the atoms a_lo <= j < a_hi only (threads replay their own atoms at once)."""
+        for p in range(len(starts)):
+            for q in range(starts[p], ends[p]):
+                j = lj[q]
+                if a_lo <= j < a_hi:
+                    fc[j, 0] += lv[q, 0]
+                    fc[j, 1] += lv[q, 1]
+                    fc[j, 2] += lv[q, 2]
+
+    @jit
+    def _replay(fc: np.ndarray, lj: np.ndarray, lv: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> None:
+        """Add the logged additions of the parts (`forces_part`; part p's at starts[p] .. ends[p] - 1)
+        into fc, part after part, each in order."""
+        for p in range(len(starts)):
+            for q in range(starts[p], ends[p]):
+                j = lj[q]
+                fc[j, 0] += lv[q, 0]
+                fc[j, 1] += lv[q, 1]
+                fc[j, 2] += lv[q, 2]
+
     def forces(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray,
                eps: np.ndarray, sig2: np.ndarray, rc2: np.ndarray, offset: np.ndarray, length: np.ndarray,
                periodic: np.ndarray, bad: np.ndarray, outputs: bool, energy: np.ndarray,
@@ -380,12 +554,61 @@ if njit is not None:
                 return True
         return False
 
+    @njit(nogil=True, error_model="numpy", inline="always")
+    def _drift(x: np.ndarray, v: np.ndarray, f: np.ndarray, dtfm: np.ndarray, dt: float, lo: np.ndarray,
+               hi: np.ndarray, box_per: np.ndarray) -> None:
+        """initial_integrate (v += dtfm f, x += dt v) and the periodic wrap of one case."""
+        N = x.shape[0]
+        for a in range(N):
+            for d in range(3):
+                va = v[a, d] + dtfm[a] * f[a, d]
+                v[a, d] = va
+                x[a, d] = x[a, d] + dt * va
+        for d in range(3):
+            if box_per[d]:
+                lod, hid = lo[d], hi[d]
+                L = hid - lod
+                for a in range(N):
+                    xa = x[a, d]
+                    xa = xa - L if xa >= hid else xa
+                    x[a, d] = xa + L if xa < lod else xa
+
+    @njit(nogil=True, error_model="numpy", inline="always")
+    def _finite(x: np.ndarray) -> bool:
+        for a in range(x.shape[0]):
+            for d in range(3):
+                if not math.isfinite(x[a, d]):
+                    return False
+        return True
+
+    @jit
+    def _dtfm(mass: np.ndarray, dt: float, ftm2v: float) -> np.ndarray:
+        """dt/2 ftm2v / m per atom: `pair_chunk`'s, the same bits."""
+        hdt = (0.5 * ftm2v) * dt
+        out = np.empty(len(mass))
+        for a in range(len(mass)):
+            out[a] = hdt / mass[a]
+        return out
+
+    @jit
+    def _pre_step(x: np.ndarray, v: np.ndarray, f: np.ndarray, dtfm: np.ndarray, dt: float, lo: np.ndarray,
+                  hi: np.ndarray, box_per: np.ndarray, xref: np.ndarray, length: np.ndarray, pair_per: np.ndarray,
+                  limit2: float) -> int:
+        """The first half of `pair_chunk`'s step for `_chunk_threaded`: drift and wrap, then 0 (the
+        list holds), 1 (rebuild it) or 3 (a non-finite position); f is cleared (after the drift)."""
+        _drift(x, v, f, dtfm, dt, lo, hi, box_per)
+        status = 0
+        if _moved(x, xref, length, pair_per, limit2):
+            status = 1 if _finite(x) else 3
+        f[:] = 0.0
+        return status
+
     def _make_pair_chunk(fingerprint: int):
         """The fused chunk kernel; `fingerprint` joins its on-disk cache key (numba keys a cached
         function by its own file: the wall kernels come from compiled.py and the styles)."""
 
         @jit
-        def pair_chunk(nsteps, x, v, f, mass, radius, dt, ftm2v, lo, hi, box_per, length, pair_per, reach,
+        def pair_chunk(nsteps, post, x, v, f, mass, radius, dt, ftm2v, lo, hi, box_per, length, pair_per, reach,
                        limit2, e24, e4, s2c, rcut2, off, sample, fpair, ew, xref, owner, first, neigh, spare, sf_meta,
                        sf_val, groups, rg_meta, rg_geo, rg_val, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend,
                        fl_prev, fl_cross, fl_rng):
@@ -395,7 +618,9 @@ if njit is not None:
             (`forces_case`), soft flat faces and wall/region fixes (compiled.py's kernels), lost
             atoms; v += dtfm f; wall/flow (fl_int[0] != 0). With `sample`, the last step's pair pass
             also gives the pair energy and virial (ew[0], ew[1]) and its pair forces are copied to
-            fpair (N, 3) (the outputs of that step, without a second pass). Returns (status, builds, neigh):
+            fpair (N, 3) (the outputs of that step, without a second pass). With `post` only the
+            rest of the step after the pair forces (already in f): walls, lost atoms, final_integrate
+            and wall/flow (`_chunk_threaded` runs the first part). Returns (status, builds, neigh):
             status 0, 1 (an atom on/behind a wall), 2 (a lost atom) or 3 (a non-finite value; the
             caller then hands the chunk back to NumPy); neigh is the list after the chunk: the caller's
             (not written) if no build ran, else `spare` (the first build writes there, so the
@@ -404,10 +629,7 @@ if njit is not None:
                 return 5, 0, neigh
             N = x.shape[0]
             X, V, F = x.T, v.T, f.T  # (3, N) views: the wall kernels' layout
-            hdt = (0.5 * ftm2v) * dt
-            dtfm = np.empty(N)
-            for a in range(N):
-                dtfm[a] = hdt / mass[a]
+            dtfm = _dtfm(mass, dt, ftm2v)
             vary = sf_val.shape[0] > 1
             RB = np.empty((6, 5, BLOCK))
             CI = np.empty(N if fl_int[0] != 0 else 0, np.int64)
@@ -415,40 +637,25 @@ if njit is not None:
             builds = 0
             for step in range(nsteps):
                 si = step if vary else 0
-                for a in range(N):  # initial_integrate
-                    for d in range(3):
-                        va = v[a, d] + dtfm[a] * f[a, d]
-                        v[a, d] = va
-                        x[a, d] = x[a, d] + dt * va
-                for d in range(3):  # periodic wrap
-                    if box_per[d]:
-                        lod, hid = lo[d], hi[d]
-                        L = hid - lod
-                        for a in range(N):
-                            xa = x[a, d]
-                            xa = xa - L if xa >= hid else xa
-                            x[a, d] = xa + L if xa < lod else xa
-                if _moved(x, xref, length, pair_per, limit2):  # neighbor list (check yes)
-                    for a in range(N):
-                        for d in range(3):
-                            if not math.isfinite(x[a, d]):
-                                return 3, builds, neigh
-                    target = neigh if builds > 0 else spare
-                    m = build_case(x, lo, length, pair_per, reach, owner, first, target)
-                    while m < 0:
-                        target = np.empty(2 * len(target) + 4 * N, np.int32)
+                if not post:  # post: the pair forces of this step are in f (`_chunk_threaded`)
+                    _drift(x, v, f, dtfm, dt, lo, hi, box_per)
+                    if _moved(x, xref, length, pair_per, limit2):  # neighbor list (check yes)
+                        if not _finite(x):
+                            return 3, builds, neigh
+                        target = neigh if builds > 0 else spare
                         m = build_case(x, lo, length, pair_per, reach, owner, first, target)
-                    neigh = target
-                    xref[:] = x
-                    builds += 1
-                for a in range(N):  # force clear, pair forces
-                    for d in range(3):
-                        f[a, d] = 0.0
-                last = sample and step == nsteps - 1
-                e, w = forces_case(x, f, owner, first, neigh, e24, e4, s2c, rcut2, off, length, pair_per, last)
-                if last:
-                    ew[0], ew[1] = e, w
-                    fpair[:] = f
+                        while m < 0:
+                            target = np.empty(2 * len(target) + 4 * N, np.int32)
+                            m = build_case(x, lo, length, pair_per, reach, owner, first, target)
+                        neigh = target
+                        xref[:] = x
+                        builds += 1
+                    f[:] = 0.0  # force clear, pair forces
+                    last = sample and step == nsteps - 1
+                    e, w = forces_case(x, f, owner, first, neigh, e24, e4, s2c, rcut2, off, length, pair_per, last)
+                    if last:
+                        ew[0], ew[1] = e, w
+                        fpair[:] = f
                 nbad = 0
                 for k in range(sf_meta.shape[0]):  # soft flat walls, fix order
                     nbad += _soft_face(sf_meta[k, 0], sf_meta[k, 4], X, F, radius, groups, sf_meta[k, 3],
@@ -499,6 +706,281 @@ if njit is not None:
         return njit(cache=True, nogil=True, error_model="numpy")(fn)
 
 
+THREAD_MIN_ATOMS = 8_192  # atoms per thread below which one case's chunk runs in one call (`_chunk_threaded`)
+# A threaded chunk whose process used less than THREAD_MIN_USE of its threads' cores (CPU time over
+# wall time: the cores were busy with other work, and threads that meet twice a step wait for each
+# other) is followed by BUSY_SKIP case chunks in one call (the same bits either way), then threads again.
+THREAD_MIN_USE = 0.6
+BUSY_SKIP = 4
+BUSY_MIN_WALL = 0.05  # [s] a shorter chunk is not judged
+
+
+def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
+                   owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int,
+                   run: Callable[[list], list] = threads._in_threads, marks: np.ndarray | None = None,
+                   rows: np.ndarray | None = None, shares: np.ndarray | None = None) -> int:
+    """`build_case` with its scan of the cells cut in `parts` runs of cells (about equal atoms), one
+    per thread (`run`: threads._in_threads or a `Crew`): part p writes its rows into its share of neigh (in
+    proportion to its atoms), `_compact` then joins them. The same list, bit for bit; -1 if some
+    part's share was too short (call again with a longer neigh). With `marks` (parts, N) uint8
+    zeros and `rows` (parts + 1,): marks[p] = the atoms part p's rows touch, rows = the parts' first
+    rows (for `RowSplit`). `shares` (parts + 1,), from 0 up to 1: part p starts at about atom
+    shares[p] N (default p / parts)."""
+    N = pos.shape[0]
+    if N < 2 * parts:  # (no marks: RowSplit marks itself)
+        if rows is not None:
+            rows[:] = -1
+        return build_case(pos, lo, length, periodic, reach, owner, first, neigh)
+    first[0] = 0
+    xs, cstart, nb = _bin(pos, lo, length, periodic, reach, owner)
+    ncell = len(cstart) - 1
+    starts = [N * p // parts for p in range(parts)] if shares is None else [int(N * shares[p]) for p in range(parts)]
+    qb = np.maximum.accumulate(np.searchsorted(cstart, starts, side="left")).astype(np.int64)
+    qb = np.append(np.minimum(qb, ncell), ncell)
+    rs = cstart[qb]  # the first row of each part
+    cap = len(neigh)
+    base = (cap * rs[:-1]) // N
+    edges = np.append(base, cap)
+
+    none = np.empty(0, np.uint8)
+
+    def scan(p: int) -> int:
+        return _scan(xs, cstart, nb, owner, length, periodic, reach, int(qb[p]), int(qb[p + 1]), int(edges[p]),
+                     int(edges[p + 1]), first, neigh, none if marks is None else marks[p])
+
+    ends = np.asarray(run([lambda p=p: scan(p) for p in range(parts)]), np.int64)
+    if (ends < 0).any():
+        return -1
+    m = _compact(first, neigh, rs, base, ends)
+    first[N] = m
+    if rows is not None:
+        rows[:] = rs
+    return m
+
+
+class RowSplit:
+    """The parts of a list's threaded force pass: rows rb[p] .. rb[p+1] - 1 for part p (about equal
+    pairs, or `build_threaded`'s parts with its marks); firstp[j] = the first part whose rows touch atom j (owner or partner), the one that
+    adds into f[j] at once: a later part logs its additions to j (lj, lv; part p's from logs[p],
+    room for all of its rows' additions, pages touched only as written) for `_replay`."""
+
+    def __init__(self, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int,
+                 run: Callable[[list], list] = threads._in_threads, marks: np.ndarray | None = None,
+                 rows: np.ndarray | None = None):
+        nrow = len(owner)
+        total = int(first[nrow])
+        if marks is None or rows is None or rows[0] < 0:  # parts of about equal pairs, marked here
+            self.rb = np.append(np.searchsorted(first[:nrow + 1], [total * p // parts for p in range(parts)]),
+                                nrow).astype(np.int64)
+            marks = np.zeros((parts, nrow), np.uint8)
+            rb = self.rb
+            run([lambda p=p: _touch(owner, first, neigh, int(rb[p]), int(rb[p + 1]), marks[p]) for p in range(parts)])
+        else:  # the parts of `build_threaded` (about equal atoms) and its marks
+            self.rb = rows.astype(np.int64)
+        rb = self.rb
+        self.firstp = np.argmax(marks, axis=0).astype(np.uint8)  # the first part with a mark (0: none)
+        self.mixed = np.zeros(nrow, np.uint8)  # rows of part 0 have none; the others' rows shared out
+        cut = [int(rb[1]) + (nrow - int(rb[1])) * p // parts for p in range(parts + 1)]
+        run([lambda p=p: _mixed(first, neigh, cut[p], cut[p + 1], rb, self.firstp, self.mixed) for p in range(parts)])
+        room = (first[rb[1:]] - first[rb[:-1]]) + (rb[1:] - rb[:-1])
+        room[0] = 0  # part 0 is the first to touch every atom it touches
+        self.logs = np.concatenate(([0], np.cumsum(room))).astype(np.int64)
+        self.lj = np.empty(int(self.logs[-1]), np.int32)
+        self.lv = np.empty((int(self.logs[-1]), 3))
+
+
+def forces_threaded(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray,
+                    split: RowSplit, e24: float, e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray,
+                    periodic: np.ndarray, run: Callable[[list], list] = threads._in_threads,
+                    replay: bool = True) -> np.ndarray:
+    """`forces_case` (forces only) with its rows cut in the parts of `split`, one per thread, then
+    the logged additions (`_replay`): every atom's force gets the same additions in the same order
+    as in `forces_case`, so the same bits. Returns each part's CPU seconds (its thread's). Without
+    `replay` the logs' ends are left in split.ends for the caller to replay (`_replay_atoms`)."""
+    rb, logs = split.rb, split.logs
+
+    def part(p: int) -> tuple[int, float]:
+        t = time.thread_time()
+        q = forces_part(x, f, owner, first, neigh, int(rb[p]), int(rb[p + 1]), p, split.firstp, split.mixed,
+                        split.lj, split.lv, int(logs[p]), e24, e4, s2c, rcut2, off, length, periodic)
+        return q, time.thread_time() - t
+
+    got = run([lambda p=p: part(p) for p in range(len(rb) - 1)])
+    split.ends = np.array([g[0] for g in got], np.int64)
+    if replay:
+        _replay(f, split.lj, split.lv, logs[:-1], split.ends)
+    return np.array([g[1] for g in got])
+
+
+class Crew:
+    """Threads kept for the calls of one chunk: `crew(calls)` runs calls[0] here and calls[k] on
+    worker k (at most `size` calls), and returns their results (an exception is re-raised); cheaper
+    than new threads at each of a step's meetings (threads._in_threads). `close()` ends them."""
+
+    def __init__(self, size: int):
+        self._go = [threading.Semaphore(0) for _ in range(size - 1)]
+        self._done = threading.Semaphore(0)
+        self._jobs: list[Any] = [None] * (size - 1)
+        self._out: list[Any] = [None] * size
+        self._workers = [threading.Thread(target=self._work, args=(k,), name=f"wallbatch-pair-{k + 1}", daemon=True)
+                         for k in range(size - 1)]
+        for t in self._workers:
+            t.start()
+
+    def _work(self, k: int) -> None:
+        while True:
+            self._go[k].acquire()
+            job = self._jobs[k]
+            if job is None:
+                return
+            try:
+                self._out[k + 1] = job()
+            except BaseException as exc:  # noqa: BLE001 - handed to the calling thread
+                self._out[k + 1] = exc
+            self._done.release()
+
+    def __call__(self, calls: list[Callable[[], Any]]) -> list[Any]:
+        n = len(calls)
+        for k in range(1, n):
+            self._jobs[k - 1] = calls[k]
+            self._go[k - 1].release()
+        try:
+            first = calls[0]()
+        finally:
+            for _ in range(1, n):
+                self._done.acquire()
+        out = [first] + self._out[1:n]
+        for r in out:
+            if isinstance(r, BaseException):
+                raise r
+        return out
+
+    def close(self) -> None:
+        for k, go in enumerate(self._go):
+            self._jobs[k] = None
+            go.release()
+        for t in self._workers:
+            t.join()
+
+
+def _chunk_threaded(kernel: Any, args: tuple, parts: int) -> tuple[int, int, np.ndarray]:
+    """`kernel(*args)` (a `pair_chunk` call of one case) over `parts` threads, step by step:
+    the list build if due (`build_threaded`), the pair forces (`forces_threaded`), then on runs of
+    atoms the kernel with `post` for the rest of the step (walls, lost atoms, final_integrate) and
+    `_pre_step` for the start of the next (drift, wrap, list check): two meetings of the threads a
+    step. With wall/flow the rest of the step runs on all atoms in one call (its random stream is
+    drawn atom after atom). A sampled chunk's last pair pass runs in one call (`forces_case` with
+    outputs: its energy and virial sums in list order). Every value is that of the one call, bit
+    for bit; returns what it returns (a chunk with trouble may stop at another step of it: the
+    caller discards it and the NumPy loop re-runs it)."""
+    crew = Crew(parts)
+    try:
+        return _chunk_steps(kernel, args, parts, crew)
+    finally:
+        crew.close()
+
+
+def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int, int, np.ndarray]:
+    """`_chunk_threaded`'s steps, the threads' calls run by `crew`."""
+    a = dict(zip(_signature_names(kernel), args))
+    nsteps, x, v, f, xref = a["nsteps"], a["x"], a["v"], a["f"], a["xref"]
+    owner, first, neigh, spare = a["owner"], a["first"], a["neigh"], a["spare"]
+    lo, hi, box_per, length, per = a["lo"], a["hi"], a["box_per"], a["length"], a["pair_per"]
+    dt, limit2, lj = a["dt"], a["limit2"], (a["e24"], a["e4"], a["s2c"], a["rcut2"], a["off"])
+    N = x.shape[0]
+    dtfm = _dtfm(a["mass"], dt, a["ftm2v"])
+    sf_val, sample = a["sf_val"], a["sample"]
+    vary = sf_val.shape[0] > 1
+    runs = [slice(N * p // parts, N * (p + 1) // parts) for p in range(parts)]
+    a.update(nsteps=1, post=True, sample=False)
+    if int(a["fl_int"][0]) != 0:  # wall/flow: the rest of the step on all atoms
+        tails = [a]
+    else:
+        tails = [dict(a, x=x[r], v=v[r], f=f[r], mass=a["mass"][r], radius=a["radius"][r],
+                      groups=np.ascontiguousarray(a["groups"][:, r])) for r in runs]
+
+    def pre(r: slice) -> int:
+        return _pre_step(x[r], v[r], f[r], dtfm[r], dt, lo, hi, box_per, xref[r], length, per, limit2)
+
+    def tail_pre(p: int, step: int) -> tuple[int, int]:
+        """The rest of step `step` on part p's atoms (all atoms with wall/flow: tails[0]), then,
+        but after the last step, the first part of the next one: (its status, `pre`'s)."""
+        t = tails[p] if p < len(tails) else None
+        if pending is not None:  # this part's atoms' logged pair forces first
+            r = runs[p] if len(tails) == parts else slice(0, N)
+            _replay_atoms(f, pending.lj, pending.lv, pending.logs[:-1], pending.ends, r.start, r.stop)
+        if t is not None:
+            t.update(neigh=neigh, sf_val=sf_val[step:step + 1] if vary else sf_val)
+            st = kernel(*t.values())[0]
+            if st != 0:
+                return st, 0
+        return 0, (pre(runs[p]) if step + 1 < nsteps and len(tails) == parts else 0)
+
+    def pres() -> int:
+        return max(crew([lambda r=r: pre(r) for r in runs]))  # 3: a non-finite position
+
+    split = pending = None
+    builds = 0
+    built = False  # the list is this chunk's build: its marks and parts serve RowSplit
+    marks, rows = np.zeros((parts, N), np.uint8), np.empty(parts + 1, np.int64)
+    shares = np.arange(parts + 1) / parts
+    st = pres()
+    for step in range(nsteps):
+        if st == 3:
+            return 3, builds, neigh
+        if st == 1:
+            target = neigh if builds > 0 else spare
+            marks[:] = 0
+            m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows, shares)
+            while m < 0:
+                target = np.empty(2 * len(target) + 4 * N, np.int32)
+                marks[:] = 0
+                m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows,
+                                   shares)
+            neigh = target
+            xref[:] = x
+            builds += 1
+            split = None
+            built = True
+        if sample and step == nsteps - 1:
+            e, w = forces_case(x, f, owner, first, neigh, *lj, length, per, True)
+            a["ew"][0], a["ew"][1] = e, w
+            a["fpair"][:] = f
+        else:
+            if split is None:
+                split = RowSplit(owner, first, neigh, parts, crew, *((marks, rows) if built else ()))
+            cpu = forces_threaded(x, f, owner, first, neigh, split, *lj, length, per, crew, replay=False)
+            pending = split  # its logs are replayed by tail_pre, each part its own atoms
+            if built and rows[0] >= 0 and cpu.min() > 0:  # next build: parts of about equal force time
+                shares = _rebalance(shares, rows / N, cpu)
+        if len(tails) == parts:  # the rest of this step and the start of the next, atoms in parts
+            got = crew([lambda p=p: tail_pre(p, step) for p in range(parts)])
+        else:  # wall/flow: the rest of the step on all atoms, then the next start in parts
+            got = [tail_pre(0, step)]
+            if got[0][0] == 0 and step + 1 < nsteps:
+                got.append((0, pres()))
+        pending = None
+        bad = next((g[0] for g in got if g[0] != 0), 0)
+        if bad != 0:
+            return bad, builds, neigh
+        st = max(g[1] for g in got)
+    return 0, builds, neigh
+
+
+def _rebalance(shares: np.ndarray, bounds: np.ndarray, cpu: np.ndarray) -> np.ndarray:
+    """The parts' starting shares of the atoms for the next build, from the shares the list has
+    (`bounds`, parts + 1 fractions) and the CPU seconds each part's force pass took: each part's
+    atoms scaled by its speed (atoms per second), half way from `shares` (the results do not depend
+    on the split, only the time)."""
+    speed = np.diff(bounds) / cpu
+    want = np.concatenate(([0.0], np.cumsum(speed) / speed.sum()))
+    return 0.5 * (shares + want)
+
+
+def _signature_names(kernel: Any) -> tuple[str, ...]:
+    return threads._signature_names(getattr(kernel, "py_func", kernel))
+
+
 def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     """Whether `PairChunks` runs this plan: pair lj/cut on its compiled path with what the chunk
     kernels of compiled.py run (flat soft walls of the registry's compiled styles, wall/region,
@@ -530,6 +1012,8 @@ class PairChunks:
         self.pair = pair
         self.compiled_chunks = 0
         self.fallbacks = 0
+        self.threaded_chunks = 0  # case chunks run by `_chunk_threaded`
+        self.busy_skip = 0  # case chunks to run in one call before trying threads again
 
     def advance_to_time(self, target: float) -> bool:
         return False
@@ -595,13 +1079,25 @@ class PairChunks:
                       np.array([fk.lo[c], fk.length[c], fk.vflow[c], fk.kT[c]]),
                       np.ascontiguousarray(fk.walls[c][np.isfinite(fk.walls[c])]), fk.group[c].astype(np.uint8),
                       phys[c], pend[c], prev[c], cross[c], fk.rngs[c])
-            status, builds, neigh = kernel(
-                int(nsteps), x, v, f, np.ascontiguousarray(s.mass[c], dtype=float),
-                np.ascontiguousarray(s.radius[c], dtype=float), float(s.dt[c]), float(s.units.ftm2v), lo, hi, box_per,
-                pair.length, pair.periodic, float(pair.cutoff[c] + pair.skin), (0.5 * pair.skin) ** 2,
-                24.0 * float(pair.epsilon[c]), 4.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2),
-                float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
-                sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl)
+            args = (int(nsteps), False, x, v, f, np.ascontiguousarray(s.mass[c], dtype=float),
+                    np.ascontiguousarray(s.radius[c], dtype=float), float(s.dt[c]), float(s.units.ftm2v), lo, hi,
+                    box_per, pair.length, pair.periodic, float(pair.cutoff[c] + pair.skin), (0.5 * pair.skin) ** 2,
+                    24.0 * float(pair.epsilon[c]), 4.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2),
+                    float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
+                    sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl)
+            parts = min(threads.count(), N // THREAD_MIN_ATOMS, 64)
+            if parts >= 2 and self.busy_skip > 0:  # the cores were busy with other work: one thread
+                self.busy_skip -= 1
+                parts = 1
+            if parts >= 2:
+                wall, cpu = time.perf_counter(), time.process_time()
+                status, builds, neigh = _chunk_threaded(kernel, args, parts)
+                wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+                self.threaded_chunks += 1
+                if wall > BUSY_MIN_WALL and cpu < THREAD_MIN_USE * parts * wall:
+                    self.busy_skip = BUSY_SKIP
+            else:
+                status, builds, neigh = kernel(*args)
             if status != 0:
                 if fk is not None:  # the NumPy loop re-runs the chunk with the same random numbers
                     for r, st in zip(fk.rngs, rng_states):

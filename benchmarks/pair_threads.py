@@ -1,0 +1,127 @@
+"""One large lj/cut case on one thread and on two: wallbatch (WALLBATCH_THREADS) and LAMMPS
+(serial `lmp` and `mpiexec -np 2 lmp`), in one run.
+
+    python benchmarks/pair_threads.py [--atoms 32000 100000] [--atom-steps 5e6] [--repeat 2] [--no-lammps]
+
+Scene: the LJ liquid slit of benchmarks/pair_lj.py (fcc at rho 0.8 melted at T = 2, lj/cut 2.5
+shifted, neighbor skin 0.3 checked every step, lj93 walls at the z edges, dt 0.005), thermo
+every steps / 10. Each wallbatch run is a new process (WALLBATCH_THREADS=k, NUMBA_NUM_THREADS=k)
+that warms its kernels on a 10-step run, then times `Engine([case]).run()`; the one- and
+two-thread runs alternate (`--repeat` rounds, best of each), and the final kinetic and potential
+energy of both must be the same bits. LAMMPS runs the scene exported by wallbatch
+(`wallbatch export-lammps`, LAMMPS's default neighbor settings: every 1 delay 0 check yes), serial
+and with `mpiexec -np 2`, its "Loop time" timed. The machine may be shared: compare within one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+CHILD = """
+import sys, time
+sys.path.insert(0, {here!r})
+import common
+from wallbatch.engine.engine import Engine
+n, steps = {n}, {steps}
+Engine([common.build(common.lj_fcc_slit(n, steps=10, thermo=10))]).run()
+case = common.build(common.lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10)))
+t0 = time.perf_counter()
+eng = Engine([case])
+res = eng.run()[0]
+sec = time.perf_counter() - t0
+fast = eng.fast
+print("RESULT", sec, res.status, case.natoms, getattr(fast, "threaded_chunks", 0),
+      float(res.data["ke"][-1]).hex(), float(res.data["pe"][-1]).hex())
+"""
+
+
+def wallbatch_run(n: int, steps: int, threads: int) -> tuple[float, int, int, str]:
+    """(seconds, atoms, chunks run over threads, final ke and pe as hex) of one child process."""
+    env = dict(os.environ, WALLBATCH_THREADS=str(threads), NUMBA_NUM_THREADS=str(threads))
+    out = subprocess.run([sys.executable, "-c", CHILD.format(here=str(HERE), n=n, steps=steps)], env=env,
+                         capture_output=True, text=True, check=True).stdout
+    f = next(ln.split()[1:] for ln in out.splitlines() if ln.startswith("RESULT"))
+    if f[1] != "ok":
+        raise RuntimeError(f"wallbatch run: {f[1]}")
+    return float(f[0]), int(f[2]), int(f[3]), f"{f[4]} {f[5]}"
+
+
+def lmp_binary() -> str | None:
+    own = Path(sys.prefix) / "bin" / "lmp"
+    return str(own) if own.exists() else shutil.which("lmp")
+
+
+def lammps_runs(n: int, steps: int, repeat: int) -> dict[int, float]:
+    """Best "Loop time" [s] of LAMMPS serial (1) and `mpiexec -np 2` (2) on the exported scene."""
+    import common  # noqa: PLC0415
+
+    lmp = lmp_binary()
+    if lmp is None:
+        return {}
+    mpiexec = Path(sys.prefix) / "bin" / "mpiexec"
+    cfg = common.lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10))
+    best: dict[int, float] = {}
+    with tempfile.TemporaryDirectory(prefix="wb_pairthr_") as tmp:
+        setup, nrun, _ = common.lammps_script(cfg, None, tmp)
+        (Path(tmp) / "in.bench").write_text("\n".join(setup + [f"run {nrun}"]) + "\n")
+        cmds = {1: [lmp]}
+        if mpiexec.exists():
+            cmds[2] = [str(mpiexec), "-np", "2", lmp]
+        for _ in range(repeat):
+            for k, cmd in cmds.items():
+                subprocess.run(cmd + ["-in", "in.bench", "-log", "log.bench", "-screen", "none", "-nocite"],
+                               cwd=tmp, check=True, capture_output=True)
+                log = (Path(tmp) / "log.bench").read_text()
+                sec = float(re.search(r"Loop time of ([0-9.eE+-]+)", log).group(1))
+                best[k] = min(best.get(k, sec), sec)
+    return best
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--atoms", type=int, nargs="+", default=[32000, 100000])
+    ap.add_argument("--atom-steps", type=float, default=5e6, help="atoms x steps of each run")
+    ap.add_argument("--repeat", type=int, default=2, help="rounds of 1 and 2 threads, interleaved (best of each)")
+    ap.add_argument("--no-lammps", action="store_true")
+    args = ap.parse_args()
+    load = os.getloadavg()[0]
+    print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, load {load:.2f}")
+    print(f"| N | steps | wb 1 thread [s] | wb 2 threads [s] | 2/1 | same bits | LAMMPS serial [s] | LAMMPS np 2 [s] "
+          f"| LAMMPS 2/1 | wb 2 thr vs LAMMPS np 2 |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for n in args.atoms:
+        steps = max(20, int(args.atom_steps // n))
+        best: dict[int, float] = {}
+        bits: dict[int, set[str]] = {1: set(), 2: set()}
+        atoms = threaded = 0
+        for _ in range(args.repeat):
+            for k in (1, 2):
+                sec, atoms, thr, b = wallbatch_run(n, steps, k)
+                best[k] = min(best.get(k, sec), sec)
+                bits[k].add(b)
+                threaded = max(threaded, thr) if k == 2 else threaded
+        same = "yes" if len(bits[1] | bits[2]) == 1 else "NO"
+        lmp = {} if args.no_lammps else lammps_runs(n, steps, args.repeat)
+        l1, l2 = lmp.get(1), lmp.get(2)
+        f = lambda v, spec: "n/a" if v is None else format(v, spec)  # noqa: E731
+        vs = None if l2 is None else l2 / best[2]
+        print(f"| {atoms} | {steps} | {best[1]:.2f} | {best[2]:.2f} | {best[1] / best[2]:.2f}x | {same} "
+              f"| {f(l1, '.2f')} | {f(l2, '.2f')} | {f(None if l1 is None or l2 is None else l1 / l2, '.2f')}"
+              f"{'' if l2 is None else 'x'} | {f(vs, '.2f')}{'' if vs is None else 'x'} |")
+        if threaded == 0:
+            print(f"  (N = {atoms}: the two-thread run did not split its chunks)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,141 @@
+"""One pair lj/cut case over threads (pair_compiled._chunk_threaded, build_threaded,
+forces_threaded): the list build cut in runs of cells and the force pass cut in runs of rows
+must give the one-thread kernels' lists and forces bit for bit, and a whole run on 2 or 3 threads
+the one-thread run's samples and state bit for bit. Small scenes are split by lowering
+THREAD_MIN_ATOMS; each test checks that the threaded path really ran.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from wallbatch.engine import pair_compiled
+from wallbatch.engine.engine import Engine
+from wallbatch.engine.pair_compiled import PairChunks
+
+from tests.engine.test_pair_chunks import assert_bits, cases_of, flow_fluid, slit, sphere_cavity
+
+pytestmark = pytest.mark.skipif(pair_compiled.njit is None, reason="numba not importable")
+
+E24, E4, SIG2, RC2, OFF = 24.0, 4.0, 1.0, 6.25, 0.016316891136  # lj/cut eps 1 sigma 1 rc 2.5, shifted
+
+
+def liquid(m: int = 10, seed: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """4 m^3 atoms: an fcc lattice at rho 0.8, shaken (sd 0.2): x, y periodic, z fixed."""
+    a = (4.0 / 0.8) ** (1.0 / 3.0)
+    basis = np.array([[0, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5], [0, 0.5, 0.5]])
+    cells = np.stack(np.meshgrid(*(np.arange(m),) * 3, indexing="ij"), -1).reshape(-1, 1, 3)
+    x = ((cells + basis) * a).reshape(-1, 3) + 0.25 * a
+    x += np.random.default_rng(seed).normal(0.0, 0.2, x.shape)
+    lo, hi = np.zeros(3), np.array([m * a, m * a, (m + 1) * a])
+    return x, lo, hi - lo, np.array([True, True, False])
+
+
+def one_thread_list(x, lo, length, per, reach=2.8):
+    N = len(x)
+    owner, first, neigh = np.empty(N, np.int32), np.empty(N + 1, np.int64), np.empty(80 * N, np.int32)
+    m = pair_compiled.build_case(x, lo, length, per, reach, owner, first, neigh)
+    return owner, first, neigh, m
+
+
+@pytest.mark.parametrize("parts", [2, 3, 5])
+def test_threaded_build_and_forces_are_the_one_thread_bits(parts):
+    """4000 atoms (12 cells a side): the threaded build writes the one-thread list (owners, row
+    starts, partners) and the threaded force pass its forces, bit for bit; the parts really
+    overlap (atoms touched by two parts go through the log)."""
+    x, lo, length, per = liquid()
+    owner, first, neigh, m = one_thread_list(x, lo, length, per)
+    f1 = np.zeros_like(x)
+    pair_compiled.forces_case(x, f1, owner, first, neigh, E24, E4, SIG2, RC2, OFF, length, per, False)
+    o2, fr2, n2 = np.empty_like(owner), np.empty_like(first), np.zeros(80 * len(x), np.int32)
+    assert pair_compiled.build_threaded(x, lo, length, per, 2.8, o2, fr2, n2, parts) == m > 30 * len(x)
+    np.testing.assert_array_equal(o2, owner)
+    np.testing.assert_array_equal(fr2, first)
+    np.testing.assert_array_equal(n2[:m], neigh[:m])
+    marks, rows = np.zeros((parts, len(x)), np.uint8), np.empty(parts + 1, np.int64)
+    assert pair_compiled.build_threaded(x, lo, length, per, 2.8, o2, fr2, n2, parts, marks=marks, rows=rows) == m
+    np.testing.assert_array_equal(n2[:m], neigh[:m])
+    for split in (pair_compiled.RowSplit(o2, fr2, n2, parts),  # parts of equal pairs, marked by itself
+                  pair_compiled.RowSplit(o2, fr2, n2, parts, marks=marks, rows=rows)):  # the build's parts
+        assert len(np.unique(split.firstp)) == parts and split.rb[1] > 0 and split.mixed.any()
+        f2 = np.zeros_like(x)
+        pair_compiled.forces_threaded(x, f2, o2, fr2, n2, split, E24, E4, SIG2, RC2, OFF, length, per)
+        np.testing.assert_array_equal(f2, f1)
+    assert np.abs(f1).max() > 10.0  # real forces, summing to 0 (Newton's third law) to rounding
+    assert np.abs(f1.sum(axis=0)).max() < 1e-12 * np.abs(f1).sum()
+
+
+def test_threaded_build_says_when_the_list_is_short():
+    """A list storage too short for some part: -1 (the caller grows it), as build_case."""
+    x, lo, length, per = liquid(6)
+    owner, first, neigh, m = one_thread_list(x, lo, length, per)
+    short = np.empty(m // 2, np.int32)
+    assert pair_compiled.build_threaded(x, lo, length, per, 2.8, owner.copy(), first.copy(), short, 2) == -1
+    assert pair_compiled.build_case(x, lo, length, per, 2.8, owner.copy(), first.copy(), short) == -1
+
+
+def run_threads(monkeypatch, config: dict, n: int):
+    """(results, engine) of one case on n threads, any case of >= 2 atoms per thread split."""
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    monkeypatch.setenv("WALLBATCH_THREADS", str(n))
+    monkeypatch.setattr(pair_compiled, "THREAD_MIN_ATOMS", 2)
+    monkeypatch.setattr(pair_compiled, "THREAD_MIN_USE", 0.0)  # never judged busy (a loaded test machine)
+    eng = Engine(cases_of(config))
+    assert isinstance(eng.fast, PairChunks)
+    return eng.run(), eng
+
+
+@pytest.mark.parametrize("scene", ["slit", "flow", "cavity"])
+def test_one_case_on_threads_same_bits_as_one_thread(monkeypatch, scene):
+    """lj93 slit (energy, virial, pressure sampled), wall/flow walls (random streams in the
+    step), a wall/region sphere and a flat floor: 2 and 3 threads give every sample, the final
+    state and the neighbor builds of one thread, bit for bit, and the chunks ran threaded."""
+    config = {"slit": slit, "flow": flow_fluid, "cavity": sphere_cavity}[scene]()
+    ref, one = run_threads(monkeypatch, config, 1)
+    assert one.fast.threaded_chunks == 0 and one.fast.compiled_chunks >= 3
+    for n in (2, 3):
+        got, eng = run_threads(monkeypatch, config, n)
+        assert_bits(got, ref)
+        assert eng.fast.threaded_chunks == eng.fast.compiled_chunks == one.fast.compiled_chunks
+        assert eng.fast.fallbacks == one.fast.fallbacks == 0
+        for name in ("x", "v", "f"):
+            np.testing.assert_array_equal(getattr(eng.state, name), getattr(one.state, name), err_msg=name)
+        np.testing.assert_array_equal(eng.pair.case_builds, one.pair.case_builds)
+    assert one.pair.case_builds.min() >= 2  # lists rebuilt inside the chunks
+
+
+def test_trouble_on_threads_hands_the_chunk_back(monkeypatch):
+    """An atom shot through the lower wall in a threaded chunk: the chunk goes back to the NumPy
+    loop, which reports what one thread reports."""
+    bad = slit(steps=30)
+    bad["atoms"].append({"group": "bullet", "create": {"positions": [[3.4, 3.4, 0.9]]}, "mass": 1.0,
+                         "velocity": {"values": [[0.0, 0.0, -400.0]]}})
+    ref, _ = run_threads(monkeypatch, bad, 1)
+    got, eng = run_threads(monkeypatch, bad, 2)
+    assert_bits(got, ref)
+    assert got[0].status == "failed" and eng.fast.fallbacks >= 1 and eng.fast.threaded_chunks >= 1
+
+
+def test_few_atoms_per_thread_stay_one_call(monkeypatch):
+    """Below THREAD_MIN_ATOMS atoms per thread the chunk is one kernel call."""
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    monkeypatch.setenv("WALLBATCH_THREADS", "2")
+    eng = Engine(cases_of(slit()))
+    assert eng.run()[0].status == "ok"
+    assert eng.fast.compiled_chunks == 4 and eng.fast.threaded_chunks == 0
+
+
+def test_busy_cores_run_chunks_in_one_call_for_a_while(monkeypatch):
+    """A threaded chunk that used less of its cores than THREAD_MIN_USE (here: any) is followed by
+    BUSY_SKIP chunks in one call, then threads again; the bits stay those of one thread."""
+    config = slit(steps=80, thermo=10)
+    ref, _ = run_threads(monkeypatch, config, 1)
+    monkeypatch.setattr(pair_compiled, "BUSY_MIN_WALL", 0.0)
+    monkeypatch.setattr(pair_compiled, "BUSY_SKIP", 3)
+    monkeypatch.setenv("WALLBATCH_THREADS", "2")
+    monkeypatch.setattr(pair_compiled, "THREAD_MIN_USE", 1e9)  # every threaded chunk looks starved
+    eng = Engine(cases_of(config))
+    got = eng.run()
+    assert_bits(got, ref)
+    assert eng.fast.compiled_chunks == 8 and eng.fast.threaded_chunks == 2  # chunks 1 and 5 on threads
