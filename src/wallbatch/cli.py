@@ -39,7 +39,9 @@ def _start_up_done() -> None:
 class _GuardedTyper(typer.Typer):
     """The app as the console script calls it: an unexpected exception is one line plus a request
     to report it, unless `--debug` asks for the traceback; Ctrl-C outside a run exits 130. The
-    garbage collector is paused until the command's start-up is done (_start_up_done)."""
+    garbage collector is paused until the command's start-up is done (_start_up_done), and every
+    object left is frozen when the command returns: Python's exit runs full collections over
+    every tracked object (numba's ~300k) before freeing them, ~0.2 s of a `wallbatch run`."""
 
     def __call__(self, *args: Any, **kwargs: Any) -> Any:
         global _gc_paused
@@ -63,6 +65,7 @@ class _GuardedTyper(typer.Typer):
             sys.exit(3)
         finally:
             _start_up_done()
+            gc.freeze()  # the process exits next: its finalizer's collections skip what is alive (~0.2 s with numba)
 
 
 app = _GuardedTyper(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,

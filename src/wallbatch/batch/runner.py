@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import gc
 import hashlib
 import json
 import math
@@ -307,6 +308,7 @@ def _warm_compiler(case: Case | None = None) -> None:
     path, engine/backend.py) import no numba."""
     if not backend.numba_allowed() or _fork_context() is None:
         return
+    _set_up_numba()
     from wallbatch.engine import compiled
 
     if not compiled.enabled():
@@ -329,6 +331,26 @@ def _warm_compiler(case: Case | None = None) -> None:
 
         cpu_target.typing_context.refresh()
         cpu_target.target_context.refresh()
+
+
+def _set_up_numba() -> None:
+    """In a process about to run compiled kernels: import them and set numba up (its registries,
+    backend.prepare_numba) with the garbage collector paused. numba leaves ~300k long-lived
+    objects, and the collections its set-up triggers walk them again and again (~0.06 s); if the
+    caller froze its own start-up (gc.freeze: the command line does), numba's objects join it."""
+    if not backend.numba_allowed() or "numba.np.arraymath" in sys.modules:
+        return  # a NumPy plan, or numba set up already
+    frozen, enabled = gc.get_freeze_count() > 0, gc.isenabled()
+    gc.disable()
+    try:
+        from wallbatch.engine import compiled
+
+        compiled.enabled()  # asks backend.numba_allowed: numba is imported, its registries load now
+    finally:
+        if frozen:
+            gc.freeze()
+        if enabled:
+            gc.enable()
 
 
 def _fork_context() -> Any:
@@ -391,6 +413,22 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
                 p.join(1.0)
 
 
+@contextlib.contextmanager
+def _frozen_for_fork() -> Iterator[None]:
+    """While forking workers: every object of this process in the collector's permanent
+    generation (gc.freeze, as Python's documentation advises before fork), so a worker's
+    collections never walk what it inherited (numba's ~300k objects: time, and copy-on-write
+    copies of the pages they touch). This process is as it was afterwards (gc.unfreeze), unless
+    something was frozen before (the command line freezes its start-up): then it stays frozen."""
+    frozen_before = gc.get_freeze_count() > 0
+    gc.freeze()
+    try:
+        yield
+    finally:
+        if not frozen_before:
+            gc.unfreeze()
+
+
 def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
             scheduler: str | None = None, plan: SweepPlan | None = None) -> Iterator[tuple[int, list[Outcome]]]:
     """Run windows (see `_run_window`; in this process from `plan`); yield (window index, outcomes)
@@ -411,6 +449,7 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
                 client.cancel(list(futures))
                 raise
     elif jobs <= 1 or len(tasks) <= 1:
+        _set_up_numba()
         for k, t in enumerate(tasks):
             yield k, _run_window(t, plan)
     else:
@@ -419,7 +458,8 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=_fork_context(), initializer=_worker_init,
                                    initargs=(os.getpid(), max(1, usable_cores() // workers)))
         try:
-            futures = {pool.submit(_run_window, t, None, backend.numba_allowed()): k for k, t in enumerate(tasks)}
+            with _frozen_for_fork():  # the pool forks its workers at the first submit
+                futures = {pool.submit(_run_window, t, None, backend.numba_allowed()): k for k, t in enumerate(tasks)}
             for fut in as_completed(futures):
                 yield futures[fut], fut.result()
         except BaseException:
@@ -738,9 +778,13 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
             layout: tuple | None = None
             built = len(saved)  # cases built (or reused)
             _PLAN = plan  # for forked workers
-            # forked workers inherit the kernels loaded on the first case (built once: the results
-            # layout comes from it at the end)
-            first = _first_built(plan, set(), windows[0]) if local and jobs > 1 and len(tasks) > 1 else None
+            # the first case that builds, built once: forked workers inherit the kernels loaded on
+            # it; run here, it runs in the first window as built; the results layout comes from it
+            failed: dict[int, tuple] = {}  # cases before it that cannot be built, as built
+            first = _first_built(plan, set(), windows[0], failed) if local and windows else None
+            if first is not None and (jobs <= 1 or len(tasks) <= 1):
+                failed[first[0]] = (first[1], "", first[2])
+                tasks[0] = [failed.get(i, i) for i in tasks[0]]
             _FIRST = first[1] if first is not None else None
             runs = execute(tasks, jobs, executor, scheduler, plan=plan)
             try:
@@ -820,17 +864,21 @@ def _first_case(plan: SweepPlan, unbuilt: set[int]) -> Case | None:
     return found[1] if found is not None else None
 
 
-def _first_built(plan: SweepPlan, unbuilt: set[int], upto: list[int] | None = None) -> tuple[int, Case] | None:
-    """(index, case) of the first case that can be built, skipping those known not to build (and
-    looking no further than the last index of `upto`, if given). Building is deterministic: the
-    same case whenever it is asked."""
+def _first_built(plan: SweepPlan, unbuilt: set[int], upto: list[int] | None = None,
+                 failed: dict[int, tuple] | None = None) -> tuple[int, Case, float] | None:
+    """(index, case, seconds to build it) of the first case that can be built, skipping those known
+    not to build (and looking no further than the last index of `upto`, if given); `failed`, if
+    given, receives build_one's answer for each case met before it that cannot be built. Building
+    is deterministic: the same case whenever it is asked."""
     last = max(upto) if upto else len(plan.cases) - 1
     for i, sc in enumerate(plan.cases[:last + 1]):
         if i in unbuilt:
             continue
-        case, _, _ = build_one(sc)
+        case, error, sec = build_one(sc)
         if case is not None:
-            return i, case
+            return i, case, sec
+        if failed is not None:
+            failed[i] = (None, error, sec)
     return None
 
 

@@ -1,0 +1,91 @@
+"""What a run does once, before and after its cases (batch/runner.py): every case is built exactly
+once in a one-process run (the first case, which the results layout comes from, is not built again
+at the end), the collector's freezing around the workers' fork leaves a library caller's process
+as it was, and `wallbatch run` numbers do not depend on any of it."""
+
+from __future__ import annotations
+
+import gc
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from wallbatch.api import load
+from wallbatch.batch import runner
+from wallbatch.batch.runner import run_plan
+from wallbatch.engine import compiled
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def sweep_file(tmp: Path, cases: int, atoms: int = 200, steps: int = 40, extra: str = "") -> Path:
+    path = tmp / "sweep.yaml"
+    path.write_text(f"base: {ROOT / 'configs' / 'lj93-slit.yaml'}\n"
+                    f"set: {{run.steps: {steps}, run.thermo: 10, atoms.0.create.random.count: {atoms}{extra}}}\n"
+                    "sweep: {product: {eps: {path: walls.zwalls.zlo.epsilon, values: {linspace: [0.5, 2.0, "
+                    f"{cases}]}}}}}}}}\n")
+    return path
+
+
+def counting_builds(monkeypatch) -> list[tuple]:
+    """Every build_one call of the runner, as the case's sweep coordinates."""
+    seen: list[tuple] = []
+    real = runner.build_one
+
+    def build_one(sc):
+        seen.append(tuple(sc.coords.values()))
+        return real(sc)
+
+    monkeypatch.setattr(runner, "build_one", build_one)
+    return seen
+
+
+@pytest.mark.parametrize("output", [False, True])
+def test_one_process_builds_every_case_once(tmp_path, monkeypatch, output):
+    plan = load(sweep_file(tmp_path, 5))
+    seen = counting_builds(monkeypatch)
+    ds = run_plan(plan, tmp_path / "out.nc" if output else None, jobs=1, progress=False)
+    assert sorted(seen) == sorted(tuple(sc.coords.values()) for sc in plan.cases)  # five builds, one each
+    assert list(ds["status"].values) == ["ok"] * 5
+    monkeypatch.undo()
+    again = run_plan(plan, None, jobs=1, progress=False)  # the same numbers built the old way round
+    for name in ("pe", "ke", "wall_force"):
+        np.testing.assert_array_equal(ds[name].values, again[name].values)
+    assert ds["seconds"].values.min() > 0  # the first case's build time is still counted
+
+
+def test_a_first_case_that_cannot_be_built_is_skipped_once(tmp_path, monkeypatch):
+    """Case 0 fails to build (more atoms than fit at the overlap distance): tried once, its message
+    kept; the layout comes from case 1, built once."""
+    path = tmp_path / "sweep.yaml"
+    path.write_text(f"base: {ROOT / 'configs' / 'lj93-slit.yaml'}\n"
+                    "set: {run.steps: 20, run.thermo: 10}\n"
+                    "sweep: {product: {n: {path: atoms.0.create.random.count, values: [2000, 50, 60]}}}\n")
+    plan = load(path)
+    seen = counting_builds(monkeypatch)
+    ds = run_plan(plan, None, jobs=1, progress=False)
+    assert list(ds["status"].values) == ["failed", "ok", "ok"]
+    assert "placed only" in str(ds["error"].values[0])
+    assert seen.count((50,)) == 1 and seen.count((60,)) == 1 and seen.count((2000,)) == 1
+
+
+@pytest.mark.skipif(compiled.njit is None, reason="numba not importable")
+@pytest.mark.parametrize("frozen_before", [False, True])
+def test_forking_workers_leaves_the_collector_as_it_was(tmp_path, monkeypatch, frozen_before):
+    """A library caller's objects are not left frozen by `jobs=2`; a caller that froze its own
+    start-up (the command line) keeps it frozen. The numbers equal the one-process run's."""
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    plan = load(sweep_file(tmp_path, 4))
+    one = run_plan(plan, None, jobs=1, progress=False)
+    gc.unfreeze()
+    try:
+        if frozen_before:
+            gc.freeze()
+        two = run_plan(plan, tmp_path / "two.nc", jobs=2, progress=False)
+        assert (gc.get_freeze_count() > 0) is frozen_before
+        assert gc.isenabled()
+    finally:
+        gc.unfreeze()
+    for name in ("pe", "ke", "wall_force", "wall_energy"):
+        np.testing.assert_array_equal(two[name].values, one[name].values)
