@@ -334,8 +334,8 @@ def _warm_compiler(case: Case | None = None) -> None:
 
 
 def _set_up_numba() -> None:
-    """In a process about to run compiled kernels: import them and set numba up (its registries,
-    backend.prepare_numba) with the garbage collector paused. numba leaves ~300k long-lived
+    """In a process about to run compiled kernels: import them and set numba up (its typing and
+    target registries) with the garbage collector paused. numba leaves ~300k long-lived
     objects, and the collections its set-up triggers walk them again and again (~0.06 s); if the
     caller froze its own start-up (gc.freeze: the command line does), numba's objects join it."""
     if not backend.numba_allowed() or "numba.np.arraymath" in sys.modules:
@@ -345,7 +345,11 @@ def _set_up_numba() -> None:
     try:
         from wallbatch.engine import compiled
 
-        compiled.enabled()  # asks backend.numba_allowed: numba is imported, its registries load now
+        if compiled.enabled():  # numba imports
+            from numba.core.registry import cpu_target
+
+            cpu_target.typing_context.refresh()  # its registries load now, not at the first kernel
+            cpu_target.target_context.refresh()
     finally:
         if frozen:
             gc.freeze()
