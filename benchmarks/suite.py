@@ -593,13 +593,18 @@ def threads() -> dict:
                 text = measured(cmd + ["-in", "in.big", "-log", "log.big", "-screen", "none", "-nocite"], work)[2]
                 log = (work / "log.big").read_text()
                 loops[np_] = float(re.search(r"Loop time of ([0-9.eE+-]+)", log).group(1))
-            best = loops.get(2, loops.get(1))
-            out["lmp"] = (f"{best:.2f} s (np 2; serial {loops[1]:.2f} s)" if 2 in loops else
-                          f"{best:.2f} s (serial: no mpiexec)")
-            out["ratio"] = best / t2
+            out.update(lammps_two_cores(loops, t2))
         else:
             out["lmp"] = "n/a"
     return out
+
+
+def lammps_two_cores(loops: dict[int, float], wb_seconds: float) -> dict:
+    """The LAMMPS cell and ratio of a two-core row from LAMMPS's loop seconds by rank count
+    (1: serial, 2: `mpiexec -np 2`, when mpiexec was there)."""
+    best = loops.get(2, loops[1])
+    text = f"{best:.2f} s (np 2; serial {loops[1]:.2f} s)" if 2 in loops else f"{best:.2f} s (serial: no mpiexec)"
+    return {"lmp": text, "ratio": best / wb_seconds}
 
 
 @row("threads-ljcut-1e5", at_least(1.6, "x one thread"))
@@ -627,10 +632,7 @@ def threads_ljcut() -> dict:
            "note": f"2 threads/1: {t1 / t2:.2f}x; final ke, pe {'bit-identical' if same else 'DIFFER'}"}
     loops = pair_threads.lammps_runs(n, steps, 1) if USE_LAMMPS else {}
     if loops:
-        best_l = loops.get(2, loops[1])
-        out["lmp"] = (f"{best_l:.2f} s (np 2; serial {loops[1]:.2f} s)" if 2 in loops else
-                      f"{best_l:.2f} s (serial: no mpiexec)")
-        out["ratio"] = best_l / t2
+        out.update(lammps_two_cores(loops, t2))
     else:
         out["lmp"] = "n/a"
     return out
