@@ -304,7 +304,7 @@ def _warm_compiler(case: Case | None = None) -> None:
     instead of each loading them from the on-disk cache (or compiling them, each at once). With
     `case` (the first case of the run, up to WARM_ATOMS atoms) one step of it on a throw-away
     engine loads exactly its kernels; otherwise numba's compiler is initialised (its type and
-    target contexts, ~1 s) and the workers load their kernels (~0.2 s each). Small plans (NumPy
+    target contexts, `_set_up_numba`) and the workers load their kernels (~0.2 s each). Small plans (NumPy
     path, engine/backend.py) import no numba."""
     if not backend.numba_allowed() or _fork_context() is None:
         return
@@ -326,11 +326,6 @@ def _warm_compiler(case: Case | None = None) -> None:
                 else:
                     engine.advance(1, sample=False)
                 return
-    with contextlib.suppress(Exception):
-        from numba.core.registry import cpu_target
-
-        cpu_target.typing_context.refresh()
-        cpu_target.target_context.refresh()
 
 
 def _set_up_numba() -> None:
