@@ -164,6 +164,9 @@ def test_compiled_richardson_is_the_numpy_one_bit_for_bit():
     np.testing.assert_array_equal(want[:5], q[:5])
 
 
+# numba's pedantic SSA note on the inlined Horner loop when `_series` compiles (benign; the engine
+# hides it the same way around its chunk call)
+@pytest.mark.filterwarnings("ignore::numba.core.errors.NumbaIRAssumptionWarning")
 def test_compiled_ees_pieces_are_the_numpy_ones():
     """r from just above sigma_n (closed forms) to far (series): E, F, T_w and the torque and
     sigma_n of the compiled pieces equal ees_energy_force_torque / ees_torque / sigma_n."""
