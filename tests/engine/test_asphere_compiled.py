@@ -323,3 +323,21 @@ def test_region_ees_sampled_in_the_kernel(monkeypatch, name):
     ref, got, _ = sampled_check(monkeypatch, configs, 60)
     for r in got:
         assert np.count_nonzero(r.data["region_force"]) > 60 and np.ptp(r.data["pe"]) > 1e-5
+
+
+def test_trouble_in_a_sampled_call_falls_back_and_fails_as_numpy(monkeypatch):
+    """A rod driven into a weak wall while every 5th step is sampled in the kernel: the call with
+    the trouble is handed back (its instants one at a time, NumPy reporting the failure with its
+    message); the other case runs on, its later samples from the kernel again."""
+    fast_rod = slit(n=20, eps=0.05, steps=400, thermo=5)
+    fast_rod["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 4.0]]}, **ROD,
+                              "velocity": {"values": [[0.0, 0.0, -30.0]]}})
+    calm = slit(n=20, eps=0.05, steps=400, thermo=5, seed=8)
+    calm["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 4.0]]}, **ROD,
+                          "velocity": {"values": [[0.0, 0.0, 0.1]]}})
+    monkeypatch.setattr("wallbatch.engine.engine.SAMPLES_PER_CALL", 16)
+    ref, got, eng = check(monkeypatch, [fast_rod, calm])
+    assert [r.status for r in got] == ["failed", "ok"]
+    assert "Particle on or inside fix wall surface" in got[0].error
+    assert eng.fast.fallbacks >= 1 and eng.fast.sampled_calls >= 2 and len(eng.samples) > 1
+    assert np.isfinite(got[1].data["pe"]).all() and got[1].data["step"][-1] == 400

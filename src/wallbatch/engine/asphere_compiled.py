@@ -26,9 +26,14 @@ Eligible (`eligible`): ellipsoids (fix nve/asphere on every atom), wall/ees face
 parameters and nothing else (no pair, thermostats, reflect, flow, region or other flat walls,
 dt/reset, run-to-time). A chunk that meets trouble (an ellipsoid on or inside a wall, a lost
 atom, a non-finite value) leaves the state as it was and is re-run by the NumPy loop, which
-reports exactly as always. The outputs of a sampled step come from the NumPy
-`Engine.compute_forces` at the final positions, as in engine/compiled.py. `WALLBATCH_NUMBA=0`
-selects the NumPy path. The kernel is cached on disk (numba cache=True).
+reports exactly as always. Samples (`AspherePath.advance_sampled`) are computed in the kernel: a
+run of sample steps per call, the stretches between them one after the other (each block by block),
+each sample's per-atom energies, wall forces, m v^2 and rotational energy kept on its last step and
+summed over all atoms in the NumPy path's orders (np.bincount's atom order, region contacts slot by
+slot, NumPy's pairwise sum), appended by `ChunkPlan.record_samples`; `advance` (one chunk, the
+outputs of its last step from the NumPy `Engine.compute_forces` at the final positions, as in
+engine/compiled.py) serves the rest. `WALLBATCH_NUMBA=0` selects the NumPy path. The kernel is
+cached on disk (numba cache=True).
 """
 
 from __future__ import annotations
@@ -651,4 +656,4 @@ def attach_asphere_path(plan_source: Callable[[], ChunkPlan]) -> AspherePath | N
     return AspherePath(plan_source)
 
 
-__all__: list[Any] = ["AspherePath", "attach_asphere_path", "eligible", "BLOCK"]
+__all__: list[Any] = ["AspherePath", "attach_asphere_path", "eligible", "sampled_eligible", "BLOCK"]
