@@ -460,7 +460,9 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
         except BaseException:
             _stop_pool(pool)
             raise
-        pool.shutdown(wait=True)
+        # every task is done: the workers exit while this process merges the parts (the pool's
+        # manager thread joins them; Python's exit waits for it)
+        pool.shutdown(wait=False)
 
 
 @contextlib.contextmanager
