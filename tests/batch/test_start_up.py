@@ -89,3 +89,32 @@ def test_forking_workers_leaves_the_collector_as_it_was(tmp_path, monkeypatch, f
         gc.unfreeze()
     for name in ("pe", "ke", "wall_force", "wall_energy"):
         np.testing.assert_array_equal(two[name].values, one[name].values)
+
+
+_THREADS = """
+import os, sys
+import wallbatch.cli  # noqa: F401 - the command line's module, as `wallbatch` starts
+import numpy  # noqa: F401 - imported by now in any case
+print(os.environ.get("OPENBLAS_NUM_THREADS"), len(os.listdir("/proc/self/task")))
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc")
+@pytest.mark.parametrize("given", [None, "2"])
+def test_the_command_line_starts_no_blas_threads_unless_asked(given):
+    """NumPy's OpenBLAS starts a thread per core when NumPy is imported (~0.07 s of a command's
+    start-up): the command line asks for one, i.e. none besides the main thread, unless the user
+    set OPENBLAS_NUM_THREADS (then theirs is kept)."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    env["PYTHONPATH"] = str(ROOT / "src")
+    if given is not None:
+        env["OPENBLAS_NUM_THREADS"] = given
+    out = subprocess.run([sys.executable, "-c", _THREADS], capture_output=True, text=True, env=env, check=True)
+    value, tasks = out.stdout.split()
+    assert value == (given or "1")
+    if given is None:
+        assert int(tasks) == 1  # the main thread alone
