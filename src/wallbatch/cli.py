@@ -478,7 +478,11 @@ def main() -> None:
     with the command's exit code, once its output is flushed. Every command has closed its files
     by then; what Python's own exit would add is tearing down modules and freeing every object,
     with numba and NetCDF loaded ~0.01-0.04 s of a `wallbatch run`. (`app()` itself, as a program
-    that imports wallbatch calls it, exits through SystemExit as usual.)"""
+    that imports wallbatch calls it, exits through SystemExit as usual; so does `main()` under a
+    profiler or a tracer such as coverage, which write their results at Python's exit.)"""
+    if sys.getprofile() is not None or sys.gettrace() is not None:
+        app()
+        return
     try:
         app()
         code: Any = 0
