@@ -461,7 +461,8 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
             _stop_pool(pool)
             raise
         # every task is done: the workers exit while this process merges the parts (the pool's
-        # manager thread joins them; Python's exit waits for it)
+        # manager thread joins them; a worker left when the process ends gets its parent-death
+        # signal)
         pool.shutdown(wait=False)
 
 
