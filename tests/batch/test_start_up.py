@@ -6,6 +6,9 @@ as it was, and `wallbatch run` numbers do not depend on any of it."""
 from __future__ import annotations
 
 import gc
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -105,10 +108,6 @@ def test_the_command_line_starts_no_blas_threads_unless_asked(given):
     """NumPy's OpenBLAS starts a thread per core when NumPy is imported (~0.07 s of a command's
     start-up): the command line asks for one, i.e. none besides the main thread, unless the user
     set OPENBLAS_NUM_THREADS (then theirs is kept)."""
-    import os
-    import subprocess
-    import sys
-
     env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
     env["PYTHONPATH"] = str(ROOT / "src")
     if given is not None:
@@ -118,3 +117,31 @@ def test_the_command_line_starts_no_blas_threads_unless_asked(given):
     assert value == (given or "1")
     if given is None:
         assert int(tasks) == 1  # the main thread alone
+
+
+def _console(args: list[str], cwd: Path, **env: str) -> subprocess.CompletedProcess:
+    """`python -m wallbatch.cli ARGS` as the console script runs (cli.main), output through pipes."""
+    full = {**os.environ, "PYTHONPATH": str(ROOT / "src"), **env}
+    return subprocess.run([sys.executable, "-m", "wallbatch.cli", *args], cwd=cwd, capture_output=True, text=True,
+                          env=full, timeout=600)
+
+
+def test_the_console_script_exits_at_once_with_the_commands_code_and_its_output(tmp_path):
+    """cli.main ends the process without Python's teardown: the exit code is the command's (0 ok, 2
+    bad input), everything printed reaches the pipes, and the results file is complete (readable,
+    every case there)."""
+    sweep = sweep_file(tmp_path, 3, atoms=40, steps=20)
+    ok = _console(["run", str(sweep), "-o", "out.nc", "--force", "-j", "2"], tmp_path)
+    assert ok.returncode == 0, ok.stderr
+    assert ok.stdout.strip() == "3 of 3 case(s) ok -> out.nc"
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "out.nc") as ds:
+        assert list(ds["status"].values) == ["ok"] * 3
+        assert np.isfinite(ds["pe"].values).all()
+    assert not (tmp_path / "out.nc.parts").exists() and not (tmp_path / "out.nc.lock").exists()
+    bad = _console(["run", "missing.yaml"], tmp_path)
+    assert bad.returncode == 2
+    assert bad.stderr.startswith("error: invalid config") and "missing.yaml" in bad.stderr
+    version = _console(["--version"], tmp_path)
+    assert (version.returncode, version.stdout.startswith("wallbatch ")) == (0, True)
