@@ -49,6 +49,8 @@ import wallbatch.cli as cli
 from wallbatch.batch import runner
 note("imports done (cli, runner)")
 parent = os.getpid()
+if os.environ.get("WB_WINDOWS_PER_JOB"):  # to try other window sizes
+    runner.WINDOWS_PER_JOB = int(os.environ["WB_WINDOWS_PER_JOB"])
 def wrap(mod, name, before=None, after=None, only_parent=False):
     real = getattr(mod, name)
     def wrapped(*a, **k):
