@@ -101,10 +101,13 @@ def _fail(message: str, code: int = 2) -> typer.Exit:
 
 
 def _plan(config: Path, sets: list[str] | None):
-    from wallbatch import api
+    """The validated plan of CONFIG (what `wallbatch.load` does for a path), or exit 2 with the
+    problems. Only the config modules are needed: a bad config fails before the runner, the engine
+    and netCDF4 are imported."""
+    from wallbatch.config.sweep import load_plan
 
     try:
-        return api.load(config, sets or [])
+        return load_plan(Path(config), list(sets or []))
     except ConfigError as exc:
         typer.echo(f"error: invalid config\n{exc}", err=True)
         raise typer.Exit(2) from None
@@ -152,8 +155,6 @@ def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
 
     Ctrl-C (or SIGTERM) stops the run within seconds and keeps every finished case: rerun with
     --resume to compute only the rest."""
-    from wallbatch.batch.runner import Interrupted, RunError, run_plan
-
     if executor not in ("local", "dask"):
         raise _fail(f"--executor must be local or dask, not {executor!r}")
     if executor == "dask" and not scheduler:
@@ -162,7 +163,9 @@ def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
         raise _fail(f"--jobs {jobs}: give at least 1")
     if resume and fresh:
         raise _fail("--resume and --fresh contradict each other: give one")
-    plan = _plan(config, set_)
+    plan = _plan(config, set_)  # a bad config fails here, before the runner and the engine are imported
+    from wallbatch.batch.runner import Interrupted, RunError, run_plan
+
     _start_up_done()
     out = output or Path(config.stem + ".nc")
     if verbose:

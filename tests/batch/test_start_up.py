@@ -145,3 +145,19 @@ def test_the_console_script_exits_at_once_with_the_commands_code_and_its_output(
     assert bad.stderr.startswith("error: invalid config") and "missing.yaml" in bad.stderr
     version = _console(["--version"], tmp_path)
     assert (version.returncode, version.stdout.startswith("wallbatch ")) == (0, True)
+
+
+def test_a_bad_config_fails_before_the_runner_and_engine_are_imported(tmp_path):
+    """`wallbatch run` with a config that cannot be read or validated says so without importing the
+    runner, the engine or netCDF4 (the error comes in a fraction of the run's start-up)."""
+    (tmp_path / "bad.yaml").write_text("units: lj\nbox: {lo: [0, 0, 0], hi: [1, 1, 1]}\nrun: {steps: -5}\n")
+    probe = ("import sys\nimport wallbatch.cli as cli\nsys.argv = ['wallbatch', 'run', sys.argv[1]]\n"
+             "try:\n    cli.app()\nexcept SystemExit as exc:\n    code = exc.code\n"
+             "print(code, *(m in sys.modules for m in ('wallbatch.batch.runner', 'wallbatch.engine.engine', "
+             "'netCDF4')))\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    for name in ("missing.yaml", "bad.yaml"):
+        out = subprocess.run([sys.executable, "-c", probe, name], cwd=tmp_path, capture_output=True, text=True,
+                             env=env, check=True)
+        assert out.stdout.split() == ["2", "False", "False", "False"], (name, out.stdout, out.stderr)
+        assert out.stderr.startswith("error: invalid config")
