@@ -340,7 +340,11 @@ def _set_up_numba() -> None:
     try:
         from wallbatch.engine import compiled
 
-        compiled.enabled()  # numba imports; backend.prepare_numba loads its registries now, not at the first kernel
+        if compiled.enabled():  # numba imports
+            from numba.core.registry import cpu_target
+
+            cpu_target.typing_context.refresh()  # its registries load now, not at the first kernel
+            cpu_target.target_context.refresh()
     finally:
         if frozen:
             gc.freeze()
