@@ -315,7 +315,8 @@ if njit is not None:
                     outputs: bool) -> tuple[float, float]:
         """Add the pair forces of one case (positions xc (N, 3), half list ow/fr/nc) into fc (N, 3);
         with outputs, return (energy, virial): the energy shifted by off per pair inside rc and
-        the virial sum fpair r^2, each summed over the list in order (else (0, 0)).
+        the virial sum fpair r^2, each summed per row in list order, then the rows' sums in row
+        order (else (0, 0)): the order `forces_threaded` keeps, so threads give the same bits.
 
         Per row s of the list (atom i = ow[s]), three passes: gather the separations x_i - x_j
         into contiguous buffers, compute the pair terms for all of them in one vectorised loop
@@ -360,9 +361,12 @@ if njit is not None:
             fc[i, 1] += fi1
             fc[i, 2] += fi2
             if outputs:
+                er, wr = 0.0, 0.0
                 for k in range(n):
-                    esum += te[k]
-                    wsum += tw[k]
+                    er += te[k]
+                    wr += tw[k]
+                esum += er
+                wsum += wr
         return esum, wsum
 
     forces_case = _keyed(forces_case)
@@ -400,12 +404,15 @@ if njit is not None:
     def forces_part(xc: np.ndarray, fc: np.ndarray, ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, s_lo: int,
                     s_hi: int, part: int, firstp: np.ndarray, mixed: np.ndarray, lj: np.ndarray, lv: np.ndarray,
                     q0: int, e24: float,
-                    e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray, periodic: np.ndarray) -> int:
-        """The rows s_lo .. s_hi - 1 of `forces_case` (forces only), part `part` of a `RowSplit`:
-        each pair's terms and each row's sum as there; an addition to an atom this part touches
-        first (firstp) goes into fc at once, any other waits in the log (lj: the atom, lv: the
-        value added, from q0 on; only rows with mixed[s] have partners of other parts) for `_replay`, which adds it after the parts before. Returns the
-        end of the log written. Parts run at once in threads: each writes only its own atoms of fc."""
+                    e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray, periodic: np.ndarray,
+                    outputs: bool, rowew: np.ndarray) -> int:
+        """The rows s_lo .. s_hi - 1 of `forces_case`, part `part` of a `RowSplit`: each pair's
+        terms and each row's sum as there; an addition to an atom this part touches first (firstp)
+        goes into fc at once, any other waits in the log (lj: the atom, lv: the value added, from
+        q0 on; only rows with mixed[s] have partners of other parts) for `_replay`, which adds it
+        after the parts before. With outputs, rowew[s] = the row's energy and virial sums (as
+        forces_case's; `_row_sums` adds them in row order). Returns the end of the log written.
+        Parts run at once in threads: each writes only its own atoms of fc and its own rows."""
         inv0 = 1.0 / length[0] if periodic[0] else 0.0
         inv1 = 1.0 / length[1] if periodic[1] else 0.0
         inv2 = 1.0 / length[2] if periodic[2] else 0.0
@@ -413,8 +420,9 @@ if njit is not None:
         most = 0
         for s in range(s_lo, s_hi):
             most = max(most, fr[s + 1] - fr[s])
-        buf = np.empty((6, most))
+        buf = np.empty((8 if outputs else 6, most))
         gx, gy, gz, tx, ty, tz = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]
+        te, tw = (buf[6], buf[7]) if outputs else (buf[0], buf[0])
         q = q0
         for s in range(s_lo, s_hi):
             i = ow[s]
@@ -426,8 +434,8 @@ if njit is not None:
                 gx[k] = xi0 - xc[j, 0]
                 gy[k] = xi1 - xc[j, 1]
                 gz[k] = xi2 - xc[j, 2]
-            _pair_terms(n, gx, gy, gz, tx, ty, tz, buf[0], buf[0], False, e24, e4, s2c, rcut2, off, inv0, inv1,
-                        inv2, L0, L1, L2)
+            _pair_terms(n, gx, gy, gz, tx, ty, tz, te, tw, outputs, e24, e4, s2c, rcut2, off, inv0, inv1, inv2,
+                        L0, L1, L2)
             fi0, fi1, fi2 = 0.0, 0.0, 0.0
             if mixed[s]:  # some partner is another part's first: its additions wait in the log
                 for k in range(n):
@@ -462,9 +470,37 @@ if njit is not None:
                 lj[q] = i
                 lv[q, 0], lv[q, 1], lv[q, 2] = fi0, fi1, fi2
                 q += 1
+            if outputs:
+                er, wr = 0.0, 0.0
+                for k in range(n):
+                    er += te[k]
+                    wr += tw[k]
+                rowew[s, 0] = er
+                rowew[s, 1] = wr
         return q
 
     forces_part = _keyed(forces_part)
+
+    @jit
+    def _first_marks(marks: np.ndarray, a_lo: int, a_hi: int, firstp: np.ndarray) -> None:
+        """firstp[j] = the first part p with marks[p, j] (0 if none), for a_lo <= j < a_hi."""
+        parts = marks.shape[0]
+        for j in range(a_lo, a_hi):
+            firstp[j] = 0
+        for p in range(parts - 1, -1, -1):
+            for j in range(a_lo, a_hi):
+                if marks[p, j]:
+                    firstp[j] = p
+
+    @jit
+    def _row_sums(rowew: np.ndarray) -> tuple[float, float]:
+        """The energy and virial of `forces_part`'s rows (rowew (rows, 2)), added in row order: the
+        bits of `forces_case`'s sums."""
+        esum, wsum = 0.0, 0.0
+        for s in range(rowew.shape[0]):
+            esum += rowew[s, 0]
+            wsum += rowew[s, 1]
+        return esum, wsum
 
     @jit
     def _mixed(fr: np.ndarray, nc: np.ndarray, s_lo: int, s_hi: int, rb: np.ndarray, firstp: np.ndarray,
@@ -758,6 +794,9 @@ def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic
     return m
 
 
+_NO_ROWS = np.empty((0, 2))
+
+
 class RowSplit:
     """The parts of a list's threaded force pass: rows rb[p] .. rb[p+1] - 1 for part p (about equal
     pairs, or `build_threaded`'s parts with its marks); firstp[j] = the first part whose rows touch atom j (owner or partner), the one that
@@ -778,7 +817,9 @@ class RowSplit:
         else:  # the parts of `build_threaded` (about equal atoms) and its marks
             self.rb = rows.astype(np.int64)
         rb = self.rb
-        self.firstp = np.argmax(marks, axis=0).astype(np.uint8)  # the first part with a mark (0: none)
+        self.firstp = np.empty(nrow, np.uint8)  # the first part with a mark (0: none)
+        cut = [nrow * p // parts for p in range(parts + 1)]
+        run([lambda p=p: _first_marks(marks, cut[p], cut[p + 1], self.firstp) for p in range(parts)])
         self.mixed = np.zeros(nrow, np.uint8)  # rows of part 0 have none; the others' rows shared out
         cut = [int(rb[1]) + (nrow - int(rb[1])) * p // parts for p in range(parts + 1)]
         run([lambda p=p: _mixed(first, neigh, cut[p], cut[p + 1], rb, self.firstp, self.mixed) for p in range(parts)])
@@ -787,29 +828,40 @@ class RowSplit:
         self.logs = np.concatenate(([0], np.cumsum(room))).astype(np.int64)
         self.lj = np.empty(int(self.logs[-1]), np.int32)
         self.lv = np.empty((int(self.logs[-1]), 3))
+        self._rowew: np.ndarray | None = None
+
+    def row_outputs(self) -> np.ndarray:
+        """The (rows, 2) array the parts write each row's energy and virial sums into (kept)."""
+        if self._rowew is None:
+            self._rowew = np.empty((len(self.mixed), 2))
+        return self._rowew
 
 
 def forces_threaded(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray,
                     split: RowSplit, e24: float, e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray,
                     periodic: np.ndarray, run: Callable[[list], list] = threads._in_threads,
-                    replay: bool = True) -> np.ndarray:
-    """`forces_case` (forces only) with its rows cut in the parts of `split`, one per thread, then
-    the logged additions (`_replay`): every atom's force gets the same additions in the same order
-    as in `forces_case`, so the same bits. Returns each part's CPU seconds (its thread's). Without
-    `replay` the logs' ends are left in split.ends for the caller to replay (`_replay_atoms`)."""
+                    replay: bool = True, outputs: bool = False) -> tuple[np.ndarray, float, float]:
+    """`forces_case` with its rows cut in the parts of `split`, one per thread, then the logged
+    additions (`_replay`): every atom's force gets the same additions in the same order as in
+    `forces_case`, so the same bits; with outputs, so are the energy and virial (each row's sums,
+    then the rows in order). Returns (each part's CPU seconds (its thread's), energy, virial; 0, 0
+    without outputs). Without `replay` the logs' ends are left in split.ends for the caller to
+    replay (`_replay_atoms`)."""
     rb, logs = split.rb, split.logs
+    rowew = split.row_outputs() if outputs else _NO_ROWS
 
     def part(p: int) -> tuple[int, float]:
         t = time.thread_time()
         q = forces_part(x, f, owner, first, neigh, int(rb[p]), int(rb[p + 1]), p, split.firstp, split.mixed,
-                        split.lj, split.lv, int(logs[p]), e24, e4, s2c, rcut2, off, length, periodic)
+                        split.lj, split.lv, int(logs[p]), e24, e4, s2c, rcut2, off, length, periodic, outputs, rowew)
         return q, time.thread_time() - t
 
     got = run([lambda p=p: part(p) for p in range(len(rb) - 1)])
     split.ends = np.array([g[0] for g in got], np.int64)
     if replay:
         _replay(f, split.lj, split.lv, logs[:-1], split.ends)
-    return np.array([g[1] for g in got])
+    e, w = _row_sums(rowew) if outputs else (0.0, 0.0)
+    return np.array([g[1] for g in got]), e, w
 
 
 class Crew:
@@ -863,24 +915,26 @@ class Crew:
             t.join()
 
 
-def _chunk_threaded(kernel: Any, args: tuple, parts: int) -> tuple[int, int, np.ndarray]:
+def _chunk_threaded(kernel: Any, args: tuple, parts: int, held: dict | None = None) -> tuple[int, int, np.ndarray]:
     """`kernel(*args)` (a `pair_chunk` call of one case) over `parts` threads, step by step:
     the list build if due (`build_threaded`), the pair forces (`forces_threaded`), then on runs of
     atoms the kernel with `post` for the rest of the step (walls, lost atoms, final_integrate) and
     `_pre_step` for the start of the next (drift, wrap, list check): two meetings of the threads a
     step. With wall/flow the rest of the step runs on all atoms in one call (its random stream is
-    drawn atom after atom). A sampled chunk's last pair pass runs in one call (`forces_case` with
-    outputs: its energy and virial sums in list order). Every value is that of the one call, bit
+    drawn atom after atom). A sampled chunk's last pair pass gives the energy and virial too (each
+    row's sums by the parts, then the rows in order, as `forces_case`). Every value is that of the one call, bit
     for bit; returns what it returns (a chunk with trouble may stop at another step of it: the
-    caller discards it and the NumPy loop re-runs it)."""
+    caller discards it and the NumPy loop re-runs it). `held` carries what the next chunk of the
+    case can reuse: "split" (the `RowSplit` of the list the chunk ends with; in: that of the list it
+    starts with, or None) and "shares" (the parts' shares of the atoms for the next build)."""
     crew = Crew(parts)
     try:
-        return _chunk_steps(kernel, args, parts, crew)
+        return _chunk_steps(kernel, args, parts, crew, {} if held is None else held)
     finally:
         crew.close()
 
 
-def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int, int, np.ndarray]:
+def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict) -> tuple[int, int, np.ndarray]:
     """`_chunk_threaded`'s steps, the threads' calls run by `crew`."""
     a = dict(zip(_signature_names(kernel), args))
     nsteps, x, v, f, xref = a["nsteps"], a["x"], a["v"], a["f"], a["xref"]
@@ -889,7 +943,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
     dt, limit2, lj = a["dt"], a["limit2"], (a["e24"], a["e4"], a["s2c"], a["rcut2"], a["off"])
     N = x.shape[0]
     dtfm = _dtfm(a["mass"], dt, a["ftm2v"])
-    sf_val, sample = a["sf_val"], a["sample"]
+    sf_val, sample, fpair = a["sf_val"], a["sample"], a["fpair"]
     vary = sf_val.shape[0] > 1
     runs = [slice(N * p // parts, N * (p + 1) // parts) for p in range(parts)]
     a.update(nsteps=1, post=True, sample=False)
@@ -909,6 +963,8 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
         if pending is not None:  # this part's atoms' logged pair forces first
             r = runs[p] if len(tails) == parts else slice(0, N)
             _replay_atoms(f, pending.lj, pending.lv, pending.logs[:-1], pending.ends, r.start, r.stop)
+            if sample and step == nsteps - 1:  # the sample's pair forces (`pair_chunk`'s fpair)
+                fpair[r] = f[r]
         if t is not None:
             t.update(neigh=neigh, sf_val=sf_val[step:step + 1] if vary else sf_val)
             st = kernel(*t.values())[0]
@@ -919,11 +975,15 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
     def pres() -> int:
         return max(crew([lambda r=r: pre(r) for r in runs]))  # 3: a non-finite position
 
-    split = pending = None
+    pending = None
+    split = held.get("split")  # the starting list's, if the caller kept it
     builds = 0
     built = False  # the list is this chunk's build: its marks and parts serve RowSplit
     marks, rows = np.zeros((parts, N), np.uint8), np.empty(parts + 1, np.int64)
-    shares = np.arange(parts + 1) / parts
+    shares = held.get("shares")
+    if shares is None or len(shares) != parts + 1:
+        shares = np.arange(parts + 1) / parts
+    held["split"] = None  # (a chunk with trouble keeps nothing)
     st = pres()
     for step in range(nsteps):
         if st == 3:
@@ -942,17 +1002,16 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
             builds += 1
             split = None
             built = True
-        if sample and step == nsteps - 1:
-            e, w = forces_case(x, f, owner, first, neigh, *lj, length, per, True)
+        if split is None:
+            split = RowSplit(owner, first, neigh, parts, crew, *((marks, rows) if built else ()))
+        last = sample and step == nsteps - 1  # the sample's pair pass: also the energy and virial
+        cpu, e, w = forces_threaded(x, f, owner, first, neigh, split, *lj, length, per, crew, replay=False,
+                                    outputs=last)
+        pending = split  # its logs are replayed by tail_pre, each part its own atoms
+        if last:
             a["ew"][0], a["ew"][1] = e, w
-            a["fpair"][:] = f
-        else:
-            if split is None:
-                split = RowSplit(owner, first, neigh, parts, crew, *((marks, rows) if built else ()))
-            cpu = forces_threaded(x, f, owner, first, neigh, split, *lj, length, per, crew, replay=False)
-            pending = split  # its logs are replayed by tail_pre, each part its own atoms
-            if built and rows[0] >= 0 and cpu.min() > 0:  # next build: parts of about equal force time
-                shares = _rebalance(shares, rows / N, cpu)
+        if built and rows[0] >= 0 and cpu.min() > 0:  # next build: parts of about equal force time
+            shares = _rebalance(shares, rows / N, cpu)
         if len(tails) == parts:  # the rest of this step and the start of the next, atoms in parts
             got = crew([lambda p=p: tail_pre(p, step) for p in range(parts)])
         else:  # wall/flow: the rest of the step on all atoms, then the next start in parts
@@ -964,6 +1023,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
         if bad != 0:
             return bad, builds, neigh
         st = max(g[1] for g in got)
+    held["split"], held["shares"] = split, shares
     return 0, builds, neigh
 
 
@@ -1014,6 +1074,19 @@ class PairChunks:
         self.fallbacks = 0
         self.threaded_chunks = 0  # case chunks run by `_chunk_threaded`
         self.busy_skip = 0  # case chunks to run in one call before trying threads again
+        # a one-case batch's threaded chunk's (key, owner, first, held): its RowSplit and shares,
+        # for the next chunk if it starts from that very list (`_reuse`)
+        self._held: tuple | None = None
+
+    def _reuse(self, c: int, C: int, parts: int, owner: np.ndarray, first: np.ndarray, pair: Any) -> dict:
+        """What `_chunk_threaded` may reuse for case c (`held`): the last threaded chunk's, if it
+        left this very list (same case, builds, parts, owner and first), else a fresh dict."""
+        got, self._held = self._held, None
+        if got is None or got[0] != (c, C, int(pair.case_builds[c]), parts, len(owner)):
+            return {}
+        if not (np.array_equal(got[1], owner) and np.array_equal(got[2], first)):
+            return {}
+        return got[3]
 
     def advance_to_time(self, target: float) -> bool:
         return False
@@ -1089,9 +1162,11 @@ class PairChunks:
             if parts >= 2 and self.busy_skip > 0:  # the cores were busy with other work: one thread
                 self.busy_skip -= 1
                 parts = 1
+            held: dict = {}
             if parts >= 2:
+                held = self._reuse(c, C, parts, owner, first, pair)
                 wall, cpu = time.perf_counter(), time.process_time()
-                status, builds, neigh = _chunk_threaded(kernel, args, parts)
+                status, builds, neigh = _chunk_threaded(kernel, args, parts, held)
                 wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
                 self.threaded_chunks += 1
                 if wall > BUSY_MIN_WALL and cpu < THREAD_MIN_USE * parts * wall:
@@ -1099,19 +1174,23 @@ class PairChunks:
             else:
                 status, builds, neigh = kernel(*args)
             if status != 0:
+                self._held = None
                 if fk is not None:  # the NumPy loop re-runs the chunk with the same random numbers
                     for r, st in zip(fk.rngs, rng_states):
                         r.bit_generator.state = st
                 self.fallbacks += 1
                 return False
-            done.append((x, v, f, xref, owner, first, neigh, builds))
-        for c, (x, v, f, xref, owner, first, neigh, builds) in enumerate(done):
+            done.append((x, v, f, xref, owner, first, neigh, builds, held))
+        for c, (x, v, f, xref, owner, first, neigh, builds, held) in enumerate(done):
             s.x[c], s.v[c], s.f[c] = x, v, f
             pair._xref[c], pair._owner[c], pair._first[c] = xref, owner, first
             if builds:
                 pair.adopt_list(c, neigh)
             pair.builds += builds
             pair.case_builds[c] += builds
+            if held.get("split") is not None and C == 1:  # the next chunk's RowSplit, if the list stays
+                self._held = ((c, C, int(pair.case_builds[c]), len(held["shares"]) - 1, N), owner.copy(),
+                              first.copy(), held)
         if sample:  # the sample's pair.compute at these positions takes them instead of a second pass
             pair.remember(s.x, fpair, ew[:, 0].copy(), ew[:, 1].copy())
         s.step += nsteps
