@@ -1133,9 +1133,13 @@ class PairChunks:
 
     def _reuse(self, c: int, C: int, parts: int, owner: np.ndarray, first: np.ndarray, pair: Any) -> dict:
         """What `_chunk_threaded` may reuse for case c (`held`): the last threaded chunk's, if it
-        left this very list (same case, builds, parts, owner and first), else a fresh dict."""
+        left this very list (same case, builds, parts, owner and first), or the split of the pair's
+        own threaded pass on it (`PairLJCut.compute` of one case, e.g. the set-up's), else a fresh dict."""
         got, self._held = self._held, None
         if got is None or got[0] != (c, C, int(pair.case_builds[c]), parts, len(owner)):
+            own = getattr(pair, "_split", None)
+            if C == 1 and own is not None and own[0] == pair.builds and len(own[1].rb) == parts + 1:
+                return {"split": own[1]}  # the list has not been rebuilt since that pass
             return {}
         if not (np.array_equal(got[1], owner) and np.array_equal(got[2], first)):
             return {}
