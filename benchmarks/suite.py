@@ -425,6 +425,36 @@ def every_step_one() -> dict:
     return speed("lj93 gas slit sampled every step, one case", gas_slit(n, "lj93", steps=steps, thermo=1))
 
 
+@row("every-step-kinds", at_least(1))
+def every_step_kinds() -> dict:
+    """Every scene kind of benchmarks/every_step.py (flat, region sphere and cylinder, flow gas,
+    nvt, langevin, 2-D, table, dt/reset, lepton, stochastic, ellipsoids with ees, region/ees),
+    N = 1000, sampled every step (thermo 1 in both), 3x that script's steps; the value is the
+    worst ratio, the note lists every one."""
+    import every_step  # noqa: PLC0415
+
+    ratios: dict[str, float] = {}
+    wb = lmp = 0.0
+    why = []
+    for name, make in every_step.scenes(common, 3.0 * SCALE).items():
+        r = speed(name, make())
+        if r.get("ratio") is None:
+            why.append(f"{name}: {r.get('why', 'no ratio')}")
+            continue
+        ratios[name] = r["ratio"]
+        wb += r["wb_s"]
+        lmp += r["lmp_s"]
+    worst = min(ratios, key=ratios.get) if ratios else "none"
+    met = sum(v >= 1.0 for v in ratios.values())
+    out = {"scene": f"{len(ratios)} scene kinds sampled every step, worst of them", "N": every_step.N,
+           "steps": "6000/3000", "wb": f"{wb:.2f} s in all", "lmp": f"{lmp:.2f} s in all",
+           "note": f"{met} of {len(ratios)} at >= 1x; worst {worst}; "
+                   + ", ".join(f"{k} {v:.2f}" for k, v in ratios.items()) + ("; " + "; ".join(why) if why else "")}
+    if ratios and not why:
+        out["ratio"] = out["value"] = ratios[worst]
+    return out
+
+
 # ----------------------------------------------------------------------------- rows: whole processes
 
 

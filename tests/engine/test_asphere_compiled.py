@@ -164,6 +164,9 @@ def test_compiled_richardson_is_the_numpy_one_bit_for_bit():
     np.testing.assert_array_equal(want[:5], q[:5])
 
 
+# numba's pedantic SSA note on the inlined Horner loop when `_series` compiles (benign; the engine
+# hides it the same way around its chunk call)
+@pytest.mark.filterwarnings("ignore::numba.core.errors.NumbaIRAssumptionWarning")
 def test_compiled_ees_pieces_are_the_numpy_ones():
     """r from just above sigma_n (closed forms) to far (series): E, F, T_w and the torque and
     sigma_n of the compiled pieces equal ees_energy_force_torque / ees_torque / sigma_n."""
@@ -259,3 +262,82 @@ def test_region_ees_too_close_falls_back_and_fails_as_numpy(monkeypatch):
     ref, got, eng = check(monkeypatch, [d], compiled=False)
     assert got[0].status == "failed" and "wall/region/ees" in got[0].error
     assert eng.fast.fallbacks >= 1
+
+
+# ----------------------------------------------------------------------------- samples in the kernel
+
+SAMPLED_OUT = ["step", "time", "dt", "temp", "ke", "pe", "etot", "erot", "press", "atoms"]  # + the fixes' outputs
+
+
+def sampled_check(monkeypatch, configs, nsamples):
+    """Both ways, every output to 1e-14; the compiled run's samples (all but step 0's) came from
+    the kernel (AspherePath.advance_sampled: sample blocks, no NumPy outputs), and the same run with
+    the kernel's samples switched off (one chunk per sample, NumPy's outputs at its positions) gives
+    the same trajectory bit for bit and the same outputs to 1e-14."""
+    ref, got, eng = check(monkeypatch, configs)
+    assert eng.fast.fallbacks == 0 and eng.fast.sampled_calls > 0
+    assert len(eng.samples) == 1 and sum(b[2]["step"].shape[1] for b in eng.sample_blocks) == nsamples
+    monkeypatch.setattr(ac, "sampled_eligible", lambda plan: False)
+    plain = Engine([build_case(config_from_dict(d)) for d in configs])
+    one_by_one = plain.run()
+    assert plain.fast.sampled_calls == 0 and not plain.sample_blocks and plain.fast.compiled_chunks == nsamples
+    for name in ("x", "v", "quat", "angmom"):
+        np.testing.assert_array_equal(getattr(plain.state, name), getattr(eng.state, name), err_msg=name)
+    assert_same(one_by_one, got)  # NumPy's vectorised log (closed forms) vs libm's: an ulp at times
+    return ref, got, eng
+
+
+@pytest.mark.parametrize("thermo", [1, 7])
+def test_flat_ees_sampled_in_the_kernel(monkeypatch, thermo):
+    """Three cases between two wall/ees faces (one on a group of rods, point atoms too), sampled
+    every step and every 7th: energies, forces on each face, erot, ke, temp, press from the kernel."""
+    dots = {"group": "dots", "create": {"positions": [[4.0, 3.0, 3.0], [4.5, 9.0, 5.0]]}, "mass": 2.0,
+            "velocity": {"values": [[0.01, 0.02, 0.3], [-0.01, 0.0, -0.4]]}}
+    configs = []
+    for eps, sigma, seed in ((2.0, 1.0, 7), (0.7, 1.2, 8), (3.5, 0.8, 9)):
+        face = {"coord": "EDGE", "epsilon": eps, "sigma": sigma, "cutoff": 3.0}
+        d = slit(n=70, steps=84, thermo=thermo, seed=seed, extra_atoms=(dots,),
+                 walls={"lo": {"style": "ees", "units": "box", "group": "rods", "energy": True, "zlo": dict(face)},
+                        "hi": {"style": "ees", "units": "box", "group": "rods", "zhi": dict(face)}})
+        d["output"]["thermo"] = list(SAMPLED_OUT)
+        configs.append(d)
+    ref, got, _ = sampled_check(monkeypatch, configs, 84 // thermo)
+    for r in got:
+        assert np.count_nonzero(r.data["wall_force"][:, 0]) > 84 // thermo // 2
+        assert np.count_nonzero(r.data["wall_force"][:, 1]) > 84 // thermo // 2
+        assert np.ptp(r.data["erot"]) > 1e-5 and np.ptp(r.data["wall_energy"][:, 0]) > 1e-5
+
+
+@pytest.mark.parametrize("name", sorted(REGIONS))
+def test_region_ees_sampled_in_the_kernel(monkeypatch, name):
+    """Every region kind (block and cylinder in: several contacts per atom, summed slot by slot)
+    sampled every step, two cases; a flat wall/ees face in the block and cylinder scenes too."""
+    region, start, boundary = REGIONS[name]
+    configs = [region_scene(region, start=start, boundary=boundary, steps=60, thermo=1),
+               region_scene(region, start=start, boundary=boundary, eps=0.8, seed=5, steps=60, thermo=1)]
+    for d in configs:
+        d["output"]["thermo"] = list(SAMPLED_OUT)
+        if boundary[2] == "f" and name != "sphere in":
+            d["walls"]["floor"] = {"style": "ees", "units": "box", "energy": True,
+                                   "zlo": {"coord": 0.3, "epsilon": 1.0, "sigma": 1.0, "cutoff": 5.0}}
+    ref, got, _ = sampled_check(monkeypatch, configs, 60)
+    for r in got:
+        assert np.count_nonzero(r.data["region_force"]) > 60 and np.ptp(r.data["pe"]) > 1e-5
+
+
+def test_trouble_in_a_sampled_call_falls_back_and_fails_as_numpy(monkeypatch):
+    """A rod driven into a weak wall while every 5th step is sampled in the kernel: the call with
+    the trouble is handed back (its instants one at a time, NumPy reporting the failure with its
+    message); the other case runs on, its later samples from the kernel again."""
+    fast_rod = slit(n=20, eps=0.05, steps=400, thermo=5)
+    fast_rod["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 4.0]]}, **ROD,
+                              "velocity": {"values": [[0.0, 0.0, -30.0]]}})
+    calm = slit(n=20, eps=0.05, steps=400, thermo=5, seed=8)
+    calm["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 4.0]]}, **ROD,
+                          "velocity": {"values": [[0.0, 0.0, 0.1]]}})
+    monkeypatch.setattr("wallbatch.engine.engine.SAMPLES_PER_CALL", 16)
+    ref, got, eng = check(monkeypatch, [fast_rod, calm])
+    assert [r.status for r in got] == ["failed", "ok"]
+    assert "Particle on or inside fix wall surface" in got[0].error
+    assert eng.fast.fallbacks >= 1 and eng.fast.sampled_calls >= 2 and len(eng.samples) > 1
+    assert np.isfinite(got[1].data["pe"]).all() and got[1].data["step"][-1] == 400

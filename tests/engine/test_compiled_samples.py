@@ -227,13 +227,35 @@ def test_region_walls_sampled_every_step(monkeypatch, shape):
         assert np.count_nonzero(r.data["wall_energy"][:, 1]) > 5
 
 
-def test_stochastic_reflect_keeps_the_sample_by_sample_path(monkeypatch):
-    """wall/reflect/stochastic (its statistics are not recorded per sample in the kernel) runs its
-    steps compiled and samples in NumPy every step, with the same numbers."""
-    walls = {**lj93(), "s": {"style": "reflect/stochastic", "rstyle": "diffusive", "seed": 77, "units": "box",
-                             "zhi": {"coord": 6.6, "temp": 1.0}}}
-    _, got, eng = check(monkeypatch, [gas(walls, steps=100, output=REFLECT_OUT)], sampled=False)
-    assert eng.fast._sampled_refused and got[0].data["reflect_count"].sum() > 0
+STOCHASTIC = {
+    "diffusive": {"rstyle": "diffusive", "zlo": {"coord": 1.55, "temp": 1.0}},
+    "maxwell": {"rstyle": "maxwell", "zlo": {"coord": 1.55, "temp": 0.7, "vel": [0.3, 0.0, 0.0], "accom": 0.4}},
+    "ccl": {"rstyle": "ccl", "zlo": {"coord": 1.55, "temp": 0.5, "vel": [0.2, -0.1, 0.0], "accom": [0.3, 0.8, 0.6]}},
+}
+
+
+@pytest.mark.parametrize("thermo", [1, 3])
+@pytest.mark.parametrize("rstyle", ["diffusive", "maxwell", "ccl"])
+def test_stochastic_reflect_sampled_in_the_kernel(monkeypatch, rstyle, thermo):
+    """wall/reflect/stochastic (after a wall/reflect face, with a soft wall) sampled every step and
+    every third step: a sweep of three cases (own seeds and temperatures, one case per call with
+    its generator) records its reflection counts and impulses in the kernel, after the wall/reflect
+    ones, and every output and random stream is the NumPy engine's bit for bit."""
+    configs = []
+    for k, (seed, temp) in enumerate(((77, 1.0), (78, 2.0), (79, 0.6))):
+        st = copy.deepcopy(STOCHASTIC[rstyle])
+        st["zlo"]["temp"] = st["zlo"]["temp"] * temp
+        walls = {**lj93(), "r": {"style": "reflect", "units": "box", "zhi": 6.45},
+                 "s": {"style": "reflect/stochastic", "seed": seed, "units": "box", **st}}
+        configs.append(gas(walls, steps=150, thermo=thermo, output=REFLECT_OUT, seed=5 + k, temperature=1.5 * temp))
+    ref, got, eng = check(monkeypatch, configs)
+    assert eng.fast.fallbacks == 0 and not eng.fast._sampled_refused and eng.fast.sampled_calls > 0
+    for r in got:
+        count = r.data["reflect_count"]
+        assert count.shape == (150 // thermo + 1, 2)
+        assert count[:, 0].sum() > 5 and count[:, 1].sum() > 5  # both faces reflected atoms
+        assert np.count_nonzero(count[:, 1]) > 3  # reset at each sample: counts spread over samples
+    assert not np.array_equal(got[0].data["reflect_count"], got[1].data["reflect_count"])
 
 
 # ----------------------------------------------------------------------------- fixes, dt/reset, flow

@@ -140,15 +140,17 @@ WALLS = {
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("thermo", [100, 1])
 @pytest.mark.parametrize("rstyle", ["diffusive", "maxwell", "ccl"])
-def test_compiled_equals_numpy_bit_for_bit(rstyle, monkeypatch):
+def test_compiled_equals_numpy_bit_for_bit(rstyle, thermo, monkeypatch):
     """wall/reflect/stochastic in the compiled chunk kernel (one case per call with the case's
     generator, the same plain functions, the same draws in the same order): three cases in one
     batch (their own streams) give the NumPy engine's trajectories, counts and impulses bit for
-    bit, with a wall/reflect fix before it and a soft wall in the scene."""
+    bit, with a wall/reflect fix before it and a soft wall in the scene; sampled every 100 steps or
+    every step, the samples come from the kernel (sampled chunks)."""
     walls = ("  top: {style: reflect, units: box, zhi: 9.5}\n" + WALLS[rstyle]
              + "  soft: {style: harmonic, units: box, zlo: {coord: EDGE, epsilon: 3.0, cutoff: 0.5}}\n")
-    cfg = load_config_text(scene(walls, count=300, steps=400, thermo=100))
+    cfg = load_config_text(scene(walls, count=300, steps=400, thermo=thermo))
     cases = [build_case(cfg, (k,)) for k in range(3)]
     numpy_res, compiled, engine = run_numpy_and_compiled(monkeypatch, cases)
     assert isinstance(engine.reflect[-1], StochasticKernel)
@@ -156,6 +158,7 @@ def test_compiled_equals_numpy_bit_for_bit(rstyle, monkeypatch):
     assert all(n.status == "ok" and n.data["reflect_count"][1:, 1:].sum() > 0 for n in numpy_res)
     assert_same_results(numpy_res, compiled)  # every output, bit for bit
     assert not np.array_equal(numpy_res[0].data["temp"], numpy_res[1].data["temp"])
+    assert engine.fast.sampled_calls > 0 and len(engine.samples) == 1  # all but step 0's from the kernel
 
 
 def test_compiled_path_declines_what_it_does_not_run():

@@ -26,9 +26,14 @@ Eligible (`eligible`): ellipsoids (fix nve/asphere on every atom), wall/ees face
 parameters and nothing else (no pair, thermostats, reflect, flow, region or other flat walls,
 dt/reset, run-to-time). A chunk that meets trouble (an ellipsoid on or inside a wall, a lost
 atom, a non-finite value) leaves the state as it was and is re-run by the NumPy loop, which
-reports exactly as always. The outputs of a sampled step come from the NumPy
-`Engine.compute_forces` at the final positions, as in engine/compiled.py. `WALLBATCH_NUMBA=0`
-selects the NumPy path. The kernel is cached on disk (numba cache=True).
+reports exactly as always. Samples (`AspherePath.advance_sampled`) are computed in the kernel: a
+run of sample steps per call, the stretches between them one after the other (each block by block),
+each sample's per-atom energies, wall forces, m v^2 and rotational energy kept on its last step and
+summed over all atoms in the NumPy path's orders (np.bincount's atom order, region contacts slot by
+slot, NumPy's pairwise sum), appended by `ChunkPlan.record_samples`; `advance` (one chunk, the
+outputs of its last step from the NumPy `Engine.compute_forces` at the final positions, as in
+engine/compiled.py) serves the rest. `WALLBATCH_NUMBA=0` selects the NumPy path. The kernel is
+cached on disk (numba cache=True).
 """
 
 from __future__ import annotations
@@ -43,11 +48,12 @@ from typing import Any
 import numpy as np
 
 from wallbatch.engine import compiled as _compiled
+from wallbatch.engine import thermostats as _th
 from wallbatch.engine.compiled import REGION_KINDS, ChunkPlan, enabled
 from wallbatch.engine.region_walls import RegionEESKernel
 from wallbatch.engine.walls import EESWallKernel
 from wallbatch.geometry import quaternion as _quat
-from wallbatch.geometry.quaternion import richardson_step, rotation_rows
+from wallbatch.geometry.quaternion import richardson_step, rotation_rows, rotational_energy_of
 from wallbatch.styles import ees as _ees
 from wallbatch.styles.ees import ees_closed, ees_combine, ees_ratios, ees_series, sigma_n_of, torque_of
 
@@ -61,10 +67,11 @@ except Exception:  # noqa: BLE001 - any import failure means "no compiled path"
 
 BLOCK = 64  # atoms per block: their buffer (NROW doubles each) stays in L1 cache over the chunk
 # rows of the block buffer: positions, velocities, forces (FR, then T right after: cleared together),
-# torques, quaternions, angular momenta, semi-axes, moments of inertia, dt/2 ftm2v / m, and a face's
-# distance, sigma_n, G, K and contact flag
-X, V, FR, T, Q, L, S, IN, DTFM, R, SN, G, K, NEAR = 0, 3, 6, 9, 12, 16, 19, 22, 25, 26, 27, 28, 29, 30
-NROW = 31
+# torques, quaternions, angular momenta, semi-axes, moments of inertia, dt/2 ftm2v / m, a face's
+# distance, sigma_n, G, K and contact flag, and a contact's energy and force (the outputs of a
+# sample: a flat face's side F in W; a region's F n in W..W+2)
+X, V, FR, T, Q, L, S, IN, DTFM, R, SN, G, K, NEAR, E, W = 0, 3, 6, 9, 12, 16, 19, 22, 25, 26, 27, 28, 29, 30, 31, 32
+NROW = 35
 SERIES_T = 0.5  # ees_energy_force_torque: series for sigma_n/r below this, closed form above
 
 
@@ -73,7 +80,7 @@ def _fingerprint() -> int:
     outside this file (geometry/quaternion.py, styles/ees.py, compiled._region_contacts): part of
     the kernel's on-disk cache key (numba keys a cached function by its own file only)."""
     h = hashlib.sha256()
-    for src in (inspect.getsource(_quat), inspect.getsource(_ees),
+    for src in (inspect.getsource(_quat), inspect.getsource(_ees), inspect.getsource(_th),
                 inspect.getsource(_compiled._region_contacts.py_func)):
         h.update(src.encode())
     return int(h.hexdigest()[:15], 16)
@@ -91,7 +98,8 @@ if njit is not None:
     # the shared plain-arithmetic functions and their helpers, compiled as they are wherever a
     # compiled function calls them
     for _fn in (_quat.rotation_rows, _quat.to_body, _quat.to_space, _quat.body_omega, _quat.omega_quat,
-                _quat.normalized, _quat._omega_of, _quat.richardson_step, _ees._horner, _ees.ees_ratios,
+                _quat.normalized, _quat._omega_of, _quat.richardson_step, _quat.rotational_energy_of,
+                _ees._horner, _ees.ees_ratios,
                 _ees.ees_series, _ees.ees_closed, _ees.ees_combine, _ees.sigma_n_of, _ees.torque_of):
         # inlined in numba's IR: the loops over atoms see the whole arithmetic and vectorise (2x faster
         # than leaving the inlining to LLVM)
@@ -106,6 +114,9 @@ if njit is not None:
     _closed = njit(nogil=True, error_model="numpy", inline="always")(ees_closed)
     _combine = njit(nogil=True, error_model="numpy", inline="always")(ees_combine)
     _torque = njit(nogil=True, error_model="numpy", inline="always")(torque_of)
+    _erot = njit(nogil=True, error_model="numpy", inline="always")(rotational_energy_of)
+    _mv2 = njit(nogil=True, error_model="numpy", inline="always")(_th.atom_mv2)
+    _pairwise = _compiled._th_pairwise  # NumPy's summation order of x.sum(axis=-1)
 
     @inline
     def _unit(d, side, axis):
@@ -179,6 +190,8 @@ if njit is not None:
             a = _rotation(B[_o(Q) + i], B[_o(Q + 1) + i], B[_o(Q + 2) + i], B[_o(Q + 3) + i])
             t0, t1, t2 = _torque(a, B[_o(S) + i], B[_o(S + 1) + i], B[_o(S + 2) + i], n0, n1, n2, tw)
             near = B[_o(NEAR) + i] != 0.0
+            B[_o(E) + i] = e  # a sample's outputs (`_keep_face`)
+            B[_o(W) + i] = sidef * f
             fi = B[of_ + i]
             B[of_ + i] = fi - sidef * f if near else fi
             ti = B[_o(T) + i]
@@ -190,18 +203,36 @@ if njit is not None:
         return nbad
 
     @inline
-    def _region_ees(B, RB, nslot, nb, eps, sig):
+    def _keep_face(B, nb, a0, P):
+        """A sample step's outputs of one flat face on the block into P (3, N) at atoms a0..:
+        contact flag, energy, side F (walls.EESWallKernel.apply's bincount weights)."""
+        for i in range(nb):
+            P[0, a0 + i] = B[_o(NEAR) + i]
+            P[1, a0 + i] = B[_o(E) + i]
+            P[2, a0 + i] = B[_o(W) + i]
+
+    @inline
+    def _region_ees(B, RB, nslot, nb, eps, sig, rec, a0, P):
         """The wall/region/ees forces and torques of a block's contacts in RB (region_walls.
         RegionEESKernel.apply): normal n = delta / r, sigma_n along n, F += F n, T += tau, slot by
         slot (each atom adds its contacts in the order np.add.at does). As _ees_face, branch-free
         passes over the block (series for every atom, closed forms only where needed, then the
-        force and torque where RB flags a contact). Returns the number of contacts with r <= sigma_n."""
+        force and torque where RB flags a contact). Returns the number of contacts with r <= sigma_n.
+        With `rec` (a sample step) each slot's contact flag, energy and F n go to P[slot] (6, 5, N)
+        at atoms a0.. (region_walls.RegionEESKernel.apply's bincount weights, slot by slot)."""
         nbad = 0
+        if rec:
+            for j in range(nslot, 6):
+                for i in range(nb):
+                    P[j, 0, a0 + i] = 0.0
         for j in range(nslot):
             ncontact = 0
             for i in range(nb):
                 ncontact += RB[j, 0, i] != 0.0
             if ncontact == 0:  # e.g. the faces of a block that no atom of the block is near
+                if rec:
+                    for i in range(nb):
+                        P[j, 0, a0 + i] = 0.0
                 continue
             nclosed = 0
             for i in range(nb):
@@ -233,6 +264,10 @@ if njit is not None:
                 a = _rotation(B[_o(Q) + i], B[_o(Q + 1) + i], B[_o(Q + 2) + i], B[_o(Q + 3) + i])
                 t0, t1, t2 = _torque(a, B[_o(S) + i], B[_o(S + 1) + i], B[_o(S + 2) + i], n0, n1, n2, tw)
                 contact = RB[j, 0, i] != 0.0
+                B[_o(E) + i] = e
+                B[_o(W) + i] = f * n0
+                B[_o(W + 1) + i] = f * n1
+                B[_o(W + 2) + i] = f * n2
                 fi = B[_o(FR) + i]
                 B[_o(FR) + i] = fi + f * n0 if contact else fi
                 fi = B[_o(FR + 1) + i]
@@ -245,25 +280,51 @@ if njit is not None:
                 B[_o(T + 1) + i] = ti + t1 if contact else ti
                 ti = B[_o(T + 2) + i]
                 B[_o(T + 2) + i] = ti + t2 if contact else ti
+            if rec:
+                for i in range(nb):
+                    P[j, 0, a0 + i] = RB[j, 0, i]
+                    P[j, 1, a0 + i] = B[_o(E) + i]
+                    P[j, 2, a0 + i] = B[_o(W) + i]
+                    P[j, 3, a0 + i] = B[_o(W + 1) + i]
+                    P[j, 4, a0 + i] = B[_o(W + 2) + i]
         return nbad
+
+    @inline
+    def _bincount_sum(P, row, natom):
+        """sum of P[row, a] over the atoms with a contact (P[0, a] != 0) in atom order, from 0.0:
+        np.bincount's sum of one case."""
+        acc = 0.0
+        for a in range(natom):
+            if P[0, a] != 0.0:
+                acc += P[row, a]
+        return acc
 
     def _make_run_chunk(fingerprint: int) -> Any:
         """The chunk kernel; `fingerprint` (see _fingerprint) joins its on-disk cache key."""
 
         @jit
-        def _run_chunk(nsteps, x, v, f, quat, angmom, torque, mass, shape, inertia, dt, lo, hi, periodic, ftm2v,
-                       ef_meta, ef_val, groups, rg_meta, rg_geo, rg_val, xo, vo, fo, qo, lo_, to):
-            """Advance every case by nsteps steps, reading x, v, f, quat, angmom, torque and writing
-            xo, vo, fo, qo, lo_, to. ef_meta (K, 3) int: dim, side, group row of each wall/ees face;
-            ef_val (C, K, 4): coord, epsilon, sigma, cutoff. rg_meta (KR, 3) int: kind (REGION_KINDS),
-            axis, group row of each wall/region/ees fix; rg_geo (KR, 10): lo xyz, hi xyz, radius,
-            centre (compiled.py's layout); rg_val (C, KR, 3): epsilon, sigma, cutoff. Returns 0, or the
-            status of the first trouble met (1: an ellipsoid on or inside a wall, or on the wrong side
-            of a region, 2: a lost atom, 3: a non-finite value); the caller then falls back to NumPy.
+        def _run_chunk(at, rec, x, v, f, quat, angmom, torque, mass, shape, inertia, dt, lo, hi, periodic, ftm2v,
+                       ef_meta, ef_val, groups, rg_meta, rg_geo, rg_val, xo, vo, fo, qo, lo_, to,
+                       sm_face, sm_reg, sm_kin):
+            """Advance every case by at[-1] steps, reading x, v, f, quat, angmom, torque and writing
+            xo, vo, fo, qo, lo_, to. at (S,) int: the steps (from now, increasing) that end the
+            stretches run one after the other; with `rec` each of them is a sample step whose outputs
+            go to sm_face (C, S, K, 2): each wall/ees face's energy and side F summed over its contacts,
+            sm_reg (C, S, KR, 4): each wall/region/ees fix's energy and sum of F n (x, y, z), and
+            sm_kin (C, S, 2): sum m v^2 and sum of the rotational energies / mvv2e (NumPy's pairwise
+            order). ef_meta (K, 3) int: dim, side, group row of each wall/ees face; ef_val (C, K, 4):
+            coord, epsilon, sigma, cutoff. rg_meta (KR, 3) int: kind (REGION_KINDS), axis, group row of
+            each wall/region/ees fix; rg_geo (KR, 10): lo xyz, hi xyz, radius, centre (compiled.py's
+            layout); rg_val (C, KR, 3): epsilon, sigma, cutoff. Returns 0, or the status of the first
+            trouble met (1: an ellipsoid on or inside a wall, or on the wrong side of a region, 2: a
+            lost atom, 3: a non-finite value); the caller then falls back to NumPy.
 
             A block's atoms live in one flat buffer B, a row of BLOCK values per quantity at constant
-            offsets (_o), so the compiler sees that rows never overlap and vectorises the loops."""
-            if nsteps == -fingerprint:  # never: ties the on-disk cache to the shared functions
+            offsets (_o), so the compiler sees that rows never overlap and vectorises the loops. Each
+            stretch runs block by block (every step of it on one block, then the next), the state kept
+            in the output arrays between stretches; a sample's sums run over all atoms once every
+            block has reached it."""
+            if at.shape[0] > 0 and at[0] == -fingerprint:  # never: ties the on-disk cache to the shared functions
                 return 5
             ncase, natom = x.shape[0], x.shape[1]
             nface = ef_meta.shape[0]
@@ -275,86 +336,125 @@ if njit is not None:
             RB = np.zeros((6, 5, BLOCK))  # a region's contacts of the block (compiled._region_contacts)
             XB = B[:3 * BLOCK].reshape((3, BLOCK))  # the block's positions (rows X..X+2), a view
             nblock = (natom + BLOCK - 1) // BLOCK
+            ns = natom if rec else 0  # a sample's per-atom outputs
+            PF = np.zeros((nface, 3, ns))
+            PR = np.zeros((max(nreg, 1), 6, 5, ns))
+            KS = np.zeros((2, ns))
             for c in range(ncase):
                 dtc = dt[c]
                 dtt = hf * dtc  # (0.5 ftm2v) dt: the angular-momentum half kick
                 dtq = 0.5 * dtc
-                for blk in range(nblock):
-                    a0 = blk * BLOCK
-                    nbi = min(a0 + BLOCK, natom) - a0
-                    nb = np.uint64(nbi)
-                    for jj in range(nbi):
-                        a = a0 + jj
-                        j = np.uint64(jj)
-                        for d in range(3):
-                            B[_o(X + d) + j] = x[c, a, d]
-                            B[_o(V + d) + j] = v[c, a, d]
-                            B[_o(FR + d) + j] = f[c, a, d]
-                            B[_o(L + d) + j] = angmom[c, a, d]
-                            B[_o(T + d) + j] = torque[c, a, d]
-                            B[_o(S + d) + j] = shape[c, a, d]
-                            B[_o(IN + d) + j] = inertia[c, a, d]
-                        for d in range(4):
-                            B[_o(Q + d) + j] = quat[c, a, d]
-                        B[_o(DTFM) + j] = (hf * dtc) / mass[c, a]
-                        for k in range(nface):
-                            GRP[k, jj] = groups[ef_meta[k, 2], a]
-                        for k in range(nreg):
-                            GRPR[k, jj] = groups[rg_meta[k, 2], a]
-                    for _s in range(nsteps):
-                        _kick_rotate(B, nb, dtc, dtt, dtq)
-                        for d in range(3):  # periodic wrap
-                            if periodic[d] != 0:
-                                lod, hid = lo[d], hi[d]
-                                length = hid - lod
-                                ox = _o(X + d)
+                for a in range(natom):  # the state lives in the outputs from here
+                    for d in range(3):
+                        xo[c, a, d] = x[c, a, d]
+                        vo[c, a, d] = v[c, a, d]
+                        fo[c, a, d] = f[c, a, d]
+                        lo_[c, a, d] = angmom[c, a, d]
+                        to[c, a, d] = torque[c, a, d]
+                    for d in range(4):
+                        qo[c, a, d] = quat[c, a, d]
+                for ism in range(at.shape[0]):
+                    nsteps = at[ism] - (at[ism - 1] if ism > 0 else 0)
+                    for blk in range(nblock):
+                        a0 = blk * BLOCK
+                        nbi = min(a0 + BLOCK, natom) - a0
+                        nb = np.uint64(nbi)
+                        for jj in range(nbi):
+                            a = a0 + jj
+                            j = np.uint64(jj)
+                            for d in range(3):
+                                B[_o(X + d) + j] = xo[c, a, d]
+                                B[_o(V + d) + j] = vo[c, a, d]
+                                B[_o(FR + d) + j] = fo[c, a, d]
+                                B[_o(L + d) + j] = lo_[c, a, d]
+                                B[_o(T + d) + j] = to[c, a, d]
+                                B[_o(S + d) + j] = shape[c, a, d]
+                                B[_o(IN + d) + j] = inertia[c, a, d]
+                            for d in range(4):
+                                B[_o(Q + d) + j] = qo[c, a, d]
+                            B[_o(DTFM) + j] = (hf * dtc) / mass[c, a]
+                            for k in range(nface):
+                                GRP[k, jj] = groups[ef_meta[k, 2], a]
+                            for k in range(nreg):
+                                GRPR[k, jj] = groups[rg_meta[k, 2], a]
+                        for _s in range(nsteps):
+                            last = rec and _s == nsteps - 1  # the sample step: keep its outputs
+                            _kick_rotate(B, nb, dtc, dtt, dtq)
+                            for d in range(3):  # periodic wrap
+                                if periodic[d] != 0:
+                                    lod, hid = lo[d], hi[d]
+                                    length = hid - lod
+                                    ox = _o(X + d)
+                                    for i in range(nb):
+                                        xi = B[ox + i]
+                                        xi = xi - length if xi >= hid else xi
+                                        B[ox + i] = xi + length if xi < lod else xi
+                            for i in range(np.uint64(6 * BLOCK)):  # force and torque clear (FR, T: rows 6..11)
+                                B[_o(FR) + i] = 0.0
+                            nbad = 0
+                            for k in range(nface):
+                                nbad += _ees_face(B, nb, ef_meta[k, 0], ef_meta[k, 1], ef_val[c, k, 0],
+                                                  ef_val[c, k, 1], ef_val[c, k, 2], ef_val[c, k, 3], GRP[k])
+                                if last:
+                                    _keep_face(B, nb, a0, PF[k])
+                            for k in range(nreg):  # wall/region/ees (post_force, after the flat walls)
+                                nslot, nwrong = _region_contacts(rg_meta[k, 0], rg_meta[k, 1], rg_geo[k], XB, GRPR,
+                                                                 k, rg_val[c, k, 2], np.uint64(0), nb, RB)
+                                nbad += nwrong
+                                nbad += _region_ees(B, RB, nslot, nb, rg_val[c, k, 0], rg_val[c, k, 1], last, a0,
+                                                    PR[k])
+                            if nbad:
+                                return 1
+                            nlost = 0
+                            for d in range(3):  # lost atoms
+                                if periodic[d] == 0:
+                                    lod, hid = lo[d], hi[d]
+                                    ox = _o(X + d)
+                                    for i in range(nb):
+                                        nlost += (B[ox + i] < lod) | (B[ox + i] > hid)
+                            if nlost:
+                                return 2
+                            for d in range(3):  # final_integrate: v += dtfm f; L += dt/2 ftm2v T
+                                ov, of_, ol, ot = _o(V + d), _o(FR + d), _o(L + d), _o(T + d)
                                 for i in range(nb):
-                                    xi = B[ox + i]
-                                    xi = xi - length if xi >= hid else xi
-                                    B[ox + i] = xi + length if xi < lod else xi
-                        for i in range(np.uint64(6 * BLOCK)):  # force and torque clear (FR, T: rows 6..11)
-                            B[_o(FR) + i] = 0.0
-                        nbad = 0
+                                    B[ov + i] = B[ov + i] + B[_o(DTFM) + i] * B[of_ + i]
+                                    B[ol + i] = B[ol + i] + dtt * B[ot + i]
+                        for jj in range(nbi):
+                            a = a0 + jj
+                            j = np.uint64(jj)
+                            for d in range(3):
+                                if not (math.isfinite(B[_o(X + d) + j]) and math.isfinite(B[_o(V + d) + j])
+                                        and math.isfinite(B[_o(L + d) + j])):
+                                    return 3
+                                xo[c, a, d] = B[_o(X + d) + j]
+                                vo[c, a, d] = B[_o(V + d) + j]
+                                fo[c, a, d] = B[_o(FR + d) + j]
+                                lo_[c, a, d] = B[_o(L + d) + j]
+                                to[c, a, d] = B[_o(T + d) + j]
+                            for d in range(4):
+                                if not math.isfinite(B[_o(Q + d) + j]):
+                                    return 3
+                                qo[c, a, d] = B[_o(Q + d) + j]
+                            if rec:  # Engine.sample's m v^2 and rotational energy of the atom
+                                KS[0, a] = _mv2(mass[c, a], B[_o(V) + j], B[_o(V + 1) + j], B[_o(V + 2) + j])
+                                KS[1, a] = _erot(B[_o(Q) + j], B[_o(Q + 1) + j], B[_o(Q + 2) + j],
+                                                 B[_o(Q + 3) + j], B[_o(L) + j], B[_o(L + 1) + j],
+                                                 B[_o(L + 2) + j], B[_o(IN) + j], B[_o(IN + 1) + j],
+                                                 B[_o(IN + 2) + j])
+                    if rec:  # the sample's sums over all atoms, in the NumPy path's orders
+                        sm_kin[c, ism, 0] = 0.0 + _pairwise(KS[0], 0, natom)
+                        sm_kin[c, ism, 1] = 0.0 + _pairwise(KS[1], 0, natom)
                         for k in range(nface):
-                            nbad += _ees_face(B, nb, ef_meta[k, 0], ef_meta[k, 1], ef_val[c, k, 0], ef_val[c, k, 1],
-                                              ef_val[c, k, 2], ef_val[c, k, 3], GRP[k])
-                        for k in range(nreg):  # wall/region/ees (post_force, after the flat walls)
-                            nslot, nwrong = _region_contacts(rg_meta[k, 0], rg_meta[k, 1], rg_geo[k], XB, GRPR, k,
-                                                             rg_val[c, k, 2], np.uint64(0), nb, RB)
-                            nbad += nwrong
-                            nbad += _region_ees(B, RB, nslot, nb, rg_val[c, k, 0], rg_val[c, k, 1])
-                        if nbad:
-                            return 1
-                        nlost = 0
-                        for d in range(3):  # lost atoms
-                            if periodic[d] == 0:
-                                lod, hid = lo[d], hi[d]
-                                ox = _o(X + d)
-                                for i in range(nb):
-                                    nlost += (B[ox + i] < lod) | (B[ox + i] > hid)
-                        if nlost:
-                            return 2
-                        for d in range(3):  # final_integrate: v += dtfm f; L += dt/2 ftm2v T
-                            ov, of_, ol, ot = _o(V + d), _o(FR + d), _o(L + d), _o(T + d)
-                            for i in range(nb):
-                                B[ov + i] = B[ov + i] + B[_o(DTFM) + i] * B[of_ + i]
-                                B[ol + i] = B[ol + i] + dtt * B[ot + i]
-                    for jj in range(nbi):
-                        a = a0 + jj
-                        j = np.uint64(jj)
-                        for d in range(3):
-                            if not (math.isfinite(B[_o(X + d) + j]) and math.isfinite(B[_o(V + d) + j])
-                                    and math.isfinite(B[_o(L + d) + j])):
-                                return 3
-                            xo[c, a, d] = B[_o(X + d) + j]
-                            vo[c, a, d] = B[_o(V + d) + j]
-                            fo[c, a, d] = B[_o(FR + d) + j]
-                            lo_[c, a, d] = B[_o(L + d) + j]
-                            to[c, a, d] = B[_o(T + d) + j]
-                        for d in range(4):
-                            if not math.isfinite(B[_o(Q + d) + j]):
-                                return 3
-                            qo[c, a, d] = B[_o(Q + d) + j]
+                            sm_face[c, ism, k, 0] = _bincount_sum(PF[k], 1, natom)
+                            sm_face[c, ism, k, 1] = _bincount_sum(PF[k], 2, natom)
+                        for k in range(nreg):  # contacts slot by slot (RegionGeom.contacts' order)
+                            for q in range(4):
+                                acc = 0.0
+                                for j6 in range(6):
+                                    for a in range(natom):
+                                        if PR[k, j6, 0, a] != 0.0:
+                                            acc += PR[k, j6, 1 + q, a]
+                                sm_reg[c, ism, k, q] = acc
             return 0
         return _run_chunk
 
@@ -389,6 +489,12 @@ def eligible(plan: ChunkPlan) -> bool:
     return True
 
 
+def sampled_eligible(plan: ChunkPlan) -> bool:
+    """Whether the kernel records this scene's samples itself (`AspherePath.advance_sampled`): an
+    engine that takes the records, and no fix_modify virial on a wall/ees fix (ees has none)."""
+    return plan.record_samples is not None and not any(w.virial for w in plan.soft)
+
+
 class AspherePath:
     """The compiled path of one Engine with ellipsoids (see module docstring): `plan_source()`
     gives the plan of the next chunk (Engine.compiled_plan)."""
@@ -396,18 +502,50 @@ class AspherePath:
     def __init__(self, plan_source: Callable[[], ChunkPlan]):
         self.plan_source = plan_source
         self.compiled_chunks = 0  # chunks run compiled (tests and benchmarks read these)
+        self.sampled_calls = 0  # kernel calls that recorded samples themselves (advance_sampled)
         self.fallbacks = 0  # chunks handed back to NumPy
         self._spare: tuple[np.ndarray, ...] = ()
+        self._skip = 0  # after trouble in a sampled call: instants left to the one-at-a-time path
 
     def advance_to_time(self, target: float) -> bool:
         """Runs to a simulated time are left to the NumPy loop."""
         return False
 
+    def samples_in_kernel(self, at: np.ndarray) -> bool:
+        """Whether `advance_sampled` records the samples `at` (steps from now, increasing) in the kernel."""
+        at = np.asarray(at, np.int64)
+        if at.size == 0 or at[0] <= 0 or np.any(np.diff(at) <= 0):
+            return False
+        plan = self.plan_source()
+        return enabled() and eligible(plan) and sampled_eligible(plan)
+
     def advance(self, nsteps: int, sample: bool) -> bool:
-        """Run nsteps steps (and the sample of the last one); False: let the NumPy loop do it."""
+        """Run nsteps steps (and the sample of the last one, by the NumPy outputs); False: let the
+        NumPy loop do it."""
+        if nsteps <= 0:
+            return False
+        return self._chunk(np.array([nsteps], np.int64), sample, False)
+
+    def advance_sampled(self, at: np.ndarray) -> int:
+        """Run to the sample steps `at` (counted from now, increasing), every sample's outputs computed
+        in the kernel and appended by plan.record_samples; returns how many were run (all, or 0:
+        nothing done, the caller goes one instant at a time: after trouble in the kernel, for as many
+        instants as this call had, so the NumPy loop reports it)."""
+        if self._skip > 0:
+            self._skip -= 1
+            return 0
+        if not self.samples_in_kernel(at):
+            return 0
+        at = np.asarray(at, np.int64)
+        if self._chunk(at, True, True):
+            return int(at.size)
+        self._skip = int(at.size) - 1
+        return 0
+
+    def _chunk(self, at: np.ndarray, sample: bool, rec: bool) -> bool:
         plan = self.plan_source()
         s = plan.state
-        if s.ncases == 0 or s.failed or nsteps <= 0 or not enabled() or not eligible(plan):
+        if s.ncases == 0 or s.failed or not enabled() or not eligible(plan):
             return False
         faces = [(w, face) for w in plan.soft for face in w.faces]
         groups: list[np.ndarray] = [np.ones(s.x.shape[1], np.uint8)]
@@ -456,23 +594,59 @@ class AspherePath:
         xo, vo, fo, qo, lo_, to = self._spare
         periodic = np.zeros(3, np.int64)
         periodic[s.periodic] = 1
+        S = at.size if rec else 0
+        sm_face, sm_reg, sm_kin = np.zeros((C, S, len(faces), 2)), np.zeros((C, S, KR, 4)), np.zeros((C, S, 2))
         with warnings.catch_warnings():  # numba's pedantic SSA note on the inlined Horner loop, at compile
             warnings.simplefilter("ignore", NumbaIRAssumptionWarning)
-            status = _run_chunk(int(nsteps), s.x, s.v, s.f, s.quat, s.angmom, s.torque, s.mass, s.shape, s.inertia,
-                                np.ascontiguousarray(s.dt, dtype=float), np.asarray(s.box_lo, float),
+            status = _run_chunk(at, bool(rec), s.x, s.v, s.f, s.quat, s.angmom, s.torque, s.mass, s.shape,
+                                s.inertia, np.ascontiguousarray(s.dt, dtype=float), np.asarray(s.box_lo, float),
                                 np.asarray(s.box_hi, float), periodic, float(s.units.ftm2v), ef_meta, ef_val,
-                                np.stack(groups), rg_meta, rg_geo, rg_val, xo, vo, fo, qo, lo_, to)
+                                np.stack(groups), rg_meta, rg_geo, rg_val, xo, vo, fo, qo, lo_, to,
+                                sm_face, sm_reg, sm_kin)
         if status != 0:
             self.fallbacks += 1
             return False
-        self.compiled_chunks += 1
+        nsteps = int(at[-1])
+        self.compiled_chunks += 1 if not rec else S  # a sampled call counts once per sample it replaces
+        self.sampled_calls += bool(rec)
         self._spare = (s.x, s.v, s.f, s.quat, s.angmom, s.torque)
         s.x, s.v, s.f, s.quat, s.angmom, s.torque = xo, vo, fo, qo, lo_, to
-        s.step += nsteps
         s.ctx = None
         s.var_step = {}
+        if rec:
+            step = s.step[:, None] + at[None, :]
+            s.step += nsteps
+            plan.record_samples(**_sample_record(plan, at, step, sm_face, sm_reg, sm_kin))
+            return True
+        s.step += nsteps
         _compiled.finish_chunk(plan, s, sample, keep=("f", "torque"))
         return True
+
+
+def _sample_record(plan: ChunkPlan, at: np.ndarray, step: np.ndarray, sm_face: np.ndarray, sm_reg: np.ndarray,
+                   sm_kin: np.ndarray) -> dict[str, Any]:
+    """Engine.record's arguments (plan.record_samples) of a sampled call: each fix's energy and
+    vector summed as the NumPy fixes sum them (faces in order from zero), the clock (dt is constant:
+    no dt/reset here), sum m v^2 and the rotational energy (erot, times mvv2e as Engine.sample)."""
+    s = plan.state
+    C, S = step.shape
+    out: dict[str, tuple[np.ndarray, ...]] = {}
+    k = 0
+    for w in plan.soft:
+        energy = np.zeros((C, S))
+        vector = np.zeros((C, S, len(w.faces)))
+        for j in range(len(w.faces)):
+            energy += sm_face[:, :, k, 0]
+            vector[:, :, j] = sm_face[:, :, k, 1]
+            k += 1
+        out[w.fix_id] = (energy, vector)
+    for k, w in enumerate(plan.region):
+        out[w.fix_id] = (sm_reg[:, :, k, 0], -sm_reg[:, :, k, 1:4])
+    dt = np.repeat(s.dt[:, None], S, axis=1)
+    time = s.atime[:, None] + (step - s.atimestep[:, None]) * s.dt[:, None]
+    return {"step": step, "time": time, "dt": dt, "mv2": sm_kin[:, :, 0], "out": out,
+            "virial": np.zeros((C, S)) if "press" in plan.outputs else None,
+            "erot": s.units.mvv2e * sm_kin[:, :, 1]}
 
 
 def attach_asphere_path(plan_source: Callable[[], ChunkPlan]) -> AspherePath | None:
@@ -482,4 +656,4 @@ def attach_asphere_path(plan_source: Callable[[], ChunkPlan]) -> AspherePath | N
     return AspherePath(plan_source)
 
 
-__all__: list[Any] = ["AspherePath", "attach_asphere_path", "eligible", "BLOCK"]
+__all__: list[Any] = ["AspherePath", "attach_asphere_path", "eligible", "sampled_eligible", "BLOCK"]

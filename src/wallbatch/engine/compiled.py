@@ -44,7 +44,8 @@ with fix langevin's generator). wall/table faces run in every scene kernel with 
 wall/lepton faces with the force generated from each expression (`kernel_for`'s `extra`, compiled
 once per set of expressions and cached on disk). One wall/reflect/stochastic fix runs after the
 wall/reflect faces (`_stochastic_faces`: one case per call with the case's generator, one block of
-all atoms so the draws follow atom order, engine/stochastic.py's functions). Anything else (pair forces, ees, wall/region/ees, ellipsoids,
+all atoms so the draws follow atom order, engine/stochastic.py's functions; in sampled chunks
+its counters are recorded at each sample after the wall/reflect ones). Anything else (pair forces, ees, wall/region/ees, ellipsoids,
 several flow fixes) runs in NumPy. A chunk that
 meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a variable error or a
 negative variable parameter) leaves the state as it was at its start and is handed back to the
@@ -1468,6 +1469,12 @@ if njit is not None:
                                 sm_rstat[c, ism, k, 1] = rf_stat[c, k, 1]
                                 rf_stat[c, k, 0] = 0.0
                                 rf_stat[c, k, 1] = 0.0
+                        if _K_STOCHASTIC and st_flag[0] != 0:
+                            for k in range(st_meta.shape[0]):  # wall/reflect/stochastic's, after them (take_stats)
+                                sm_rstat[c, ism, nrf + k, 0] = st_stat[c, k, 0]
+                                sm_rstat[c, ism, nrf + k, 1] = st_stat[c, k, 1]
+                                st_stat[c, k, 0] = 0.0
+                                st_stat[c, k, 1] = 0.0
                         if _K_FIXES:
                             for k in range(fx[0].shape[0]):  # the fixes' accumulators (ecouple)
                                 for j in range(4):
@@ -2404,7 +2411,7 @@ class FastPath:
                 float(1e-12 * max(1.0, abs(target))) if time_mode else 0.0)
         consts = (stats, int(dtr.every if dtr is not None else 0), dtr_group)
         units = (float(s.units.ftm2v), float(s.units.mvv2e))
-        sm = _sample_arrays(at, C, sf_meta.shape[0], rf_meta.shape[0], fx, rg[0].shape[0])
+        sm = _sample_arrays(at, C, sf_meta.shape[0], rf_meta.shape[0] + sto[0].shape[0], fx, rg[0].shape[0])
 
         def run(c: slice, fl: tuple, fx_rng: Any = _NO_FLOW[-1], st_rng: Any = _NO_FLOW[-1]) -> int:
             """The kernel on cases c (a slice: views, so the kernel writes through)."""
@@ -2493,7 +2500,7 @@ def _sample_arrays(at: np.ndarray | None, C: int, nface: int, nrf: int, fx: tupl
                    ) -> tuple[np.ndarray, ...]:
     """The kernel's `sm` tuple: sample steps (S,) (none: a chunk without samples inside), sum m v^2
     (C, S), clock (C, S, 4): step, dt, atime, atimestep; soft faces (C, S, faces, 3): energy,
-    force on the wall, virial; reflect statistics (C, S, reflect faces, 2); the fixes'
+    force on the wall, virial; reflect statistics (C, S, reflect faces, 2), wall/reflect/stochastic's faces last; the fixes'
     accumulators (C, S, K, 4); fix nvt's chain (C, S, 3 M + 2) (none without nvt); flow redraws
     (C, S); wall/region fixes (C, S, fixes, 5): energy, force on the wall x y z, virial."""
     at = np.zeros(0, np.int64) if at is None else np.ascontiguousarray(at, np.int64)
@@ -2586,9 +2593,10 @@ def _splits_atoms(plan: ChunkPlan, nsteps: int) -> bool:
 def sampled_eligible(plan: ChunkPlan) -> bool:
     """Scenes whose samples the kernel records itself (sampled chunks): `eligible` ones with
     flat soft faces of registry styles whose energy it computes (`energy_compiled`) or of
-    wall/table (`_table_out`), no generated forces or wall/reflect/stochastic, wall/region fixes
-    of such styles, and an engine that takes the records."""
-    if plan.record_samples is None or _lepton_extra(plan) or _stochastic_kernel(plan) is not None:
+    wall/table (`_table_out`), no generated forces, wall/region fixes of such styles, and an
+    engine that takes the records (wall/reflect/stochastic's counters are recorded after the
+    wall/reflect ones, in Engine.reflect's order)."""
+    if plan.record_samples is None or _lepton_extra(plan):
         return False
     return all((type(w) is SoftWallKernel and energy_compiled(w.style)) or
                (type(w) is CustomWallKernel and all(_is_table(st) for st in w.face_styles)) for w in plan.soft) and \

@@ -39,6 +39,7 @@ __all__ = [
     "rotation_matrix",
     "rotation_rows",
     "rotational_energy",
+    "rotational_energy_of",
     "select",
     "to_body",
     "to_space",
@@ -278,6 +279,13 @@ def rotational_energy(q: np.ndarray, angmom: np.ndarray, inertia: np.ndarray) ->
     """
     q = np.asarray(q, dtype=np.float64)
     moments = np.asarray(inertia, dtype=np.float64)
-    m = _components(moments, 3)
-    wb = body_omega(rotation_rows(*_components(q, 4)), *_components(np.asarray(angmom, dtype=np.float64), 3), *m)
-    return 0.5 * (m[0] * wb[0] * wb[0] + m[1] * wb[1] * wb[1] + m[2] * wb[2] * wb[2])
+    return rotational_energy_of(*_components(q, 4), *_components(np.asarray(angmom, dtype=np.float64), 3),
+                                *_components(moments, 3))
+
+
+def rotational_energy_of(w, i, j, k, l0, l1, l2, m0, m1, m2):
+    """½ Σ_k I_k ω_body,k² of quaternion (w, i, j, k), angular momentum L and moments I given by
+    components (floats or arrays) [mass*velocity^2]: :func:`rotational_energy`'s arithmetic, which
+    the compiled ellipsoid kernel (engine/asphere_compiled.py) compiles as it is."""
+    wb = body_omega(rotation_rows(w, i, j, k), l0, l1, l2, m0, m1, m2)
+    return 0.5 * (m0 * wb[0] * wb[0] + m1 * wb[1] * wb[1] + m2 * wb[2] * wb[2])
