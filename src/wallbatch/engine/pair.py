@@ -128,6 +128,7 @@ class PairLJCut:
         self._owner = np.empty((len(eps), 0), dtype=np.int32)  # (C, N) atom of each CSR row
         self._neigh = np.empty((len(eps), 0), dtype=np.int32)  # (C, capacity) j of each pair
         self._memo: tuple[np.ndarray, ...] | None = None  # remember(): outputs of a compiled chunk's last step
+        self._memo_x: np.ndarray | None = None  # remember()'s copy of the positions (kept array)
         self._spare = np.empty(0, dtype=np.int32)  # a one-case batch's second pair array (spare_list)
         self._split: tuple[int, object] | None = None  # (builds, RowSplit) of one large case's threaded pass
 
@@ -297,7 +298,12 @@ class PairLJCut:
         """Keep the pair forces f (C, N, 3), energy and virial (C,) that the compiled chunk computed
         at positions x (its last step): the next compute() at exactly these positions returns them
         instead of a second pass (a sampled chunk's outputs). Any other call forgets them."""
-        self._memo = (np.array(x, dtype=float), f, energy, virial)
+        keep = self._memo_x  # the positions' copy goes into the same array each time (no fresh pages)
+        if keep is None or keep.shape != np.shape(x):
+            keep = self._memo_x = np.array(x, dtype=float)
+        else:
+            np.copyto(keep, x)
+        self._memo = (keep, f, energy, virial)
 
     def _recall(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         memo, self._memo = self._memo, None

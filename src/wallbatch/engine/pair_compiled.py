@@ -1130,6 +1130,16 @@ class PairChunks:
         # a one-case batch's threaded chunk's (key, owner, first, held): its RowSplit and shares,
         # for the next chunk if it starts from that very list (`_reuse`)
         self._held: tuple | None = None
+        self._bufs: dict[str, np.ndarray] = {}
+
+    def _buffer(self, name: str, shape: tuple, dtype: Any) -> np.ndarray:
+        """A C-contiguous array kept across chunks under `name` (new if the shape or type differs):
+        the chunks' copies of the state go there, since a fresh array of this size is a fresh
+        mapping whose pages fault again on first touch (about 2 ms per 2.4 MB here)."""
+        b = self._bufs.get(name)
+        if b is None or b.shape != tuple(shape) or b.dtype != np.dtype(dtype):
+            b = self._bufs[name] = np.empty(shape, dtype)
+        return b
 
     def _reuse(self, c: int, C: int, parts: int, owner: np.ndarray, first: np.ndarray, pair: Any) -> dict:
         """What `_chunk_threaded` may reuse for case c (`held`): the last threaded chunk's, if it
@@ -1184,7 +1194,11 @@ class PairChunks:
         lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)
         rc2 = pair.cutoff * pair.cutoff
         offset = pair.offsets()
-        fpair = np.empty((C, N, 3) if sample else (C, 0, 3))  # a sampled chunk's last pair pass: its outputs
+        pair._memo = None  # (the last chunk's outputs, if no sample took them: fpair is overwritten)
+        # a sampled chunk's last pair pass: its forces, for the sample
+        fpair = self._buffer("fpair", (C, N, 3), float) if sample else np.empty((C, 0, 3))
+        bufs = [self._buffer(k, a.shape, a.dtype) for k, a in (("x", s.x), ("v", s.v), ("f", s.f), ("xref", pair._xref),
+                                                            ("owner", pair._owner), ("first", pair._first))]
         ew = np.zeros((C, 2))
         fk = plan.flow[0] if plan.flow else None
         if fk is not None:
@@ -1198,8 +1212,9 @@ class PairChunks:
             _compiled.announce_compile(kernel)
         done = []
         for c in range(C):
-            x, v, f = s.x[c].copy(), s.v[c].copy(), s.f[c].copy()
-            xref, owner, first = pair._xref[c].copy(), pair._owner[c].copy(), pair._first[c].copy()
+            x, v, f, xref, owner, first = (b[c] for b in bufs)  # copies of the case's state (kept arrays)
+            for b, a in zip((x, v, f, xref, owner, first), (s.x, s.v, s.f, pair._xref, pair._owner, pair._first)):
+                np.copyto(b, a[c])
             neigh = pair._neigh[c]  # read only: a build in the chunk writes into `spare`
             spare = pair.spare_list() if C == 1 else np.empty(pair._neigh.shape[1], np.int32)
             if fk is None:
@@ -1246,8 +1261,11 @@ class PairChunks:
             pair.builds += builds
             pair.case_builds[c] += builds
             if held.get("split") is not None and C == 1:  # the next chunk's RowSplit, if the list stays
-                self._held = ((c, C, int(pair.case_builds[c]), len(held["shares"]) - 1, N), owner.copy(),
-                              first.copy(), held)
+                kept = (self._buffer("held_owner", owner.shape, owner.dtype),
+                        self._buffer("held_first", first.shape, first.dtype))
+                np.copyto(kept[0], owner)
+                np.copyto(kept[1], first)
+                self._held = ((c, C, int(pair.case_builds[c]), len(held["shares"]) - 1, N), *kept, held)
         if sample:  # the sample's pair.compute at these positions takes them instead of a second pass
             pair.remember(s.x, fpair, ew[:, 0].copy(), ew[:, 1].copy())
         s.step += nsteps
