@@ -139,3 +139,81 @@ def test_busy_cores_run_chunks_in_one_call_for_a_while(monkeypatch):
     got = eng.run()
     assert_bits(got, ref)
     assert eng.fast.compiled_chunks == 8 and eng.fast.threaded_chunks == 2  # chunks 1 and 5 on threads
+
+
+@pytest.mark.parametrize("parts", [2, 3, 5])
+def test_threaded_pass_with_outputs_gives_the_one_thread_energy_and_virial(parts):
+    """The sampled step's pass over threads: forces, energy and virial of `forces_case` bit for bit
+    (each row's sums, then the rows in order), whatever the side split of the logs (`cut`); and
+    the energy is the sum of the pairs' shifted LJ energies (a NumPy sum, to rounding)."""
+    x, lo, length, per = liquid()
+    owner, first, neigh, m = one_thread_list(x, lo, length, per)
+    f1 = np.zeros_like(x)
+    e1, w1 = pair_compiled.forces_case(x, f1, owner, first, neigh, E24, E4, SIG2, RC2, OFF, length, per, True)
+    i, j = np.repeat(owner, np.diff(first)), neigh[:m]
+    d = x[i] - x[j]
+    d[:, :2] -= length[:2] * np.rint(d[:, :2] / length[:2])
+    r2 = np.einsum("ij,ij->i", d, d)
+    s6 = (SIG2 / r2) ** 3
+    inside = r2 < RC2
+    assert inside.sum() > 20 * len(x) and e1 == pytest.approx(np.sum((E4 * s6 * (s6 - 1.0) - OFF)[inside]), rel=1e-12)
+    assert w1 == pytest.approx(np.sum((E24 * s6 * (2.0 * s6 - 1.0))[inside]), rel=1e-12)
+    split = pair_compiled.RowSplit(owner, first, neigh, parts)
+    for cut in (len(x), len(x) // 2, len(x) // 3, 0):
+        f2 = np.zeros_like(x)
+        _, e2, w2 = pair_compiled.forces_threaded(x, f2, owner, first, neigh, split, E24, E4, SIG2, RC2, OFF,
+                                                  length, per, outputs=True, cut=cut)
+        np.testing.assert_array_equal(f2, f1)
+        assert (e2, w2) == (e1, w1)
+        if 0 < cut < len(x):  # both sides of the logs in use
+            assert (split.ends > split.logs[:-1]).any() and (split.downs < split.logs[1:]).any()
+        f3 = np.zeros_like(x)  # replayed atom run by atom run, as the threads of a chunk do
+        pair_compiled.forces_threaded(x, f3, owner, first, neigh, split, E24, E4, SIG2, RC2, OFF, length, per,
+                                      replay=False, cut=cut)
+        for a0, a1 in ((0, cut), (cut, len(x))):
+            split.replay(f3, a0, a1)
+        np.testing.assert_array_equal(f3, f1)
+
+
+def test_row_split_reuses_the_logs_of_an_earlier_one():
+    """A RowSplit made with `reuse` takes the earlier split's log arrays (no fresh pages) and
+    still gives the one-thread forces bit for bit; a too-short one is not taken."""
+    x, lo, length, per = liquid()
+    owner, first, neigh, m = one_thread_list(x, lo, length, per)
+    f1 = np.zeros_like(x)
+    pair_compiled.forces_case(x, f1, owner, first, neigh, E24, E4, SIG2, RC2, OFF, length, per, False)
+    old = pair_compiled.RowSplit(owner, first, neigh, 2)
+    new = pair_compiled.RowSplit(owner, first, neigh, 2, reuse=old)
+    assert new.lj is old.lj and new.lv is old.lv
+    f2 = np.zeros_like(x)
+    pair_compiled.forces_threaded(x, f2, owner, first, neigh, new, E24, E4, SIG2, RC2, OFF, length, per)
+    np.testing.assert_array_equal(f2, f1)
+    old.lj, old.lv = old.lj[:1], old.lv[:1]
+    assert pair_compiled.RowSplit(owner, first, neigh, 2, reuse=old).lj is not old.lj
+
+
+def test_pair_compute_of_one_large_case_on_threads(monkeypatch):
+    """pair.compute outside chunks (the set-up's build and pass, per-step passes of scenes the
+    chunks do not run) for one case of >= THREAD_MIN_ATOMS atoms per thread: the list, forces,
+    energy and virial of one thread bit for bit; the split is kept while the list stays."""
+    from wallbatch.engine.pair import PairLJCut
+
+    x, lo, length, per = liquid(8)
+    x = x[None]
+    got = {}
+    for n in (1, 2, 3):
+        monkeypatch.setenv("WALLBATCH_THREADS", str(n))
+        monkeypatch.setattr(pair_compiled, "THREAD_MIN_ATOMS", 256)
+        pair = PairLJCut(1.0, 1.0, 2.5, box_lo=lo, box_hi=lo + length, periodic=per, skin=0.3, shift=True,
+                         compiled=True)
+        f = np.zeros_like(x)
+        e, w = pair.compute(x, f, True)
+        split = None if pair._split is None else pair._split[1]
+        assert (split is None) == (n == 1)
+        f2 = np.zeros_like(x)
+        pair.compute(x + 0.01, f2, False)  # moved less than skin/2: the same list and split
+        assert pair.builds == 1 and (n == 1 or pair._split[1] is split)
+        got[n] = (f, e, w, f2, pair._owner.copy(), pair._first.copy(), pair._neigh[0, :pair._first[0, -1]].copy())
+    for n in (2, 3):
+        for a, b in zip(got[n], got[1]):
+            np.testing.assert_array_equal(a, b)

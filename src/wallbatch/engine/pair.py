@@ -128,7 +128,9 @@ class PairLJCut:
         self._owner = np.empty((len(eps), 0), dtype=np.int32)  # (C, N) atom of each CSR row
         self._neigh = np.empty((len(eps), 0), dtype=np.int32)  # (C, capacity) j of each pair
         self._memo: tuple[np.ndarray, ...] | None = None  # remember(): outputs of a compiled chunk's last step
+        self._memo_x: np.ndarray | None = None  # remember()'s copy of the positions (kept array)
         self._spare = np.empty(0, dtype=np.int32)  # a one-case batch's second pair array (spare_list)
+        self._split: tuple[int, object] | None = None  # (builds, RowSplit) of one large case's threaded pass
 
     @property
     def ncases(self) -> int:
@@ -226,9 +228,14 @@ class PairLJCut:
             self._first[c] = 0
             return
         reach = float(self.cutoff[c] + self.skin)
+        parts = self._nb.case_parts(len(pos)) if self.ncases == 1 else 1  # one large case: over threads
         while True:  # the case's rows of the (C, ...) arrays are the kernel's output buffers
-            m = self._nb.build_case(pos, self.box_lo, self.length, self.periodic, reach,
-                                      self._owner[c], self._first[c], self._neigh[c])
+            if parts >= 2:  # the same list, bit for bit
+                m = self._nb.build_threaded(pos, self.box_lo, self.length, self.periodic, reach,
+                                            self._owner[c], self._first[c], self._neigh[c], parts)
+            else:
+                m = self._nb.build_case(pos, self.box_lo, self.length, self.periodic, reach,
+                                        self._owner[c], self._first[c], self._neigh[c])
             if m >= 0:
                 return
             self._grow(self._estimate_pairs(pos, reach))
@@ -291,7 +298,12 @@ class PairLJCut:
         """Keep the pair forces f (C, N, 3), energy and virial (C,) that the compiled chunk computed
         at positions x (its last step): the next compute() at exactly these positions returns them
         instead of a second pass (a sampled chunk's outputs). Any other call forgets them."""
-        self._memo = (np.array(x, dtype=float), f, energy, virial)
+        keep = self._memo_x  # the positions' copy goes into the same array each time (no fresh pages)
+        if keep is None or keep.shape != np.shape(x):
+            keep = self._memo_x = np.array(x, dtype=float)
+        else:
+            np.copyto(keep, x)
+        self._memo = (keep, f, energy, virial)
 
     def _recall(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         memo, self._memo = self._memo, None
@@ -313,8 +325,17 @@ class PairLJCut:
         direct = f.dtype == np.float64 and f.flags.c_contiguous
         out = f if direct else np.zeros(x.shape)
         energy, virial = np.zeros(C), np.zeros(C)
-        self._nb.forces(x, out, self._owner, self._first, self._neigh, eps, sig * sig, rc * rc, offset, self.length,
-                          self.periodic, self._bad, bool(outputs), energy, virial)
+        parts = self._nb.case_parts(x.shape[1]) if C == 1 and not self._bad[0] else 1
+        if parts >= 2:  # one large case over threads: the same bits
+            held = self._split if self._split is not None and self._split[0] == self.builds else None
+            energy[0], virial[0], split = self._nb.forces_case_threaded(
+                x[0], out[0], self._owner[0], self._first[0], self._neigh[0], 24.0 * float(eps[0]),
+                4.0 * float(eps[0]), float(sig[0] * sig[0]), float(rc[0] * rc[0]), float(offset[0]), self.length,
+                self.periodic, bool(outputs), parts, None if held is None else held[1])
+            self._split = (self.builds, split)  # kept while no build changes the list
+        else:
+            self._nb.forces(x, out, self._owner, self._first, self._neigh, eps, sig * sig, rc * rc, offset,
+                            self.length, self.periodic, self._bad, bool(outputs), energy, virial)
         if not direct:
             f += out
         if self._bad.any():
@@ -381,7 +402,7 @@ class PairLJCut:
         """Keep only some cases (a boolean (C,) mask or indices), in the given order."""
         keep = np.asarray(keep)
         idx = np.flatnonzero(keep) if keep.dtype == bool else keep.astype(np.int64).ravel()
-        self._memo = None
+        self._memo = self._split = None
         self._spare = np.empty(0, dtype=np.int32)
         self.epsilon, self.sigma, self.cutoff = self.epsilon[idx], self.sigma[idx], self.cutoff[idx]
         self.case_builds = self.case_builds[idx]

@@ -177,11 +177,13 @@ if njit is not None:
 
     def _scan(xs: np.ndarray, cstart: np.ndarray, nb: np.ndarray, order: np.ndarray, length: np.ndarray,
               periodic: np.ndarray, reach: float, q_lo: int, q_hi: int, m0: int, cap: int, first: np.ndarray,
-              neigh: np.ndarray, mark: np.ndarray) -> int:
+              neigh: np.ndarray, mark: np.ndarray, partners: bool) -> int:
         """The rows of the cells q_lo .. q_hi - 1 (`_bin`) of `build_case`'s list: first[s] for
         their sorted atoms s and their partners written into neigh from m0 on, not beyond cap; with
-        a mark array (N,) (else of length 0), mark[j] = 1 for each atom the rows touch. Returns the
-        end of the written pairs, or -1 if they do not fit."""
+        a mark array (N,) (else of length 0), mark[j] = 1 for each atom the rows touch (their
+        owners only unless `partners`), except partners in cells before q_hi (what `RowSplit`
+        needs: those atoms' own rows are in these cells or before). Returns the end of the written
+        pairs, or -1 if they do not fit."""
         reach2 = reach * reach
         marking = len(mark) > 0
         # Half stencil: cell offsets (a, b, g) lexicographically after (0, 0, 0), and the atoms
@@ -230,6 +232,9 @@ if njit is not None:
                         seg_lo[nseg], seg_hi[nseg] = cstart[row + n2 + z_lo], cstart[row + n2]
                         seg_sh[nseg, 0], seg_sh[nseg, 1], seg_sh[nseg, 2] = sh0, sh1, -L2
                         nseg += 1
+            # the partners of cell q are in cells before (c0 + 3) n1 n2 (offsets a <= 2 along the
+            # slowest dim; a wrapped offset lands before q): mark them only if that passes q_hi
+            mark_partners = marking and partners and (c0 + 3) * n1 * n2 > q_hi
             for s in range(cstart[q], cstart[q + 1]):
                 first[s] = m
                 for g in range(nseg):
@@ -254,8 +259,9 @@ if njit is not None:
                             m += d0 * d0 + d1 * d1 + d2 * d2 <= reach2
                 if marking:  # the atoms this row touches (`RowSplit`)
                     mark[order[s]] = 1
-                    for k in range(first[s], m):
-                        mark[neigh[k]] = 1
+                    if mark_partners:
+                        for k in range(first[s], m):
+                            mark[neigh[k]] = 1
         return m
 
     _scan = _keyed(_scan)
@@ -273,7 +279,7 @@ if njit is not None:
             return 0
         xs, cstart, nb = _bin(pos, lo, length, periodic, reach, owner)
         m = _scan(xs, cstart, nb, owner, length, periodic, reach, 0, len(cstart) - 1, 0, len(neigh), first, neigh,
-                  np.empty(0, np.uint8))
+                  np.empty(0, np.uint8), False)
         if m >= 0:
             first[N] = m
         return m
@@ -315,7 +321,8 @@ if njit is not None:
                     outputs: bool) -> tuple[float, float]:
         """Add the pair forces of one case (positions xc (N, 3), half list ow/fr/nc) into fc (N, 3);
         with outputs, return (energy, virial): the energy shifted by off per pair inside rc and
-        the virial sum fpair r^2, each summed over the list in order (else (0, 0)).
+        the virial sum fpair r^2, each summed per row in list order, then the rows' sums in row
+        order (else (0, 0)): the order `forces_threaded` keeps, so threads give the same bits.
 
         Per row s of the list (atom i = ow[s]), three passes: gather the separations x_i - x_j
         into contiguous buffers, compute the pair terms for all of them in one vectorised loop
@@ -360,9 +367,12 @@ if njit is not None:
             fc[i, 1] += fi1
             fc[i, 2] += fi2
             if outputs:
+                er, wr = 0.0, 0.0
                 for k in range(n):
-                    esum += te[k]
-                    wsum += tw[k]
+                    er += te[k]
+                    wr += tw[k]
+                esum += er
+                wsum += wr
         return esum, wsum
 
     forces_case = _keyed(forces_case)
@@ -371,7 +381,7 @@ if njit is not None:
     # The list build and the force pass of one case cut in parts run by threads (`build_threaded`,
     # `forces_threaded`), with the bits of the one-thread kernels: the parts of the build are runs
     # of cells, each writing its rows where the one-thread build would (after `_compact`); the
-    # force pass keeps each atom's additions in list order (`RowSplit`, `forces_part`, `_replay`).
+    # force pass keeps each atom's additions in list order (`RowSplit`, `forces_part`, `_replay_atoms`).
 
     @jit
     def _compact(first: np.ndarray, neigh: np.ndarray, rs: np.ndarray, base: np.ndarray, ends: np.ndarray) -> int:
@@ -390,22 +400,30 @@ if njit is not None:
         return m
 
     @jit
-    def _touch(ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, s_lo: int, s_hi: int, mark: np.ndarray) -> None:
-        """mark[j] = 1 for every atom the rows s_lo .. s_hi - 1 of a list touch (owner or partner)."""
+    def _touch(ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, s_lo: int, s_hi: int, mark: np.ndarray,
+               partners: bool) -> None:
+        """mark[j] = 1 for every atom the rows s_lo .. s_hi - 1 of a list touch (owner, and
+        partner if `partners`)."""
         for s in range(s_lo, s_hi):
             mark[ow[s]] = 1
-            for k in range(fr[s], fr[s + 1]):
-                mark[nc[k]] = 1
+            if partners:
+                for k in range(fr[s], fr[s + 1]):
+                    mark[nc[k]] = 1
 
     def forces_part(xc: np.ndarray, fc: np.ndarray, ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, s_lo: int,
                     s_hi: int, part: int, firstp: np.ndarray, mixed: np.ndarray, lj: np.ndarray, lv: np.ndarray,
-                    q0: int, e24: float,
-                    e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray, periodic: np.ndarray) -> int:
-        """The rows s_lo .. s_hi - 1 of `forces_case` (forces only), part `part` of a `RowSplit`:
-        each pair's terms and each row's sum as there; an addition to an atom this part touches
-        first (firstp) goes into fc at once, any other waits in the log (lj: the atom, lv: the
-        value added, from q0 on; only rows with mixed[s] have partners of other parts) for `_replay`, which adds it after the parts before. Returns the
-        end of the log written. Parts run at once in threads: each writes only its own atoms of fc."""
+                    q0: int, q1: int, cut: int, e24: float,
+                    e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray, periodic: np.ndarray,
+                    outputs: bool, rowew: np.ndarray) -> tuple[int, int]:
+        """The rows s_lo .. s_hi - 1 of `forces_case`, part `part` of a `RowSplit`: each pair's
+        terms and each row's sum as there; an addition to an atom this part touches first (firstp)
+        goes into fc at once, any other waits in the log (lj: the atom, lv: the value added, from
+        q0 on for atoms j < cut, from q1 - 1 down for the others, so that a thread replaying the
+        atoms below cut or those above reads only theirs; only rows with mixed[s] have partners of
+        other parts) for `_replay_atoms`, which adds it after the parts before. With outputs, rowew[s] =
+        the row's energy and virial sums (as forces_case's; `_row_sums` adds them in row order).
+        Returns the ends of the log written: (up, down).
+        Parts run at once in threads: each writes only its own atoms of fc and its own rows."""
         inv0 = 1.0 / length[0] if periodic[0] else 0.0
         inv1 = 1.0 / length[1] if periodic[1] else 0.0
         inv2 = 1.0 / length[2] if periodic[2] else 0.0
@@ -413,9 +431,10 @@ if njit is not None:
         most = 0
         for s in range(s_lo, s_hi):
             most = max(most, fr[s + 1] - fr[s])
-        buf = np.empty((6, most))
+        buf = np.empty((8 if outputs else 6, most))
         gx, gy, gz, tx, ty, tz = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]
-        q = q0
+        te, tw = (buf[6], buf[7]) if outputs else (buf[0], buf[0])
+        q, qd = q0, q1
         for s in range(s_lo, s_hi):
             i = ow[s]
             xi0, xi1, xi2 = xc[i, 0], xc[i, 1], xc[i, 2]
@@ -426,8 +445,8 @@ if njit is not None:
                 gx[k] = xi0 - xc[j, 0]
                 gy[k] = xi1 - xc[j, 1]
                 gz[k] = xi2 - xc[j, 2]
-            _pair_terms(n, gx, gy, gz, tx, ty, tz, buf[0], buf[0], False, e24, e4, s2c, rcut2, off, inv0, inv1,
-                        inv2, L0, L1, L2)
+            _pair_terms(n, gx, gy, gz, tx, ty, tz, te, tw, outputs, e24, e4, s2c, rcut2, off, inv0, inv1, inv2,
+                        L0, L1, L2)
             fi0, fi1, fi2 = 0.0, 0.0, 0.0
             if mixed[s]:  # some partner is another part's first: its additions wait in the log
                 for k in range(n):
@@ -440,10 +459,14 @@ if njit is not None:
                         fc[j, 0] -= a
                         fc[j, 1] -= b
                         fc[j, 2] -= c
-                    else:  # x - a and x + (-a) are the same number
+                    elif j < cut:  # x - a and x + (-a) are the same number
                         lj[q] = j
                         lv[q, 0], lv[q, 1], lv[q, 2] = -a, -b, -c
                         q += 1
+                    else:
+                        qd -= 1
+                        lj[qd] = j
+                        lv[qd, 0], lv[qd, 1], lv[qd, 2] = -a, -b, -c
             else:  # forces_case's loop
                 for k in range(n):
                     j = nc[k0 + k]
@@ -458,13 +481,45 @@ if njit is not None:
                 fc[i, 0] += fi0
                 fc[i, 1] += fi1
                 fc[i, 2] += fi2
-            else:
+            elif i < cut:
                 lj[q] = i
                 lv[q, 0], lv[q, 1], lv[q, 2] = fi0, fi1, fi2
                 q += 1
-        return q
+            else:
+                qd -= 1
+                lj[qd] = i
+                lv[qd, 0], lv[qd, 1], lv[qd, 2] = fi0, fi1, fi2
+            if outputs:
+                er, wr = 0.0, 0.0
+                for k in range(n):
+                    er += te[k]
+                    wr += tw[k]
+                rowew[s, 0] = er
+                rowew[s, 1] = wr
+        return q, qd
 
     forces_part = _keyed(forces_part)
+
+    @jit
+    def _first_marks(marks: np.ndarray, a_lo: int, a_hi: int, firstp: np.ndarray) -> None:
+        """firstp[j] = the first part p with marks[p, j] (0 if none), for a_lo <= j < a_hi."""
+        parts = marks.shape[0]
+        for j in range(a_lo, a_hi):
+            firstp[j] = 0
+        for p in range(parts - 1, -1, -1):
+            for j in range(a_lo, a_hi):
+                if marks[p, j]:
+                    firstp[j] = p
+
+    @jit
+    def _row_sums(rowew: np.ndarray) -> tuple[float, float]:
+        """The energy and virial of `forces_part`'s rows (rowew (rows, 2)), added in row order: the
+        bits of `forces_case`'s sums."""
+        esum, wsum = 0.0, 0.0
+        for s in range(rowew.shape[0]):
+            esum += rowew[s, 0]
+            wsum += rowew[s, 1]
+        return esum, wsum
 
     @jit
     def _mixed(fr: np.ndarray, nc: np.ndarray, s_lo: int, s_hi: int, rb: np.ndarray, firstp: np.ndarray,
@@ -482,8 +537,11 @@ if njit is not None:
 
     @jit
     def _replay_atoms(fc: np.ndarray, lj: np.ndarray, lv: np.ndarray, starts: np.ndarray, ends: np.ndarray,
-                      a_lo: int, a_hi: int) -> None:
-        """`_replay` for the atoms a_lo <= j < a_hi only (threads replay their own atoms at once)."""
+                      tops: np.ndarray, downs: np.ndarray, a_lo: int, a_hi: int) -> None:
+        """Add the logged additions of the parts (`forces_part`; part p's at starts[p] .. ends[p] - 1
+        upwards, then at tops[p] - 1 .. downs[p] downwards: written in that order) to the atoms
+        a_lo <= j < a_hi into fc, part after part, each in order (threads replay their own atoms at
+        once; an atom's additions are all in one of the two runs of a part)."""
         for p in range(len(starts)):
             for q in range(starts[p], ends[p]):
                 j = lj[q]
@@ -491,17 +549,12 @@ if njit is not None:
                     fc[j, 0] += lv[q, 0]
                     fc[j, 1] += lv[q, 1]
                     fc[j, 2] += lv[q, 2]
-
-    @jit
-    def _replay(fc: np.ndarray, lj: np.ndarray, lv: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> None:
-        """Add the logged additions of the parts (`forces_part`; part p's at starts[p] .. ends[p] - 1)
-        into fc, part after part, each in order."""
-        for p in range(len(starts)):
-            for q in range(starts[p], ends[p]):
+            for q in range(tops[p] - 1, downs[p] - 1, -1):
                 j = lj[q]
-                fc[j, 0] += lv[q, 0]
-                fc[j, 1] += lv[q, 1]
-                fc[j, 2] += lv[q, 2]
+                if a_lo <= j < a_hi:
+                    fc[j, 0] += lv[q, 0]
+                    fc[j, 1] += lv[q, 1]
+                    fc[j, 2] += lv[q, 2]
 
     def forces(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray,
                eps: np.ndarray, sig2: np.ndarray, rc2: np.ndarray, offset: np.ndarray, length: np.ndarray,
@@ -715,6 +768,25 @@ BUSY_SKIP = 4
 BUSY_MIN_WALL = 0.05  # [s] a shorter chunk is not judged
 
 
+def case_parts(natoms: int) -> int:
+    """Threads for one case of natoms atoms (`_chunk_threaded`, and the pair's builds and passes
+    outside chunks): threads.count(), at most one per THREAD_MIN_ATOMS atoms (1: one call)."""
+    return max(1, min(threads.count(), natoms // THREAD_MIN_ATOMS, 64))
+
+
+def forces_case_threaded(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray,
+                         e24: float, e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray,
+                         periodic: np.ndarray, outputs: bool, parts: int,
+                         split: "RowSplit | None" = None) -> tuple[float, float, "RowSplit"]:
+    """`forces_case` over `parts` threads (`RowSplit`, `forces_threaded`): the same bits; returns
+    (energy, virial, the split), the split to pass again while the list stays the same."""
+    if split is None or len(split.rb) != parts + 1 or len(split.mixed) != len(owner):
+        split = RowSplit(owner, first, neigh, parts)
+    _, e, w = forces_threaded(x, f, owner, first, neigh, split, e24, e4, s2c, rcut2, off, length, periodic,
+                              outputs=outputs)
+    return e, w, split
+
+
 def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
                    owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int,
                    run: Callable[[list], list] = threads._in_threads, marks: np.ndarray | None = None,
@@ -723,8 +795,9 @@ def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic
     per thread (`run`: threads._in_threads or a `Crew`): part p writes its rows into its share of neigh (in
     proportion to its atoms), `_compact` then joins them. The same list, bit for bit; -1 if some
     part's share was too short (call again with a longer neigh). With `marks` (parts, N) uint8
-    zeros and `rows` (parts + 1,): marks[p] = the atoms part p's rows touch, rows = the parts' first
-    rows (for `RowSplit`). `shares` (parts + 1,), from 0 up to 1: part p starts at about atom
+    zeros and `rows` (parts + 1,): marks[p] = the atoms part p's rows touch (all `RowSplit` needs:
+    not those owned by part p or before, whose first part is known without), rows = the parts'
+    first rows (for `RowSplit`). `shares` (parts + 1,), from 0 up to 1: part p starts at about atom
     shares[p] N (default p / parts)."""
     N = pos.shape[0]
     if N < 2 * parts:  # (no marks: RowSplit marks itself)
@@ -746,7 +819,7 @@ def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic
 
     def scan(p: int) -> int:
         return _scan(xs, cstart, nb, owner, length, periodic, reach, int(qb[p]), int(qb[p + 1]), int(edges[p]),
-                     int(edges[p + 1]), first, neigh, none if marks is None else marks[p])
+                     int(edges[p + 1]), first, neigh, none if marks is None else marks[p], p < parts - 1)
 
     ends = np.asarray(run([lambda p=p: scan(p) for p in range(parts)]), np.int64)
     if (ends < 0).any():
@@ -758,15 +831,19 @@ def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic
     return m
 
 
+_NO_ROWS = np.empty((0, 2))
+
+
 class RowSplit:
     """The parts of a list's threaded force pass: rows rb[p] .. rb[p+1] - 1 for part p (about equal
     pairs, or `build_threaded`'s parts with its marks); firstp[j] = the first part whose rows touch atom j (owner or partner), the one that
     adds into f[j] at once: a later part logs its additions to j (lj, lv; part p's from logs[p],
-    room for all of its rows' additions, pages touched only as written) for `_replay`."""
+    room for all of its rows' additions, pages touched only as written) for `replay`. `reuse`: an
+    earlier split whose log arrays this one may take (it must not be used after)."""
 
     def __init__(self, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int,
                  run: Callable[[list], list] = threads._in_threads, marks: np.ndarray | None = None,
-                 rows: np.ndarray | None = None):
+                 rows: np.ndarray | None = None, reuse: "RowSplit | None" = None):
         nrow = len(owner)
         total = int(first[nrow])
         if marks is None or rows is None or rows[0] < 0:  # parts of about equal pairs, marked here
@@ -774,42 +851,70 @@ class RowSplit:
                                 nrow).astype(np.int64)
             marks = np.zeros((parts, nrow), np.uint8)
             rb = self.rb
-            run([lambda p=p: _touch(owner, first, neigh, int(rb[p]), int(rb[p + 1]), marks[p]) for p in range(parts)])
+            run([lambda p=p: _touch(owner, first, neigh, int(rb[p]), int(rb[p + 1]), marks[p], p < parts - 1)
+                 for p in range(parts)])  # the last part's partners: first touched before or by it
         else:  # the parts of `build_threaded` (about equal atoms) and its marks
             self.rb = rows.astype(np.int64)
         rb = self.rb
-        self.firstp = np.argmax(marks, axis=0).astype(np.uint8)  # the first part with a mark (0: none)
+        self.firstp = np.empty(nrow, np.uint8)  # the first part with a mark (0: none)
+        cut = [nrow * p // parts for p in range(parts + 1)]
+        run([lambda p=p: _first_marks(marks, cut[p], cut[p + 1], self.firstp) for p in range(parts)])
         self.mixed = np.zeros(nrow, np.uint8)  # rows of part 0 have none; the others' rows shared out
         cut = [int(rb[1]) + (nrow - int(rb[1])) * p // parts for p in range(parts + 1)]
         run([lambda p=p: _mixed(first, neigh, cut[p], cut[p + 1], rb, self.firstp, self.mixed) for p in range(parts)])
         room = (first[rb[1:]] - first[rb[:-1]]) + (rb[1:] - rb[:-1])
         room[0] = 0  # part 0 is the first to touch every atom it touches
         self.logs = np.concatenate(([0], np.cumsum(room))).astype(np.int64)
-        self.lj = np.empty(int(self.logs[-1]), np.int32)
-        self.lv = np.empty((int(self.logs[-1]), 3))
+        need = int(self.logs[-1])
+        if reuse is not None and len(reuse.lj) >= need:  # the last split's logs: their pages are mapped
+            self.lj, self.lv = reuse.lj, reuse.lv  # (a fresh array of this size is a fresh mmap each time)
+        else:
+            self.lj = np.empty(need + need // 8, np.int32)  # room for the list to grow a little
+            self.lv = np.empty((len(self.lj), 3))
+        self._rowew = None if reuse is None or reuse._rowew is None or len(reuse._rowew) != nrow else reuse._rowew
+
+    def replay(self, f: np.ndarray, a_lo: int, a_hi: int) -> None:
+        """Add the logged additions of the last `forces_threaded` pass to atoms a_lo .. a_hi - 1 into f."""
+        starts, tops = self.logs[:-1], self.logs[1:]
+        _replay_atoms(f, self.lj, self.lv, starts, self.ends if a_lo < self.cut else starts,
+                      tops, self.downs if a_hi > self.cut else tops, a_lo, a_hi)
+
+    def row_outputs(self) -> np.ndarray:
+        """The (rows, 2) array the parts write each row's energy and virial sums into (kept)."""
+        if self._rowew is None:
+            self._rowew = np.empty((len(self.mixed), 2))
+        return self._rowew
 
 
 def forces_threaded(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray,
                     split: RowSplit, e24: float, e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray,
                     periodic: np.ndarray, run: Callable[[list], list] = threads._in_threads,
-                    replay: bool = True) -> np.ndarray:
-    """`forces_case` (forces only) with its rows cut in the parts of `split`, one per thread, then
-    the logged additions (`_replay`): every atom's force gets the same additions in the same order
-    as in `forces_case`, so the same bits. Returns each part's CPU seconds (its thread's). Without
-    `replay` the logs' ends are left in split.ends for the caller to replay (`_replay_atoms`)."""
+                    replay: bool = True, outputs: bool = False, cut: int | None = None) -> tuple[np.ndarray, float, float]:
+    """`forces_case` with its rows cut in the parts of `split`, one per thread, then the logged
+    additions (`RowSplit.replay`): every atom's force gets the same additions in the same order as in
+    `forces_case`, so the same bits; with outputs, so are the energy and virial (each row's sums,
+    then the rows in order). Returns (each part's CPU seconds (its thread's), energy, virial; 0, 0
+    without outputs). Without `replay` the caller replays the logs (`split.replay`, e.g. each
+    thread its own atoms: logged additions to atoms below `cut` (default: all) and to the others
+    are kept apart, so a thread replaying one side reads only its own)."""
     rb, logs = split.rb, split.logs
+    rowew = split.row_outputs() if outputs else _NO_ROWS
+    split.cut = len(f) if cut is None else cut
 
-    def part(p: int) -> tuple[int, float]:
+    def part(p: int) -> tuple[tuple[int, int], float]:
         t = time.thread_time()
         q = forces_part(x, f, owner, first, neigh, int(rb[p]), int(rb[p + 1]), p, split.firstp, split.mixed,
-                        split.lj, split.lv, int(logs[p]), e24, e4, s2c, rcut2, off, length, periodic)
+                        split.lj, split.lv, int(logs[p]), int(logs[p + 1]), split.cut, e24, e4, s2c, rcut2, off,
+                        length, periodic, outputs, rowew)
         return q, time.thread_time() - t
 
     got = run([lambda p=p: part(p) for p in range(len(rb) - 1)])
-    split.ends = np.array([g[0] for g in got], np.int64)
+    split.ends = np.array([g[0][0] for g in got], np.int64)
+    split.downs = np.array([g[0][1] for g in got], np.int64)
     if replay:
-        _replay(f, split.lj, split.lv, logs[:-1], split.ends)
-    return np.array([g[1] for g in got])
+        split.replay(f, 0, len(f))
+    e, w = _row_sums(rowew) if outputs else (0.0, 0.0)
+    return np.array([g[1] for g in got]), e, w
 
 
 class Crew:
@@ -863,24 +968,26 @@ class Crew:
             t.join()
 
 
-def _chunk_threaded(kernel: Any, args: tuple, parts: int) -> tuple[int, int, np.ndarray]:
+def _chunk_threaded(kernel: Any, args: tuple, parts: int, held: dict | None = None) -> tuple[int, int, np.ndarray]:
     """`kernel(*args)` (a `pair_chunk` call of one case) over `parts` threads, step by step:
     the list build if due (`build_threaded`), the pair forces (`forces_threaded`), then on runs of
     atoms the kernel with `post` for the rest of the step (walls, lost atoms, final_integrate) and
     `_pre_step` for the start of the next (drift, wrap, list check): two meetings of the threads a
     step. With wall/flow the rest of the step runs on all atoms in one call (its random stream is
-    drawn atom after atom). A sampled chunk's last pair pass runs in one call (`forces_case` with
-    outputs: its energy and virial sums in list order). Every value is that of the one call, bit
+    drawn atom after atom). A sampled chunk's last pair pass gives the energy and virial too (each
+    row's sums by the parts, then the rows in order, as `forces_case`). Every value is that of the one call, bit
     for bit; returns what it returns (a chunk with trouble may stop at another step of it: the
-    caller discards it and the NumPy loop re-runs it)."""
+    caller discards it and the NumPy loop re-runs it). `held` carries what the next chunk of the
+    case can reuse: "split" (the `RowSplit` of the list the chunk ends with; in: that of the list it
+    starts with, or None) and "shares" (the parts' shares of the atoms for the next build)."""
     crew = Crew(parts)
     try:
-        return _chunk_steps(kernel, args, parts, crew)
+        return _chunk_steps(kernel, args, parts, crew, {} if held is None else held)
     finally:
         crew.close()
 
 
-def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int, int, np.ndarray]:
+def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict) -> tuple[int, int, np.ndarray]:
     """`_chunk_threaded`'s steps, the threads' calls run by `crew`."""
     a = dict(zip(_signature_names(kernel), args))
     nsteps, x, v, f, xref = a["nsteps"], a["x"], a["v"], a["f"], a["xref"]
@@ -889,7 +996,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
     dt, limit2, lj = a["dt"], a["limit2"], (a["e24"], a["e4"], a["s2c"], a["rcut2"], a["off"])
     N = x.shape[0]
     dtfm = _dtfm(a["mass"], dt, a["ftm2v"])
-    sf_val, sample = a["sf_val"], a["sample"]
+    sf_val, sample, fpair = a["sf_val"], a["sample"], a["fpair"]
     vary = sf_val.shape[0] > 1
     runs = [slice(N * p // parts, N * (p + 1) // parts) for p in range(parts)]
     a.update(nsteps=1, post=True, sample=False)
@@ -908,7 +1015,9 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
         t = tails[p] if p < len(tails) else None
         if pending is not None:  # this part's atoms' logged pair forces first
             r = runs[p] if len(tails) == parts else slice(0, N)
-            _replay_atoms(f, pending.lj, pending.lv, pending.logs[:-1], pending.ends, r.start, r.stop)
+            pending.replay(f, r.start, r.stop)
+            if sample and step == nsteps - 1:  # the sample's pair forces (`pair_chunk`'s fpair)
+                fpair[r] = f[r]
         if t is not None:
             t.update(neigh=neigh, sf_val=sf_val[step:step + 1] if vary else sf_val)
             st = kernel(*t.values())[0]
@@ -919,11 +1028,15 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
     def pres() -> int:
         return max(crew([lambda r=r: pre(r) for r in runs]))  # 3: a non-finite position
 
-    split = pending = None
+    pending = old = None
+    split = held.get("split")  # the starting list's, if the caller kept it
     builds = 0
     built = False  # the list is this chunk's build: its marks and parts serve RowSplit
     marks, rows = np.zeros((parts, N), np.uint8), np.empty(parts + 1, np.int64)
-    shares = np.arange(parts + 1) / parts
+    shares = held.get("shares")
+    if shares is None or len(shares) != parts + 1:
+        shares = np.arange(parts + 1) / parts
+    held["split"] = None  # (a chunk with trouble keeps nothing)
     st = pres()
     for step in range(nsteps):
         if st == 3:
@@ -940,19 +1053,18 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
             neigh = target
             xref[:] = x
             builds += 1
-            split = None
+            split, old = None, split
             built = True
-        if sample and step == nsteps - 1:
-            e, w = forces_case(x, f, owner, first, neigh, *lj, length, per, True)
+        if split is None:
+            split = RowSplit(owner, first, neigh, parts, crew, *((marks, rows) if built else (None, None)), reuse=old)
+        last = sample and step == nsteps - 1  # the sample's pair pass: also the energy and virial
+        cpu, e, w = forces_threaded(x, f, owner, first, neigh, split, *lj, length, per, crew, replay=False,
+                                    outputs=last, cut=runs[1].start if parts == 2 else N)
+        pending = split  # its logs are replayed by tail_pre, each part its own atoms
+        if last:
             a["ew"][0], a["ew"][1] = e, w
-            a["fpair"][:] = f
-        else:
-            if split is None:
-                split = RowSplit(owner, first, neigh, parts, crew, *((marks, rows) if built else ()))
-            cpu = forces_threaded(x, f, owner, first, neigh, split, *lj, length, per, crew, replay=False)
-            pending = split  # its logs are replayed by tail_pre, each part its own atoms
-            if built and rows[0] >= 0 and cpu.min() > 0:  # next build: parts of about equal force time
-                shares = _rebalance(shares, rows / N, cpu)
+        if built and rows[0] >= 0 and cpu.min() > 0:  # next build: parts of about equal force time
+            shares = _rebalance(shares, rows / N, cpu)
         if len(tails) == parts:  # the rest of this step and the start of the next, atoms in parts
             got = crew([lambda p=p: tail_pre(p, step) for p in range(parts)])
         else:  # wall/flow: the rest of the step on all atoms, then the next start in parts
@@ -964,6 +1076,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew) -> tuple[int,
         if bad != 0:
             return bad, builds, neigh
         st = max(g[1] for g in got)
+    held["split"], held["shares"] = split, shares
     return 0, builds, neigh
 
 
@@ -1014,6 +1127,33 @@ class PairChunks:
         self.fallbacks = 0
         self.threaded_chunks = 0  # case chunks run by `_chunk_threaded`
         self.busy_skip = 0  # case chunks to run in one call before trying threads again
+        # a one-case batch's threaded chunk's (key, owner, first, held): its RowSplit and shares,
+        # for the next chunk if it starts from that very list (`_reuse`)
+        self._held: tuple | None = None
+        self._bufs: dict[str, np.ndarray] = {}
+
+    def _buffer(self, name: str, shape: tuple, dtype: Any) -> np.ndarray:
+        """A C-contiguous array kept across chunks under `name` (new if the shape or type differs):
+        the chunks' copies of the state go there, since a fresh array of this size is a fresh
+        mapping whose pages fault again on first touch (about 2 ms per 2.4 MB here)."""
+        b = self._bufs.get(name)
+        if b is None or b.shape != tuple(shape) or b.dtype != np.dtype(dtype):
+            b = self._bufs[name] = np.empty(shape, dtype)
+        return b
+
+    def _reuse(self, c: int, C: int, parts: int, owner: np.ndarray, first: np.ndarray, pair: Any) -> dict:
+        """What `_chunk_threaded` may reuse for case c (`held`): the last threaded chunk's, if it
+        left this very list (same case, builds, parts, owner and first), or the split of the pair's
+        own threaded pass on it (`PairLJCut.compute` of one case, e.g. the set-up's), else a fresh dict."""
+        got, self._held = self._held, None
+        if got is None or got[0] != (c, C, int(pair.case_builds[c]), parts, len(owner)):
+            own = getattr(pair, "_split", None)
+            if C == 1 and own is not None and own[0] == pair.builds and len(own[1].rb) == parts + 1:
+                return {"split": own[1]}  # the list has not been rebuilt since that pass
+            return {}
+        if not (np.array_equal(got[1], owner) and np.array_equal(got[2], first)):
+            return {}
+        return got[3]
 
     def advance_to_time(self, target: float) -> bool:
         return False
@@ -1054,7 +1194,11 @@ class PairChunks:
         lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)
         rc2 = pair.cutoff * pair.cutoff
         offset = pair.offsets()
-        fpair = np.empty((C, N, 3) if sample else (C, 0, 3))  # a sampled chunk's last pair pass: its outputs
+        pair._memo = None  # (the last chunk's outputs, if no sample took them: fpair is overwritten)
+        # a sampled chunk's last pair pass: its forces, for the sample
+        fpair = self._buffer("fpair", (C, N, 3), float) if sample else np.empty((C, 0, 3))
+        bufs = [self._buffer(k, a.shape, a.dtype) for k, a in (("x", s.x), ("v", s.v), ("f", s.f), ("xref", pair._xref),
+                                                            ("owner", pair._owner), ("first", pair._first))]
         ew = np.zeros((C, 2))
         fk = plan.flow[0] if plan.flow else None
         if fk is not None:
@@ -1068,8 +1212,9 @@ class PairChunks:
             _compiled.announce_compile(kernel)
         done = []
         for c in range(C):
-            x, v, f = s.x[c].copy(), s.v[c].copy(), s.f[c].copy()
-            xref, owner, first = pair._xref[c].copy(), pair._owner[c].copy(), pair._first[c].copy()
+            x, v, f, xref, owner, first = (b[c] for b in bufs)  # copies of the case's state (kept arrays)
+            for b, a in zip((x, v, f, xref, owner, first), (s.x, s.v, s.f, pair._xref, pair._owner, pair._first)):
+                np.copyto(b, a[c])
             neigh = pair._neigh[c]  # read only: a build in the chunk writes into `spare`
             spare = pair.spare_list() if C == 1 else np.empty(pair._neigh.shape[1], np.int32)
             if fk is None:
@@ -1085,13 +1230,15 @@ class PairChunks:
                     24.0 * float(pair.epsilon[c]), 4.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2),
                     float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
                     sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl)
-            parts = min(threads.count(), N // THREAD_MIN_ATOMS, 64)
+            parts = case_parts(N)
             if parts >= 2 and self.busy_skip > 0:  # the cores were busy with other work: one thread
                 self.busy_skip -= 1
                 parts = 1
+            held: dict = {}
             if parts >= 2:
+                held = self._reuse(c, C, parts, owner, first, pair)
                 wall, cpu = time.perf_counter(), time.process_time()
-                status, builds, neigh = _chunk_threaded(kernel, args, parts)
+                status, builds, neigh = _chunk_threaded(kernel, args, parts, held)
                 wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
                 self.threaded_chunks += 1
                 if wall > BUSY_MIN_WALL and cpu < THREAD_MIN_USE * parts * wall:
@@ -1099,19 +1246,26 @@ class PairChunks:
             else:
                 status, builds, neigh = kernel(*args)
             if status != 0:
+                self._held = None
                 if fk is not None:  # the NumPy loop re-runs the chunk with the same random numbers
                     for r, st in zip(fk.rngs, rng_states):
                         r.bit_generator.state = st
                 self.fallbacks += 1
                 return False
-            done.append((x, v, f, xref, owner, first, neigh, builds))
-        for c, (x, v, f, xref, owner, first, neigh, builds) in enumerate(done):
+            done.append((x, v, f, xref, owner, first, neigh, builds, held))
+        for c, (x, v, f, xref, owner, first, neigh, builds, held) in enumerate(done):
             s.x[c], s.v[c], s.f[c] = x, v, f
             pair._xref[c], pair._owner[c], pair._first[c] = xref, owner, first
             if builds:
                 pair.adopt_list(c, neigh)
             pair.builds += builds
             pair.case_builds[c] += builds
+            if held.get("split") is not None and C == 1:  # the next chunk's RowSplit, if the list stays
+                kept = (self._buffer("held_owner", owner.shape, owner.dtype),
+                        self._buffer("held_first", first.shape, first.dtype))
+                np.copyto(kept[0], owner)
+                np.copyto(kept[1], first)
+                self._held = ((c, C, int(pair.case_builds[c]), len(held["shares"]) - 1, N), *kept, held)
         if sample:  # the sample's pair.compute at these positions takes them instead of a second pass
             pair.remember(s.x, fpair, ew[:, 0].copy(), ew[:, 1].copy())
         s.step += nsteps

@@ -1,0 +1,91 @@
+"""Where the time of one large lj/cut case goes on one thread and on two: per-phase seconds of each
+thread over the timed `Engine([case]).run()` of benchmarks/pair_threads.py's scene.
+
+    WALLBATCH_THREADS=2 python benchmarks/pair_threads_phases.py [--atoms 100000] [--steps 50]
+
+Wraps pair_compiled's phases (list build parts, force parts, sampled pass, tails, step starts,
+split set-up) with timers recording (thread, phase, start, end); prints per thread the phases'
+totals and counts, and the main thread's waits at the meetings. Timers add a little overhead:
+compare phases, not the run's total, with pair_threads.py.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import sys
+import threading
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+import common  # noqa: E402
+
+from wallbatch.engine import pair_compiled as pc  # noqa: E402
+from wallbatch.engine.engine import Engine  # noqa: E402
+
+EVENTS: list[tuple[str, str, float, float, float]] = []
+
+
+def timed(name: str, fn):  # noqa: ANN001, ANN201
+    def wrapper(*a, **k):  # noqa: ANN002, ANN003, ANN202
+        t0, c0 = time.perf_counter(), time.thread_time()
+        try:
+            return fn(*a, **k)
+        finally:
+            EVENTS.append((threading.current_thread().name, name, t0, time.perf_counter(), time.thread_time() - c0))
+    return wrapper
+
+
+def install() -> None:
+    for name in ("_scan", "_bin", "_compact", "_touch", "_mixed", "_first_marks", "_row_sums", "forces_part", "forces_case", "_pre_step",
+                 "_replay_atoms", "build_threaded", "_rebalance", "_chunk_threaded"):
+        if hasattr(pc, name):
+            setattr(pc, name, timed(name, getattr(pc, name)))
+    for cls, meth in ((pc.RowSplit, "__init__"), (pc.Crew, "__call__")):
+        setattr(cls, meth, timed(f"{cls.__name__}.{meth}", getattr(cls, meth)))
+    orig = pc._chunk_steps
+
+    def steps(kernel, args, parts, crew, *more):  # noqa: ANN001, ANN002, ANN202
+        tail = timed("kernel(tail)", kernel)
+        tail.py_func = kernel.py_func
+        return orig(tail, args, parts, crew, *more)
+    pc._chunk_steps = steps
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--atoms", type=int, default=100000)
+    ap.add_argument("--steps", type=int, default=50)
+    ap.add_argument("--no-busy-skip", action="store_true", help="thread every chunk (THREAD_MIN_USE = 0)")
+    args = ap.parse_args()
+    if args.no_busy_skip:
+        pc.THREAD_MIN_USE = 0.0
+    n, steps = args.atoms, args.steps
+    Engine([common.build(common.lj_fcc_slit(n, steps=10, thermo=10))]).run()
+    case = common.build(common.lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10)))
+    install()
+    EVENTS.clear()
+    t0, c0 = time.perf_counter(), time.process_time()
+    eng = Engine([case])
+    eng.run()
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    print(f"N {case.natoms}, {steps} steps: wall {wall:.3f} s, CPU {cpu:.3f} s")
+    print(f"chunks over threads {eng.fast.threaded_chunks}")
+    tot: dict[tuple[str, str], list[float]] = collections.defaultdict(lambda: [0.0, 0, 0.0])
+    for th, name, a, b, c in EVENTS:
+        tot[th, name][0] += b - a
+        tot[th, name][1] += 1
+        tot[th, name][2] += c
+    for th in sorted({k[0] for k in tot}):
+        print(f"thread {th}:")
+        for (t, name), (sec, cnt, c) in sorted(tot.items(), key=lambda kv: -kv[1][0]):
+            if t == th:
+                print(f"  {name:22s} {sec * 1e3:8.1f} ms (CPU {c * 1e3:7.1f})  {cnt:5d} calls  "
+                      f"{sec / cnt * 1e3:7.2f} ms/call")
+
+
+if __name__ == "__main__":
+    main()
