@@ -316,24 +316,63 @@ def test_linear_expression_wall_constant_force_runs():
 
 
 @pytest.mark.slow
-def test_compiled_lepton_equals_numpy_bit_for_bit(monkeypatch):
+@pytest.mark.parametrize("thermo", [50, 1])
+def test_compiled_lepton_equals_numpy_bit_for_bit(monkeypatch, thermo):
     """The compiled path runs wall/lepton faces with the kernel generated from the expression,
-    inlined like a built-in style: the trajectory equals the NumPy engine's bit for bit."""
+    inlined like a built-in style: the trajectory equals the NumPy engine's bit for bit; sampled
+    every step, the kernel records the outputs itself (E(r) - E(rc) generated from the expression,
+    force on the wall, virial) and every output equals NumPy's bit for bit too."""
     from wallbatch.engine.engine import Engine  # noqa: PLC0415
 
     face = "{coord: EDGE, cutoff: 2.5, expression: 'eps*(2/15*(sig/r)^9-(sig/r)^3)', params: {eps: 1.0, sig: 1.0}}"
     harm = "{coord: EDGE, cutoff: 1.5, expression: 'k*(r-rc)^2', params: {k: 30.0, rc: 1.5}}"
-    text = slit(f"w: {{style: lepton, units: box, energy: true, zlo: {face}, zhi: {harm}}}\n", steps=300)
+    text = slit(f"w: {{style: lepton, units: box, energy: true, virial: true, zlo: {face}, zhi: {harm}}}\n",
+                steps=300, thermo=thermo).replace("etot]", "etot, press]")
     case = build_case(load_config_text(text))
     runs = {}
     for mode in ("always", "never"):
         monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", mode)
         engine = Engine([case])
-        runs[mode] = (engine.run()[0], engine.fast)
+        runs[mode] = (engine.run(), engine.fast)
     (compiled, fast), (numpy_res, none) = runs["always"], runs["never"]
     assert none is None and fast is not None and fast.compiled_chunks > 0 and fast.fallbacks == 0
-    for key in ("etot", "wall_energy", "wall_force", "temp"):
-        np.testing.assert_array_equal(compiled.data[key], numpy_res.data[key])
+    assert fast.sampled_calls > 0  # the samples come from the kernel
+    assert numpy_res[0].status == "ok" and np.all(numpy_res[0].data["wall_force"][1:] != 0.0)
+    assert np.all(numpy_res[0].data["wall_energy"][1:] != 0.0)
+    assert_same_results(numpy_res, compiled)  # every output, bit for bit
+
+
+@pytest.mark.slow
+def test_compiled_lepton_sweep_sampled_every_step_equals_numpy(tmp_path, monkeypatch):
+    """A 3-case sweep of an expression parameter (eps of an lj93 spelled out, 2 parameters, and
+    b of a 4-parameter expression whose parameters go as an array), sampled every step: the
+    kernel records every sample (energies from the generated E(r) - E(rc)) and the trajectories
+    and outputs equal the NumPy engine's bit for bit, differing between the cases."""
+    from wallbatch.engine.engine import Engine  # noqa: PLC0415
+
+    lj = "{coord: EDGE, cutoff: 2.5, expression: 'eps*(2/15*(sig/r)^9-(sig/r)^3)', params: {eps: 1.0, sig: 1.0}}"
+    four = ("{coord: EDGE, cutoff: 2.0, expression: 'a*(r-rc)^2 + b*exp(-r/l)', "
+            "params: {a: 20.0, rc: 2.0, b: 3.0, l: 0.4}}")
+    text = slit(f"w: {{style: lepton, units: box, energy: true, virial: true, zlo: {lj}, zhi: {four}}}\n",
+                steps=200, thermo=1,
+                extra="sweep:\n  zip:\n    dim: strength\n    params:\n"
+                      "      eps: {path: walls.w.zlo.params.eps, values: [0.5, 1.0, 2.0]}\n"
+                      "      b: {path: walls.w.zhi.params.b, values: [1.0, 3.0, 5.0]}\n"
+                ).replace("etot]", "etot, press]")
+    plan = load_plan(write(tmp_path, text))
+    cases = [build_case(c.config, c.seed_key) for c in plan.cases]
+    assert len(cases) == 3 and len({structure_key(c) for c in cases}) == 1
+    runs = {}
+    for mode in ("always", "never"):
+        monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", mode)
+        engine = Engine(cases)
+        runs[mode] = (engine.run(), engine.fast)
+    (compiled, fast), (numpy_res, none) = runs["always"], runs["never"]
+    assert none is None and fast is not None and fast.fallbacks == 0 and fast.sampled_calls > 0
+    assert fast.compiled_chunks == 200  # every sample from the kernel
+    assert all(n.status == "ok" and np.all(n.data["wall_force"][1:] != 0.0) for n in numpy_res)
+    assert_same_results(numpy_res, compiled)
+    assert len({float(r.data["wall_energy"][1:].sum()) for r in numpy_res}) == 3
 
 
 def test_lepton_auto_policy_loads_a_cached_kernel_for_shorter_runs(tmp_path, monkeypatch):
