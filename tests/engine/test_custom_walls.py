@@ -375,10 +375,11 @@ def test_compiled_lepton_sweep_sampled_every_step_equals_numpy(tmp_path, monkeyp
     assert len({float(r.data["wall_energy"][1:].sum()) for r in numpy_res}) == 3
 
 
-def test_lepton_auto_policy_loads_a_cached_kernel_for_shorter_runs(tmp_path, monkeypatch):
-    """WALLBATCH_LEPTON_COMPILED=auto: a batch runs compiled from LEPTON_CACHED_MIN_ATOM_STEPS
-    atom-steps when its generated chunk kernel is on disk (marked after its first compile), and
-    from LEPTON_MIN_ATOM_STEPS when it would have to be compiled; always / never decide alone."""
+def test_lepton_auto_policy_picks_the_faster_path_for_this_run(tmp_path, monkeypatch):
+    """WALLBATCH_LEPTON_COMPILED=auto: a batch runs compiled when the cost model (steps, atoms over
+    its cases, samples; the kernel's load or compile) expects it to take less time in this run
+    than the NumPy path, decided once per batch (every chunk of a run gets the first answer);
+    always / never decide alone."""
     from types import SimpleNamespace  # noqa: PLC0415
 
     fast = pytest.importorskip("wallbatch.engine.compiled")
@@ -386,28 +387,40 @@ def test_lepton_auto_policy_loads_a_cached_kernel_for_shorter_runs(tmp_path, mon
 
     monkeypatch.setenv("WALLBATCH_CACHE_DIR", str(tmp_path))
     monkeypatch.delenv("WALLBATCH_LEPTON_COMPILED", raising=False)
+    monkeypatch.setattr(fast, "_LEPTON_RUN", set())
     extra = (force_source(compile_expression("k*(r-rc)^2", ("k", "rc"))),)
 
-    def state(atoms: int, steps: int) -> SimpleNamespace:  # two cases, half the steps each
-        return SimpleNamespace(end_step=np.array([steps // 2, steps // 2]), step=np.zeros(2, np.int64),
-                               x=np.zeros((2, atoms, 3)))
+    def state(cases: int, atoms: int, steps: int) -> SimpleNamespace:
+        return SimpleNamespace(end_step=steps, step=np.zeros(cases, np.int64), x=np.zeros((cases, atoms, 3)))
 
-    cached_min, compile_min = fast.LEPTON_CACHED_MIN_ATOM_STEPS, fast.LEPTON_MIN_ATOM_STEPS
-    assert cached_min < compile_min
-    mid = state(1000, int(2 * cached_min / 1000))  # between the thresholds
-    assert not fast.lepton_compiled_wanted(mid, extra)
-    assert fast.lepton_compiled_wanted(state(1000, int(compile_min / 1000)), extra)
+    def wanted(cases: int, atoms: int, steps: int, samples: int) -> bool:
+        return fast.lepton_compiled_wanted(state(cases, atoms, steps), extra, lambda: samples)
+
+    # the model: NumPy per step, atom-step and sample; compiled per atom-step after its start
+    numpy_s, compiled_s = fast.lepton_seconds(6000, 1000, 6000, "cached")
+    assert numpy_s == pytest.approx(6000 * (fast.LEPTON_NUMPY_STEP_S + 1000 * fast.LEPTON_NUMPY_ATOM_STEP_S)
+                                    + 6000 * (fast.LEPTON_NUMPY_SAMPLE_S + 1000 * fast.LEPTON_NUMPY_SAMPLE_ATOM_S))
+    assert compiled_s == pytest.approx(fast.LEPTON_LOAD_S + 6e6 * fast.LEPTON_COMPILED_ATOM_STEP_S)
+    # not compiled yet: only where the compile pays for itself in this run
+    assert not wanted(1, 1000, 6000, 6000)
+    assert not wanted(1, 100_000, 10_000, 10)
+    assert wanted(1, 1_000_000, 10_000, 10)
+    early = state(1, 1000, 6000)
+    assert not fast.lepton_compiled_wanted(early, extra, lambda: 6000)
+    # on disk (compiled by an earlier process): the ~0.5 s load pays for itself from about 0.5 s of NumPy work
+    fast._compiled_marker(extra).write_text("")
+    assert wanted(1, 1000, 6000, 6000)  # the every-step panel's lepton row (thermo 1)
+    assert wanted(1, 1000, 2000, 2000)  # sampled every step: the samples tip it
+    assert not wanted(1, 1000, 2000, 20)  # the same run sampled every 100 steps: NumPy is quicker
+    assert wanted(30, 1000, 2000, 20)  # thirty such cases in one batch
+    assert not fast.lepton_compiled_wanted(early, extra, lambda: 6000)  # a batch keeps its first answer
+    # already run in this process: no start-up cost left, even a short run goes compiled
     fast._mark_compiled(extra)
-    assert fast._compiled_marker(extra).exists()
-    assert fast.lepton_compiled_wanted(mid, extra)
-    assert not fast.lepton_compiled_wanted(state(1000, int(cached_min / 2000)), extra)
-    late = state(1000, int(2 * cached_min / 1000))
-    late.step[:] = late.end_step - 1  # the last chunk of that run: still the run's choice (it once
-    assert fast.lepton_compiled_wanted(late, extra)  # counted the steps left and went NumPy halfway)
+    assert wanted(1, 100, 100, 1) and wanted(1, 1000, 2000, 20)
     monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", "never")
-    assert not fast.lepton_compiled_wanted(state(1000, int(compile_min / 1000)), extra)
+    assert not wanted(1, 1_000_000, 10_000, 10)
     monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", "always")
-    assert fast.lepton_compiled_wanted(state(10, 10), extra)
+    assert wanted(1, 10, 10, 1)
 
 
 @pytest.mark.slow

@@ -1895,6 +1895,7 @@ class ChunkPlan:
     # None: the engine takes samples one at a time only
     record_samples: Callable[..., None] | None = None
     outputs: tuple[str, ...] = ()  # the thermo outputs (press needs the virial)
+    samples: Callable[[], int] | None = None  # the run's samples after step 0 (None: not known)
 
 
 def _face_styles(w: SoftWallKernel) -> list[WallStyle]:
@@ -2005,14 +2006,23 @@ def _tables(soft_faces: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 # wall/table faces run in the built-in scene kernel (their tables are its data): always eligible.
 # wall/lepton faces run in the scene's chunk kernel with the batch's expressions (`kernel_for`):
-# compiled once (~20 s), then cached on disk and loaded by later processes (~0.5 s, like the
-# built-in kernel). WALLBATCH_LEPTON_COMPILED=always|never|auto; auto (the default) uses it when
-# the batch has at least LEPTON_CACHED_MIN_ATOM_STEPS atom-steps over its cases and the kernel is
-# on disk (a load of ~0.5 s against >= 27 ns/atom-step saved on the NumPy path), or at least
-# LEPTON_MIN_ATOM_STEPS when it must be compiled first (where the compile pays for itself in this
-# run; benchmarks/lepton.py)
-LEPTON_MIN_ATOM_STEPS = 5e8
-LEPTON_CACHED_MIN_ATOM_STEPS = 1e7
+# compiled once (~20-30 s), then cached on disk and loaded by later processes (~0.5 s, like the
+# built-in kernel). WALLBATCH_LEPTON_COMPILED=always|never|auto; auto (the default) runs the batch
+# compiled when that is expected to take less time in this run than the NumPy path
+# (`lepton_seconds`: a cost model from the batch's steps, atoms and samples, measured on a 2-core
+# machine with benchmarks/lepton_cost.py): NumPy LEPTON_NUMPY_STEP_S per step plus
+# LEPTON_NUMPY_ATOM_STEP_S per atom-step, and per sample LEPTON_NUMPY_SAMPLE_S plus
+# LEPTON_NUMPY_SAMPLE_ATOM_S per atom; compiled LEPTON_COMPILED_ATOM_STEP_S per atom-step (samples
+# recorded in the kernel: next to nothing) plus nothing when this process has run the kernel
+# already, LEPTON_LOAD_S when it is on disk, or LEPTON_COMPILE_S when it must be compiled first.
+LEPTON_NUMPY_STEP_S = 0.09e-3
+LEPTON_NUMPY_ATOM_STEP_S = 14e-9
+LEPTON_NUMPY_SAMPLE_S = 0.22e-3
+LEPTON_NUMPY_SAMPLE_ATOM_S = 3e-9
+LEPTON_COMPILED_ATOM_STEP_S = 6e-9
+LEPTON_LOAD_S = 0.5
+LEPTON_COMPILE_S = 30.0
+_LEPTON_RUN: set[tuple[str, ...]] = set()  # the generated kernels (their `extra`) this process has run
 
 
 def _lepton_extra(plan: ChunkPlan) -> tuple[str, ...]:
@@ -2037,24 +2047,41 @@ def _compiled_marker(extra: tuple[str, ...]) -> Path:
 
 @functools.lru_cache(maxsize=64)
 def _mark_compiled(extra: tuple[str, ...]) -> None:
+    _LEPTON_RUN.add(extra)
     marker = _compiled_marker(extra)
     if not marker.exists():
         marker.write_text("")
 
 
-def lepton_compiled_wanted(state: BatchState, extra: tuple[str, ...] = ()) -> bool:
+def lepton_seconds(steps: float, atoms: float, samples: float, kernel: str) -> tuple[float, float]:
+    """(NumPy, compiled) seconds expected for a batch of `atoms` atoms over all its cases run
+    `steps` steps with `samples` samples, the compiled path's kernel being "run" (already run in
+    this process), "cached" (on disk) or "new" (compiled first): the cost model above."""
+    numpy_s = (steps * (LEPTON_NUMPY_STEP_S + LEPTON_NUMPY_ATOM_STEP_S * atoms)
+               + samples * (LEPTON_NUMPY_SAMPLE_S + LEPTON_NUMPY_SAMPLE_ATOM_S * atoms))
+    start = {"run": 0.0, "cached": LEPTON_LOAD_S, "new": LEPTON_COMPILE_S}[kernel]
+    return numpy_s, start + steps * atoms * LEPTON_COMPILED_ATOM_STEP_S
+
+
+def lepton_compiled_wanted(state: BatchState, extra: tuple[str, ...] = (), samples: Callable[[], int] | None = None
+                           ) -> bool:
     """Whether wall/lepton faces (generated forces `extra`) run on the compiled path for this batch
-    (see above), from the atom-steps of its whole run (the same answer at every chunk)."""
+    (see above): decided once per batch from its whole run (`samples()`: its samples after step 0;
+    None: counted as none) and kept on the state, so every chunk of the run gets the same answer."""
     mode = os.environ.get("WALLBATCH_LEPTON_COMPILED", "auto").strip().lower()
     if mode in ("always", "1", "yes"):
         return True
     if mode in ("never", "0", "no"):
         return False
-    # the batch's whole run, not what is left of it: the choice must not flip to NumPy halfway
-    atom_steps = float(np.broadcast_to(np.maximum(state.end_step, 0), (state.x.shape[0],)).sum()) * state.x.shape[1]
-    if atom_steps >= LEPTON_MIN_ATOM_STEPS:
-        return True
-    return atom_steps >= LEPTON_CACHED_MIN_ATOM_STEPS and _compiled_marker(extra).exists()
+    chosen = state.__dict__.setdefault("_lepton_compiled", {})
+    if extra not in chosen:
+        # the batch's whole run, not what is left of it: the choice must not flip to NumPy halfway
+        steps = float(np.max(np.maximum(state.end_step, 0)))
+        kernel = "run" if extra in _LEPTON_RUN else "cached" if _compiled_marker(extra).exists() else "new"
+        numpy_s, compiled_s = lepton_seconds(steps, float(state.x.shape[0] * state.x.shape[1]),
+                                             float(samples()) if samples is not None else 0.0, kernel)
+        chosen[extra] = compiled_s < numpy_s
+    return chosen[extra]
 
 
 def _compiled_face(w: SoftWallKernel, style: WallStyle) -> bool:
@@ -2075,7 +2102,7 @@ def eligible(plan: ChunkPlan) -> bool:
            not all(_compiled_face(w, st) for st in _face_styles(w)) for w in plan.soft):
         return False
     extra = _lepton_extra(plan)
-    if extra and not lepton_compiled_wanted(plan.state, extra):
+    if extra and not lepton_compiled_wanted(plan.state, extra, plan.samples):
         return False
     if any(not region_eligible(w) for w in plan.region):
         return False
