@@ -765,6 +765,13 @@ def _compile(text: str, supplied: tuple[str, ...]) -> LeptonExpression:
 
 
 def _codegen(trees: Iterable[Node], params: tuple[str, ...], positional: bool = False) -> str:
+    """:func:`_generate`, cached per trees, parameters and form (the compiled path asks for a
+    face's sources at every chunk)."""
+    return _generate(tuple(trees), tuple(params), positional)
+
+
+@functools.lru_cache(maxsize=512)
+def _generate(trees: tuple[Node, ...], params: tuple[str, ...], positional: bool = False) -> str:
     """Python source of ``kernel(r, p) -> (E, F)`` for scalar r and a parameter array p (or, with
     ``positional``, ``kernel(r, p0, p1, p2, rc, radius)`` returning the one tree's value, the
     signature of a compiled wall-style force); one statement per node, in the evaluation order of
