@@ -46,6 +46,7 @@ def sweep_config(steps: int, n: int = 1000) -> dict:
 # each window it ran (in WB_CPU_DIR/<pid>), for the CPU model below
 CPU_NOTES = """
 import os, sys, time
+import wallbatch.cli  # first, as the console script: what it sets before NumPy loads (OpenBLAS threads)
 from wallbatch.batch import runner
 parent, folder, real = os.getpid(), os.environ["WB_CPU_DIR"], runner._run_window
 def noted(*args, **kwargs):

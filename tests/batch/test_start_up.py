@@ -6,6 +6,9 @@ as it was, and `wallbatch run` numbers do not depend on any of it."""
 from __future__ import annotations
 
 import gc
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -89,3 +92,72 @@ def test_forking_workers_leaves_the_collector_as_it_was(tmp_path, monkeypatch, f
         gc.unfreeze()
     for name in ("pe", "ke", "wall_force", "wall_energy"):
         np.testing.assert_array_equal(two[name].values, one[name].values)
+
+
+_THREADS = """
+import os, sys
+import wallbatch.cli  # noqa: F401 - the command line's module, as `wallbatch` starts
+import numpy  # noqa: F401 - imported by now in any case
+print(os.environ.get("OPENBLAS_NUM_THREADS"), len(os.listdir("/proc/self/task")))
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc")
+@pytest.mark.parametrize("given", [None, "2"])
+def test_the_command_line_starts_no_blas_threads_unless_asked(given):
+    """NumPy's OpenBLAS starts a thread per core when NumPy is imported (~0.07 s of a command's
+    start-up): the command line asks for one, i.e. none besides the main thread, unless the user
+    set OPENBLAS_NUM_THREADS (then theirs is kept)."""
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    env["PYTHONPATH"] = str(ROOT / "src")
+    if given is not None:
+        env["OPENBLAS_NUM_THREADS"] = given
+    out = subprocess.run([sys.executable, "-c", _THREADS], capture_output=True, text=True, env=env, check=True)
+    value, tasks = out.stdout.split()
+    assert value == (given or "1")
+    if given is None:
+        assert int(tasks) == 1  # the main thread alone
+
+
+def _console(args: list[str], cwd: Path, **env: str) -> subprocess.CompletedProcess:
+    """`python -m wallbatch.cli ARGS` as the console script runs (cli.main), output through pipes."""
+    full = {**os.environ, "PYTHONPATH": str(ROOT / "src"), **env}
+    return subprocess.run([sys.executable, "-m", "wallbatch.cli", *args], cwd=cwd, capture_output=True, text=True,
+                          env=full, timeout=600)
+
+
+def test_the_console_script_exits_at_once_with_the_commands_code_and_its_output(tmp_path):
+    """cli.main ends the process without Python's teardown: the exit code is the command's (0 ok, 2
+    bad input), everything printed reaches the pipes, and the results file is complete (readable,
+    every case there)."""
+    sweep = sweep_file(tmp_path, 3, atoms=40, steps=20)
+    ok = _console(["run", str(sweep), "-o", "out.nc", "--force", "-j", "2"], tmp_path)
+    assert ok.returncode == 0, ok.stderr
+    assert ok.stdout.strip() == "3 of 3 case(s) ok -> out.nc"
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "out.nc") as ds:
+        assert list(ds["status"].values) == ["ok"] * 3
+        assert np.isfinite(ds["pe"].values).all()
+    assert not (tmp_path / "out.nc.parts").exists() and not (tmp_path / "out.nc.lock").exists()
+    bad = _console(["run", "missing.yaml"], tmp_path)
+    assert bad.returncode == 2
+    assert bad.stderr.startswith("error: invalid config") and "missing.yaml" in bad.stderr
+    version = _console(["--version"], tmp_path)
+    assert (version.returncode, version.stdout.startswith("wallbatch ")) == (0, True)
+
+
+def test_a_bad_config_fails_before_the_runner_and_engine_are_imported(tmp_path):
+    """`wallbatch run` with a config that cannot be read or validated says so without importing the
+    runner, the engine or netCDF4 (the error comes in a fraction of the run's start-up)."""
+    (tmp_path / "bad.yaml").write_text("units: lj\nbox: {lo: [0, 0, 0], hi: [1, 1, 1]}\nrun: {steps: -5}\n")
+    probe = ("import sys\nimport wallbatch.cli as cli\nsys.argv = ['wallbatch', 'run', sys.argv[1]]\n"
+             "try:\n    cli.app()\nexcept SystemExit as exc:\n    code = exc.code\n"
+             "print(code, *(m in sys.modules for m in ('wallbatch.batch.runner', 'wallbatch.engine.engine', "
+             "'netCDF4')))\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    for name in ("missing.yaml", "bad.yaml"):
+        out = subprocess.run([sys.executable, "-c", probe, name], cwd=tmp_path, capture_output=True, text=True,
+                             env=env, check=True)
+        assert out.stdout.split() == ["2", "False", "False", "False"], (name, out.stdout, out.stderr)
+        assert out.stderr.startswith("error: invalid config")

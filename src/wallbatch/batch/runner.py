@@ -340,11 +340,7 @@ def _set_up_numba() -> None:
     try:
         from wallbatch.engine import compiled
 
-        if compiled.enabled():  # numba imports
-            from numba.core.registry import cpu_target
-
-            cpu_target.typing_context.refresh()  # its registries load now, not at the first kernel
-            cpu_target.target_context.refresh()
+        compiled.enabled()  # numba imports; backend.prepare_numba loads its registries now, not at the first kernel
     finally:
         if frozen:
             gc.freeze()
@@ -464,7 +460,10 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
         except BaseException:
             _stop_pool(pool)
             raise
-        pool.shutdown(wait=True)
+        # every task is done: the workers exit while this process merges the parts (the pool's
+        # manager thread joins them; a worker left when the process ends gets its parent-death
+        # signal)
+        pool.shutdown(wait=False)
 
 
 @contextlib.contextmanager

@@ -20,8 +20,9 @@ message; the others go on untouched.
 from __future__ import annotations
 
 import time as _time
+import weakref
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
@@ -110,11 +111,12 @@ class Engine:
             from wallbatch.engine.asphere_compiled import attach_asphere_path
             from wallbatch.engine.compiled import attach_fast_path
 
-            self.fast = attach_fast_path(self.compiled_plan) or attach_asphere_path(self.compiled_plan)
+            plans = _weak_method(self.compiled_plan)  # the path keeps it: no engine <-> path cycle
+            self.fast = attach_fast_path(plans) or attach_asphere_path(plans)
             if self.fast is None and self.pair is not None:  # pair scenes: fused chunks (pair_compiled.py)
                 from wallbatch.engine.pair_compiled import attach_pair_chunks
 
-                self.fast = attach_pair_chunks(self.compiled_plan, self.pair)
+                self.fast = attach_pair_chunks(plans, self.pair)
 
     def compiled_plan(self) -> ChunkPlan:
         """What the compiled path would run now: the flat walls, reflect walls and dt/reset with
@@ -637,6 +639,23 @@ def sample_instants(case: Case) -> list:
     if case.run_time is None:
         return sample_steps(case.steps, int(case.thermo))
     return sample_times(case.run_time, float(case.thermo) if case.thermo_is_time else 0.0)
+
+
+def _weak_method(method: Callable[[], Any]) -> Callable[[], Any]:
+    """`method` (a bound method) as a callable that does not keep its object alive. The compiled
+    path keeps its engine's plan callback; with the bound method itself, engine and path would be a
+    reference cycle, and a finished batch (its cases and state arrays: a window of a sweep, up to
+    hundreds of MB) would stay in memory until Python's next full garbage collection, whose timing
+    depends on everything else the process holds."""
+    ref = weakref.WeakMethod(method)
+
+    def call() -> Any:
+        bound = ref()
+        if bound is None:
+            raise ReferenceError("the engine of this compiled path is gone")
+        return bound()
+
+    return call
 
 
 def run_batch(cases: list[Case]) -> list[CaseResult]:
