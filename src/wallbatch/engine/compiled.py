@@ -534,13 +534,13 @@ if njit is not None:
     def _lepton_shifted(energy: Any) -> Any:
         """E(r) - E(rc) [energy] of a generated wall/lepton energy E(r, p0, p1, p2, rc, radius)
         (jitted), as styles.lepton.lepton_style's shifted energy computes it."""
-        def shifted(r, p0, p1, p2, rc, radius):  # noqa: ANN001, ANN202
+        def shifted(r, p0, p1, p2, rc, radius):
             return energy(r, p0, p1, p2, rc, radius) - energy(rc, p0, p1, p2, rc, radius)
         return shifted
 
     def _lepton_vector_shifted(energy: Any) -> Any:
         """E(r) - E(rc) [energy] of a generated wall/lepton energy E(r, p) (parameters as an array)."""
-        def shifted(r, pv, rc):  # noqa: ANN001, ANN202
+        def shifted(r, pv, rc):
             return energy(r, pv) - energy(rc, pv)
         return shifted
 

@@ -135,7 +135,7 @@ class Engine:
                          finish_step=self.finish_step, advance_numpy=self.advance_numpy,
                          region=tuple(self.region_walls), flow=tuple(self.flow), ensemble=self.ensemble,
                          record_samples=self.record_samples, outputs=tuple(self.outputs),
-                         samples=lambda: len(sample_instants(self.cases[0])) - 1)
+                         samples=lambda c0=self.cases[0]: len(sample_instants(c0)) - 1)  # the case, not the engine
 
     # -- the step ----------------------------------------------------------------------------
 
