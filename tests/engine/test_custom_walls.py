@@ -316,30 +316,70 @@ def test_linear_expression_wall_constant_force_runs():
 
 
 @pytest.mark.slow
-def test_compiled_lepton_equals_numpy_bit_for_bit(monkeypatch):
+@pytest.mark.parametrize("thermo", [50, 1])
+def test_compiled_lepton_equals_numpy_bit_for_bit(monkeypatch, thermo):
     """The compiled path runs wall/lepton faces with the kernel generated from the expression,
-    inlined like a built-in style: the trajectory equals the NumPy engine's bit for bit."""
+    inlined like a built-in style: the trajectory equals the NumPy engine's bit for bit; sampled
+    every step, the kernel records the outputs itself (E(r) - E(rc) generated from the expression,
+    force on the wall, virial) and every output equals NumPy's bit for bit too."""
     from wallbatch.engine.engine import Engine  # noqa: PLC0415
 
     face = "{coord: EDGE, cutoff: 2.5, expression: 'eps*(2/15*(sig/r)^9-(sig/r)^3)', params: {eps: 1.0, sig: 1.0}}"
     harm = "{coord: EDGE, cutoff: 1.5, expression: 'k*(r-rc)^2', params: {k: 30.0, rc: 1.5}}"
-    text = slit(f"w: {{style: lepton, units: box, energy: true, zlo: {face}, zhi: {harm}}}\n", steps=300)
+    text = slit(f"w: {{style: lepton, units: box, energy: true, virial: true, zlo: {face}, zhi: {harm}}}\n",
+                steps=300, thermo=thermo).replace("etot]", "etot, press]")
     case = build_case(load_config_text(text))
     runs = {}
     for mode in ("always", "never"):
         monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", mode)
         engine = Engine([case])
-        runs[mode] = (engine.run()[0], engine.fast)
+        runs[mode] = (engine.run(), engine.fast)
     (compiled, fast), (numpy_res, none) = runs["always"], runs["never"]
     assert none is None and fast is not None and fast.compiled_chunks > 0 and fast.fallbacks == 0
-    for key in ("etot", "wall_energy", "wall_force", "temp"):
-        np.testing.assert_array_equal(compiled.data[key], numpy_res.data[key])
+    assert fast.sampled_calls > 0  # the samples come from the kernel
+    assert numpy_res[0].status == "ok" and np.all(numpy_res[0].data["wall_force"][1:] != 0.0)
+    assert np.all(numpy_res[0].data["wall_energy"][1:] != 0.0)
+    assert_same_results(numpy_res, compiled)  # every output, bit for bit
 
 
-def test_lepton_auto_policy_loads_a_cached_kernel_for_shorter_runs(tmp_path, monkeypatch):
-    """WALLBATCH_LEPTON_COMPILED=auto: a batch runs compiled from LEPTON_CACHED_MIN_ATOM_STEPS
-    atom-steps when its generated chunk kernel is on disk (marked after its first compile), and
-    from LEPTON_MIN_ATOM_STEPS when it would have to be compiled; always / never decide alone."""
+@pytest.mark.slow
+def test_compiled_lepton_sweep_sampled_every_step_equals_numpy(tmp_path, monkeypatch):
+    """A 3-case sweep of an expression parameter (eps of an lj93 spelled out, 2 parameters, and
+    b of a 4-parameter expression whose parameters go as an array), sampled every step: the
+    kernel records every sample (energies from the generated E(r) - E(rc)) and the trajectories
+    and outputs equal the NumPy engine's bit for bit, differing between the cases."""
+    from wallbatch.engine.engine import Engine  # noqa: PLC0415
+
+    lj = "{coord: EDGE, cutoff: 2.5, expression: 'eps*(2/15*(sig/r)^9-(sig/r)^3)', params: {eps: 1.0, sig: 1.0}}"
+    four = ("{coord: EDGE, cutoff: 2.0, expression: 'a*(r-rc)^2 + b*exp(-r/l)', "
+            "params: {a: 20.0, rc: 2.0, b: 3.0, l: 0.4}}")
+    text = slit(f"w: {{style: lepton, units: box, energy: true, virial: true, zlo: {lj}, zhi: {four}}}\n",
+                steps=200, thermo=1,
+                extra="sweep:\n  zip:\n    dim: strength\n    params:\n"
+                      "      eps: {path: walls.w.zlo.params.eps, values: [0.5, 1.0, 2.0]}\n"
+                      "      b: {path: walls.w.zhi.params.b, values: [1.0, 3.0, 5.0]}\n"
+                ).replace("etot]", "etot, press]")
+    plan = load_plan(write(tmp_path, text))
+    cases = [build_case(c.config, c.seed_key) for c in plan.cases]
+    assert len(cases) == 3 and len({structure_key(c) for c in cases}) == 1
+    runs = {}
+    for mode in ("always", "never"):
+        monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", mode)
+        engine = Engine(cases)
+        runs[mode] = (engine.run(), engine.fast)
+    (compiled, fast), (numpy_res, none) = runs["always"], runs["never"]
+    assert none is None and fast is not None and fast.fallbacks == 0 and fast.sampled_calls > 0
+    assert fast.compiled_chunks == 200  # every sample from the kernel
+    assert all(n.status == "ok" and np.all(n.data["wall_force"][1:] != 0.0) for n in numpy_res)
+    assert_same_results(numpy_res, compiled)
+    assert len({float(r.data["wall_energy"][1:].sum()) for r in numpy_res}) == 3
+
+
+def test_lepton_auto_policy_picks_the_faster_path_for_this_run(tmp_path, monkeypatch):
+    """WALLBATCH_LEPTON_COMPILED=auto: a batch runs compiled when the cost model (steps, atoms over
+    its cases, samples; the kernel's load or compile) expects it to take less time in this run
+    than the NumPy path, decided once per batch (every chunk of a run gets the first answer);
+    always / never decide alone."""
     from types import SimpleNamespace  # noqa: PLC0415
 
     fast = pytest.importorskip("wallbatch.engine.compiled")
@@ -347,28 +387,40 @@ def test_lepton_auto_policy_loads_a_cached_kernel_for_shorter_runs(tmp_path, mon
 
     monkeypatch.setenv("WALLBATCH_CACHE_DIR", str(tmp_path))
     monkeypatch.delenv("WALLBATCH_LEPTON_COMPILED", raising=False)
+    monkeypatch.setattr(fast, "_LEPTON_RUN", set())
     extra = (force_source(compile_expression("k*(r-rc)^2", ("k", "rc"))),)
 
-    def state(atoms: int, steps: int) -> SimpleNamespace:  # two cases, half the steps each
-        return SimpleNamespace(end_step=np.array([steps // 2, steps // 2]), step=np.zeros(2, np.int64),
-                               x=np.zeros((2, atoms, 3)))
+    def state(cases: int, atoms: int, steps: int) -> SimpleNamespace:
+        return SimpleNamespace(end_step=steps, step=np.zeros(cases, np.int64), x=np.zeros((cases, atoms, 3)))
 
-    cached_min, compile_min = fast.LEPTON_CACHED_MIN_ATOM_STEPS, fast.LEPTON_MIN_ATOM_STEPS
-    assert cached_min < compile_min
-    mid = state(1000, int(2 * cached_min / 1000))  # between the thresholds
-    assert not fast.lepton_compiled_wanted(mid, extra)
-    assert fast.lepton_compiled_wanted(state(1000, int(compile_min / 1000)), extra)
+    def wanted(cases: int, atoms: int, steps: int, samples: int) -> bool:
+        return fast.lepton_compiled_wanted(state(cases, atoms, steps), extra, lambda: samples)
+
+    # the model: NumPy per step, atom-step and sample; compiled per atom-step after its start
+    numpy_s, compiled_s = fast.lepton_seconds(6000, 1000, 6000, "cached")
+    assert numpy_s == pytest.approx(6000 * (fast.LEPTON_NUMPY_STEP_S + 1000 * fast.LEPTON_NUMPY_ATOM_STEP_S)
+                                    + 6000 * (fast.LEPTON_NUMPY_SAMPLE_S + 1000 * fast.LEPTON_NUMPY_SAMPLE_ATOM_S))
+    assert compiled_s == pytest.approx(fast.LEPTON_LOAD_S + 6e6 * fast.LEPTON_COMPILED_ATOM_STEP_S)
+    # not compiled yet: only where the compile pays for itself in this run
+    assert not wanted(1, 1000, 6000, 6000)
+    assert not wanted(1, 100_000, 10_000, 10)
+    assert wanted(1, 1_000_000, 10_000, 10)
+    early = state(1, 1000, 6000)
+    assert not fast.lepton_compiled_wanted(early, extra, lambda: 6000)
+    # on disk (compiled by an earlier process): the ~0.5 s load pays for itself from about 0.5 s of NumPy work
+    fast._compiled_marker(extra).write_text("")
+    assert wanted(1, 1000, 6000, 6000)  # the every-step panel's lepton row (thermo 1)
+    assert wanted(1, 1000, 2000, 2000)  # sampled every step: the samples tip it
+    assert not wanted(1, 1000, 2000, 20)  # the same run sampled every 100 steps: NumPy is quicker
+    assert wanted(30, 1000, 2000, 20)  # thirty such cases in one batch
+    assert not fast.lepton_compiled_wanted(early, extra, lambda: 6000)  # a batch keeps its first answer
+    # already run in this process: no start-up cost left, even a short run goes compiled
     fast._mark_compiled(extra)
-    assert fast._compiled_marker(extra).exists()
-    assert fast.lepton_compiled_wanted(mid, extra)
-    assert not fast.lepton_compiled_wanted(state(1000, int(cached_min / 2000)), extra)
-    late = state(1000, int(2 * cached_min / 1000))
-    late.step[:] = late.end_step - 1  # the last chunk of that run: still the run's choice (it once
-    assert fast.lepton_compiled_wanted(late, extra)  # counted the steps left and went NumPy halfway)
+    assert wanted(1, 100, 100, 1) and wanted(1, 1000, 2000, 20)
     monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", "never")
-    assert not fast.lepton_compiled_wanted(state(1000, int(compile_min / 1000)), extra)
+    assert not wanted(1, 1_000_000, 10_000, 10)
     monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", "always")
-    assert fast.lepton_compiled_wanted(state(10, 10), extra)
+    assert wanted(1, 10, 10, 1)
 
 
 @pytest.mark.slow

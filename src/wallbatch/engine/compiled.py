@@ -181,6 +181,21 @@ def _vector_dispatch_source(extra: tuple[str, ...]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _vector_outputs_source(extra: tuple[str, ...]) -> str:
+    """Python source of `_vector_out(j, ...)`, the outputs of sampled chunks of the faces of
+    `_vector_faces` (`_veface` with force `_VEXTRA_j` and E(r) - E(rc) `_VEENERGY_j`); NaNs for a
+    force without a generated energy."""
+    lines = ["def _vector_out(j, X, groups, g, d, side, coord, pv, cut, n):"]
+    k = 0
+    for j, src in enumerate(extra):
+        if src.startswith(VECTOR_MARK) and "\ndef energy(" in src:
+            lines.append(f"    {'if' if k == 0 else 'elif'} j == {j}:  # wall/lepton, parameters as an array")
+            lines.append(f"        return _veface(_VEXTRA_{j}, _VEENERGY_{j}, X, groups, g, d, side, coord, pv, cut, n)")
+            k += 1
+    lines.append("    return _nan, _nan, _nan")
+    return "\n".join(lines) + "\n"
+
+
 def _dispatch_source(pairs: tuple[tuple[int, int], ...], extra: int | tuple[int, ...] = 0) -> str:
     """Python source of `_soft_face(style, mode, ...)`: one branch per (style number, cut-off mode)
     pair of the scene (wallbatch.styles.cutoff) and per generated force, each a literal call of the
@@ -213,12 +228,13 @@ _OUTPUTS = {"face": ("_face_out", "X, RAD, groups, g, d, side, coord, p0, p1, p2
             "region": ("_region_out", "RAD, RB, nslot, n, p0, p1, p2, cut, ron", "_rout", 5)}
 
 
-def _outputs_source(pairs: tuple[tuple[int, int], ...], kind: str = "face") -> str:
+def _outputs_source(pairs: tuple[tuple[int, int], ...], kind: str = "face", extra: tuple[int, ...] = ()) -> str:
     """Python source of the outputs dispatch of sampled chunks: `_face_out(style, mode, ...)` for
     flat soft faces (kind "face", output loop `_eface`) or `_region_out(style, mode, ...)` for the
     contacts of a wall/region fix (kind "region", `_rout`). As `_dispatch_source`, one branch per
-    (style, cut-off mode) pair whose energy the kernel computes (`energy_compiled`), each calling
-    the output loop with that pair's force and energy inlined; NaNs for any other pair
+    (style, cut-off mode) pair whose energy the kernel computes (`energy_compiled`) and per
+    generated wall/lepton force j of `extra` with a generated energy (`_EEXTRA_j`: E(r) - E(rc)),
+    each calling the output loop with that force and energy inlined; NaNs for any other pair
     (`sampled_eligible` keeps those scenes out)."""
     name, args, loop, nout = _OUTPUTS[kind]
     lines = [f"def {name}(style, mode, {args}):"]
@@ -228,6 +244,11 @@ def _outputs_source(pairs: tuple[tuple[int, int], ...], kind: str = "face") -> s
             continue
         lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
         lines.append(f"        return {loop}({force}, _ENERGY_{i}_{m}, {rad}, {args})")
+        k += 1
+    for cond, force, rad, note in _branches((), extra):
+        j = force.rpartition("_")[2]
+        lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
+        lines.append(f"        return {loop}({force}, _EEXTRA_{j}, {rad}, {args})")
         k += 1
     lines.append("    return " + ", ".join(["_nan"] * nout))
     return "\n".join(lines) + "\n"
@@ -396,12 +417,20 @@ if njit is not None:
                 vir += fi * r
         return e, fs, vir
 
-    def _sample_faces(c, si, X, RAD, groups, sf_meta, sf_val, tb, out):
-        """Every soft face's outputs (`_eface`; wall/table faces: `_table_out` on the tables tb)
-        of case c at the current positions into out[k] = (energy, force on the wall, virial).
+    def _sample_faces(c, si, X, RAD, groups, sf_meta, sf_val, tb, lp, out):
+        """Every soft face's outputs (`_eface`; wall/table faces: `_table_out` on the tables tb;
+        wall/lepton faces with their parameters as an array: `_vector_out` on this case's rows of
+        lp) of case c at the current positions into out[k] = (energy, force on the wall, virial).
         Compiled per scene by `kernel_for` with the scene's `_face_out` dispatch."""
         n = X.shape[1]
         for k in range(sf_meta.shape[0]):
+            if _K_VECTOR and sf_meta[k, 0] < TABLE_STYLE:
+                e, fs, vir = _vector_out(-2 - sf_meta[k, 0], X, groups, sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2],
+                                         sf_val[c, si, k, 0], lp[c, k], sf_val[c, si, k, 4], n)
+                out[k, 0] = e
+                out[k, 1] = fs
+                out[k, 2] = vir
+                continue
             if sf_meta[k, 0] == TABLE_STYLE:
                 e, fs, vir = _table_out(tb, k, X, groups, sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2],
                                         sf_val[c, si, k, 0], sf_val[c, si, k, 4], n)
@@ -478,6 +507,42 @@ if njit is not None:
     def _no_vector_faces(j, X, F, groups, g, d, side, coord, pv, cut, u0, u1):
         """`_vector_faces` of a scene without such faces: nothing (never called)."""
         return 0
+
+    @inline
+    def _veface(force, energy, X, groups, g, d, side, coord, pv, cut, n):
+        """The outputs of one `_vface` face over a case's n atoms, as `_eface`: (sum of the energy
+        E(r) - E(rc), sum of side F(r), sum of F(r) r), atom by atom in atom order."""
+        sidef = float(side)
+        sign = -sidef
+        e = 0.0
+        fs = 0.0
+        vir = 0.0
+        for i in range(n):
+            r = (X[d, i] - coord) * sign
+            if r < cut and groups[g, i] != 0:
+                fi = force(r, pv)
+                e += energy(r, pv, cut)
+                fs += sidef * fi
+                vir += fi * r
+        return e, fs, vir
+
+    @inline
+    def _no_vector_out(j, X, groups, g, d, side, coord, pv, cut, n):
+        """`_vector_out` of a scene without such faces: nothing (never called)."""
+        return 0.0, 0.0, 0.0
+
+    def _lepton_shifted(energy: Any) -> Any:
+        """E(r) - E(rc) [energy] of a generated wall/lepton energy E(r, p0, p1, p2, rc, radius)
+        (jitted), as styles.lepton.lepton_style's shifted energy computes it."""
+        def shifted(r, p0, p1, p2, rc, radius):
+            return energy(r, p0, p1, p2, rc, radius) - energy(rc, p0, p1, p2, rc, radius)
+        return shifted
+
+    def _lepton_vector_shifted(energy: Any) -> Any:
+        """E(r) - E(rc) [energy] of a generated wall/lepton energy E(r, p) (parameters as an array)."""
+        def shifted(r, pv, rc):
+            return energy(r, pv) - energy(rc, pv)
+        return shifted
 
     # -- fix wall/table: tables as data (styles.table.WallTable.kernel_rows), one compiled loop for any table
     _table_linear = njit(nogil=True, error_model="numpy", inline="always")(linear_lookup)
@@ -1453,7 +1518,7 @@ if njit is not None:
                             if landing:
                                 break
                     if _K_SAMPLES and ism < nsm and done == sm_at[ism]:  # a sample step: the outputs of Engine.sample
-                        _sample_faces(c, (done - 1) * vary, X, RAD, groups, sf_meta, sf_val, tb, sm_face[c, ism])
+                        _sample_faces(c, (done - 1) * vary, X, RAD, groups, sf_meta, sf_val, tb, lp_val, sm_face[c, ism])
                         if _K_REGION and rg_meta.shape[0]:
                             _sample_regions(c, X, RAD, groups, rg_meta, rg_geo, rg_val, RBS, sm_reg[c, ism])
                         for a in range(natom):
@@ -1632,24 +1697,44 @@ if njit is not None:
             namespace["_vface"] = _vface
             for j in range(len(extra)):
                 force = njit(nogil=True, error_model="numpy", inline="always")(namespace[f"_LEPTON_{j}"])
+                energy = namespace.get(f"_LEPTON_E_{j}")  # E(r) (samples in the kernel), if generated
+                if energy is not None:
+                    energy = njit(nogil=True, error_model="numpy", inline="always")(energy)
                 if extra[j].startswith(VECTOR_MARK):
                     namespace[f"_VEXTRA_{j}"] = force
+                    if energy is not None:
+                        namespace[f"_VEENERGY_{j}"] = njit(nogil=True, error_model="numpy", inline="always")(
+                            _lepton_vector_shifted(energy))
                 else:
                     namespace[f"_EXTRA_{j}"] = njit(**_SCENE)(
                         _renamed(cutoff_functions(force, force, SHIFT, _switch)[0], f"_extra_{j}_{tag}"))
+                    if energy is not None:
+                        shifted = njit(nogil=True, error_model="numpy", inline="always")(_lepton_shifted(energy))
+                        namespace[f"_EEXTRA_{j}"] = njit(**_SCENE)(
+                            _renamed(cutoff_functions(force, shifted, SHIFT, _switch)[1], f"_eextra_{j}_{tag}"))
             filename = module.__file__
         else:
             namespace = base
             source = _dispatch_source(soft)
             exec(compile(source, "<wallbatch soft-face dispatch>", "exec"), namespace)  # noqa: S102 - generated here
         soft_face = njit(nogil=True, error_model="numpy", inline="always")(namespace["_soft_face"])
-        osource = _outputs_source(soft)
+        vector = any(src.startswith(VECTOR_MARK) for src in extra)
+        # the outputs of generated forces with a generated energy (wall/lepton; `_generated_force`)
+        sampled_extra = tuple(j for j, src in enumerate(extra)
+                              if not src.startswith(VECTOR_MARK) and "\ndef energy(" in src)
+        osource = _outputs_source(soft, "face", sampled_extra)
+        if vector:
+            namespace["_veface"] = _veface
+            osource += _vector_outputs_source(extra)
         source += osource
         exec(compile(osource, "<wallbatch soft-face outputs dispatch>", "exec"), namespace)  # noqa: S102 - generated here
         face_out = njit(nogil=True, error_model="numpy", inline="always")(namespace["_face_out"])
+        vector_out = _no_vector_out
+        if vector:
+            vector_out = njit(nogil=True, error_model="numpy", inline="always")(namespace["_vector_out"])
         sample_faces = njit(**_SCENE)(
-            _relink(_sample_faces, name=f"_sample_faces_{tag}", _face_out=face_out,
-                    _table_out=_table_out if tables else _no_table_out))
+            _relink(_sample_faces, name=f"_sample_faces_{tag}", _face_out=face_out, _vector_out=vector_out,
+                    _K_VECTOR=vector, _table_out=_table_out if tables else _no_table_out))
         region_walls = _no_region_walls
         sample_regions = _no_sample_regions
         if region:
@@ -1669,7 +1754,7 @@ if njit is not None:
 
             flow_step = njit(**_SCENE)(_relink(_flow_step, flow_compiled=flow_compiled))
         vector_faces = _no_vector_faces
-        if any(src.startswith(VECTOR_MARK) for src in extra):
+        if vector:
             vector_faces = njit(nogil=True, error_model="numpy", inline="always")(namespace["_vector_faces"])
         table_faces = _no_table_faces
         if tables:
@@ -1757,7 +1842,8 @@ def _chunk_module_source(soft: tuple[tuple[int, int], ...], extra: tuple[str, ..
     per force (calling `_EXTRA_j`, its cut-off wrapper). Its header names a digest of this file and
     the lepton helpers and the fingerprint of the scene's styles, so the file (named by a hash of
     its source) and numba's cache beside it change when any of them does."""
-    forces = "".join(f"\n\n{src.replace('def kernel(', f'def _LEPTON_{j}(', 1)}" for j, src in enumerate(extra))
+    forces = "".join(f"\n\n{src.replace('def kernel(', f'def _LEPTON_{j}(', 1).replace('def energy(', f'def _LEPTON_E_{j}(', 1)}"
+                     for j, src in enumerate(extra))
     positional = tuple(j for j, src in enumerate(extra) if not src.startswith(VECTOR_MARK))
     body = HELPERS_IMPORT + forces + "\n\n" + _dispatch_source(soft, positional)
     if len(positional) < len(extra):
@@ -1809,6 +1895,7 @@ class ChunkPlan:
     # None: the engine takes samples one at a time only
     record_samples: Callable[..., None] | None = None
     outputs: tuple[str, ...] = ()  # the thermo outputs (press needs the virial)
+    samples: Callable[[], int] | None = None  # the run's samples after step 0 (None: not known)
 
 
 def _face_styles(w: SoftWallKernel) -> list[WallStyle]:
@@ -1819,11 +1906,16 @@ def _face_styles(w: SoftWallKernel) -> list[WallStyle]:
 def _generated_force(style: WallStyle) -> str | None:
     """The generated source of a face's force: wall/lepton with at most 3 parameters
     (WallStyle.generated_force), or with more, its parameters as an array
-    (WallStyle.generated_vector_force, marked by a first line VECTOR_MARK); else None."""
+    (WallStyle.generated_vector_force, marked by a first line VECTOR_MARK); else None. Followed by
+    the source of its unshifted energy `energy(...)` in the same form (WallStyle.generated_energy)
+    when the style has one: sampled chunks report E(r) - E(rc) from it."""
     src = style.generated_force()
     if src is None:
         vec = style.generated_vector_force()
         src = None if vec is None else VECTOR_MARK + vec
+    energy = style.generated_energy() if src is not None else None
+    if energy is not None:
+        src += "\n\n" + energy
     return src
 
 
@@ -1914,14 +2006,23 @@ def _tables(soft_faces: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 # wall/table faces run in the built-in scene kernel (their tables are its data): always eligible.
 # wall/lepton faces run in the scene's chunk kernel with the batch's expressions (`kernel_for`):
-# compiled once (~20 s), then cached on disk and loaded by later processes (~0.5 s, like the
-# built-in kernel). WALLBATCH_LEPTON_COMPILED=always|never|auto; auto (the default) uses it when
-# the batch has at least LEPTON_CACHED_MIN_ATOM_STEPS atom-steps over its cases and the kernel is
-# on disk (a load of ~0.5 s against >= 27 ns/atom-step saved on the NumPy path), or at least
-# LEPTON_MIN_ATOM_STEPS when it must be compiled first (where the compile pays for itself in this
-# run; benchmarks/lepton.py)
-LEPTON_MIN_ATOM_STEPS = 5e8
-LEPTON_CACHED_MIN_ATOM_STEPS = 1e7
+# compiled once (~20-30 s), then cached on disk and loaded by later processes (~0.5 s, like the
+# built-in kernel). WALLBATCH_LEPTON_COMPILED=always|never|auto; auto (the default) runs the batch
+# compiled when that is expected to take less time in this run than the NumPy path
+# (`lepton_seconds`: a cost model from the batch's steps, atoms and samples, measured on a 2-core
+# machine with benchmarks/lepton_cost.py): NumPy LEPTON_NUMPY_STEP_S per step plus
+# LEPTON_NUMPY_ATOM_STEP_S per atom-step, and per sample LEPTON_NUMPY_SAMPLE_S plus
+# LEPTON_NUMPY_SAMPLE_ATOM_S per atom; compiled LEPTON_COMPILED_ATOM_STEP_S per atom-step (samples
+# recorded in the kernel: next to nothing) plus nothing when this process has run the kernel
+# already, LEPTON_LOAD_S when it is on disk, or LEPTON_COMPILE_S when it must be compiled first.
+LEPTON_NUMPY_STEP_S = 0.09e-3
+LEPTON_NUMPY_ATOM_STEP_S = 14e-9
+LEPTON_NUMPY_SAMPLE_S = 0.22e-3
+LEPTON_NUMPY_SAMPLE_ATOM_S = 3e-9
+LEPTON_COMPILED_ATOM_STEP_S = 6e-9
+LEPTON_LOAD_S = 0.5
+LEPTON_COMPILE_S = 30.0
+_LEPTON_RUN: set[tuple[str, ...]] = set()  # the generated kernels (their `extra`) this process has run
 
 
 def _lepton_extra(plan: ChunkPlan) -> tuple[str, ...]:
@@ -1946,24 +2047,41 @@ def _compiled_marker(extra: tuple[str, ...]) -> Path:
 
 @functools.lru_cache(maxsize=64)
 def _mark_compiled(extra: tuple[str, ...]) -> None:
+    _LEPTON_RUN.add(extra)
     marker = _compiled_marker(extra)
     if not marker.exists():
         marker.write_text("")
 
 
-def lepton_compiled_wanted(state: BatchState, extra: tuple[str, ...] = ()) -> bool:
+def lepton_seconds(steps: float, atoms: float, samples: float, kernel: str) -> tuple[float, float]:
+    """(NumPy, compiled) seconds expected for a batch of `atoms` atoms over all its cases run
+    `steps` steps with `samples` samples, the compiled path's kernel being "run" (already run in
+    this process), "cached" (on disk) or "new" (compiled first): the cost model above."""
+    numpy_s = (steps * (LEPTON_NUMPY_STEP_S + LEPTON_NUMPY_ATOM_STEP_S * atoms)
+               + samples * (LEPTON_NUMPY_SAMPLE_S + LEPTON_NUMPY_SAMPLE_ATOM_S * atoms))
+    start = {"run": 0.0, "cached": LEPTON_LOAD_S, "new": LEPTON_COMPILE_S}[kernel]
+    return numpy_s, start + steps * atoms * LEPTON_COMPILED_ATOM_STEP_S
+
+
+def lepton_compiled_wanted(state: BatchState, extra: tuple[str, ...] = (), samples: Callable[[], int] | None = None
+                           ) -> bool:
     """Whether wall/lepton faces (generated forces `extra`) run on the compiled path for this batch
-    (see above), from the atom-steps of its whole run (the same answer at every chunk)."""
+    (see above): decided once per batch from its whole run (`samples()`: its samples after step 0;
+    None: counted as none) and kept on the state, so every chunk of the run gets the same answer."""
     mode = os.environ.get("WALLBATCH_LEPTON_COMPILED", "auto").strip().lower()
     if mode in ("always", "1", "yes"):
         return True
     if mode in ("never", "0", "no"):
         return False
-    # the batch's whole run, not what is left of it: the choice must not flip to NumPy halfway
-    atom_steps = float(np.broadcast_to(np.maximum(state.end_step, 0), (state.x.shape[0],)).sum()) * state.x.shape[1]
-    if atom_steps >= LEPTON_MIN_ATOM_STEPS:
-        return True
-    return atom_steps >= LEPTON_CACHED_MIN_ATOM_STEPS and _compiled_marker(extra).exists()
+    chosen = state.__dict__.setdefault("_lepton_compiled", {})
+    if extra not in chosen:
+        # the batch's whole run, not what is left of it: the choice must not flip to NumPy halfway
+        steps = float(np.max(np.maximum(state.end_step, 0)))
+        kernel = "run" if extra in _LEPTON_RUN else "cached" if _compiled_marker(extra).exists() else "new"
+        numpy_s, compiled_s = lepton_seconds(steps, float(state.x.shape[0] * state.x.shape[1]),
+                                             float(samples()) if samples is not None else 0.0, kernel)
+        chosen[extra] = compiled_s < numpy_s
+    return chosen[extra]
 
 
 def _compiled_face(w: SoftWallKernel, style: WallStyle) -> bool:
@@ -1984,7 +2102,7 @@ def eligible(plan: ChunkPlan) -> bool:
            not all(_compiled_face(w, st) for st in _face_styles(w)) for w in plan.soft):
         return False
     extra = _lepton_extra(plan)
-    if extra and not lepton_compiled_wanted(plan.state, extra):
+    if extra and not lepton_compiled_wanted(plan.state, extra, plan.samples):
         return False
     if any(not region_eligible(w) for w in plan.region):
         return False
@@ -2592,15 +2710,22 @@ def _splits_atoms(plan: ChunkPlan, nsteps: int) -> bool:
 
 def sampled_eligible(plan: ChunkPlan) -> bool:
     """Scenes whose samples the kernel records itself (sampled chunks): `eligible` ones with
-    flat soft faces of registry styles whose energy it computes (`energy_compiled`) or of
-    wall/table (`_table_out`), no generated forces, wall/region fixes of such styles, and an
-    engine that takes the records (wall/reflect/stochastic's counters are recorded after the
-    wall/reflect ones, in Engine.reflect's order)."""
-    if plan.record_samples is None or _lepton_extra(plan):
+    flat soft faces of registry styles whose energy it computes (`energy_compiled`), of
+    wall/table (`_table_out`) or of wall/lepton with a generated energy (`_generated_force`),
+    wall/region fixes of such styles, and an engine that takes the records
+    (wall/reflect/stochastic's counters are recorded after the wall/reflect ones, in
+    Engine.reflect's order)."""
+    if plan.record_samples is None:
         return False
     return all((type(w) is SoftWallKernel and energy_compiled(w.style)) or
-               (type(w) is CustomWallKernel and all(_is_table(st) for st in w.face_styles)) for w in plan.soft) and \
-        all(energy_compiled(w.style) for w in plan.region)
+               (type(w) is CustomWallKernel and all(_is_table(st) or _generated_energy(st) for st in w.face_styles))
+               for w in plan.soft) and all(energy_compiled(w.style) for w in plan.region)
+
+
+def _generated_energy(style: WallStyle) -> bool:
+    """A face whose generated force comes with its generated energy (`_generated_force`)."""
+    src = _generated_force(style)
+    return src is not None and "\ndef energy(" in src
 
 
 def finish_chunk(plan: ChunkPlan, s: BatchState, sample: bool, keep: tuple[str, ...] = ("f",)) -> None:

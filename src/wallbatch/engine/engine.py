@@ -134,7 +134,8 @@ class Engine:
                          dt_reset_params=dtr, others=others, compute_outputs=lambda: self.compute_forces(True),
                          finish_step=self.finish_step, advance_numpy=self.advance_numpy,
                          region=tuple(self.region_walls), flow=tuple(self.flow), ensemble=self.ensemble,
-                         record_samples=self.record_samples, outputs=tuple(self.outputs))
+                         record_samples=self.record_samples, outputs=tuple(self.outputs),
+                         samples=lambda c0=self.cases[0]: len(sample_instants(c0)) - 1)  # the case, not the engine
 
     # -- the step ----------------------------------------------------------------------------
 

@@ -203,6 +203,12 @@ class WallStyle:
         compiled path's p0, p1, p2 (wall/lepton); None otherwise."""
         return None
 
+    def generated_energy(self) -> str | None:
+        """Python source of ``energy(...)``, the unshifted energy E(r) [energy] in the form of
+        the style's generated force (``generated_force`` or ``generated_vector_force``), for the
+        compiled path's samples; None where there is no generated force."""
+        return None
+
     def too_close_message(self) -> str | None:
         """How a case that fails because an atom is "on or inside" the wall (too_close) is
         described after "atom A at distance D from the wall at step S is", or None for the

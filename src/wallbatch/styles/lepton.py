@@ -65,6 +65,7 @@ __all__ = [
     "positional_kernels",
     "force_source",
     "vector_force_source",
+    "energy_source",
     "kernel_cache_dir",
     "generated_module",
     "generated_path",
@@ -764,6 +765,13 @@ def _compile(text: str, supplied: tuple[str, ...]) -> LeptonExpression:
 
 
 def _codegen(trees: Iterable[Node], params: tuple[str, ...], positional: bool = False) -> str:
+    """:func:`_generate`, cached per trees, parameters and form (the compiled path asks for a
+    face's sources at every chunk)."""
+    return _generate(tuple(trees), tuple(params), positional)
+
+
+@functools.lru_cache(maxsize=512)
+def _generate(trees: tuple[Node, ...], params: tuple[str, ...], positional: bool = False) -> str:
     """Python source of ``kernel(r, p) -> (E, F)`` for scalar r and a parameter array p (or, with
     ``positional``, ``kernel(r, p0, p1, p2, rc, radius)`` returning the one tree's value, the
     signature of a compiled wall-style force); one statement per node, in the evaluation order of
@@ -927,6 +935,16 @@ def vector_force_source(expr: LeptonExpression, name: str = "kernel") -> str | N
     return _codegen((expr.force,), expr.params).replace("def kernel(", f"def {name}(", 1)
 
 
+def energy_source(expr: LeptonExpression, name: str = "energy") -> str:
+    """Python source of ``name(r, p0, p1, p2, rc, radius)`` (at most 3 parameters, as
+    :func:`force_source`) or ``name(r, p)`` (more, the parameters as one array, as
+    :func:`vector_force_source`): the unshifted energy E(r) [energy], the same generated
+    statements as :func:`numba_kernel`'s energy, so bit-identical to :func:`evaluate`. The
+    compiled path reports E(r) - E(rc) from it, as :func:`lepton_style`'s shifted energy does."""
+    positional = len(expr.params) <= POSITIONAL_PARAMS
+    return _codegen((expr.energy,), expr.params, positional=positional).replace("def kernel(", f"def {name}(", 1)
+
+
 # the first lines of a generated module that calls the helpers of the generated kernels
 HELPERS_IMPORT = ("from wallbatch.styles.lepton import _helpers as _lepton_helpers\n"
                   "globals().update(_lepton_helpers())\n")
@@ -1054,6 +1072,11 @@ class LeptonWallStyle(WallStyle):
         """The generated force source with the parameters as an array (:func:`vector_force_source`;
         None with at most 3 parameters)."""
         return None if self.expression is None else vector_force_source(self.expression)
+
+    def generated_energy(self) -> str | None:
+        """The generated unshifted energy source E(r) (:func:`energy_source`), in the same form
+        as the face's generated force (positional or an array of parameters)."""
+        return None if self.expression is None else energy_source(self.expression)
 
 
 # ---------------------------------------------------------------------------------------------
