@@ -572,7 +572,7 @@ def jobs2() -> dict:
         one, two = min(runs[1]), min(runs[2])
     return {"scene": "64-case sweep, `--jobs 2` vs `--jobs 1` (new processes)", "N": n, "steps": steps,
             "wb": f"{two:.1f} s (-j 1: {one:.1f} s)", "lmp": "n/a (no sweep driver)", "value": one / two,
-            "note": f"{os.cpu_count()} cores"}
+            "note": f"{os.cpu_count()} cores; -j 1 / -j 2: {one / two:.2f}x"}
 
 
 THREAD_SCRIPT = """
