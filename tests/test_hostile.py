@@ -85,6 +85,7 @@ def test_yaml_refused_with_location(text, where, words):
     assert msg.startswith(where) and words in msg, msg
 
 
+@pytest.mark.slow  # over 2.5 s
 def test_alias_bomb_refused_before_expanding():
     levels = ["a0: &a0 [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]"]
     levels += [f"a{i}: &a{i} [" + ", ".join([f"*a{i - 1}"] * 10) + "]" for i in range(1, 9)]

@@ -150,6 +150,7 @@ def test_scenes_the_kernel_refuses_run_on_numpy(monkeypatch, what):
 # ----------------------------------------------------------------------------- the pieces
 
 
+@pytest.mark.slow  # over 2.5 s
 def test_compiled_richardson_is_the_numpy_one_bit_for_bit():
     rng = np.random.default_rng(3)
     q = quat.random_quaternions(rng, 200)

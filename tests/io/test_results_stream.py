@@ -90,6 +90,7 @@ def test_blocks_cover_the_grid_in_order_as_rectangles(shape, size):
     assert flat == list(range(int(np.prod(shape, dtype=int))))
 
 
+@pytest.mark.slow  # over 2.5 s
 def test_final_pass_holds_about_one_block(runs, tmp_path):
     """2,000 cases streamed from a generator: the traced peak is a few blocks, while the whole
     output arrays would take 2,000 x case_bytes."""

@@ -197,6 +197,7 @@ def drift_order(mode: str, switch_on: float | None = None) -> tuple[float, float
     return float(slope), rep.orders["etot"]
 
 
+@pytest.mark.slow  # over 2.5 s
 def test_force_continuous_modes_restore_second_order():
     """lj93 slit, rc = 2.5 (F(rc) = -0.077): the energy drift over a fixed simulated time falls as
     dt^2 with force-shift and smooth (measured 1.99, 1.99), but only as dt^1.3 with shift; the
