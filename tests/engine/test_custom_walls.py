@@ -78,6 +78,19 @@ def lj93_tables(tmp_path: Path, n: int = 400) -> Path:
     return path
 
 
+def lepton_both_ways(monkeypatch, cases) -> tuple[tuple, tuple]:
+    """(results, compiled path) of one Engine over `cases` with wall/lepton forced compiled
+    (WALLBATCH_LEPTON_COMPILED=always), then forced NumPy (never: its path is None)."""
+    from wallbatch.engine.engine import Engine  # noqa: PLC0415
+
+    runs = []
+    for mode in ("always", "never"):
+        monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", mode)
+        engine = Engine(cases)
+        runs.append((engine.run(), engine.fast))
+    return runs[0], runs[1]
+
+
 def run_one(cfg):
     res = run_cases([build_case(cfg)])[0]
     assert res.status == "ok", res.error
@@ -322,19 +335,13 @@ def test_compiled_lepton_equals_numpy_bit_for_bit(monkeypatch, thermo):
     inlined like a built-in style: the trajectory equals the NumPy engine's bit for bit; sampled
     every step, the kernel records the outputs itself (E(r) - E(rc) generated from the expression,
     force on the wall, virial) and every output equals NumPy's bit for bit too."""
-    from wallbatch.engine.engine import Engine  # noqa: PLC0415
 
     face = "{coord: EDGE, cutoff: 2.5, expression: 'eps*(2/15*(sig/r)^9-(sig/r)^3)', params: {eps: 1.0, sig: 1.0}}"
     harm = "{coord: EDGE, cutoff: 1.5, expression: 'k*(r-rc)^2', params: {k: 30.0, rc: 1.5}}"
     text = slit(f"w: {{style: lepton, units: box, energy: true, virial: true, zlo: {face}, zhi: {harm}}}\n",
                 steps=300, thermo=thermo).replace("etot]", "etot, press]")
     case = build_case(load_config_text(text))
-    runs = {}
-    for mode in ("always", "never"):
-        monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", mode)
-        engine = Engine([case])
-        runs[mode] = (engine.run(), engine.fast)
-    (compiled, fast), (numpy_res, none) = runs["always"], runs["never"]
+    (compiled, fast), (numpy_res, none) = lepton_both_ways(monkeypatch, [case])
     assert none is None and fast is not None and fast.compiled_chunks > 0 and fast.fallbacks == 0
     assert fast.sampled_calls > 0  # the samples come from the kernel
     assert numpy_res[0].status == "ok" and np.all(numpy_res[0].data["wall_force"][1:] != 0.0)
@@ -348,7 +355,6 @@ def test_compiled_lepton_sweep_sampled_every_step_equals_numpy(tmp_path, monkeyp
     b of a 4-parameter expression whose parameters go as an array), sampled every step: the
     kernel records every sample (energies from the generated E(r) - E(rc)) and the trajectories
     and outputs equal the NumPy engine's bit for bit, differing between the cases."""
-    from wallbatch.engine.engine import Engine  # noqa: PLC0415
 
     lj = "{coord: EDGE, cutoff: 2.5, expression: 'eps*(2/15*(sig/r)^9-(sig/r)^3)', params: {eps: 1.0, sig: 1.0}}"
     four = ("{coord: EDGE, cutoff: 2.0, expression: 'a*(r-rc)^2 + b*exp(-r/l)', "
@@ -362,12 +368,7 @@ def test_compiled_lepton_sweep_sampled_every_step_equals_numpy(tmp_path, monkeyp
     plan = load_plan(write(tmp_path, text))
     cases = [build_case(c.config, c.seed_key) for c in plan.cases]
     assert len(cases) == 3 and len({structure_key(c) for c in cases}) == 1
-    runs = {}
-    for mode in ("always", "never"):
-        monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", mode)
-        engine = Engine(cases)
-        runs[mode] = (engine.run(), engine.fast)
-    (compiled, fast), (numpy_res, none) = runs["always"], runs["never"]
+    (compiled, fast), (numpy_res, none) = lepton_both_ways(monkeypatch, cases)
     assert none is None and fast is not None and fast.fallbacks == 0 and fast.sampled_calls > 0
     assert fast.compiled_chunks == 200  # every sample from the kernel
     assert all(n.status == "ok" and np.all(n.data["wall_force"][1:] != 0.0) for n in numpy_res)
@@ -543,7 +544,6 @@ def test_compiled_lepton_with_more_than_three_parameters_equals_numpy(tmp_path, 
     """Expressions with more than 3 parameters run compiled with their parameters as a per-face
     row of an array (swept per case), beside an expression of 2 parameters (p0, p1): the
     trajectories and outputs equal the NumPy engine's bit for bit, and differ between cases."""
-    from wallbatch.engine.engine import Engine  # noqa: PLC0415
 
     four = ("{coord: EDGE, cutoff: 2.0, expression: 'a*(r-rc)^2 + b*exp(-r/l)', "
             "params: {a: 20.0, rc: 2.0, b: 3.0, l: 0.4}}")
@@ -555,12 +555,7 @@ def test_compiled_lepton_with_more_than_three_parameters_equals_numpy(tmp_path, 
                 extra="sweep:\n  product:\n    b: {path: walls.w.zlo.params.b, values: [1.0, 4.0]}\n")
     plan = load_plan(write(tmp_path, text))
     cases = [build_case(c.config, c.seed_key) for c in plan.cases]
-    runs = {}
-    for mode in ("always", "never"):
-        monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", mode)
-        engine = Engine(cases)
-        runs[mode] = (engine.run(), engine.fast)
-    (compiled, fast), (numpy_res, none) = runs["always"], runs["never"]
+    (compiled, fast), (numpy_res, none) = lepton_both_ways(monkeypatch, cases)
     assert none is None and fast is not None and fast.compiled_chunks > 0 and fast.fallbacks == 0
     for c, n in zip(compiled, numpy_res):
         assert c.status == n.status == "ok", (c.error, n.error)
