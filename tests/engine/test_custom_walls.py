@@ -335,7 +335,6 @@ def test_compiled_lepton_equals_numpy_bit_for_bit(monkeypatch, thermo):
     inlined like a built-in style: the trajectory equals the NumPy engine's bit for bit; sampled
     every step, the kernel records the outputs itself (E(r) - E(rc) generated from the expression,
     force on the wall, virial) and every output equals NumPy's bit for bit too."""
-
     face = "{coord: EDGE, cutoff: 2.5, expression: 'eps*(2/15*(sig/r)^9-(sig/r)^3)', params: {eps: 1.0, sig: 1.0}}"
     harm = "{coord: EDGE, cutoff: 1.5, expression: 'k*(r-rc)^2', params: {k: 30.0, rc: 1.5}}"
     text = slit(f"w: {{style: lepton, units: box, energy: true, virial: true, zlo: {face}, zhi: {harm}}}\n",
@@ -355,7 +354,6 @@ def test_compiled_lepton_sweep_sampled_every_step_equals_numpy(tmp_path, monkeyp
     b of a 4-parameter expression whose parameters go as an array), sampled every step: the
     kernel records every sample (energies from the generated E(r) - E(rc)) and the trajectories
     and outputs equal the NumPy engine's bit for bit, differing between the cases."""
-
     lj = "{coord: EDGE, cutoff: 2.5, expression: 'eps*(2/15*(sig/r)^9-(sig/r)^3)', params: {eps: 1.0, sig: 1.0}}"
     four = ("{coord: EDGE, cutoff: 2.0, expression: 'a*(r-rc)^2 + b*exp(-r/l)', "
             "params: {a: 20.0, rc: 2.0, b: 3.0, l: 0.4}}")
@@ -544,7 +542,6 @@ def test_compiled_lepton_with_more_than_three_parameters_equals_numpy(tmp_path, 
     """Expressions with more than 3 parameters run compiled with their parameters as a per-face
     row of an array (swept per case), beside an expression of 2 parameters (p0, p1): the
     trajectories and outputs equal the NumPy engine's bit for bit, and differ between cases."""
-
     four = ("{coord: EDGE, cutoff: 2.0, expression: 'a*(r-rc)^2 + b*exp(-r/l)', "
             "params: {a: 20.0, rc: 2.0, b: 3.0, l: 0.4}}")
     five = ("{coord: EDGE, cutoff: 1.5, expression: 'k*(r-c)^2*(1+q*r) + s*exp(-r/w)', "
