@@ -245,7 +245,9 @@ def test_stochastic_reflect_sampled_in_the_kernel(monkeypatch, rstyle, thermo):
     for k, (seed, temp) in enumerate(((77, 1.0), (78, 2.0), (79, 0.6))):
         st = copy.deepcopy(STOCHASTIC[rstyle])
         st["zlo"]["temp"] = st["zlo"]["temp"] * temp
-        walls = {**lj93(), "r": {"style": "reflect", "units": "box", "zhi": 6.45},
+        soft = harmonic()  # its zlo face reaches past the stochastic one; the kernel of test_stochastic_engine.py
+        soft["w"]["zlo"].update(epsilon=0.5, cutoff=2.0)
+        walls = {**soft, "r": {"style": "reflect", "units": "box", "zhi": 6.45},
                  "s": {"style": "reflect/stochastic", "seed": seed, "units": "box", **st}}
         configs.append(gas(walls, steps=150, thermo=thermo, output=REFLECT_OUT, seed=5 + k, temperature=1.5 * temp))
     ref, got, eng = check(monkeypatch, configs)
@@ -255,6 +257,7 @@ def test_stochastic_reflect_sampled_in_the_kernel(monkeypatch, rstyle, thermo):
         assert count.shape == (150 // thermo + 1, 2)
         assert count[:, 0].sum() > 5 and count[:, 1].sum() > 5  # both faces reflected atoms
         assert np.count_nonzero(count[:, 1]) > 3  # reset at each sample: counts spread over samples
+        assert np.count_nonzero(r.data["wall_force"][:, 0]) > 3  # the soft zlo face acted
     assert not np.array_equal(got[0].data["reflect_count"], got[1].data["reflect_count"])
 
 
