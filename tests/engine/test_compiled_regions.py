@@ -96,7 +96,8 @@ def test_cylinder_every_axis_both_sides(monkeypatch, axis, side):
         walls = {"rw": rwall("harmonic", epsilon=30.0, cutoff=1.5)}
     else:
         region, start = cylinder(axis, "out", radius=2.0, lo=3.0, hi=7.0), CORNERS
-        walls = {"rw": rwall("morse"), "box": {"style": "reflect", "units": "box", "xlo": 0.0, "xhi": L,
+        # the walls of test_block_and_outside_regions (one kernel for both tests)
+        walls = {"rw": rwall("lj93", cutoff=3.0), "box": {"style": "reflect", "units": "box", "xlo": 0.0, "xhi": L,
                                                "ylo": 0.0, "yhi": L, "zlo": 0.0, "zhi": L}}
     ref, _, _ = check(monkeypatch, [region_gas(region, walls, start=start, steps=500)])
     assert ref[0].status == "ok"
