@@ -580,26 +580,21 @@ if njit is not None:
         """`_table_faces` of a scene without wall/table faces: nothing (never called)."""
         return 0
 
-    @inline
-    def _table_value(r, grid, ty, td, par, linear):
-        """The lookup of a wall/table face's row ty (with its derivative row td) at r (the table's
-        linear or spline lookup, styles.table's functions jitted); par = (lo, 1/delta,
-        delta^2/6, N - 2)."""
-        j = min(int((r - par[0]) * par[1]), par[3])
-        if linear:
-            return _table_linear(r, j, grid, ty, td, par[1])
-        return _table_spline(r, j, grid, ty, td, par[1], par[2])
+    def _table_lookup(y: int, dy: int) -> Any:
+        """The lookup of a wall/table face's row y (its derivative row dy) at r in the registry's
+        force signature (`_eface`): rows = (grid, F, dF or F2, E, dE or E2) of its table
+        (WallTable.kernel_rows), par = (lo, 1/delta, delta^2/6, N - 2), linear: the table's linear
+        or spline lookup (styles.table's functions, jitted). y, dy = 1, 2: F(r) [force]; 3, 4:
+        the unshifted E(r) [energy]."""
+        def lookup(r, rows, par, linear, rc, radius, r_on):
+            j = min(int((r - par[0]) * par[1]), par[3])
+            if linear:
+                return _table_linear(r, j, rows[0], rows[y], rows[dy], par[1])
+            return _table_spline(r, j, rows[0], rows[y], rows[dy], par[1], par[2])
+        return lookup
 
-    @inline
-    def _table_force(r, rows, par, linear, rc, radius, r_on):
-        """F(r) [force] of a wall/table face in the registry's force signature: rows = (grid, F,
-        dF or F2, E, dE or E2) of its table (WallTable.kernel_rows), par as `_table_value`."""
-        return _table_value(r, rows[0], rows[1], rows[2], par, linear)
-
-    @inline
-    def _table_energy(r, rows, par, linear, rc, radius, r_on):
-        """E(r) [energy] of a wall/table face, unshifted (as `_table_force`)."""
-        return _table_value(r, rows[0], rows[3], rows[4], par, linear)
+    _table_force = njit(nogil=True, error_model="numpy", inline="always")(_table_lookup(1, 2))
+    _table_energy = njit(nogil=True, error_model="numpy", inline="always")(_table_lookup(3, 4))
 
     @inline
     def _table_out(tb, k, X, RAD, groups, g, d, side, coord, cut, n):
