@@ -100,7 +100,8 @@ def main() -> None:
     for scene in scenes:
         for rnd in range(args.rounds):
             for i, src in enumerate(srcs):
-                tree_env = dict(env, NUMBA_CACHE_DIR=f"{caches.name}/numba{i}", WALLBATCH_CACHE_DIR=f"{caches.name}/wb{i}")
+                tree_env = dict(env, NUMBA_CACHE_DIR=f"{caches.name}/numba{i}",
+                                WALLBATCH_CACHE_DIR=f"{caches.name}/wb{i}")
                 ans, _ = run_child(src, ["--scene", scene, "--steps", str(args.steps), "--repeat", str(args.repeat)],
                                    tree_env)
                 print(f"{scene:16s} round {rnd}  {ans['ns']:7.2f} ns per atom-step  {ans['path']:36s} {src}",

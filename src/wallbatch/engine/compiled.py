@@ -176,8 +176,8 @@ def _vector_dispatch_source(extra: tuple[str, ...]) -> str:
     for j, src in enumerate(extra):
         if src.startswith(VECTOR_MARK):
             lines.append(f"    {'if' if k == 0 else 'elif'} j == {j}:  # wall/lepton, parameters as an array")
-            lines.append(f"        return _face(_VEXTRA_{j}, False, X, F, RAD, groups, g, d, side, coord, pv, 0.0, 0.0, "
-                         "cut, 0.0, u0, u1)")
+            lines.append(f"        return _face(_VEXTRA_{j}, False, X, F, RAD, groups, g, d, side, coord, pv, "
+                         "0.0, 0.0, cut, 0.0, u0, u1)")
             k += 1
     lines.append("    return 0")
     return "\n".join(lines) + "\n"
@@ -193,8 +193,8 @@ def _vector_outputs_source(extra: tuple[str, ...]) -> str:
     for j, src in enumerate(extra):
         if src.startswith(VECTOR_MARK) and "\ndef energy(" in src:
             lines.append(f"    {'if' if k == 0 else 'elif'} j == {j}:  # wall/lepton, parameters as an array")
-            lines.append(f"        return _eface(_VEXTRA_{j}, _VEENERGY_{j}, False, X, RAD, groups, g, d, side, coord, pv, "
-                         f"0.0, 0.0, cut, 0.0, n, _VEENERGY_{j}(cut, pv, 0.0, 0.0, cut, 0.0, 0.0))")
+            lines.append(f"        return _eface(_VEXTRA_{j}, _VEENERGY_{j}, False, X, RAD, groups, g, d, side, "
+                         f"coord, pv, 0.0, 0.0, cut, 0.0, n, _VEENERGY_{j}(cut, pv, 0.0, 0.0, cut, 0.0, 0.0))")
             k += 1
     lines.append("    return _nan, _nan, _nan")
     return "\n".join(lines) + "\n"
@@ -254,7 +254,8 @@ def _outputs_source(pairs: tuple[tuple[int, int], ...], kind: str = "face", extr
     for cond, force, rad, note in _branches((), extra):
         j = force.rpartition("_")[2]
         lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
-        lines.append(f"        return {loop}({force}, _EEXTRA_{j}, {rad}, {args}, _EEXTRA_{j}(cut, p0, p1, p2, cut, 0.0, ron))")
+        lines.append(f"        return {loop}({force}, _EEXTRA_{j}, {rad}, {args}, "
+                     f"_EEXTRA_{j}(cut, p0, p1, p2, cut, 0.0, ron))")
         k += 1
     lines.append("    return " + ", ".join(["_nan"] * nout))
     return "\n".join(lines) + "\n"
