@@ -20,11 +20,13 @@ import json
 import math
 import multiprocessing
 import os
+import re
 import shutil
 import signal
 import sys
 import threading
 import time
+import zipfile
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
@@ -546,17 +548,45 @@ def save_part(folder: Path, key: str, res: CaseResult) -> None:
                           if getattr(exc, "errno", None) == 28 else "")) from None
 
 
+_NPY_HEADER = re.compile(r"\{'descr': '([<>|=]?[A-Za-z]\d*)', 'fortran_order': (True|False), "
+                         r"'shape': \(((?:\d+, ?)*\d*)\), \} *\n")
+
+
+def read_npz(path: Path) -> dict[str, np.ndarray]:
+    """The arrays of an .npz archive as `np.savez` writes them (plain dtypes), read with NumPy's
+    header parsing skipped: `np.load` reads each array's header with `ast.literal_eval`, whose
+    nested functions are cyclic garbage (~11 objects per array), so a run reading back thousands
+    of parts left their memory to the collector's timing. An archive whose headers are in
+    another form (another NumPy's writer) is read by `np.load`. Damaged: an exception."""
+    out: dict[str, np.ndarray] = {}
+    with zipfile.ZipFile(path) as zf:
+        for name in zf.namelist():
+            raw = zf.read(name)
+            major = raw[6] if raw[:6] == b"\x93NUMPY" and len(raw) > 12 else 0
+            start = 10 if major == 1 else 12
+            size = int.from_bytes(raw[8:start], "little")
+            found = _NPY_HEADER.fullmatch(raw[start:start + size].decode("latin-1")) if major in (1, 2, 3) else None
+            dtype = np.dtype(found[1]) if found is not None and name.endswith(".npy") else None
+            if dtype is None or dtype.hasobject:
+                with np.load(path, allow_pickle=False) as z:  # not the layout np.savez writes here
+                    return {k: z[k] for k in z.files}
+            shape = tuple(int(n) for n in found[3].split(",") if n.strip())
+            flat = np.frombuffer(raw, dtype, math.prod(shape), start + size)  # too short: ValueError
+            out[name[:-4]] = flat.reshape(shape, order="F" if found[2] == "True" else "C").copy(order="K")
+    return out
+
+
 def read_part(folder: Path, key: str) -> tuple[CaseResult | None, str]:
     """The part of a case, checked: (result, "") or (None, why it is not usable) - "" when absent."""
     path = folder / f"{key}.npz"
     if not path.exists():
         return None, ""
     try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k[6:]: z[k] for k in z.files if k.startswith("data__")}
-            status, error, seconds = str(z["status"]), str(z["error"]), float(z["seconds"])
-            stored_key = str(z["case_key"]) if "case_key" in z.files else ""
-            digest = str(z["digest"]) if "digest" in z.files else ""
+        z = read_npz(path)
+        data = {k[6:]: v for k, v in z.items() if k.startswith("data__")}
+        status, error, seconds = str(z["status"]), str(z["error"]), float(z["seconds"])
+        stored_key = str(z["case_key"]) if "case_key" in z else ""
+        digest = str(z["digest"]) if "digest" in z else ""
     except Exception as exc:  # noqa: BLE001 - any unreadable file (truncated, bit flip, empty) is recomputed
         return None, f"damaged ({type(exc).__name__})"
     if stored_key != key:
