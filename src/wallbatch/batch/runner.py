@@ -342,11 +342,7 @@ def _set_up_numba() -> None:
     try:
         from wallbatch.engine import compiled
 
-        if compiled.enabled():  # numba imports
-            from numba.core.registry import cpu_target
-
-            cpu_target.typing_context.refresh()  # its registries load now, not at the first kernel
-            cpu_target.target_context.refresh()
+        compiled.enabled()  # numba imports; backend.prepare_numba loads its registries now, not at the first kernel
     finally:
         if frozen:
             gc.freeze()
@@ -529,17 +525,25 @@ def _digest(key: str, status: str, error: str, seconds: float, data: dict[str, n
     return h.hexdigest()
 
 
+def _part_path(folder: Path, name: str) -> str:
+    """A part's path as a string: a pathlib path interns each of its parts (sys.intern), one new
+    interned string per case, and the interpreter's table of interned strings then grows (a
+    few MB at once in a process with NumPy, numba and SciPy loaded) at a moment that depends on
+    everything else the process has interned."""
+    return os.path.join(folder, name)
+
+
 def save_part(folder: Path, key: str, res: CaseResult) -> None:
     """One finished case as a small .npz carrying its case key and a content hash, written to a
     temporary file and renamed (a part is complete or absent). Disk full: RunError."""
-    tmp = folder / f".{key}.tmp.npz"
+    tmp = _part_path(folder, f".{key}.tmp.npz")
     arrays = {f"data__{k}": v for k, v in res.data.items()}
     digest = _digest(key, res.status, res.error, float(res.seconds), res.data)
     try:
         folder.mkdir(parents=True, exist_ok=True)
         np.savez(tmp, status=np.str_(res.status), error=np.str_(res.error), seconds=np.float64(res.seconds),
                  case_key=np.str_(key), digest=np.str_(digest), **arrays)
-        os.replace(tmp, folder / f"{key}.npz")
+        os.replace(tmp, _part_path(folder, f"{key}.npz"))
     except OSError as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
@@ -552,7 +556,7 @@ _NPY_HEADER = re.compile(r"\{'descr': '([<>|=]?[A-Za-z]\d*)', 'fortran_order': (
                          r"'shape': \(((?:\d+, ?)*\d*)\), \} *\n")
 
 
-def read_npz(path: Path) -> dict[str, np.ndarray]:
+def read_npz(path: str | Path) -> dict[str, np.ndarray]:
     """The arrays of an .npz archive as `np.savez` writes them (plain dtypes), read with NumPy's
     header parsing skipped: `np.load` reads each array's header with `ast.literal_eval`, whose
     nested functions are cyclic garbage (~11 objects per array), so a run reading back thousands
@@ -578,8 +582,8 @@ def read_npz(path: Path) -> dict[str, np.ndarray]:
 
 def read_part(folder: Path, key: str) -> tuple[CaseResult | None, str]:
     """The part of a case, checked: (result, "") or (None, why it is not usable) - "" when absent."""
-    path = folder / f"{key}.npz"
-    if not path.exists():
+    path = _part_path(folder, f"{key}.npz")
+    if not os.path.exists(path):
         return None, ""
     try:
         z = read_npz(path)
