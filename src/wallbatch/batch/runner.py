@@ -546,7 +546,7 @@ def save_part(folder: Path, key: str, res: CaseResult) -> None:
         os.replace(tmp, _part_path(folder, f"{key}.npz"))
     except OSError as exc:
         with contextlib.suppress(OSError):
-            tmp.unlink()
+            os.unlink(tmp)
         raise RunError(f"cannot save a finished case in {folder}: {exc.strerror or exc}"
                        + ("; free some space, then rerun with --resume (the finished cases are kept)"
                           if getattr(exc, "errno", None) == 28 else "")) from None
