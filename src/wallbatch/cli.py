@@ -19,11 +19,21 @@ from typing import Any
 # chunks use numba's own threads, WALLBATCH_THREADS). Set before anything imports NumPy.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import typer  # noqa: E402
+# The imports below (typer, NumPy, the config and scene layers) allocate ~80k long-lived objects
+# and free almost none: the collector is paused while they run, as for a command's start-up (see
+# _start_up_done), and restored at once after them, so a program importing this module keeps its
+# collector as it was.
+_gc_was_enabled = gc.isenabled()
+gc.disable()
+try:
+    import typer  # noqa: E402
 
-from wallbatch.config.source import ConfigError  # noqa: E402
-from wallbatch.scene.case import CaseError  # noqa: E402
-from wallbatch.version import __version__  # noqa: E402
+    from wallbatch.config.source import ConfigError  # noqa: E402
+    from wallbatch.scene.case import CaseError  # noqa: E402
+    from wallbatch.version import __version__  # noqa: E402
+finally:
+    if _gc_was_enabled:
+        gc.enable()
 
 
 _gc_paused = False  # the garbage collector is paused for a command's start-up (_start_up_done)

@@ -494,21 +494,23 @@ class Variables:
 
     def _check_cycles(self) -> None:
         done: set[str] = set()
-
-        def visit(name: str, path: list[str]) -> None:
-            if name in path:
-                cycle = path[path.index(name):] + [name]
-                raise VariableError(f"cycle between variables: {' -> '.join(cycle)}", name)
-            if name in done:
-                return
-            path.append(name)
-            for ref in self._refs[name]:
-                visit(ref, path)
-            path.pop()
-            done.add(name)
-
         for name in self._ast:
-            visit(name, [])
+            self._visit(name, [], done)
+
+    def _visit(self, name: str, path: list[str], done: set[str]) -> None:
+        """Depth-first walk of the references from `name` (a method, not a nested function: a
+        recursive closure is a reference cycle, and one per case was garbage left to the
+        collector's full passes)."""
+        if name in path:
+            cycle = path[path.index(name):] + [name]
+            raise VariableError(f"cycle between variables: {' -> '.join(cycle)}", name)
+        if name in done:
+            return
+        path.append(name)
+        for ref in self._refs[name]:
+            self._visit(ref, path, done)
+        path.pop()
+        done.add(name)
 
     def _collect_uses(self, name: str) -> frozenset[str]:
         if name not in self._uses:

@@ -161,3 +161,18 @@ def test_a_bad_config_fails_before_the_runner_and_engine_are_imported(tmp_path):
                              env=env, check=True)
         assert out.stdout.split() == ["2", "False", "False", "False"], (name, out.stdout, out.stderr)
         assert out.stderr.startswith("error: invalid config")
+
+
+@pytest.mark.parametrize("before", ["enabled", "disabled"])
+def test_importing_the_command_line_leaves_the_collector_as_it_was(before):
+    """cli.py pauses the collector while its imports run (~80k long-lived objects) and restores
+    it right after: a program importing it keeps its collector on (or off), and no object of
+    its own is frozen."""
+    code = ("import gc, sys\n"
+            f"{'gc.disable()' if before == 'disabled' else ''}\n"
+            "import wallbatch.cli\n"
+            "print(gc.isenabled(), gc.get_freeze_count(), 'numpy' in sys.modules)")
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.split() == [str(before == "enabled"), "0", "True"]

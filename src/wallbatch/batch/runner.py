@@ -20,11 +20,13 @@ import json
 import math
 import multiprocessing
 import os
+import re
 import shutil
 import signal
 import sys
 import threading
 import time
+import zipfile
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
@@ -340,11 +342,7 @@ def _set_up_numba() -> None:
     try:
         from wallbatch.engine import compiled
 
-        if compiled.enabled():  # numba imports
-            from numba.core.registry import cpu_target
-
-            cpu_target.typing_context.refresh()  # its registries load now, not at the first kernel
-            cpu_target.target_context.refresh()
+        compiled.enabled()  # numba imports; backend.prepare_numba loads its registries now, not at the first kernel
     finally:
         if frozen:
             gc.freeze()
@@ -527,36 +525,72 @@ def _digest(key: str, status: str, error: str, seconds: float, data: dict[str, n
     return h.hexdigest()
 
 
+def _part_path(folder: Path, name: str) -> str:
+    """A part's path as a string: a pathlib path interns each of its parts (sys.intern), one new
+    interned string per case, and the interpreter's table of interned strings then grows (a
+    few MB at once in a process with NumPy, numba and SciPy loaded) at a moment that depends on
+    everything else the process has interned."""
+    return os.path.join(folder, name)
+
+
 def save_part(folder: Path, key: str, res: CaseResult) -> None:
     """One finished case as a small .npz carrying its case key and a content hash, written to a
     temporary file and renamed (a part is complete or absent). Disk full: RunError."""
-    tmp = folder / f".{key}.tmp.npz"
+    tmp = _part_path(folder, f".{key}.tmp.npz")
     arrays = {f"data__{k}": v for k, v in res.data.items()}
     digest = _digest(key, res.status, res.error, float(res.seconds), res.data)
     try:
         folder.mkdir(parents=True, exist_ok=True)
         np.savez(tmp, status=np.str_(res.status), error=np.str_(res.error), seconds=np.float64(res.seconds),
                  case_key=np.str_(key), digest=np.str_(digest), **arrays)
-        os.replace(tmp, folder / f"{key}.npz")
+        os.replace(tmp, _part_path(folder, f"{key}.npz"))
     except OSError as exc:
         with contextlib.suppress(OSError):
-            tmp.unlink()
+            os.unlink(tmp)
         raise RunError(f"cannot save a finished case in {folder}: {exc.strerror or exc}"
                        + ("; free some space, then rerun with --resume (the finished cases are kept)"
                           if getattr(exc, "errno", None) == 28 else "")) from None
 
 
+_NPY_HEADER = re.compile(r"\{'descr': '([<>|=]?[A-Za-z]\d*)', 'fortran_order': (True|False), "
+                         r"'shape': \(((?:\d+, ?)*\d*)\), \} *\n")
+
+
+def read_npz(path: str | Path) -> dict[str, np.ndarray]:
+    """The arrays of an .npz archive as `np.savez` writes them (plain dtypes), read with NumPy's
+    header parsing skipped: `np.load` reads each array's header with `ast.literal_eval`, whose
+    nested functions are cyclic garbage (~11 objects per array), so a run reading back thousands
+    of parts left their memory to the collector's timing. An archive whose headers are in
+    another form (another NumPy's writer) is read by `np.load`. Damaged: an exception."""
+    out: dict[str, np.ndarray] = {}
+    with zipfile.ZipFile(path) as zf:
+        for name in zf.namelist():
+            raw = zf.read(name)
+            major = raw[6] if raw[:6] == b"\x93NUMPY" and len(raw) > 12 else 0
+            start = 10 if major == 1 else 12
+            size = int.from_bytes(raw[8:start], "little")
+            found = _NPY_HEADER.fullmatch(raw[start:start + size].decode("latin-1")) if major in (1, 2, 3) else None
+            dtype = np.dtype(found[1]) if found is not None and name.endswith(".npy") else None
+            if dtype is None or dtype.hasobject:
+                with np.load(path, allow_pickle=False) as z:  # not the layout np.savez writes here
+                    return {k: z[k] for k in z.files}
+            shape = tuple(int(n) for n in found[3].split(",") if n.strip())
+            flat = np.frombuffer(raw, dtype, math.prod(shape), start + size)  # too short: ValueError
+            out[name[:-4]] = flat.reshape(shape, order="F" if found[2] == "True" else "C").copy(order="K")
+    return out
+
+
 def read_part(folder: Path, key: str) -> tuple[CaseResult | None, str]:
     """The part of a case, checked: (result, "") or (None, why it is not usable) - "" when absent."""
-    path = folder / f"{key}.npz"
-    if not path.exists():
+    path = _part_path(folder, f"{key}.npz")
+    if not os.path.exists(path):
         return None, ""
     try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k[6:]: z[k] for k in z.files if k.startswith("data__")}
-            status, error, seconds = str(z["status"]), str(z["error"]), float(z["seconds"])
-            stored_key = str(z["case_key"]) if "case_key" in z.files else ""
-            digest = str(z["digest"]) if "digest" in z.files else ""
+        z = read_npz(path)
+        data = {k[6:]: v for k, v in z.items() if k.startswith("data__")}
+        status, error, seconds = str(z["status"]), str(z["error"]), float(z["seconds"])
+        stored_key = str(z["case_key"]) if "case_key" in z else ""
+        digest = str(z["digest"]) if "digest" in z else ""
     except Exception as exc:  # noqa: BLE001 - any unreadable file (truncated, bit flip, empty) is recomputed
         return None, f"damaged ({type(exc).__name__})"
     if stored_key != key:

@@ -17,12 +17,24 @@ forces the compiled path, for any plan.
 
 Flat walls, wall/reflect, wall/region, dt/reset and `fixes:` give the same bits on both paths;
 morse, pair lj/cut, wall/flow redraws and ellipsoids agree to ~1e-14 relative.
+
+numba's own set-up in a process that runs compiled (`prepare_numba`, once, before its first
+kernel is loaded): numba's first compile or cache load imports its NumPy implementations, and
+`numba.np.arraymath` probes at import whether BLAS is available by importing
+`scipy.linalg.cython_blas`: all of scipy.linalg and, through scipy's array API layer, numpy.f2py
+(~0.3 s of every process's start-up). wallbatch's kernels use no BLAS (no np.dot, np.linalg,
+np.correlate or np.convolve in jitted code), so the probe is skipped: the registries load with the
+probe answering "no BLAS" and the probe function is restored right after, so a later BLAS use in
+the same process (np.dot in a user's own @njit function) still finds scipy's BLAS. The only thing
+the answer selects is the inner product np.correlate and np.convolve use in compiled code (a plain
+loop instead of BLAS's dot). A numba without these names, or already set up, is left as it is.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import sys
 from collections.abc import Iterator
 
 from wallbatch.config.models import Config
@@ -37,6 +49,7 @@ _OFF = ("0", "false", "no", "off")
 _ON = ("1", "true", "yes", "on")
 
 _plan_choice: bool | None = None  # set while a plan runs (inherited by forked workers)
+_numba_prepared = False  # prepare_numba has run in this process (forked workers inherit it)
 
 
 def env_choice() -> bool | None:
@@ -53,9 +66,46 @@ def numba_allowed() -> bool:
     """May this process use compiled kernels now: WALLBATCH_NUMBA if set, else the running
     plan's choice, else yes. (numba must also import: each compiled module's `enabled`.)"""
     env = env_choice()
-    if env is not None:
-        return env
-    return True if _plan_choice is None else _plan_choice
+    allowed = env if env is not None else (True if _plan_choice is None else _plan_choice)
+    if allowed and not _numba_prepared and "numba" in sys.modules:
+        prepare_numba()  # the compiled modules ask this after importing numba, before any kernel loads
+    return allowed
+
+
+def _no_blas() -> None:
+    raise ImportError("wallbatch: numba's BLAS probe skipped at set-up (no BLAS in wallbatch's kernels)")
+
+
+def prepare_numba() -> None:
+    """Load numba's CPU target registries (what its first compile or cache load would do) with the
+    BLAS probe of `numba.np.arraymath` answering "no BLAS" instead of importing scipy.linalg (~0.3
+    s; see the module docstring); the probe is restored afterwards. Once per process; a no-op if
+    numba's registries are already loaded or its names differ from numba 0.5x-0.6x's."""
+    global _numba_prepared
+    if _numba_prepared:
+        return
+    _numba_prepared = True
+    if "numba.np.arraymath" in sys.modules:  # set up already (the probe has run): nothing to skip
+        return
+    try:
+        from numba.core.registry import cpu_target
+        from numba.np import linalg
+    except Exception:  # noqa: BLE001 - no numba, or another layout: numba sets itself up as usual
+        return
+    real = getattr(linalg, "ensure_blas", None)
+    if not callable(real):
+        return
+    linalg.ensure_blas = _no_blas  # arraymath binds it by `from numba.np.linalg import ensure_blas`
+    try:
+        cpu_target.typing_context.refresh()  # the typing registries, then the target's (arraymath among
+        cpu_target.target_context.refresh()  # them), in numba's order
+    except Exception:  # noqa: BLE001 - the first compile loads them again and reports any real problem
+        pass
+    finally:
+        linalg.ensure_blas = real
+        arraymath = sys.modules.get("numba.np.arraymath")
+        if arraymath is not None and getattr(arraymath, "ensure_blas", None) is _no_blas:
+            arraymath.ensure_blas = real
 
 
 @contextlib.contextmanager

@@ -1,0 +1,70 @@
+"""numba's set-up in a process that runs compiled (engine/backend.py prepare_numba): the BLAS probe
+of numba.np.arraymath does not import scipy.linalg (~0.3 s of every process's start-up), the
+probe is restored for later BLAS uses, and the results are the same bits as with numba's own
+set-up."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+PROBE = """
+import json, sys
+import numpy as np
+from wallbatch.config.models import config_from_dict
+from wallbatch.engine import backend
+from wallbatch.engine.engine import Engine
+from wallbatch.scene.build import build_case
+if sys.argv[1] == "numba-own":  # numba's own set-up: its BLAS probe imports scipy.linalg
+    backend._numba_prepared = True
+d = {"seed": 3, "box": {"lo": [0, 0, 0], "hi": [6, 6, 10], "boundary": ["p", "p", "f"]},
+     "atoms": [{"group": "a", "create": {"random": {"count": 300, "region": "mid"}}, "mass": 1.0,
+                "velocity": {"temperature": 1.5}}],
+     "regions": {"mid": {"style": "block", "lo": [0, 0, 1.0], "hi": [6, 6, 8.5], "units": "box"}},
+     "walls": {"w": {"style": "lj93", "units": "box", "energy": True,
+                     "zlo": {"coord": "EDGE", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
+                     "zhi": {"coord": 9.9, "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5}}},
+     "timestep": 0.005, "run": {"steps": 400, "thermo": 100}}
+engine = Engine([build_case(config_from_dict(d))])
+res = engine.run()[0]
+assert res.status == "ok" and engine.fast.compiled_chunks > 0 and engine.fast.fallbacks == 0
+import numba.np.arraymath as am, numba.np.linalg as nl
+out = {"scipy_linalg": "scipy.linalg" in sys.modules, "f2py": "numpy.f2py" in sys.modules,
+       "have_blas": am._HAVE_BLAS, "probe": [f.__module__ + "." + f.__name__ for f in (nl.ensure_blas, am.ensure_blas)],
+       "data": {k: [float(x).hex() for x in np.ravel(v)] for k, v in sorted(res.data.items())}}
+if sys.argv[2] == "dot":  # a BLAS use after the set-up: compiled with scipy's BLAS, as numba does it
+    from numba import njit
+    dot = njit(lambda a, b: np.dot(a, b))
+    a, b = np.arange(12.0).reshape(3, 4), np.linspace(0.5, 2.0, 4)
+    out["dot"] = dot(a, b).tolist() == (a @ b).tolist()
+    out["scipy_linalg_after_dot"] = "scipy.linalg" in sys.modules
+print(json.dumps(out))
+"""
+
+
+def probe(setup: str, dot: str = "") -> dict:
+    env = {**os.environ, "WALLBATCH_NUMBA": "1", "WALLBATCH_THREADS": "1",
+           "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
+    proc = subprocess.run([sys.executable, "-c", PROBE, setup, dot or "-"], capture_output=True, text=True,
+                          env=env, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout.splitlines()[-1])
+
+
+def test_a_compiled_run_imports_no_scipy_linalg_and_a_later_blas_use_still_works():
+    ours = probe("wallbatch", "dot")
+    assert ours["scipy_linalg"] is False and ours["f2py"] is False
+    assert ours["have_blas"] is False  # what the skipped probe answered
+    assert ours["probe"] == ["numba.np.linalg.ensure_blas"] * 2  # restored in both modules
+    assert ours["dot"] is True and ours["scipy_linalg_after_dot"] is True  # np.dot found scipy's BLAS
+
+
+def test_the_results_are_the_bits_of_numbas_own_set_up():
+    ours, own = probe("wallbatch"), probe("numba-own")
+    assert own["scipy_linalg"] is True and own["have_blas"] is True  # the probe ran as numba has it
+    assert ours["scipy_linalg"] is False
+    assert len(ours["data"]["etot"]) == 5
+    assert ours["data"] == own["data"]
