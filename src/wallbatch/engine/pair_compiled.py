@@ -111,35 +111,41 @@ if njit is not None:
             return r, 0.0
         return (r if 0 <= r < n else -1), 0.0
 
+    # The binning of `build_case` in pieces that runs of atoms can do in threads (`bin_threaded`):
+    # extent (min/max over the atoms in fixed dims) -> cells per dim -> each atom's cell and the
+    # counts per cell of each run -> prefix sums -> scatter, each run its atoms in index order after
+    # the runs before: the counting sort of one pass, bit for bit.
+
     @jit
-    def _bin(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
-             owner: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The cells of `build_case` (N >= 2 atoms): owner (N,) = the atoms sorted by cell (a
-        counting sort, ascending index within a cell); returns their positions from lo (wrapped in
-        periodic dims) in that order xs (N, 3), the cell starts cstart (ncell + 1,) into the
-        sorted atoms and the cells per dim nb (3,)."""
-        N = pos.shape[0]
-        p = np.empty((N, 3))  # from lo, wrapped into [0, L) (periodic dims), or from the lowest atom
-        ext = np.empty(3)
-        nb = np.empty(3, np.int64)
+    def _bin_extent(pos: np.ndarray, a_lo: int, a_hi: int, periodic: np.ndarray, mm: np.ndarray) -> None:
+        """mm (2, 3) = the min and max of atoms a_lo .. a_hi - 1 in each fixed dim (inf and -inf for
+        none), folded in atom order (min/max of the runs' folds, in run order, are those of one fold)."""
         for k in range(3):
-            if periodic[k]:
-                L = length[k]
-                for i in range(N):
-                    v = pos[i, k] - lo[k]
-                    v -= L * np.floor(v / L)
-                    if not (0.0 <= v < L):
-                        v = 0.0
-                    p[i, k] = v
-                ext[k] = L
-            else:
-                mn, mx = pos[0, k], pos[0, k]
-                for i in range(N):
+            if a_lo >= a_hi:
+                mm[0, k], mm[1, k] = np.inf, -np.inf
+            elif not periodic[k]:
+                mn, mx = pos[a_lo, k], pos[a_lo, k]
+                for i in range(a_lo, a_hi):
                     mn = min(mn, pos[i, k])
                     mx = max(mx, pos[i, k])
-                for i in range(N):
-                    p[i, k] = pos[i, k] - mn
-                ext[k] = mx - mn
+                mm[0, k], mm[1, k] = mn, mx
+
+    @jit
+    def _bin_grid(mms: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
+                  N: int, base: np.ndarray, ext: np.ndarray, nb: np.ndarray) -> None:
+        """The cell grid of N atoms from the runs' extents mms (runs, 2, 3) (`_bin_extent`): per
+        dim the origin base (lo, or the lowest atom in fixed dims), the extent ext (L, or the
+        atoms' spread) and the cells nb: floor(ext / (reach/2)) (at least 1; at most 2N cells in
+        all, halving the widest dim; a periodic dim of fewer than 5 cells gets 1)."""
+        for k in range(3):
+            if periodic[k]:
+                base[k], ext[k] = lo[k], length[k]
+            else:
+                mn, mx = mms[0, 0, k], mms[0, 1, k]
+                for r in range(1, mms.shape[0]):
+                    mn = min(mn, mms[r, 0, k])
+                    mx = max(mx, mms[r, 1, k])
+                base[k], ext[k] = mn, mx - mn
             # float first: a far-away atom (extent 1e60) must not overflow the int conversion
             nb[k] = max(1, int(min(ext[k] / (0.5 * reach), float(max(64, 2 * N)), 1048576.0)))
         while nb[0] * nb[1] * nb[2] > max(64, 2 * N):  # few atoms in a big box: fewer, wider cells
@@ -148,31 +154,76 @@ if njit is not None:
         for k in range(3):  # offsets -2..2 must be 5 distinct cells in a periodic dim: else one cell
             if periodic[k] and nb[k] < 5:
                 nb[k] = 1
-        cell = np.empty(N, np.int64)
-        ccoord = np.empty((N, 3), np.int64)
-        for i in range(N):
+
+    @jit
+    def _bin_cells(pos: np.ndarray, a_lo: int, a_hi: int, periodic: np.ndarray, base: np.ndarray,
+                   ext: np.ndarray, nb: np.ndarray, p: np.ndarray, cell: np.ndarray, count: np.ndarray) -> None:
+        """For atoms a_lo .. a_hi - 1: p[i] = the position from base (wrapped into [0, L) in
+        periodic dims), cell[i] = its cell (x slowest, z fastest), and count[q] (zeros in) += the
+        atoms of cell q."""
+        for i in range(a_lo, a_hi):
             cid = 0
             for k in range(3):
-                ck = int(p[i, k] / (ext[k] / nb[k])) if nb[k] > 1 else 0
+                v = pos[i, k] - base[k]
+                if periodic[k]:
+                    L = ext[k]
+                    v -= L * np.floor(v / L)
+                    if not (0.0 <= v < L):
+                        v = 0.0
+                p[i, k] = v
+                ck = int(v / (ext[k] / nb[k])) if nb[k] > 1 else 0
                 ck = min(max(ck, 0), nb[k] - 1)
-                ccoord[i, k] = ck
                 cid = cid * nb[k] + ck
             cell[i] = cid
-        ncell = nb[0] * nb[1] * nb[2]
-        cstart = np.zeros(ncell + 1, np.int64)
-        for i in range(N):
-            cstart[cell[i] + 1] += 1
-        for q in range(ncell):
-            cstart[q + 1] += cstart[q]
-        fill = cstart[:-1].copy()
-        order = owner  # atoms sorted by cell, ascending index within a cell
-        xs = np.empty((N, 3))  # their positions p, contiguous per cell
-        for i in range(N):
+            count[cid + 1] += 1
+
+    @jit
+    def _bin_starts(counts: np.ndarray, cstart: np.ndarray, fills: np.ndarray) -> None:
+        """counts (runs, ncell + 1): run r's atoms of cell q at counts[r, q + 1]. cstart[q + 1] =
+        the atoms of cells <= q (cstart[0] = 0), fills[r, q] = where run r's first atom of cell q
+        goes (the runs in order within a cell)."""
+        acc = 0
+        cstart[0] = 0
+        for q in range(fills.shape[1]):
+            for r in range(counts.shape[0]):
+                fills[r, q] = acc
+                acc += counts[r, q + 1]
+            cstart[q + 1] = acc
+
+    @jit
+    def _bin_scatter(p: np.ndarray, cell: np.ndarray, a_lo: int, a_hi: int, fill: np.ndarray, owner: np.ndarray,
+                     xs: np.ndarray) -> None:
+        """The counting sort's scatter of atoms a_lo .. a_hi - 1 in index order: atom i goes to
+        slot fill[cell[i]] (then advanced), owner[slot] = i and xs[slot] = p[i]."""
+        for i in range(a_lo, a_hi):
             s = fill[cell[i]]
-            fill[cell[i]] += 1
-            order[s] = i
-            for k in range(3):
-                xs[s, k] = p[i, k]
+            fill[cell[i]] = s + 1
+            owner[s] = i
+            xs[s, 0], xs[s, 1], xs[s, 2] = p[i, 0], p[i, 1], p[i, 2]
+
+    @jit
+    def _bin(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
+             owner: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The cells of `build_case` (N >= 2 atoms): owner (N,) = the atoms sorted by cell (a
+        counting sort, ascending index within a cell); returns their positions from lo (wrapped in
+        periodic dims; from the lowest atom in fixed dims) in that order xs (N, 3), the cell starts
+        cstart (ncell + 1,) into the sorted atoms and the cells per dim nb (3,). The pieces of
+        `bin_threaded` on one run of atoms."""
+        N = pos.shape[0]
+        mms = np.zeros((1, 2, 3))
+        _bin_extent(pos, 0, N, periodic, mms[0])
+        base, ext, nb = np.empty(3), np.empty(3), np.empty(3, np.int64)
+        _bin_grid(mms, lo, length, periodic, reach, N, base, ext, nb)
+        ncell = nb[0] * nb[1] * nb[2]
+        p = np.empty((N, 3))
+        cell = np.empty(N, np.int64)
+        counts = np.zeros((1, ncell + 1), np.int64)
+        _bin_cells(pos, 0, N, periodic, base, ext, nb, p, cell, counts[0])
+        cstart = np.empty(ncell + 1, np.int64)
+        fills = np.empty((1, ncell), np.int64)
+        _bin_starts(counts, cstart, fills)
+        xs = np.empty((N, 3))
+        _bin_scatter(p, cell, 0, N, fills[0], owner, xs)
         return xs, cstart, nb
 
     def _scan(xs: np.ndarray, cstart: np.ndarray, nb: np.ndarray, order: np.ndarray, length: np.ndarray,
@@ -787,6 +838,30 @@ def forces_case_threaded(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first:
     return e, w, split
 
 
+def bin_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
+                 owner: np.ndarray, parts: int,
+                 run: Callable[[list], list] = threads._in_threads) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`_bin` with runs of atoms in `parts` threads (`run`): each run's extent, then (grid from
+    them) each run's cells and counts, the prefix sums here, then each run scatters its atoms in
+    index order after the runs before: the same owner, xs, cstart and nb, bit for bit."""
+    N = pos.shape[0]
+    cut = [N * r // parts for r in range(parts + 1)]
+    mms = np.zeros((parts, 2, 3))
+    run([lambda r=r: _bin_extent(pos, cut[r], cut[r + 1], periodic, mms[r]) for r in range(parts)])
+    base, ext, nb = np.empty(3), np.empty(3), np.empty(3, np.int64)
+    _bin_grid(mms, lo, length, periodic, reach, N, base, ext, nb)
+    ncell = int(nb[0] * nb[1] * nb[2])
+    p, cell = np.empty((N, 3)), np.empty(N, np.int64)
+    counts = np.zeros((parts, ncell + 1), np.int64)
+    run([lambda r=r: _bin_cells(pos, cut[r], cut[r + 1], periodic, base, ext, nb, p, cell, counts[r])
+         for r in range(parts)])
+    cstart, fills = np.empty(ncell + 1, np.int64), np.empty((parts, ncell), np.int64)
+    _bin_starts(counts, cstart, fills)
+    xs = np.empty((N, 3))
+    run([lambda r=r: _bin_scatter(p, cell, cut[r], cut[r + 1], fills[r], owner, xs) for r in range(parts)])
+    return xs, cstart, nb
+
+
 def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
                    owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int,
                    run: Callable[[list], list] = threads._in_threads, marks: np.ndarray | None = None,
@@ -805,7 +880,7 @@ def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic
             rows[:] = -1
         return build_case(pos, lo, length, periodic, reach, owner, first, neigh)
     first[0] = 0
-    xs, cstart, nb = _bin(pos, lo, length, periodic, reach, owner)
+    xs, cstart, nb = bin_threaded(pos, lo, length, periodic, reach, owner, parts, run)
     ncell = len(cstart) - 1
     starts = [N * p // parts for p in range(parts)] if shares is None else [int(N * shares[p]) for p in range(parts)]
     qb = np.maximum.accumulate(np.searchsorted(cstart, starts, side="left")).astype(np.int64)
