@@ -383,3 +383,44 @@ def test_both_ways_of_sampling_share_one_kernel(monkeypatch):
     assert_same_results(ref, got)
     assert near.fast.sampled_calls > 0 and far.fast.sampled_calls == 0 and far.fast.compiled_chunks == 3
     assert near.fast.kernel_names == far.fast.kernel_names and len(near.fast.kernel_names) == 1
+
+
+@pytest.mark.parametrize("form", ["positional", "array"])
+def test_lepton_energy_offset_is_evaluated_once_per_face_and_sample(form):
+    """The outputs loop of a wall/lepton face (`_eface` through the generated `_face_out` /
+    `_vector_out` dispatch, run here as Python with a harmonic E(r) = k (rc - r)^2 + b that records
+    each r it is evaluated at) subtracts E(rc) evaluated once per call, not once per atom, and
+    returns sum E(r) - E(rc), sum side F(r) and sum F(r) r over the group atoms within the cut-off,
+    in atom order."""
+    seen: list[float] = []
+    k, b, rc, coord = 3.0, 0.25, 1.5, 0.5
+
+    def energy(r, p):
+        seen.append(r)
+        return p[0] * (rc - r) ** 2 + p[1]
+
+    def force(r, p):
+        return 2.0 * p[0] * (rc - r)
+
+    z = np.array([0.9, 2.4, 1.2, 0.6, 1.9, 1.7])  # r = z - coord: 0.4, 1.9 (out), 0.7, 0.1, 1.4, 1.2
+    X = np.zeros((3, z.size))
+    X[2] = z
+    groups = np.array([[1, 1, 1, 1, 1, 0]])  # the last atom, within the cut-off, is not in the group
+    if form == "positional":
+        ns = {"_eface": fast._eface.py_func, "_nan": np.nan,
+              "_EXTRA_0": lambda r, p0, p1, p2, c, rad, ron: force(r, (p0, p1)),
+              "_EEXTRA_0": lambda r, p0, p1, p2, c, rad, ron: energy(r, (p0, p1))}
+        exec(fast._outputs_source((), "face", (0,)), ns)  # noqa: S102 - the generated dispatch
+        e, fs, vir = ns["_face_out"](len(fast.COMPILED_STYLES), fast.SHIFT, X, np.zeros(z.size), groups, 0, 2, -1,
+                                     coord, k, b, 0.0, rc, 0.0, z.size)
+    else:
+        ns = {"_eface": fast._eface.py_func, "_nan": np.nan, "_VEXTRA_0": fast._vector_args(force),
+              "_VEENERGY_0": fast._vector_args(energy)}
+        exec(fast._vector_outputs_source((fast.VECTOR_MARK + "kernel\ndef energy(",)), ns)  # noqa: S102
+        e, fs, vir = ns["_vector_out"](0, X, np.zeros(z.size), groups, 0, 2, -1, coord, np.array([k, b]), rc,
+                                       z.size)
+    r = (z - coord)[[0, 2, 3, 4]]  # the group atoms within the cut-off, in atom order
+    assert seen == [rc, *r]  # E(rc) once, first; then E(r) of each atom
+    assert e == pytest.approx(np.sum(k * (rc - r) ** 2), rel=1e-15)  # the b's cancel
+    f = 2.0 * k * (rc - r)
+    assert fs == pytest.approx(-np.sum(f), rel=1e-15) and vir == pytest.approx(np.sum(f * r), rel=1e-15)

@@ -169,13 +169,15 @@ VECTOR_MARK = "# parameters as an array\n"  # first line of a generated force ke
 def _vector_dispatch_source(extra: tuple[str, ...]) -> str:
     """Python source of `_vector_faces(j, ...)`: one branch per generated force of `extra` with its
     parameters as an array (wall/lepton with more than 3 parameters; style -2 - j), each a
-    literal call of the face loop `_vface` with that force inlined."""
-    lines = ["def _vector_faces(j, X, F, groups, g, d, side, coord, pv, cut, u0, u1):"]
+    literal call of the face loop `_face` with that force (`_VEXTRA_j`: force(r, pv), in the
+    registry's signature with the array pv as p0) inlined."""
+    lines = ["def _vector_faces(j, X, F, RAD, groups, g, d, side, coord, pv, cut, u0, u1):"]
     k = 0
     for j, src in enumerate(extra):
         if src.startswith(VECTOR_MARK):
             lines.append(f"    {'if' if k == 0 else 'elif'} j == {j}:  # wall/lepton, parameters as an array")
-            lines.append(f"        return _vface(_VEXTRA_{j}, X, F, groups, g, d, side, coord, pv, cut, u0, u1)")
+            lines.append(f"        return _face(_VEXTRA_{j}, False, X, F, RAD, groups, g, d, side, coord, pv, "
+                         "0.0, 0.0, cut, 0.0, u0, u1)")
             k += 1
     lines.append("    return 0")
     return "\n".join(lines) + "\n"
@@ -183,14 +185,16 @@ def _vector_dispatch_source(extra: tuple[str, ...]) -> str:
 
 def _vector_outputs_source(extra: tuple[str, ...]) -> str:
     """Python source of `_vector_out(j, ...)`, the outputs of sampled chunks of the faces of
-    `_vector_faces` (`_veface` with force `_VEXTRA_j` and E(r) - E(rc) `_VEENERGY_j`); NaNs for a
-    force without a generated energy."""
-    lines = ["def _vector_out(j, X, groups, g, d, side, coord, pv, cut, n):"]
+    `_vector_faces`: the output loop `_eface` with force `_VEXTRA_j` and unshifted energy
+    `_VEENERGY_j` (E(r, pv)) less E(rc, pv), computed once per call; NaNs for a force without a
+    generated energy."""
+    lines = ["def _vector_out(j, X, RAD, groups, g, d, side, coord, pv, cut, n):"]
     k = 0
     for j, src in enumerate(extra):
         if src.startswith(VECTOR_MARK) and "\ndef energy(" in src:
             lines.append(f"    {'if' if k == 0 else 'elif'} j == {j}:  # wall/lepton, parameters as an array")
-            lines.append(f"        return _veface(_VEXTRA_{j}, _VEENERGY_{j}, X, groups, g, d, side, coord, pv, cut, n)")
+            lines.append(f"        return _eface(_VEXTRA_{j}, _VEENERGY_{j}, False, X, RAD, groups, g, d, side, "
+                         f"coord, pv, 0.0, 0.0, cut, 0.0, n, _VEENERGY_{j}(cut, pv, 0.0, 0.0, cut, 0.0, 0.0))")
             k += 1
     lines.append("    return _nan, _nan, _nan")
     return "\n".join(lines) + "\n"
@@ -223,32 +227,35 @@ def _region_dispatch_source(pairs: tuple[tuple[int, int], ...]) -> str:
 
 
 # the two output dispatches of sampled chunks (`_outputs_source`): function, its arguments after
-# (style, mode) (passed on to the loop as they are), the output loop, the number of outputs
-_OUTPUTS = {"face": ("_face_out", "X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n", "_eface", 3),
-            "region": ("_region_out", "RAD, RB, nslot, n, p0, p1, p2, cut, ron", "_rout", 5)}
+# (style, mode) (passed on to the loop as they are), the output loop, the number of outputs, and
+# whether the loop takes the face's energy offset e0 as its last argument (`_eface`)
+_OUTPUTS = {"face": ("_face_out", "X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n", "_eface", 3, True),
+            "region": ("_region_out", "RAD, RB, nslot, n, p0, p1, p2, cut, ron", "_rout", 5, False)}
 
 
 def _outputs_source(pairs: tuple[tuple[int, int], ...], kind: str = "face", extra: tuple[int, ...] = ()) -> str:
     """Python source of the outputs dispatch of sampled chunks: `_face_out(style, mode, ...)` for
     flat soft faces (kind "face", output loop `_eface`) or `_region_out(style, mode, ...)` for the
     contacts of a wall/region fix (kind "region", `_rout`). As `_dispatch_source`, one branch per
-    (style, cut-off mode) pair whose energy the kernel computes (`energy_compiled`) and per
-    generated wall/lepton force j of `extra` with a generated energy (`_EEXTRA_j`: E(r) - E(rc)),
-    each calling the output loop with that force and energy inlined; NaNs for any other pair
+    (style, cut-off mode) pair whose energy the kernel computes (`energy_compiled`; its energy
+    under the mode, offset 0) and per generated wall/lepton force j of `extra` with a generated
+    energy (`_EEXTRA_j`: the unshifted E(r), less the offset E(rc) computed once per call), each
+    calling the output loop with that force and energy inlined; NaNs for any other pair
     (`sampled_eligible` keeps those scenes out)."""
-    name, args, loop, nout = _OUTPUTS[kind]
+    name, args, loop, nout, offset = _OUTPUTS[kind]
     lines = [f"def {name}(style, mode, {args}):"]
     k = 0
     for (cond, force, rad, note), (i, m) in zip(_branches(pairs, 0), pairs):
         if not energy_compiled(COMPILED_STYLES[i]):
             continue
         lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
-        lines.append(f"        return {loop}({force}, _ENERGY_{i}_{m}, {rad}, {args})")
+        lines.append(f"        return {loop}({force}, _ENERGY_{i}_{m}, {rad}, {args}{', 0.0' if offset else ''})")
         k += 1
     for cond, force, rad, note in _branches((), extra):
         j = force.rpartition("_")[2]
         lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
-        lines.append(f"        return {loop}({force}, _EEXTRA_{j}, {rad}, {args})")
+        lines.append(f"        return {loop}({force}, _EEXTRA_{j}, {rad}, {args}, "
+                     f"_EEXTRA_{j}(cut, p0, p1, p2, cut, 0.0, ron))")
         k += 1
     lines.append("    return " + ", ".join(["_nan"] * nout))
     return "\n".join(lines) + "\n"
@@ -381,7 +388,9 @@ if njit is not None:
         """One soft face over atoms u0..u1-1 (walls.SoftWallKernel.apply): r = distance into the
         allowed region; where r < rc (and the atom is in the group), F[d] -= side F(r). Returns the
         number of atoms on or behind the wall (r <= 0; with use_radius: r <= radius). `force` and
-        `use_radius` are literals at every call (_soft_face), so each style gets its own loop."""
+        `use_radius` are literals at every call (_soft_face, _vector_faces), so each style gets its
+        own loop; p0, p1, p2 go to the force as they are (floats, or a wall/lepton face's
+        parameter array as p0: `_vector_args`)."""
         sidef = float(side)
         sign = -sidef  # r = (x - coord) * sign: x - coord (lo face) or coord - x (hi face), exactly
         nbad = 0
@@ -398,10 +407,14 @@ if njit is not None:
 
 
     @inline
-    def _eface(force, energy, use_radius, X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n):
+    def _eface(force, energy, use_radius, X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n, e0):
         """The outputs of one soft face over a case's n atoms (walls.SoftWallKernel.apply with
-        outputs): (sum of E(r) under the cut-off mode, sum of side F(r): the force on the wall,
-        sum of F(r) r: the virial), each summed atom by atom in atom order as np.bincount does."""
+        outputs): (sum of E(r) - e0, sum of side F(r): the force on the wall, sum of F(r) r: the
+        virial), each summed atom by atom in atom order as np.bincount does. `force` and `energy`
+        take the registry's force arguments (r, p0, p1, p2, rc, radius, r_on), whatever p0, p1, p2
+        are (floats; a wall/lepton face's parameter array; a wall/table face's rows): E is the
+        energy under the cut-off mode (e0 = 0) or an unshifted energy whose offset e0 at the
+        cut-off the caller computes once (wall/lepton: E(rc); wall/table: E_lin(rc))."""
         sidef = float(side)
         sign = -sidef
         e = 0.0
@@ -412,35 +425,27 @@ if njit is not None:
             if r < cut and groups[g, i] != 0:
                 rad = RAD[i] if use_radius else 0.0
                 fi = force(r, p0, p1, p2, cut, rad, ron)
-                e += energy(r, p0, p1, p2, cut, rad, ron)
+                e += energy(r, p0, p1, p2, cut, rad, ron) - e0
                 fs += sidef * fi
                 vir += fi * r
         return e, fs, vir
 
     def _sample_faces(c, si, X, RAD, groups, sf_meta, sf_val, tb, lp, out):
-        """Every soft face's outputs (`_eface`; wall/table faces: `_table_out` on the tables tb;
-        wall/lepton faces with their parameters as an array: `_vector_out` on this case's rows of
-        lp) of case c at the current positions into out[k] = (energy, force on the wall, virial).
-        Compiled per scene by `kernel_for` with the scene's `_face_out` dispatch."""
+        """Every soft face's outputs (`_eface`, through the scene's `_face_out` dispatch; wall/table
+        faces: `_table_out` on the tables tb; wall/lepton faces with their parameters as an array:
+        `_vector_out` on this case's rows of lp) of case c at the current positions into out[k] =
+        (energy, force on the wall, virial). Compiled per scene by `kernel_for`."""
         n = X.shape[1]
         for k in range(sf_meta.shape[0]):
-            if _K_VECTOR and sf_meta[k, 0] < TABLE_STYLE:
-                e, fs, vir = _vector_out(-2 - sf_meta[k, 0], X, groups, sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2],
-                                         sf_val[c, si, k, 0], lp[c, k], sf_val[c, si, k, 4], n)
-                out[k, 0] = e
-                out[k, 1] = fs
-                out[k, 2] = vir
-                continue
-            if sf_meta[k, 0] == TABLE_STYLE:
-                e, fs, vir = _table_out(tb, k, X, groups, sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2],
-                                        sf_val[c, si, k, 0], sf_val[c, si, k, 4], n)
-                out[k, 0] = e
-                out[k, 1] = fs
-                out[k, 2] = vir
-                continue
-            e, fs, vir = _face_out(sf_meta[k, 0], sf_meta[k, 4], X, RAD, groups, sf_meta[k, 3], sf_meta[k, 1],
-                                   sf_meta[k, 2], sf_val[c, si, k, 0], sf_val[c, si, k, 1], sf_val[c, si, k, 2],
-                                   sf_val[c, si, k, 3], sf_val[c, si, k, 4], sf_val[c, si, k, 5], n)
+            style, g, d, side = sf_meta[k, 0], sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2]
+            coord, cut = sf_val[c, si, k, 0], sf_val[c, si, k, 4]
+            if _K_VECTOR and style < TABLE_STYLE:
+                e, fs, vir = _vector_out(-2 - style, X, RAD, groups, g, d, side, coord, lp[c, k], cut, n)
+            elif style == TABLE_STYLE:
+                e, fs, vir = _table_out(tb, k, X, RAD, groups, g, d, side, coord, cut, n)
+            else:
+                e, fs, vir = _face_out(style, sf_meta[k, 4], X, RAD, groups, g, d, side, coord, sf_val[c, si, k, 1],
+                                       sf_val[c, si, k, 2], sf_val[c, si, k, 3], cut, sf_val[c, si, k, 5], n)
             out[k, 0] = e
             out[k, 1] = fs
             out[k, 2] = vir
@@ -487,62 +492,22 @@ if njit is not None:
             out[k, 4] = vir
 
     @inline
-    def _vface(force, X, F, groups, g, d, side, coord, pv, cut, u0, u1):
-        """One soft face whose force takes its parameters as an array pv (wall/lepton with more
-        than 3 parameters, shift mode): as `_face` with F(r) = force(r, pv)."""
-        sidef = float(side)
-        sign = -sidef
-        nbad = 0
-        for i in range(u0, u1):
-            r = (X[d, i] - coord) * sign
-            near = (r < cut) & (groups[g, i] != 0)
-            nbad += near & (r <= 0.0)
-            fi = F[d, i]
-            if near:
-                fi = fi - sidef * force(r, pv)
-            F[d, i] = fi
-        return nbad
-
-    @inline
-    def _no_vector_faces(j, X, F, groups, g, d, side, coord, pv, cut, u0, u1):
+    def _no_vector_faces(j, X, F, RAD, groups, g, d, side, coord, pv, cut, u0, u1):
         """`_vector_faces` of a scene without such faces: nothing (never called)."""
         return 0
 
     @inline
-    def _veface(force, energy, X, groups, g, d, side, coord, pv, cut, n):
-        """The outputs of one `_vface` face over a case's n atoms, as `_eface`: (sum of the energy
-        E(r) - E(rc), sum of side F(r), sum of F(r) r), atom by atom in atom order."""
-        sidef = float(side)
-        sign = -sidef
-        e = 0.0
-        fs = 0.0
-        vir = 0.0
-        for i in range(n):
-            r = (X[d, i] - coord) * sign
-            if r < cut and groups[g, i] != 0:
-                fi = force(r, pv)
-                e += energy(r, pv, cut)
-                fs += sidef * fi
-                vir += fi * r
-        return e, fs, vir
-
-    @inline
-    def _no_vector_out(j, X, groups, g, d, side, coord, pv, cut, n):
+    def _no_vector_out(j, X, RAD, groups, g, d, side, coord, pv, cut, n):
         """`_vector_out` of a scene without such faces: nothing (never called)."""
         return 0.0, 0.0, 0.0
 
-    def _lepton_shifted(energy: Any) -> Any:
-        """E(r) - E(rc) [energy] of a generated wall/lepton energy E(r, p0, p1, p2, rc, radius)
-        (jitted), as styles.lepton.lepton_style's shifted energy computes it."""
-        def shifted(r, p0, p1, p2, rc, radius):
-            return energy(r, p0, p1, p2, rc, radius) - energy(rc, p0, p1, p2, rc, radius)
-        return shifted
-
-    def _lepton_vector_shifted(energy: Any) -> Any:
-        """E(r) - E(rc) [energy] of a generated wall/lepton energy E(r, p) (parameters as an array)."""
-        def shifted(r, pv, rc):
-            return energy(r, pv) - energy(rc, pv)
-        return shifted
+    def _vector_args(fn: Any) -> Any:
+        """A generated wall/lepton function fn(r, p) of a face with its parameters as an array
+        (force [force] or unshifted energy [energy]) in the registry's force signature, the array
+        as p0: so its faces run the loops of every other face (`_face`, `_eface`)."""
+        def positional(r, pv, p1, p2, rc, radius, r_on):
+            return fn(r, pv)
+        return positional
 
     # -- fix wall/table: tables as data (styles.table.WallTable.kernel_rows), one compiled loop for any table
     _table_linear = njit(nogil=True, error_model="numpy", inline="always")(linear_lookup)
@@ -616,43 +581,40 @@ if njit is not None:
         """`_table_faces` of a scene without wall/table faces: nothing (never called)."""
         return 0
 
-    @inline
-    def _table_out(tb, k, X, groups, g, d, side, coord, cut, n):
-        """The outputs of wall/table face k over a case's n atoms (walls.CustomWallKernel.apply
-        with outputs): (sum of E(r) - E_lin(rc), sum of side F(r): the force on the wall, sum of
-        F(r) r: the virial), summed atom by atom in atom order as np.bincount does; E and F by
-        the table's lookup (its rows 3-4 and 1-2), the offset E_lin(rc) by the linear lookup on
-        rows 3 and 5 (WallTable.offset)."""
-        off, nt = tb[0][k, 0], tb[0][k, 1]
-        data = tb[2]
-        grid, tf, td = data[off:off + nt], data[off + nt:off + 2 * nt], data[off + 2 * nt:off + 3 * nt]
-        te, tde, tdl = data[off + 3 * nt:off + 4 * nt], data[off + 4 * nt:off + 5 * nt], data[off + 5 * nt:off + 6 * nt]
-        lo, invdelta, deltasq6 = tb[1][k, 0], tb[1][k, 1], tb[1][k, 2]
-        linear = tb[0][k, 2] != 0
-        n2 = nt - 2
-        shift = _table_linear(cut, min(int((cut - lo) * invdelta), n2), grid, te, tdl, invdelta)
-        sidef = float(side)
-        sign = -sidef
-        e = 0.0
-        fs = 0.0
-        vir = 0.0
-        for i in range(n):
-            r = (X[d, i] - coord) * sign
-            if r < cut and groups[g, i] != 0:
-                j = min(int((r - lo) * invdelta), n2)
-                if linear:
-                    fi = _table_linear(r, j, grid, tf, td, invdelta)
-                    ei = _table_linear(r, j, grid, te, tde, invdelta)
-                else:
-                    fi = _table_spline(r, j, grid, tf, td, invdelta, deltasq6)
-                    ei = _table_spline(r, j, grid, te, tde, invdelta, deltasq6)
-                e += ei - shift
-                fs += sidef * fi
-                vir += fi * r
-        return e, fs, vir
+    def _table_lookup(y: int, dy: int) -> Any:
+        """The lookup of a wall/table face's row y (its derivative row dy) at r in the registry's
+        force signature (`_eface`): rows = (grid, F, dF or F2, E, dE or E2) of its table
+        (WallTable.kernel_rows), par = (lo, 1/delta, delta^2/6, N - 2), linear: the table's linear
+        or spline lookup (styles.table's functions, jitted). y, dy = 1, 2: F(r) [force]; 3, 4:
+        the unshifted E(r) [energy]."""
+        def lookup(r, rows, par, linear, rc, radius, r_on):
+            j = min(int((r - par[0]) * par[1]), par[3])
+            if linear:
+                return _table_linear(r, j, rows[0], rows[y], rows[dy], par[1])
+            return _table_spline(r, j, rows[0], rows[y], rows[dy], par[1], par[2])
+        return lookup
+
+    _table_force = njit(nogil=True, error_model="numpy", inline="always")(_table_lookup(1, 2))
+    _table_energy = njit(nogil=True, error_model="numpy", inline="always")(_table_lookup(3, 4))
 
     @inline
-    def _no_table_out(tb, k, X, groups, g, d, side, coord, cut, n):
+    def _table_out(tb, k, X, RAD, groups, g, d, side, coord, cut, n):
+        """The outputs of wall/table face k over a case's n atoms (walls.CustomWallKernel.apply
+        with outputs): the output loop `_eface` of every soft face with the table's force and
+        energy lookups (its rows 1-2 and 3-4), less the offset E_lin(rc), the linear lookup on
+        rows 3 and 5 at the cut-off (WallTable.offset)."""
+        off, nt = tb[0][k, 0], tb[0][k, 1]
+        data = tb[2]
+        grid, te, tdl = data[off:off + nt], data[off + 3 * nt:off + 4 * nt], data[off + 5 * nt:off + 6 * nt]
+        rows = (grid, data[off + nt:off + 2 * nt], data[off + 2 * nt:off + 3 * nt], te, data[off + 4 * nt:off + 5 * nt])
+        lo, invdelta = tb[1][k, 0], tb[1][k, 1]
+        par = (lo, invdelta, tb[1][k, 2], nt - 2)
+        shift = _table_linear(cut, min(int((cut - lo) * invdelta), nt - 2), grid, te, tdl, invdelta)
+        return _eface(_table_force, _table_energy, False, X, RAD, groups, g, d, side, coord, rows, par,
+                      tb[0][k, 2] != 0, cut, 0.0, n, shift)
+
+    @inline
+    def _no_table_out(tb, k, X, RAD, groups, g, d, side, coord, cut, n):
         """`_table_out` of a scene without wall/table faces: nothing (never called)."""
         return math.nan, math.nan, math.nan
 
@@ -1163,7 +1125,7 @@ if njit is not None:
             if _K_TABLES and style == TABLE_STYLE:  # wall/table: the face's table from tb (data, not code)
                 nbad += _table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1)
             elif _K_VECTOR and style < TABLE_STYLE:  # wall/lepton, parameters as an array: this case's row of lp
-                nbad += _vector_faces(-2 - style, X, F, groups, g, d, side, coord, lp[c, k], cut, u0, u1)
+                nbad += _vector_faces(-2 - style, X, F, RAD, groups, g, d, side, coord, lp[c, k], cut, u0, u1)
             else:
                 nbad += _soft_face(style, sf_meta[k, 4], X, F, RAD, groups, g, d, side, coord, p0, p1, p2, cut,
                                    ron, u0, u1)
@@ -1694,24 +1656,22 @@ if njit is not None:
             module = generated_module(source, "lepton_chunk")
             namespace = vars(module)
             namespace.update(base)
-            namespace["_vface"] = _vface
+            inline_jit = njit(nogil=True, error_model="numpy", inline="always")
             for j in range(len(extra)):
-                force = njit(nogil=True, error_model="numpy", inline="always")(namespace[f"_LEPTON_{j}"])
-                energy = namespace.get(f"_LEPTON_E_{j}")  # E(r) (samples in the kernel), if generated
+                force = inline_jit(namespace[f"_LEPTON_{j}"])
+                energy = namespace.get(f"_LEPTON_E_{j}")  # E(r) unshifted (samples in the kernel), if generated
                 if energy is not None:
-                    energy = njit(nogil=True, error_model="numpy", inline="always")(energy)
-                if extra[j].startswith(VECTOR_MARK):
-                    namespace[f"_VEXTRA_{j}"] = force
+                    energy = inline_jit(energy)
+                if extra[j].startswith(VECTOR_MARK):  # the registry's signature, the parameter array as p0
+                    namespace[f"_VEXTRA_{j}"] = inline_jit(_vector_args(force))
                     if energy is not None:
-                        namespace[f"_VEENERGY_{j}"] = njit(nogil=True, error_model="numpy", inline="always")(
-                            _lepton_vector_shifted(energy))
+                        namespace[f"_VEENERGY_{j}"] = inline_jit(_vector_args(energy))
                 else:
                     namespace[f"_EXTRA_{j}"] = njit(**_SCENE)(
                         _renamed(cutoff_functions(force, force, SHIFT, _switch)[0], f"_extra_{j}_{tag}"))
                     if energy is not None:
-                        shifted = njit(nogil=True, error_model="numpy", inline="always")(_lepton_shifted(energy))
                         namespace[f"_EEXTRA_{j}"] = njit(**_SCENE)(
-                            _renamed(cutoff_functions(force, shifted, SHIFT, _switch)[1], f"_eextra_{j}_{tag}"))
+                            _renamed(cutoff_functions(force, energy, SHIFT, _switch)[1], f"_eextra_{j}_{tag}"))
             filename = module.__file__
         else:
             namespace = base
@@ -1724,7 +1684,6 @@ if njit is not None:
                               if not src.startswith(VECTOR_MARK) and "\ndef energy(" in src)
         osource = _outputs_source(soft, "face", sampled_extra)
         if vector:
-            namespace["_veface"] = _veface
             osource += _vector_outputs_source(extra)
         source += osource
         exec(compile(osource, "<wallbatch soft-face outputs dispatch>", "exec"), namespace)  # noqa: S102 - generated here
