@@ -102,6 +102,33 @@ def test_threaded_binning_is_the_counting_sort_of_one_thread(parts, scene):
         assert (counts == 0).mean() < 0.1 and counts.max() < 10
 
 
+@pytest.mark.parametrize("parts", [2, 3])
+def test_threaded_build_with_kept_work_arrays(parts):
+    """build_threaded with a Workspace (its crew, its kept binning arrays and `aside`), twice on
+    moved atoms, and once more after the kept arrays were filled with garbage: each time the
+    one-thread list bit for bit, and the arrays are the same objects (kept, not fresh)."""
+    x, lo, length, per = liquid(8)
+    ws = pair_compiled.Workspace()
+    kept = None
+    for k, pos in enumerate((x, x + 0.05, x + 0.05)):
+        owner, first, neigh, m = one_thread_list(pos, lo, length, per)
+        if k == 2:
+            for b in ws._bufs.values():
+                b[...] = 7 if b.dtype.kind in "iu" else np.nan
+        o2, fr2, n2 = np.empty_like(owner), np.empty_like(first), np.empty(80 * len(x), np.int32)
+        got = pair_compiled.build_threaded(pos, lo, length, per, 2.8, o2, fr2, n2, parts, ws.crew(parts),
+                                           buffer=ws.buffer)
+        assert got == m > 30 * len(x)
+        np.testing.assert_array_equal(o2, owner)
+        np.testing.assert_array_equal(fr2, first)
+        np.testing.assert_array_equal(n2[:m], neigh[:m])
+        ids = {name: id(b) for name, b in ws._bufs.items()}
+        assert {"bin_p", "bin_xs", "bin_cell", "bin_counts", "aside"} <= set(ids) and (kept is None or ids == kept)
+        kept = ids
+    crew = ws.crew(parts)
+    assert ws.crew(parts) is crew and crew.size == parts
+
+
 def test_threaded_build_says_when_the_list_is_short():
     """A list storage too short for some part: -1 (the caller grows it), as build_case."""
     x, lo, length, per = liquid(6)
