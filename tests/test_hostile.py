@@ -382,7 +382,7 @@ def test_lock_held_by_a_live_process_refuses(scene, tmp_path):
 
 @pytest.mark.slow
 def test_concurrent_runs_on_one_output(tmp_path):
-    (tmp_path / "scene.yaml").write_text(SCENE.replace("steps: 40, thermo: 20", "steps: 200000000, thermo: 20000000"))
+    (tmp_path / "scene.yaml").write_text(SCENE.replace("steps: 40, thermo: 20", "steps: 200000000, thermo: 20000"))
     out = tmp_path / "r.nc"
     cmd = [sys.executable, "-m", "wallbatch.cli", "run", "scene.yaml", "-o", str(out), "-j", "1"]
     first = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

@@ -118,10 +118,10 @@ def test_colloid_matches_numpy(monkeypatch):
 
 
 def test_several_walls_groups_and_styles_in_one_scene(monkeypatch):
-    """Two wall fixes on different groups, one on an x face, plus a reflect wall on one group."""
+    """Two wall fixes on different groups, plus a reflect wall on one group (lj93 and lj1043: the
+    kernel of tests/lammps/test_hard_cases.py's cut-off and reflect scene)."""
     d = gas({"a": {"style": "lj93", "units": "box", "group": "fast", "zlo": face(0.0), "zhi": face(8.0)},
-             "b": {"style": "harmonic", "units": "box", "group": "slow",
-                   "zlo": {"coord": 0.2, "epsilon": 30.0, "cutoff": 1.2}},
+             "b": {"style": "lj1043", "units": "box", "group": "slow", "zlo": face(0.2, eps=2.0, rc=3.0)},
              "r": {"style": "reflect", "units": "box", "group": "slow", "zhi": 6.5}},
             output=["step", "ke", "pe", "reflect_count", "reflect_impulse"], steps=400, thermo=100)
     d["box"]["boundary"] = ["p", "p", "f"]
@@ -134,6 +134,7 @@ def test_several_walls_groups_and_styles_in_one_scene(monkeypatch):
     _, got, _ = check(monkeypatch, [d])
     assert got[0].status == "ok"
     assert got[0].data["reflect_count"].sum() > 0
+    assert np.count_nonzero(got[0].data["wall_force"][1:, 2]) > 0  # the lj1043 face acted
 
 
 @pytest.mark.parametrize("frame, thermo", [("lab", 80), ("wall", 80), ("wall", 1)])
@@ -261,9 +262,8 @@ def test_time_based_run_batch_with_different_timesteps(monkeypatch):
     """Cases land on each sample time after different numbers of steps (clipped last step)."""
     configs = []
     for dt in (0.003, 0.007, 0.011):
-        d = gas({"w": {"style": "lj126", "units": "box", "zhi": face(8.0, rc=1.5)},
-                 "r": {"style": "reflect", "units": "box", "zlo": 0.5}}, dt=dt,
-                output=["step", "time", "dt", "ke", "reflect_count"])
+        d = gas({"w": {"style": "lj93", "units": "box", "zlo": face(0.0), "zhi": face(8.0, rc=1.5)}}, dt=dt,
+                output=["step", "time", "dt", "ke"])  # the kernel of the other time-based lj93 slits
         d["run"] = {"time": 0.6, "thermo": {"time": 0.2}}
         configs.append(d)
     _, got, eng = check(monkeypatch, configs)

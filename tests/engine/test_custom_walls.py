@@ -202,16 +202,18 @@ def test_lepton_spelled_out_lj93_equals_builtin_run():
 def test_fine_table_converges_to_the_analytic_wall(tmp_path):
     """The same run with lj93 tables of 300, 1200, 4800 points (linear) approaches the built-in
     lj93 run: the error of the total energy falls with every refinement and by > 64x over the
-    16x (linear interpolation: h^2 would give 256x; the trajectories' own differences add)."""
-    ref = run_one(load_config_text(slit("w: {style: lj93, units: box, zlo: {coord: EDGE, epsilon: 1.0, "
-                                          "sigma: 1.0, cutoff: 2.5}}\n" + TOP, steps=200)))
+    16x (linear interpolation: h^2 would give 256x; the trajectories' own differences add). Both
+    faces are lj93 (no wall/reflect: the kernels of the other lj93 and table slits)."""
+    face = "{coord: EDGE, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}"
+    ref = run_one(load_config_text(slit(f"w: {{style: lj93, units: box, zlo: {face}, zhi: {face}}}\n", steps=200)))
     errs = []
     for n in (300, 1200, 4800):
         path = tmp_path / f"t{n}.table"
         r, e, f = tabulate(lambda r: lj93(r, LJ), 0.4, 3.0, n)
         write_table(path, "LJ93", r, e, f)
-        text = slit(f"w: {{style: table, tabstyle: linear, N: {n}, units: box, zlo: {{coord: EDGE, "
-                    f"file: {path.name}, keyword: LJ93, cutoff: 2.5}}}}\n" + TOP, steps=200)
+        tface = f"{{coord: EDGE, file: {path.name}, keyword: LJ93, cutoff: 2.5}}"
+        text = slit(f"w: {{style: table, tabstyle: linear, N: {n}, units: box, zlo: {tface}, zhi: {tface}}}\n",
+                    steps=200)
         res = run_one(load_config(write(tmp_path, text)))
         errs.append(np.max(np.abs(res.data["etot"] - ref.data["etot"])))
     assert errs[2] < 1e-4 * np.max(np.abs(ref.data["etot"]))
@@ -498,7 +500,7 @@ def test_compiled_tables_equal_numpy_bit_for_bit(tmp_path, monkeypatch, walls):
 def test_compiled_table_face_over_blocks_groups_and_threads(tmp_path, monkeypatch, tabstyle):
     """The compiled table face visits only the group atoms within the cut-off (marks packed 64
     to a word) and records the outputs itself: 613 atoms (blocks of 256 and a last one of 101, no multiple of 8 or 64), walls
-    on one of two groups (the other held by reflecting faces), dense near the walls: trajectories
+    on one of two groups (the other held by a second table fix), dense near the walls: trajectories
     and outputs equal the NumPy engine's bit for bit, and the same with two threads splitting the
     atoms."""
     from wallbatch.engine import threads  # noqa: PLC0415
@@ -518,7 +520,9 @@ def test_compiled_table_face_over_blocks_groups_and_threads(tmp_path, monkeypatc
           t: {{style: table, tabstyle: {tabstyle}, N: 800, units: box, energy: true, virial: true, group: a,
               zlo: {{coord: EDGE, file: walls.table, keyword: LJ93, cutoff: 2.5}},
               zhi: {{coord: EDGE, file: walls.table, keyword: HARM, cutoff: 2.0}}}}
-          r: {{style: reflect, units: box, group: b, zlo: EDGE, zhi: EDGE}}
+          u: {{style: table, tabstyle: {tabstyle}, N: 800, units: box, group: b,
+              zlo: {{coord: EDGE, file: walls.table, keyword: HARM, cutoff: 2.0}},
+              zhi: {{coord: EDGE, file: walls.table, keyword: HARM, cutoff: 2.0}}}}
         run: {{steps: 300, thermo: 30}}
         output: {{thermo: [step, temp, ke, pe, etot, press]}}
         """)

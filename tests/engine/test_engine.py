@@ -521,8 +521,10 @@ def test_atom_behind_wall_at_setup():
 
 
 def _lost_scene():
-    # z = 9.55 + 0.1 n passes box hi 10 at step 5; no wall on zhi
+    # z = 9.55 + 0.1 n passes box hi 10 at step 5; no wall on zhi (the lj93 zlo wall reaches no atom:
+    # it only gives the scene the compiled kernel of the other lj93 slits instead of one of its own)
     return scene([atoms("a", [(5, 5, 5.0), (5, 5, 9.55)], [(0, 0, 0), (0, 0, 1.0)])],
+                 {"w": {"style": "lj93", "units": "box", "zlo": lj_face(0.0)}},
                  boundary=("p", "p", "f"), steps=10, thermo=2)
 
 
@@ -555,7 +557,9 @@ def test_midrun_failure_of_a_single_case_gives_a_nan_dataset(make, nsamp):
 
 
 def test_time_based_run_samples_land_exactly():
-    d = scene([atoms("a", [(5, 5, 5)], [(0.3, 0.1, -0.2)])], boundary=("p", "p", "p"), timestep=0.03)
+    # the lj93 zlo wall reaches no atom (z >= 4.8): the scene shares its compiled kernel with others
+    d = scene([atoms("a", [(5, 5, 5)], [(0.3, 0.1, -0.2)])], {"w": {"style": "lj93", "units": "box",
+              "zlo": lj_face(0.0)}}, boundary=("p", "p", "f"), timestep=0.03)
     d["run"] = {"time": 1.0, "thermo": {"time": 0.25}}
     ds = run(d)
     assert ds.status.item() == "ok", ds.error.item()
@@ -568,13 +572,16 @@ def test_time_based_run_samples_land_exactly():
     assert res.data["time"].tolist() == [0.0, 0.25, 0.5, 0.75, 1.0]
 
 
-def test_time_based_run_with_dt_reset():
+def test_time_based_run_with_dt_reset(monkeypatch):
     d = _dt_scene(steps=1)
     d["run"] = {"time": 0.5, "thermo": {"time": 0.1}}
     ds = run(d)
     assert ds.status.item() == "ok", ds.error.item()
     want = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5]
     assert ds.time.values == pytest.approx(want, abs=1e-15)
+    # the engine's own clock on the NumPy path (its kernel, time-based with dt/reset, is the NumPy
+    # one bit for bit: tests/engine/test_compiled.py test_dt_reset_time_based)
+    monkeypatch.setenv("WALLBATCH_NUMBA", "0")
     res = run_cases([build_case(config_from_dict(d))])[0]
     assert res.data["time"] == pytest.approx(want, abs=1e-15)
     assert np.all(np.diff(ds.step.values) >= 2)  # dt/reset keeps dt < 0.1: several steps per sample

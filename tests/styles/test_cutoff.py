@@ -210,20 +210,29 @@ def test_force_continuous_modes_restore_second_order():
     assert shift[0] < 1.6 and shift[1] < 1.8, shift
 
 
-@pytest.mark.parametrize("mode,switch_on", [("force-shift", None), ("smooth", 1.5)])
-@pytest.mark.parametrize("style", ["lj93", "morse", "colloid"])
-def test_compiled_engine_matches_numpy(style, mode, switch_on, monkeypatch):
+# each mode of each style; the compiled pairs that no other test uses share one scene (three wall
+# fixes on both faces: one kernel instead of three)
+@pytest.mark.parametrize("fixes", [
+    (("lj93", "force-shift", None),), (("lj93", "smooth", 1.5),), (("colloid", "smooth", 1.5),),
+    (("morse", "force-shift", None), ("morse", "smooth", 1.5), ("colloid", "force-shift", None)),
+], ids=lambda fixes: "+".join(f"{style}-{mode}" for style, mode, _ in fixes))
+def test_compiled_engine_matches_numpy(fixes, monkeypatch):
     """Each mode runs in the numba path (colloid smooth: in NumPy) with the NumPy engine's samples,
     bit for bit for plain-arithmetic styles."""
     fast = pytest.importorskip("wallbatch.engine.compiled")
     if fast.njit is None:
         pytest.skip("numba not importable")
-    d = gas(mode, switch_on, style=style if style != "morse" else "lj93", count=60, steps=300, thermo=50)
-    if style == "morse":
-        for f in ("zlo", "zhi"):
-            d["walls"]["w"][f] = {"coord": d["walls"]["w"][f]["coord"], "D0": 1.0, "alpha": 2.0, "r0": 1.0,
-                                  "cutoff": 2.5}
-        d["walls"]["w"]["style"] = "morse"
+    styles = {style for style, _, _ in fixes}
+    d = gas(count=60, steps=300, thermo=50, style="colloid" if "colloid" in styles else "lj93")
+    walls = {}
+    for k, (style, mode, switch_on) in enumerate(fixes):
+        w = gas(mode, switch_on, style=style if style != "morse" else "lj93")["walls"]["w"]
+        if style == "morse":
+            for f in ("zlo", "zhi"):
+                w[f] = {"coord": w[f]["coord"], "D0": 1.0, "alpha": 2.0, "r0": 1.0, "cutoff": 2.5}
+            w["style"] = "morse"
+        walls[f"w{k}"] = w
+    d["walls"] = walls
     case = build_case(config_from_dict(d))
     monkeypatch.setenv("WALLBATCH_NUMBA", "0")
     ref = Engine([case]).run()[0]
@@ -231,13 +240,13 @@ def test_compiled_engine_matches_numpy(style, mode, switch_on, monkeypatch):
     eng = Engine([case])
     got = eng.run()[0]
     assert ref.status == got.status == "ok"
-    assert np.all(ref.data["wall_force"][1:] != 0.0)
-    compiled = CUTOFF_MODES.index(mode) in fast._modes(STYLES[style])
+    assert ref.data["wall_force"].shape[1] == 2 * len(fixes) and np.all(ref.data["wall_force"][1:] != 0.0)
+    compiled = all(CUTOFF_MODES.index(mode) in fast._modes(STYLES[style]) for style, mode, _ in fixes)
     if compiled:
         assert eng.fast is not None and eng.fast.compiled_chunks > 0 and eng.fast.fallbacks == 0
     else:
         assert eng.fast is None or eng.fast.compiled_chunks == 0
-    exact = style == "lj93"
+    exact = styles == {"lj93"}
     for key, want in ref.data.items():
         if exact:
             assert np.array_equal(got.data[key], want, equal_nan=True), key
