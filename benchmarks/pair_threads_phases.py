@@ -40,7 +40,7 @@ def timed(name: str, fn):  # noqa: ANN001, ANN201
 
 
 def install() -> None:
-    for name in ("_scan", "_bin", "_compact", "_touch", "_mixed", "_first_marks", "_row_sums", "forces_part", "forces_case", "_pre_step",
+    for name in ("_scan", "_bin", "bin_threaded", "_bin_cells", "_bin_scatter", "_join", "_touch", "_mixed", "_first_marks", "_row_sums", "forces_part", "forces_case", "_pre_step",
                  "_replay_atoms", "build_threaded", "_rebalance", "_chunk_threaded"):
         if hasattr(pc, name):
             setattr(pc, name, timed(name, getattr(pc, name)))

@@ -66,6 +66,69 @@ def test_threaded_build_and_forces_are_the_one_thread_bits(parts):
     assert np.abs(f1.sum(axis=0)).max() < 1e-12 * np.abs(f1).sum()
 
 
+@pytest.mark.parametrize("parts", [2, 3, 5])
+@pytest.mark.parametrize("scene", ["liquid", "clumped"])
+def test_threaded_binning_is_the_counting_sort_of_one_thread(parts, scene):
+    """bin_threaded (runs of atoms: extent, cells and counts, scatter) gives `_bin`'s owner, sorted
+    positions, cell starts and grid bit for bit, for odd atom counts, and a clump leaving most
+    cells empty and piling many atoms in one; both are the counting sort of the cells computed
+    here in NumPy (ascending atom within a cell)."""
+    x, lo, length, per = liquid(5)
+    x = x[:-1] if scene == "liquid" else x[:401]  # 499 / 401 atoms
+    if scene == "clumped":
+        x[:300] = x[0] + 0.01 * np.random.default_rng(2).random((300, 3))
+        x[300, 0] -= 3.0 * length[0]  # far outside the periodic box: wrapped
+    N, reach = len(x), 2.8
+    o1 = np.empty(N, np.int32)
+    xs1, cs1, nb1 = pair_compiled._bin(x, lo, length, per, reach, o1)
+    o2 = np.empty(N, np.int32)
+    xs2, cs2, nb2 = pair_compiled.bin_threaded(x, lo, length, per, reach, o2, parts)
+    for a, b in ((o2, o1), (xs2, xs1), (cs2, cs1), (nb2, nb1)):
+        assert a.dtype == b.dtype
+        np.testing.assert_array_equal(a, b)
+    # the same sort from NumPy: positions from lo (wrapped) or the lowest atom, cells of ext / nb
+    p = x - np.where(per, lo, x.min(axis=0))
+    p[:, per] = np.mod(p[:, per], length[per])
+    ext = np.where(per, length, x.max(axis=0) - x.min(axis=0))
+    ck = np.clip((p / (ext / nb1)).astype(np.int64), 0, nb1 - 1) * (nb1 > 1)
+    cell = (ck[:, 0] * nb1[1] + ck[:, 1]) * nb1[2] + ck[:, 2]
+    np.testing.assert_array_equal(o1, np.argsort(cell, kind="stable"))
+    np.testing.assert_array_equal(cs1, np.concatenate(([0], np.cumsum(np.bincount(cell, minlength=nb1.prod())))))
+    np.testing.assert_allclose(xs1, p[o1], rtol=0, atol=1e-12)
+    counts = np.diff(cs1)
+    if scene == "clumped":  # most cells empty, one holding the clump
+        assert (counts == 0).mean() > 0.5 and counts.max() >= 300
+    else:
+        assert (counts == 0).mean() < 0.1 and counts.max() < 10
+
+
+@pytest.mark.parametrize("parts", [2, 3])
+def test_threaded_build_with_kept_work_arrays(parts):
+    """build_threaded with a Workspace (its crew, its kept binning arrays and `aside`), twice on
+    moved atoms, and once more after the kept arrays were filled with garbage: each time the
+    one-thread list bit for bit, and the arrays are the same objects (kept, not fresh)."""
+    x, lo, length, per = liquid(8)
+    ws = pair_compiled.Workspace()
+    kept = None
+    for k, pos in enumerate((x, x + 0.05, x + 0.05)):
+        owner, first, neigh, m = one_thread_list(pos, lo, length, per)
+        if k == 2:
+            for b in ws._bufs.values():
+                b[...] = 7 if b.dtype.kind in "iu" else np.nan
+        o2, fr2, n2 = np.empty_like(owner), np.empty_like(first), np.empty(80 * len(x), np.int32)
+        got = pair_compiled.build_threaded(pos, lo, length, per, 2.8, o2, fr2, n2, parts, ws.crew(parts),
+                                           buffer=ws.buffer)
+        assert got == m > 30 * len(x)
+        np.testing.assert_array_equal(o2, owner)
+        np.testing.assert_array_equal(fr2, first)
+        np.testing.assert_array_equal(n2[:m], neigh[:m])
+        ids = {name: id(b) for name, b in ws._bufs.items()}
+        assert {"bin_p", "bin_xs", "bin_cell", "bin_counts", "aside"} <= set(ids) and (kept is None or ids == kept)
+        kept = ids
+    crew = ws.crew(parts)
+    assert ws.crew(parts) is crew and crew.size == parts
+
+
 def test_threaded_build_says_when_the_list_is_short():
     """A list storage too short for some part: -1 (the caller grows it), as build_case."""
     x, lo, length, per = liquid(6)

@@ -131,6 +131,13 @@ class PairLJCut:
         self._memo_x: np.ndarray | None = None  # remember()'s copy of the positions (kept array)
         self._spare = np.empty(0, dtype=np.int32)  # a one-case batch's second pair array (spare_list)
         self._split: tuple[int, object] | None = None  # (builds, RowSplit) of one large case's threaded pass
+        self._ws = None  # pair_compiled.Workspace of one large case's threaded builds and passes (`workspace`)
+
+    def workspace(self):  # noqa: ANN201 - pair_compiled.Workspace (imported lazily)
+        """The kept work arrays and threads of this pair's threaded builds and passes (compiled path)."""
+        if self._ws is None:
+            self._ws = self._nb.Workspace()
+        return self._ws
 
     @property
     def ncases(self) -> int:
@@ -229,10 +236,14 @@ class PairLJCut:
             return
         reach = float(self.cutoff[c] + self.skin)
         parts = self._nb.case_parts(len(pos)) if self.ncases == 1 else 1  # one large case: over threads
+        if self._neigh.shape[1] < len(pos):  # the first build: room for the pairs guessed (not a try in vain)
+            self._grow(self._estimate_pairs(pos, reach))
         while True:  # the case's rows of the (C, ...) arrays are the kernel's output buffers
             if parts >= 2:  # the same list, bit for bit
+                ws = self.workspace()
                 m = self._nb.build_threaded(pos, self.box_lo, self.length, self.periodic, reach,
-                                            self._owner[c], self._first[c], self._neigh[c], parts)
+                                            self._owner[c], self._first[c], self._neigh[c], parts, ws.crew(parts),
+                                            buffer=ws.buffer)
             else:
                 m = self._nb.build_case(pos, self.box_lo, self.length, self.periodic, reach,
                                         self._owner[c], self._first[c], self._neigh[c])
@@ -243,7 +254,7 @@ class PairLJCut:
     def _estimate_pairs(self, pos: np.ndarray, reach: float) -> int:
         """Upper guess of the pairs within reach: uniform density in the atoms' bounding volume."""
         n = len(pos)
-        span = np.where(self.periodic, self.length, np.ptp(pos, axis=0) + reach)
+        span = np.where(self.periodic, self.length, self._nb.atom_extent(pos) + reach)
         ball = 4.0 / 3.0 * np.pi * reach**3
         guess = 0.5 * n * n * min(1.0, ball / float(np.prod(span)))
         return int(1.3 * guess) + 2 * len(pos) + 2 * self._neigh.shape[1]
@@ -331,7 +342,7 @@ class PairLJCut:
             energy[0], virial[0], split = self._nb.forces_case_threaded(
                 x[0], out[0], self._owner[0], self._first[0], self._neigh[0], 24.0 * float(eps[0]),
                 4.0 * float(eps[0]), float(sig[0] * sig[0]), float(rc[0] * rc[0]), float(offset[0]), self.length,
-                self.periodic, bool(outputs), parts, None if held is None else held[1])
+                self.periodic, bool(outputs), parts, None if held is None else held[1], self.workspace().crew(parts))
             self._split = (self.builds, split)  # kept while no build changes the list
         else:
             self._nb.forces(x, out, self._owner, self._first, self._neigh, eps, sig * sig, rc * rc, offset,

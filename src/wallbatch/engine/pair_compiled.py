@@ -40,6 +40,7 @@ import inspect
 import math
 import threading
 import time
+import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -111,35 +112,41 @@ if njit is not None:
             return r, 0.0
         return (r if 0 <= r < n else -1), 0.0
 
+    # The binning of `build_case` in pieces that runs of atoms can do in threads (`bin_threaded`):
+    # extent (min/max over the atoms in fixed dims) -> cells per dim -> each atom's cell and the
+    # counts per cell of each run -> prefix sums -> scatter, each run its atoms in index order after
+    # the runs before: the counting sort of one pass, bit for bit.
+
     @jit
-    def _bin(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
-             owner: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The cells of `build_case` (N >= 2 atoms): owner (N,) = the atoms sorted by cell (a
-        counting sort, ascending index within a cell); returns their positions from lo (wrapped in
-        periodic dims) in that order xs (N, 3), the cell starts cstart (ncell + 1,) into the
-        sorted atoms and the cells per dim nb (3,)."""
-        N = pos.shape[0]
-        p = np.empty((N, 3))  # from lo, wrapped into [0, L) (periodic dims), or from the lowest atom
-        ext = np.empty(3)
-        nb = np.empty(3, np.int64)
+    def _bin_extent(pos: np.ndarray, a_lo: int, a_hi: int, periodic: np.ndarray, mm: np.ndarray) -> None:
+        """mm (2, 3) = the min and max of atoms a_lo .. a_hi - 1 in each fixed dim (inf and -inf for
+        none), folded in atom order (min/max of the runs' folds, in run order, are those of one fold)."""
         for k in range(3):
-            if periodic[k]:
-                L = length[k]
-                for i in range(N):
-                    v = pos[i, k] - lo[k]
-                    v -= L * np.floor(v / L)
-                    if not (0.0 <= v < L):
-                        v = 0.0
-                    p[i, k] = v
-                ext[k] = L
-            else:
-                mn, mx = pos[0, k], pos[0, k]
-                for i in range(N):
+            if a_lo >= a_hi:
+                mm[0, k], mm[1, k] = np.inf, -np.inf
+            elif not periodic[k]:
+                mn, mx = pos[a_lo, k], pos[a_lo, k]
+                for i in range(a_lo, a_hi):
                     mn = min(mn, pos[i, k])
                     mx = max(mx, pos[i, k])
-                for i in range(N):
-                    p[i, k] = pos[i, k] - mn
-                ext[k] = mx - mn
+                mm[0, k], mm[1, k] = mn, mx
+
+    @jit
+    def _bin_grid(mms: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
+                  N: int, base: np.ndarray, ext: np.ndarray, nb: np.ndarray) -> None:
+        """The cell grid of N atoms from the runs' extents mms (runs, 2, 3) (`_bin_extent`): per
+        dim the origin base (lo, or the lowest atom in fixed dims), the extent ext (L, or the
+        atoms' spread) and the cells nb: floor(ext / (reach/2)) (at least 1; at most 2N cells in
+        all, halving the widest dim; a periodic dim of fewer than 5 cells gets 1)."""
+        for k in range(3):
+            if periodic[k]:
+                base[k], ext[k] = lo[k], length[k]
+            else:
+                mn, mx = mms[0, 0, k], mms[0, 1, k]
+                for r in range(1, mms.shape[0]):
+                    mn = min(mn, mms[r, 0, k])
+                    mx = max(mx, mms[r, 1, k])
+                base[k], ext[k] = mn, mx - mn
             # float first: a far-away atom (extent 1e60) must not overflow the int conversion
             nb[k] = max(1, int(min(ext[k] / (0.5 * reach), float(max(64, 2 * N)), 1048576.0)))
         while nb[0] * nb[1] * nb[2] > max(64, 2 * N):  # few atoms in a big box: fewer, wider cells
@@ -148,31 +155,83 @@ if njit is not None:
         for k in range(3):  # offsets -2..2 must be 5 distinct cells in a periodic dim: else one cell
             if periodic[k] and nb[k] < 5:
                 nb[k] = 1
-        cell = np.empty(N, np.int64)
-        ccoord = np.empty((N, 3), np.int64)
-        for i in range(N):
+
+    @jit
+    def _bin_cells(pos: np.ndarray, a_lo: int, a_hi: int, periodic: np.ndarray, base: np.ndarray,
+                   ext: np.ndarray, nb: np.ndarray, p: np.ndarray, cell: np.ndarray, count: np.ndarray) -> None:
+        """For atoms a_lo .. a_hi - 1: p[i] = the position from base (wrapped into [0, L) in
+        periodic dims), cell[i] = its cell (x slowest, z fastest), and count[q] (zeros in) += the
+        atoms of cell q."""
+        for k in range(3):  # dim by dim: loops that vectorise
+            b = base[k]
+            if periodic[k]:
+                L = ext[k]
+                for i in range(a_lo, a_hi):
+                    v = pos[i, k] - b
+                    v -= L * np.floor(v / L)
+                    if not (0.0 <= v < L):
+                        v = 0.0
+                    p[i, k] = v
+            else:
+                for i in range(a_lo, a_hi):
+                    p[i, k] = pos[i, k] - b
+        for i in range(a_lo, a_hi):
             cid = 0
             for k in range(3):
                 ck = int(p[i, k] / (ext[k] / nb[k])) if nb[k] > 1 else 0
                 ck = min(max(ck, 0), nb[k] - 1)
-                ccoord[i, k] = ck
                 cid = cid * nb[k] + ck
             cell[i] = cid
-        ncell = nb[0] * nb[1] * nb[2]
-        cstart = np.zeros(ncell + 1, np.int64)
-        for i in range(N):
-            cstart[cell[i] + 1] += 1
-        for q in range(ncell):
-            cstart[q + 1] += cstart[q]
-        fill = cstart[:-1].copy()
-        order = owner  # atoms sorted by cell, ascending index within a cell
-        xs = np.empty((N, 3))  # their positions p, contiguous per cell
-        for i in range(N):
+        for i in range(a_lo, a_hi):
+            count[cell[i] + 1] += 1
+
+    @jit
+    def _bin_starts(counts: np.ndarray, cstart: np.ndarray, fills: np.ndarray) -> None:
+        """counts (runs, ncell + 1): run r's atoms of cell q at counts[r, q + 1]. cstart[q + 1] =
+        the atoms of cells <= q (cstart[0] = 0), fills[r, q] = where run r's first atom of cell q
+        goes (the runs in order within a cell)."""
+        acc = 0
+        cstart[0] = 0
+        for q in range(fills.shape[1]):
+            for r in range(counts.shape[0]):
+                fills[r, q] = acc
+                acc += counts[r, q + 1]
+            cstart[q + 1] = acc
+
+    @jit
+    def _bin_scatter(p: np.ndarray, cell: np.ndarray, a_lo: int, a_hi: int, fill: np.ndarray, owner: np.ndarray,
+                     xs: np.ndarray) -> None:
+        """The counting sort's scatter of atoms a_lo .. a_hi - 1 in index order: atom i goes to
+        slot fill[cell[i]] (then advanced), owner[slot] = i and xs[slot] = p[i]."""
+        for i in range(a_lo, a_hi):
             s = fill[cell[i]]
-            fill[cell[i]] += 1
-            order[s] = i
-            for k in range(3):
-                xs[s, k] = p[i, k]
+            fill[cell[i]] = s + 1
+            owner[s] = i
+            xs[s, 0], xs[s, 1], xs[s, 2] = p[i, 0], p[i, 1], p[i, 2]
+
+    @jit
+    def _bin(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
+             owner: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The cells of `build_case` (N >= 2 atoms): owner (N,) = the atoms sorted by cell (a
+        counting sort, ascending index within a cell); returns their positions from lo (wrapped in
+        periodic dims; from the lowest atom in fixed dims) in that order xs (N, 3), the cell starts
+        cstart (ncell + 1,) into the sorted atoms and the cells per dim nb (3,). The pieces of
+        `bin_threaded` on one run of atoms."""
+        N = pos.shape[0]
+        mms = np.zeros((1, 2, 3))
+        _bin_extent(pos, 0, N, periodic, mms[0])
+        base, ext, nb = np.empty(3), np.empty(3), np.empty(3, np.int64)
+        _bin_grid(mms, lo, length, periodic, reach, N, base, ext, nb)
+        ncell = nb[0] * nb[1] * nb[2]
+        p = np.empty((N, 3))
+        cell = np.empty(N, np.int64)
+        counts = np.zeros((1, ncell + 1), np.int64)
+        _bin_cells(pos, 0, N, periodic, base, ext, nb, p, cell, counts[0])
+        cstart = np.empty(ncell + 1, np.int64)
+        fills = np.empty((1, ncell), np.int64)
+        _bin_starts(counts, cstart, fills)
+        xs = np.empty((N, 3))
+        _bin_scatter(p, cell, 0, N, fills[0], owner, xs)
         return xs, cstart, nb
 
     def _scan(xs: np.ndarray, cstart: np.ndarray, nb: np.ndarray, order: np.ndarray, length: np.ndarray,
@@ -380,24 +439,25 @@ if njit is not None:
     # ------------------------------------------------------------------ one case over threads
     # The list build and the force pass of one case cut in parts run by threads (`build_threaded`,
     # `forces_threaded`), with the bits of the one-thread kernels: the parts of the build are runs
-    # of cells, each writing its rows where the one-thread build would (after `_compact`); the
+    # of cells, their rows joined where the one-thread build writes them (`_join`); the
     # force pass keeps each atom's additions in list order (`RowSplit`, `forces_part`, `_replay_atoms`).
 
     @jit
-    def _compact(first: np.ndarray, neigh: np.ndarray, rs: np.ndarray, base: np.ndarray, ends: np.ndarray) -> int:
-        """Join the parts of a threaded build: part p wrote the rows rs[p] .. rs[p+1] - 1 into
-        neigh[base[p]:ends[p]] (base[0] = 0); move each part to follow the one before (first[s]
-        shifted with it) and return the number of pairs. The list is then the one-thread list."""
-        m = ends[0]
+    def _join(first: np.ndarray, neigh: np.ndarray, aside: np.ndarray, rs: np.ndarray, base: np.ndarray,
+              dest: np.ndarray, k_lo: int, k_hi: int, s_lo: int, s_hi: int) -> None:
+        """Join a threaded build (`build_threaded`): part p >= 1 wrote the rows rs[p] .. rs[p+1] - 1
+        into aside[base[p]:...] (first[s] pointing there); its pairs go to neigh[dest[p]:dest[p+1]]
+        after the parts before. This call copies the pairs bound for neigh[k_lo:k_hi] and moves
+        first[s] for the rows s_lo <= s < s_hi (runs that threads do at once). The list is then
+        the one-thread list."""
         for p in range(1, len(base)):
-            shift = m - base[p]
-            if shift != 0:
-                for k in range(base[p], ends[p]):  # shift <= 0: a forward copy is safe
-                    neigh[k + shift] = neigh[k]
-                for s in range(rs[p], rs[p + 1]):
-                    first[s] += shift
-            m += ends[p] - base[p]
-        return m
+            a, b = max(k_lo, dest[p]), min(k_hi, dest[p + 1])
+            shift = base[p] - dest[p]
+            for k in range(a, b):
+                neigh[k] = aside[k + shift]
+            a, b = max(s_lo, rs[p]), min(s_hi, rs[p + 1])
+            for s in range(a, b):
+                first[s] -= shift
 
     @jit
     def _touch(ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, s_lo: int, s_hi: int, mark: np.ndarray,
@@ -776,55 +836,108 @@ def case_parts(natoms: int) -> int:
 
 def forces_case_threaded(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray,
                          e24: float, e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray,
-                         periodic: np.ndarray, outputs: bool, parts: int,
-                         split: "RowSplit | None" = None) -> tuple[float, float, "RowSplit"]:
-    """`forces_case` over `parts` threads (`RowSplit`, `forces_threaded`): the same bits; returns
+                         periodic: np.ndarray, outputs: bool, parts: int, split: "RowSplit | None" = None,
+                         run: Callable[[list], list] = threads._in_threads) -> tuple[float, float, "RowSplit"]:
+    """`forces_case` over `parts` threads (`RowSplit`, `forces_threaded`, the logs replayed by the
+    threads, each a run of atoms; `run`: threads._in_threads or a `Crew`): the same bits; returns
     (energy, virial, the split), the split to pass again while the list stays the same."""
     if split is None or len(split.rb) != parts + 1 or len(split.mixed) != len(owner):
-        split = RowSplit(owner, first, neigh, parts)
-    _, e, w = forces_threaded(x, f, owner, first, neigh, split, e24, e4, s2c, rcut2, off, length, periodic,
-                              outputs=outputs)
+        split = RowSplit(owner, first, neigh, parts, run)
+    N = len(f)
+    cut = [N * p // parts for p in range(parts + 1)]
+    _, e, w = forces_threaded(x, f, owner, first, neigh, split, e24, e4, s2c, rcut2, off, length, periodic, run,
+                              replay=False, outputs=outputs, cut=cut[1] if parts == 2 else N)
+    run([lambda p=p: split.replay(f, cut[p], cut[p + 1]) for p in range(parts)])
     return e, w, split
+
+
+Buffer = Callable[[str, tuple, Any], np.ndarray]
+
+
+def _fresh(name: str, shape: tuple, dtype: Any) -> np.ndarray:
+    """A new array (the default `Buffer`: nothing kept)."""
+    return np.empty(shape, dtype)
+
+
+def bin_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
+                 owner: np.ndarray, parts: int, run: Callable[[list], list] = threads._in_threads,
+                 buffer: Buffer = _fresh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`_bin` with runs of atoms in `parts` threads (`run`): each run's extent, then (grid from
+    them) each run's cells and counts, the prefix sums here, then each run scatters its atoms in
+    index order after the runs before: the same owner, xs, cstart and nb, bit for bit. Work arrays
+    come from `buffer(name, shape, dtype)` (kept arrays: a fresh one of this size is a fresh
+    mapping whose pages fault again, ~2 ms a build at N = 1e5)."""
+    N = pos.shape[0]
+    cut = [N * r // parts for r in range(parts + 1)]
+    mms = np.zeros((parts, 2, 3))
+    run([lambda r=r: _bin_extent(pos, cut[r], cut[r + 1], periodic, mms[r]) for r in range(parts)])
+    base, ext, nb = np.empty(3), np.empty(3), np.empty(3, np.int64)
+    _bin_grid(mms, lo, length, periodic, reach, N, base, ext, nb)
+    ncell = int(nb[0] * nb[1] * nb[2])
+    p, cell = buffer("bin_p", (N, 3), np.float64), buffer("bin_cell", (N,), np.int64)
+    counts = buffer("bin_counts", (parts, ncell + 1), np.int64)
+    counts[:] = 0
+    run([lambda r=r: _bin_cells(pos, cut[r], cut[r + 1], periodic, base, ext, nb, p, cell, counts[r])
+         for r in range(parts)])
+    cstart = np.empty(ncell + 1, np.int64)  # (returned: the caller may keep it)
+    fills = buffer("bin_fills", (parts, ncell), np.int64)
+    _bin_starts(counts, cstart, fills)
+    xs = buffer("bin_xs", (N, 3), np.float64)
+    run([lambda r=r: _bin_scatter(p, cell, cut[r], cut[r + 1], fills[r], owner, xs) for r in range(parts)])
+    return xs, cstart, nb
 
 
 def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
                    owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int,
                    run: Callable[[list], list] = threads._in_threads, marks: np.ndarray | None = None,
-                   rows: np.ndarray | None = None, shares: np.ndarray | None = None) -> int:
-    """`build_case` with its scan of the cells cut in `parts` runs of cells (about equal atoms), one
-    per thread (`run`: threads._in_threads or a `Crew`): part p writes its rows into its share of neigh (in
-    proportion to its atoms), `_compact` then joins them. The same list, bit for bit; -1 if some
-    part's share was too short (call again with a longer neigh). With `marks` (parts, N) uint8
-    zeros and `rows` (parts + 1,): marks[p] = the atoms part p's rows touch (all `RowSplit` needs:
-    not those owned by part p or before, whose first part is known without), rows = the parts'
-    first rows (for `RowSplit`). `shares` (parts + 1,), from 0 up to 1: part p starts at about atom
-    shares[p] N (default p / parts)."""
+                   rows: np.ndarray | None = None, shares: np.ndarray | None = None, buffer: Buffer = _fresh) -> int:
+    """`build_case` with its binning in runs of atoms (`bin_threaded`) and its scan of the cells cut
+    in `parts` runs of cells (about equal atoms), one per thread (`run`: threads._in_threads or a
+    `Crew`): part 0 writes its rows into neigh, part p >= 1 into its share of a second array (in
+    proportion to its atoms; `buffer("aside", ...)`), and `_join` then copies them after part 0's,
+    in threads. The same list, bit for bit; -1 if some part's share was too short (call again with
+    a longer neigh). With `marks` (parts, N) uint8 zeros and `rows` (parts + 1,): marks[p] = the
+    atoms part p's rows touch (all `RowSplit` needs: not those owned by part p or before, whose
+    first part is known without), rows = the parts' first rows (for `RowSplit`). `shares` (parts +
+    1,), from 0 up to 1: part p starts at about atom shares[p] N (default p / parts). Work arrays
+    from `buffer` (`bin_threaded`)."""
     N = pos.shape[0]
     if N < 2 * parts:  # (no marks: RowSplit marks itself)
         if rows is not None:
             rows[:] = -1
         return build_case(pos, lo, length, periodic, reach, owner, first, neigh)
     first[0] = 0
-    xs, cstart, nb = _bin(pos, lo, length, periodic, reach, owner)
+    xs, cstart, nb = bin_threaded(pos, lo, length, periodic, reach, owner, parts, run, buffer)
     ncell = len(cstart) - 1
     starts = [N * p // parts for p in range(parts)] if shares is None else [int(N * shares[p]) for p in range(parts)]
     qb = np.maximum.accumulate(np.searchsorted(cstart, starts, side="left")).astype(np.int64)
     qb = np.append(np.minimum(qb, ncell), ncell)
     rs = cstart[qb]  # the first row of each part
     cap = len(neigh)
-    base = (cap * rs[:-1]) // N
+    base = (cap * rs[:-1]) // N  # part p >= 1: its share of `aside`, from base[p]
+    base[0] = 0
     edges = np.append(base, cap)
-
+    edges[1] = cap  # part 0: all of neigh
+    aside = buffer("aside", (cap,), np.int32)
     none = np.empty(0, np.uint8)
 
     def scan(p: int) -> int:
-        return _scan(xs, cstart, nb, owner, length, periodic, reach, int(qb[p]), int(qb[p + 1]), int(edges[p]),
-                     int(edges[p + 1]), first, neigh, none if marks is None else marks[p], p < parts - 1)
+        return _scan(xs, cstart, nb, owner, length, periodic, reach, int(qb[p]), int(qb[p + 1]), int(base[p]),
+                     int(edges[p + 1]) if p else cap, first, aside if p else neigh,
+                     none if marks is None else marks[p], p < parts - 1)
 
     ends = np.asarray(run([lambda p=p: scan(p) for p in range(parts)]), np.int64)
     if (ends < 0).any():
         return -1
-    m = _compact(first, neigh, rs, base, ends)
+    dest = np.cumsum(np.concatenate(([0], ends - base)))  # where each part's pairs go in neigh
+    m = int(dest[-1])
+    if m > cap:
+        return -1
+    moved = m - int(dest[1])  # the pairs of parts >= 1, joined in `parts` runs
+    cut = [int(dest[1]) + moved * t // parts for t in range(parts + 1)]
+    rcut = [int(rs[1]) + (N - int(rs[1])) * t // parts for t in range(parts + 1)]
+    run([lambda t=t: _join(first, neigh, aside, rs, base, dest, cut[t], cut[t + 1], rcut[t], rcut[t + 1])
+         for t in range(parts)])
     first[N] = m
     if rows is not None:
         rows[:] = rs
@@ -856,10 +969,12 @@ class RowSplit:
         else:  # the parts of `build_threaded` (about equal atoms) and its marks
             self.rb = rows.astype(np.int64)
         rb = self.rb
-        self.firstp = np.empty(nrow, np.uint8)  # the first part with a mark (0: none)
+        keep = reuse is not None and len(reuse.firstp) == nrow  # its arrays' pages are mapped
+        self.firstp = reuse.firstp if keep else np.empty(nrow, np.uint8)  # the first part with a mark (0: none)
         cut = [nrow * p // parts for p in range(parts + 1)]
         run([lambda p=p: _first_marks(marks, cut[p], cut[p + 1], self.firstp) for p in range(parts)])
-        self.mixed = np.zeros(nrow, np.uint8)  # rows of part 0 have none; the others' rows shared out
+        self.mixed = reuse.mixed if keep else np.empty(nrow, np.uint8)
+        self.mixed[:rb[1]] = 0  # rows of part 0 have none; the others' rows shared out
         cut = [int(rb[1]) + (nrow - int(rb[1])) * p // parts for p in range(parts + 1)]
         run([lambda p=p: _mixed(first, neigh, cut[p], cut[p + 1], rb, self.firstp, self.mixed) for p in range(parts)])
         room = (first[rb[1:]] - first[rb[:-1]]) + (rb[1:] - rb[:-1])
@@ -923,6 +1038,7 @@ class Crew:
     than new threads at each of a step's meetings (threads._in_threads). `close()` ends them."""
 
     def __init__(self, size: int):
+        self.size = size
         self._go = [threading.Semaphore(0) for _ in range(size - 1)]
         self._done = threading.Semaphore(0)
         self._jobs: list[Any] = [None] * (size - 1)
@@ -968,7 +1084,43 @@ class Crew:
             t.join()
 
 
-def _chunk_threaded(kernel: Any, args: tuple, parts: int, held: dict | None = None) -> tuple[int, int, np.ndarray]:
+class Workspace:
+    """What one pair keeps for its threaded builds and passes: work arrays by name (`buffer`: a
+    fresh array of this size is a fresh mapping whose pages fault again on first touch, dearer
+    still in two threads at once) and a `Crew` (`crew`), ended with this object."""
+
+    def __init__(self) -> None:
+        self._bufs: dict[str, np.ndarray] = {}
+        self._crew: Crew | None = None
+        self._end: Any = None
+
+    def buffer(self, name: str, shape: tuple, dtype: Any) -> np.ndarray:
+        """A C-contiguous array kept under `name` (new if the shape or type differs; content undefined)."""
+        b = self._bufs.get(name)
+        if b is None or b.shape != tuple(shape) or b.dtype != np.dtype(dtype):
+            b = self._bufs[name] = np.empty(shape, dtype)
+        return b
+
+    def crew(self, parts: int) -> "Crew":
+        """A `Crew` of `parts` threads, kept."""
+        if self._crew is None or self._crew.size != parts:
+            if self._end is not None:
+                self._end()
+            self._crew = Crew(parts)
+            self._end = weakref.finalize(self, self._crew.close)
+        return self._crew
+
+
+def atom_extent(pos: np.ndarray) -> np.ndarray:
+    """max - min of positions pos (N >= 1, 3) per dim (NumPy's axis-0 reductions of an (N, 3)
+    array are slow: ~10 ms at N = 1e5)."""
+    mm = np.empty((2, 3))
+    _bin_extent(np.ascontiguousarray(pos, dtype=np.float64), 0, len(pos), np.zeros(3, np.bool_), mm)
+    return mm[1] - mm[0]
+
+
+def _chunk_threaded(kernel: Any, args: tuple, parts: int, held: dict | None = None, crew: "Crew | None" = None,
+                    buffer: Buffer = _fresh) -> tuple[int, int, np.ndarray]:
     """`kernel(*args)` (a `pair_chunk` call of one case) over `parts` threads, step by step:
     the list build if due (`build_threaded`), the pair forces (`forces_threaded`), then on runs of
     atoms the kernel with `post` for the rest of the step (walls, lost atoms, final_integrate) and
@@ -979,15 +1131,20 @@ def _chunk_threaded(kernel: Any, args: tuple, parts: int, held: dict | None = No
     for bit; returns what it returns (a chunk with trouble may stop at another step of it: the
     caller discards it and the NumPy loop re-runs it). `held` carries what the next chunk of the
     case can reuse: "split" (the `RowSplit` of the list the chunk ends with; in: that of the list it
-    starts with, or None) and "shares" (the parts' shares of the atoms for the next build)."""
+    starts with, or None) and "shares" (the parts' shares of the atoms for the next build). `crew`:
+    a `Crew` of `parts` threads to run the parts (else one for this call); `buffer`: the builds'
+    work arrays (`build_threaded`)."""
+    if crew is not None and crew.size == parts:
+        return _chunk_steps(kernel, args, parts, crew, {} if held is None else held, buffer)
     crew = Crew(parts)
     try:
-        return _chunk_steps(kernel, args, parts, crew, {} if held is None else held)
+        return _chunk_steps(kernel, args, parts, crew, {} if held is None else held, buffer)
     finally:
         crew.close()
 
 
-def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict) -> tuple[int, int, np.ndarray]:
+def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
+                 buffer: Buffer = _fresh) -> tuple[int, int, np.ndarray]:
     """`_chunk_threaded`'s steps, the threads' calls run by `crew`."""
     a = dict(zip(_signature_names(kernel), args))
     nsteps, x, v, f, xref = a["nsteps"], a["x"], a["v"], a["f"], a["xref"]
@@ -1032,7 +1189,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict) -
     split = held.get("split")  # the starting list's, if the caller kept it
     builds = 0
     built = False  # the list is this chunk's build: its marks and parts serve RowSplit
-    marks, rows = np.zeros((parts, N), np.uint8), np.empty(parts + 1, np.int64)
+    marks, rows = buffer("marks", (parts, N), np.uint8), np.empty(parts + 1, np.int64)
     shares = held.get("shares")
     if shares is None or len(shares) != parts + 1:
         shares = np.arange(parts + 1) / parts
@@ -1044,12 +1201,13 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict) -
         if st == 1:
             target = neigh if builds > 0 else spare
             marks[:] = 0
-            m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows, shares)
+            m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows, shares,
+                               buffer)
             while m < 0:
                 target = np.empty(2 * len(target) + 4 * N, np.int32)
                 marks[:] = 0
                 m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows,
-                                   shares)
+                                   shares, buffer)
             neigh = target
             xref[:] = x
             builds += 1
@@ -1238,7 +1396,8 @@ class PairChunks:
             if parts >= 2:
                 held = self._reuse(c, C, parts, owner, first, pair)
                 wall, cpu = time.perf_counter(), time.process_time()
-                status, builds, neigh = _chunk_threaded(kernel, args, parts, held)
+                ws = pair.workspace()
+                status, builds, neigh = _chunk_threaded(kernel, args, parts, held, ws.crew(parts), ws.buffer)
                 wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
                 self.threaded_chunks += 1
                 if wall > BUSY_MIN_WALL and cpu < THREAD_MIN_USE * parts * wall:
