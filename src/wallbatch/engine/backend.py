@@ -9,8 +9,8 @@ back runs in NumPy and never imports numba. The choice is made once per plan (a 
 
 (a NumPy step costs about 65 us plus 14 ns per atom on a 2-core x86 machine: STEP_ATOMS = 4000
 atoms' worth per step; a scene with pair forces or ellipsoids costs NumPy far more, ~1 ms per step
-at 1000 atoms: its atoms count HEAVY_ATOM times and its steps HEAVY_STEP times); below SMALL_RUN (NumPy's time about equal to numba's start-up, ~0.7 s)
-the plan runs in NumPy, otherwise compiled. It does not depend on how the cases are batched,
+at 1000 atoms: its atoms count HEAVY_ATOM times and its steps HEAVY_STEP times); below SMALL_RUN (NumPy's
+time about equal to numba's start-up and kernel load, ~0.35 s) the plan runs in NumPy, otherwise compiled. It does not depend on how the cases are batched,
 resumed or spread over `--jobs` workers, so a plan is all one path and its results are the same
 however it is run. `WALLBATCH_NUMBA=0` (or numba missing) forces NumPy, `WALLBATCH_NUMBA=1`
 forces the compiled path, for any plan.
@@ -42,7 +42,7 @@ from wallbatch.config.sweep import SweepPlan
 from wallbatch.scene.build import atom_count
 from wallbatch.units import UNIT_SYSTEMS
 
-SMALL_RUN = 50_000_000  # work (atom-steps + STEP_ATOMS per step): below it a plan runs in NumPy
+SMALL_RUN = 25_000_000  # work (atom-steps + STEP_ATOMS per step): below it a plan runs in NumPy
 STEP_ATOMS = 4_000  # a NumPy step's fixed cost (~65 us) in atoms (~14 ns per atom-step)
 HEAVY_ATOM, HEAVY_STEP = 50, 15  # pair lj/cut or ellipsoids: NumPy's cost per atom and per step, relative
 _OFF = ("0", "false", "no", "off")
