@@ -8,6 +8,9 @@ names in a test's arguments. Lengths are in the scene's units (lj unless given).
 
 from __future__ import annotations
 
+import contextlib
+import gc
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -178,3 +181,27 @@ def assert_same_results(ref: list[CaseResult], got: list[CaseResult], rtol: floa
                 assert np.array_equal(np.isnan(x), np.isnan(y)), name
                 scale = np.nanmax(np.abs(x)) if np.isfinite(x).any() else 0.0
                 np.testing.assert_allclose(y, x, rtol=0, atol=rtol * max(scale, 1e-300), equal_nan=True, err_msg=name)
+
+
+@contextlib.contextmanager
+def cyclic_garbage(save: bool = True) -> Iterator[dict]:
+    """Count the reference cycles the block leaves: what earlier code left is collected first
+    (objects with finalizers may take two passes), the collector is off during the block, then one
+    collection counts what only it could free. Yields a dict filled on exit: `found` (objects the
+    collection found) and, with `save`, `kinds` (their type names, from gc.DEBUG_SAVEALL)."""
+    while gc.collect():
+        pass
+    enabled = gc.isenabled()
+    gc.disable()
+    if save:
+        gc.set_debug(gc.DEBUG_SAVEALL)
+    out: dict = {}
+    try:
+        yield out
+        out["found"] = gc.collect()
+        out["kinds"] = sorted({type(o).__qualname__ for o in gc.garbage})
+    finally:
+        gc.set_debug(0)
+        gc.garbage.clear()
+        if enabled:
+            gc.enable()

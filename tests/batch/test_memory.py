@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
+from factories import cyclic_garbage
 
 from wallbatch.api import load
 from wallbatch.batch.runner import run_plan
@@ -116,17 +117,7 @@ def test_a_run_leaves_no_cyclic_garbage_per_case(tmp_path):
     counts = {}
     for cases in (4, 270):  # 270 > KEEP_CASES: the results are read back from the parts
         plan = load(tiny_sweep(tmp_path, cases))
-        while gc.collect():  # what earlier tests left (objects with finalizers may take two passes)
-            pass
-        enabled = gc.isenabled()
-        gc.disable()
-        gc.set_debug(gc.DEBUG_SAVEALL)
-        try:
+        with cyclic_garbage(save=False) as left:
             run_plan(plan, tmp_path / f"g{cases}.nc", progress=False)
-            counts[cases] = gc.collect()
-        finally:
-            gc.set_debug(0)
-            gc.garbage.clear()
-            if enabled:
-                gc.enable()
+        counts[cases] = left["found"]
     assert counts[270] - counts[4] < 20, counts

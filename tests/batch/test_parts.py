@@ -5,12 +5,11 @@ ast.literal_eval, whose nested functions are reference cycles: ~11 objects per a
 
 from __future__ import annotations
 
-import gc
 import zipfile
-from pathlib import Path
 
 import numpy as np
 import pytest
+from factories import cyclic_garbage
 
 from wallbatch.batch.runner import read_npz, read_part, save_part
 from wallbatch.engine.engine import CaseResult
@@ -71,24 +70,11 @@ def test_a_truncated_array_is_an_error(tmp_path):
 def test_reading_parts_leaves_no_cyclic_garbage(tmp_path):
     res = CaseResult("ok", "", 0.25, {k: v for k, v in ARRAYS.items() if k not in ("status", "seconds")})
     save_part(tmp_path, "key", res)
-    while gc.collect():  # what earlier tests left (objects with finalizers may take two passes)
-        pass
-    enabled = gc.isenabled()
-    gc.disable()
-    gc.set_debug(gc.DEBUG_SAVEALL)
-    try:
+    with cyclic_garbage() as left:
         for _ in range(20):
             back, why = read_part(tmp_path, "key")
             assert back is not None, why
-        found = gc.collect()
-        garbage = len(gc.garbage)
-        kinds = sorted({type(o).__qualname__ for o in gc.garbage})
-    finally:
-        gc.set_debug(0)
-        gc.garbage.clear()
-        if enabled:
-            gc.enable()
-    assert found == 0 and garbage == 0, f"{garbage} cyclic objects left by 20 reads: {kinds}"
+    assert left["found"] == 0, f"{left['found']} cyclic objects left by 20 reads: {left['kinds']}"
     for name, arr in res.data.items():
         assert back.data[name].tobytes() == np.ascontiguousarray(arr).tobytes(), name
     assert (back.status, back.error, back.seconds) == ("ok", "", 0.25)
@@ -99,18 +85,11 @@ def test_np_load_would_leave_cyclic_garbage(tmp_path):
     cycles, read_npz is no longer needed)."""
     path = tmp_path / "d.npz"
     np.savez(path, x=np.arange(3.0), y=np.arange(2.0))
-    while gc.collect():
-        pass
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
+    with cyclic_garbage(save=False) as left:
         for _ in range(5):
             with np.load(path) as z:
                 _ = z["x"], z["y"]
-        found = gc.collect()
-    finally:
-        if enabled:
-            gc.enable()
+    found = left["found"]
     if found == 0:
         pytest.skip("this NumPy's np.load leaves no cyclic garbage")
     assert found >= 10
