@@ -9,11 +9,12 @@ back runs in NumPy and never imports numba. The choice is made once per plan (a 
 
 (a NumPy step costs about 65 us plus 14 ns per atom on a 2-core x86 machine: STEP_ATOMS = 4000
 atoms' worth per step; a scene with pair forces or ellipsoids costs NumPy far more, ~1 ms per step
-at 1000 atoms: its atoms count HEAVY_ATOM times and its steps HEAVY_STEP times); below SMALL_RUN (NumPy's
-time about equal to numba's start-up and kernel load, ~0.35 s) the plan runs in NumPy, otherwise compiled. It does not depend on how the cases are batched,
-resumed or spread over `--jobs` workers, so a plan is all one path and its results are the same
-however it is run. `WALLBATCH_NUMBA=0` (or numba missing) forces NumPy, `WALLBATCH_NUMBA=1`
-forces the compiled path, for any plan.
+at 1000 atoms: its atoms count HEAVY_ATOM times and its steps HEAVY_STEP times); below SMALL_RUN
+(NumPy's time about equal to numba's start-up and kernel load, ~0.35 s) the plan runs in NumPy,
+otherwise compiled. It does not depend on how the cases are batched, resumed or spread over
+`--jobs` workers, so a plan is all one path and its results are the same however it is run.
+`WALLBATCH_NUMBA=0` (or numba missing) forces NumPy, `WALLBATCH_NUMBA=1` forces the compiled path,
+for any plan.
 
 Flat walls, wall/reflect, wall/region, dt/reset and `fixes:` give the same bits on both paths;
 morse, pair lj/cut, wall/flow redraws and ellipsoids agree to ~1e-14 relative.

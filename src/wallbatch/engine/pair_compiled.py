@@ -1288,16 +1288,9 @@ class PairChunks:
         # a one-case batch's threaded chunk's (key, owner, first, held): its RowSplit and shares,
         # for the next chunk if it starts from that very list (`_reuse`)
         self._held: tuple | None = None
-        self._bufs: dict[str, np.ndarray] = {}
-
-    def _buffer(self, name: str, shape: tuple, dtype: Any) -> np.ndarray:
-        """A C-contiguous array kept across chunks under `name` (new if the shape or type differs):
-        the chunks' copies of the state go there, since a fresh array of this size is a fresh
-        mapping whose pages fault again on first touch (about 2 ms per 2.4 MB here)."""
-        b = self._bufs.get(name)
-        if b is None or b.shape != tuple(shape) or b.dtype != np.dtype(dtype):
-            b = self._bufs[name] = np.empty(shape, dtype)
-        return b
+        # the chunks' copies of the state, kept across chunks (`Workspace.buffer`: a fresh array of
+        # this size is a fresh mapping whose pages fault again, about 2 ms per 2.4 MB here)
+        self._buffer = Workspace().buffer
 
     def _reuse(self, c: int, C: int, parts: int, owner: np.ndarray, first: np.ndarray, pair: Any) -> dict:
         """What `_chunk_threaded` may reuse for case c (`held`): the last threaded chunk's, if it
