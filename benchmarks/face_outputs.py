@@ -1,8 +1,9 @@
-"""Sampled every step, the soft faces' outputs loop (engine/compiled.py `_eface`) runs over every
-atom at every step: this times the scenes whose faces report through it (flat lj93, wall/table
-linear and spline, wall/lepton with 2 parameters and with 4, its parameters as an array; the
-lepton kernels forced compiled) for one or more source trees, alternating between them in fresh
-processes, so two versions of the package are compared in one sitting:
+"""Sampled every step, the outputs loop of soft faces and wall/region fixes (engine/compiled.py
+`_eloop`) runs over every atom at every step: this times the scenes that report through it (flat
+lj93, wall/table linear and spline, wall/lepton with 2 parameters and with 4, its parameters as an
+array, the lepton kernels forced compiled; wall/region lj93 in a sphere cavity and a cylinder) for
+one or more source trees, alternating between them in fresh processes, so two versions of the
+package are compared in one sitting:
 
     flock /tmp/wb-cpu.lock python benchmarks/face_outputs.py --src /path/a/src --src /path/b/src
 
@@ -26,7 +27,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 N = 1000
-SCENES = ("flat lj93", "table linear", "table spline", "lepton 2 params", "lepton 4 params")
+SCENES = ("flat lj93", "table linear", "table spline", "lepton 2 params", "lepton 4 params", "region sphere",
+          "region cylinder")
 
 
 def config(common: object, scene: str, steps: int) -> dict:
@@ -34,6 +36,8 @@ def config(common: object, scene: str, steps: int) -> dict:
     c = common
     if scene == "flat lj93":
         return c.gas_slit(N, "lj93", steps=steps, thermo=1)
+    if scene.startswith("region"):
+        return c.region_gas(N, scene.split()[1], steps=steps, thermo=1)
     if scene.startswith("table"):
         cfg = c.table_slit(N, steps=steps, thermo=1)
         cfg["walls"]["tab"]["tabstyle"] = scene.split()[1]
