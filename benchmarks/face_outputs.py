@@ -10,7 +10,7 @@ package are compared in one sitting:
 Prints, per tree and scene, the best of `--repeat` runs of N = 1000 atoms, `--steps` steps at
 thermo 1 (after a warm-up run that loads or compiles the kernels), in ns per atom-step, and with
 `--compile` the CPU seconds of a first run with empty numba and kernel caches minus a warm run
-of the same scene (the compile of its kernel).
+of the same scene (the compile of its kernel; `--compile-rounds` alternations between the trees).
 """
 
 from __future__ import annotations
@@ -88,6 +88,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--rounds", type=int, default=2, help="alternations between the trees")
     ap.add_argument("--compile", action="store_true", help="also the cold-cache compile of each scene's kernel")
+    ap.add_argument("--compile-rounds", type=int, default=1, help="alternations between the trees of those compiles")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--scene", default="", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -111,16 +112,14 @@ def main() -> None:
                 print(f"{scene:16s} round {rnd}  {ans['ns']:7.2f} ns per atom-step  {ans['path']:36s} {src}",
                       flush=True)
     if args.compile:
-        for scene in scenes:
-            for src in srcs:
-                with tempfile.TemporaryDirectory(prefix="wb_face_outputs_") as tmp:
-                    cold_env = dict(env, NUMBA_CACHE_DIR=str(Path(tmp) / "numba"),
-                                    WALLBATCH_CACHE_DIR=str(Path(tmp) / "wb"))
-                    cargs = ["--scene", scene, "--steps", "20", "--repeat", "1"]
-                    _, cold = run_child(src, cargs, cold_env)
-                    _, warm = run_child(src, cargs, cold_env)
-                print(f"{scene:16s} compile {cold - warm:6.1f} s CPU (cold {cold:.1f}, warm {warm:.1f})  {src}",
-                      flush=True)
+        for scene, _rnd, src in ((s, r, t) for s in scenes for r in range(args.compile_rounds) for t in srcs):
+            with tempfile.TemporaryDirectory(prefix="wb_face_outputs_") as tmp:
+                cold_env = dict(env, NUMBA_CACHE_DIR=str(Path(tmp) / "numba"),
+                                WALLBATCH_CACHE_DIR=str(Path(tmp) / "wb"))
+                cargs = ["--scene", scene, "--steps", "20", "--repeat", "1"]
+                _, cold = run_child(src, cargs, cold_env)
+                _, warm = run_child(src, cargs, cold_env)
+            print(f"{scene:16s} compile {cold - warm:6.1f} s CPU (cold {cold:.1f}, warm {warm:.1f})  {src}", flush=True)
     caches.cleanup()
     print(f"load average {os.getloadavg()}", flush=True)
 

@@ -394,7 +394,7 @@ def test_both_ways_of_sampling_share_one_kernel(monkeypatch):
 def python_eface():
     """`_eface` as Python, with the contacts loop `_eloop` and the flat face's contact readers it
     calls as Python too (so it takes Python force and energy functions)."""
-    names = ("_eloop", "_flat_at", "_flat_toward")
+    names = ("_eloop", "_flat_at", "_flat_contact")
     env = {**fast._eface.py_func.__globals__, **{n: getattr(fast, n).py_func for n in names}}
     return types.FunctionType(fast._eface.py_func.__code__, env)
 

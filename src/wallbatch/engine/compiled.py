@@ -407,19 +407,20 @@ if njit is not None:
 
 
     @inline
-    def _eloop(at, toward, force, energy, use_radius, src, RAD, nslot, n, p0, p1, p2, cut, ron, e0):
+    def _eloop(at, contact, force, energy, use_radius, src, RAD, nslot, n, p0, p1, p2, cut, ron, e0):
         """The outputs of one soft face or wall/region fix over a case's n atoms, from its contacts
         slot by slot (a flat face: one slot), as walls.SoftWallKernel.apply and
         RegionWallKernel.apply sum them with np.bincount, contact by contact in (slot, atom)
         order: (sum of E(r) - e0, sum of (F(r) / q) c over the contacts: the force on the wall
-        x, y, z, sum of F(r) r: the virial). `at(src, j, i, cut)` -> (contact?, r) and
-        `toward(src, j, i, r)` -> (q, c0, c1, c2) read a contact from the geometry's data src (a
-        flat face: `_flat_at`, q = 1, c = (side, 0, 0); a region: `_region_at`, q = r, c = its
-        delta). `force` and `energy` take the registry's force arguments (r, p0, p1, p2, rc,
-        radius, r_on), whatever p0, p1, p2 are (floats; a wall/lepton face's parameter array; a
-        wall/table face's rows): E is the energy under the cut-off mode (e0 = 0) or an unshifted
-        energy whose offset e0 at the cut-off the caller computes once (wall/lepton: E(rc);
-        wall/table: E_lin(rc)). All are literals at every call, so each gets its own loop."""
+        x, y, z, sum of F(r) r: the virial). `at(src, j, i, cut)`: is atom i a contact in slot j;
+        `contact(src, j, i)` -> (r, q, c0, c1, c2) of a contact, read from the geometry's data src
+        (a flat face: `_flat_at`, `_flat_contact`, q = 1, c = (side, 0, 0); a region:
+        `_region_at`, `_region_contact`, q = r, c = its delta). `force` and `energy` take the
+        registry's force arguments (r, p0, p1, p2, rc, radius, r_on), whatever p0, p1, p2 are
+        (floats; a wall/lepton face's parameter array; a wall/table face's rows): E is the energy
+        under the cut-off mode (e0 = 0) or an unshifted energy whose offset e0 at the cut-off the
+        caller computes once (wall/lepton: E(rc); wall/table: E_lin(rc)). All are literals at
+        every call, so each gets its own loop."""
         e = 0.0
         f0 = 0.0
         f1 = 0.0
@@ -427,12 +428,11 @@ if njit is not None:
         vir = 0.0
         for j in range(nslot):
             for i in range(n):
-                near, r = at(src, j, i, cut)
-                if near:
+                if at(src, j, i, cut):
+                    r, q, c0, c1, c2 = contact(src, j, i)
                     rad = RAD[i] if use_radius else 0.0
                     fi = force(r, p0, p1, p2, cut, rad, ron)
                     e += energy(r, p0, p1, p2, cut, rad, ron) - e0
-                    q, c0, c1, c2 = toward(src, j, i, r)
                     s = fi / q
                     f0 += s * c0
                     f1 += s * c1
@@ -442,34 +442,36 @@ if njit is not None:
 
     @inline
     def _flat_at(src, j, i, cut):
-        """A flat face's contact with atom i (`_eloop`; src = X, groups, g, d, side, coord): r = the
-        distance into the allowed region, a contact where r < rc and the atom is in the group."""
+        """Whether atom i is a contact of a flat face (`_eloop`; src = X, groups, g, d, side, coord):
+        its distance into the allowed region r < rc and the atom in the group."""
         X, groups, g, d, sidef, coord = src
-        r = (X[d, i] - coord) * -sidef  # x - coord (lo face) or coord - x (hi face), exactly
-        return (r < cut) & (groups[g, i] != 0), r
+        return ((X[d, i] - coord) * -sidef < cut) & (groups[g, i] != 0)
 
     @inline
-    def _flat_toward(src, j, i, r):
-        """A flat face's force on the wall per unit F(r) (`_eloop`): side along its axis (only the
+    def _flat_contact(src, j, i):
+        """A flat face's contact with atom i (`_eloop`): r (x - coord on a lo face, coord - x on a
+        hi face, exactly), and the force on the wall per unit F(r): side along its axis (only the
         first component is reported)."""
-        return 1.0, src[4], 0.0, 0.0
+        X, groups, g, d, sidef, coord = src
+        return (X[d, i] - coord) * -sidef, 1.0, sidef, 0.0, 0.0
 
     @inline
     def _region_at(RB, j, i, cut):
-        """A wall/region fix's contact slot j of atom i in RB (`_region_contacts`), r its distance."""
-        return RB[j, 0, i] != 0.0, RB[j, 1, i]
+        """Whether atom i has a contact in slot j of a wall/region fix's RB (`_region_contacts`)."""
+        return RB[j, 0, i] != 0.0
 
     @inline
-    def _region_toward(RB, j, i, r):
-        """A wall/region contact's force on the wall per unit F(r) (`_eloop`): its delta / r."""
-        return r, RB[j, 2, i], RB[j, 3, i], RB[j, 4, i]
+    def _region_contact(RB, j, i):
+        """A wall/region contact (`_eloop`): r, and the force on the wall per unit F(r): delta / r."""
+        r = RB[j, 1, i]
+        return r, r, RB[j, 2, i], RB[j, 3, i], RB[j, 4, i]
 
     @inline
     def _eface(force, energy, use_radius, X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n, e0):
         """The outputs of one flat soft face over a case's n atoms (walls.SoftWallKernel.apply with
         outputs), the contacts loop `_eloop` on the face's own contacts: (sum of E(r) - e0, sum of
         side F(r): the force on the wall, sum of F(r) r: the virial)."""
-        e, fs, _f1, _f2, vir = _eloop(_flat_at, _flat_toward, force, energy, use_radius,
+        e, fs, _f1, _f2, vir = _eloop(_flat_at, _flat_contact, force, energy, use_radius,
                                       (X, groups, g, d, float(side), coord), RAD, 1, n, p0, p1, p2, cut, ron, e0)
         return e, fs, vir
 
@@ -478,7 +480,7 @@ if njit is not None:
         """The outputs of a wall/region fix from a case's contacts in RB (all n atoms, slot by
         slot: RegionGeom.contacts' order), the contacts loop `_eloop`: (energy, sum of
         (F(r)/r) delta x, y, z, sum of F(r) r)."""
-        return _eloop(_region_at, _region_toward, force, energy, use_radius, RB, RAD, nslot, n, p0, p1, p2, cut,
+        return _eloop(_region_at, _region_contact, force, energy, use_radius, RB, RAD, nslot, n, p0, p1, p2, cut,
                       ron, 0.0)
 
     def _sample_faces(c, si, X, RAD, groups, sf_meta, sf_val, tb, lp, out):
@@ -540,52 +542,27 @@ if njit is not None:
     _table_linear = njit(nogil=True, error_model="numpy", inline="always")(linear_lookup)
     _table_spline = njit(nogil=True, error_model="numpy", inline="always")(spline_lookup)
 
-    def _table_lookup(y: int, dy: int) -> Any:
-        """The lookup of a wall/table face's row y (its derivative row dy) at r in the registry's
-        force signature (`_eloop`): rows = (grid, F, dF or F2, E, dE or E2, dE) of its table
-        (WallTable.kernel_rows; `_table_rows`), par = (lo, 1/delta, delta^2/6, N - 2), linear:
-        the table's linear or spline lookup (styles.table's functions, jitted). y, dy = 1, 2:
-        F(r) [force]; 3, 4: the unshifted E(r) [energy]."""
-        def lookup(r, rows, par, linear, rc, radius, r_on):
-            j = min(int((r - par[0]) * par[1]), par[3])
-            if linear:
-                return _table_linear(r, j, rows[0], rows[y], rows[dy], par[1])
-            return _table_spline(r, j, rows[0], rows[y], rows[dy], par[1], par[2])
-        return lookup
-
-    _table_force = njit(nogil=True, error_model="numpy", inline="always")(_table_lookup(1, 2))
-    _table_energy = njit(nogil=True, error_model="numpy", inline="always")(_table_lookup(3, 4))
-
     @inline
-    def _table_rows(tb, k):
-        """Wall/table face k's rows and lookup parameters (`_table_lookup`) from the kernel's tables
-        tb = (tb_meta (K, 3) int: offset, N, linear; tb_par (K, 3): lo, 1/delta, delta^2/6;
-        tb_data: every table's rows (grid, F, dF or F2, E, dE or E2, dE) one after another; MB:
-        scratch bytes, a block's atoms rounded up to 64, for `_table_face`)."""
-        off, nt = tb[0][k, 0], tb[0][k, 1]
-        data = tb[2]
-        rows = (data[off:off + nt], data[off + nt:off + 2 * nt], data[off + 2 * nt:off + 3 * nt],
-                data[off + 3 * nt:off + 4 * nt], data[off + 4 * nt:off + 5 * nt], data[off + 5 * nt:off + 6 * nt])
-        return rows, (tb[1][k, 0], tb[1][k, 1], tb[1][k, 2], nt - 2)
-
-    @inline
-    def _table_face(linear, X, F, groups, g, d, side, coord, cut, rows, par, u0, u1, MB):
+    def _table_face(linear, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6, u0, u1,
+                    MB):
         """One wall/table face over atoms u0..u1-1 (as `_face`, shift mode): F(r) by the table's
-        force lookup `_table_force` (WallTable.lookup's arithmetic: the same functions, jitted).
-        Returns the number of atoms nearer than the table's first distance lo = par[0] (the
-        NumPy path then reports them). `linear` is a literal.
+        linear or spline lookup (WallTable.lookup's arithmetic: the same functions, jitted) on
+        its rows grid, tf (force), td (dF or F2). Returns the number of atoms nearer than the
+        table's first distance lo (the NumPy path then reports them). `linear` is a literal.
 
-        Its own loop, not `_face`'s: two passes, so no branch depends on where an atom is (a gas
-        near a wall: ~10% of the atoms, in random order, a mispredicted branch every few atoms;
-        `_face`'s forces are branch-free arithmetic, a table lookup is not): a branch-free pass
-        marks the group atoms within the cut-off in the bytes MB (it vectorises); then, 64 atoms
-        at a time, their marks are packed into the bits of one word (8 bytes at once: the
-        byte-to-bit multiply) and only the marked atoms are visited, lowest bit first (atom
-        order), each with its table lookup. (Faster than a branch per atom, a branch-free lookup
-        of every atom and a list of the atoms within the cut-off: benchmarks/table.py.)"""
+        Two passes, so no branch depends on where an atom is (a gas near a wall: ~10% of the
+        atoms, in random order, a mispredicted branch every few atoms): a branch-free pass marks
+        the group atoms within the cut-off in the bytes MB (it vectorises); then, 64 atoms at a
+        time, their marks are packed into the bits of one word (8 bytes at once: the byte-to-bit
+        multiply) and only the marked atoms are visited, lowest bit first (atom order), each with
+        its table lookup. (Faster than a branch per atom, a branch-free lookup of every atom and
+        a list of the atoms within the cut-off: benchmarks/table.py.) So it is a loop of its own,
+        not `_face` (whose forces are branch-free arithmetic); and it calls the lookups directly
+        rather than the outputs' `_table_force` on a tuple of rows, which measured ~9% slower
+        (spline, sampled every step) and a longer compile (benchmarks/face_outputs.py)."""
         sidef = float(side)
         sign = -sidef
-        lo = par[0]
+        n2 = grid.shape[0] - 2
         nb = u1 - u0
         for i in range(u0, u1):
             r = (X[d, i] - coord) * sign
@@ -606,23 +583,51 @@ if njit is not None:
                 bits &= bits - np.uint64(1)
                 r = (X[d, i] - coord) * sign
                 if r >= lo:
-                    F[d, i] = F[d, i] - sidef * _table_force(r, rows, par, linear, cut, 0.0, 0.0)
+                    j = min(int((r - lo) * invdelta), n2)
+                    if linear:
+                        fr = _table_linear(r, j, grid, tf, td, invdelta)
+                    else:
+                        fr = _table_spline(r, j, grid, tf, td, invdelta, deltasq6)
+                    F[d, i] = F[d, i] - sidef * fr
                 else:
                     nbad += 1
         return nbad
 
     @inline
     def _table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1):
-        """Soft face k of the scene, a wall/table face (`_table_face` on its rows, `_table_rows`)."""
-        rows, par = _table_rows(tb, k)
+        """Soft face k of the scene, a wall/table face: its rows in tb = (tb_meta (K, 3) int:
+        offset, N, linear; tb_par (K, 3): lo, 1/delta, delta^2/6; tb_data: every table's rows;
+        MB: scratch bytes, a block's atoms rounded up to 64, for `_table_face`)."""
+        off, n = tb[0][k, 0], tb[0][k, 1]
+        data = tb[2]
+        grid, tf, td = data[off:off + n], data[off + n:off + 2 * n], data[off + 2 * n:off + 3 * n]
+        lo, invdelta, deltasq6 = tb[1][k, 0], tb[1][k, 1], tb[1][k, 2]
         if tb[0][k, 2] != 0:
-            return _table_face(True, X, F, groups, g, d, side, coord, cut, rows, par, u0, u1, tb[3])
-        return _table_face(False, X, F, groups, g, d, side, coord, cut, rows, par, u0, u1, tb[3])
+            return _table_face(True, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6,
+                               u0, u1, tb[3])
+        return _table_face(False, X, F, groups, g, d, side, coord, cut, grid, tf, td, lo, invdelta, deltasq6,
+                           u0, u1, tb[3])
 
     @inline
     def _no_table_faces(tb, k, X, F, groups, g, d, side, coord, cut, u0, u1):
         """`_table_faces` of a scene without wall/table faces: nothing (never called)."""
         return 0
+
+    def _table_lookup(y: int, dy: int) -> Any:
+        """The lookup of a wall/table face's row y (its derivative row dy) at r in the registry's
+        force signature (`_eface`): rows = (grid, F, dF or F2, E, dE or E2) of its table
+        (WallTable.kernel_rows), par = (lo, 1/delta, delta^2/6, N - 2), linear: the table's linear
+        or spline lookup (styles.table's functions, jitted). y, dy = 1, 2: F(r) [force]; 3, 4:
+        the unshifted E(r) [energy]."""
+        def lookup(r, rows, par, linear, rc, radius, r_on):
+            j = min(int((r - par[0]) * par[1]), par[3])
+            if linear:
+                return _table_linear(r, j, rows[0], rows[y], rows[dy], par[1])
+            return _table_spline(r, j, rows[0], rows[y], rows[dy], par[1], par[2])
+        return lookup
+
+    _table_force = njit(nogil=True, error_model="numpy", inline="always")(_table_lookup(1, 2))
+    _table_energy = njit(nogil=True, error_model="numpy", inline="always")(_table_lookup(3, 4))
 
     @inline
     def _table_out(tb, k, X, RAD, groups, g, d, side, coord, cut, n):
@@ -630,8 +635,13 @@ if njit is not None:
         with outputs): the output loop `_eface` of every soft face with the table's force and
         energy lookups (its rows 1-2 and 3-4), less the offset E_lin(rc), the linear lookup on
         rows 3 and 5 at the cut-off (WallTable.offset)."""
-        rows, par = _table_rows(tb, k)
-        shift = _table_linear(cut, min(int((cut - par[0]) * par[1]), par[3]), rows[0], rows[3], rows[5], par[1])
+        off, nt = tb[0][k, 0], tb[0][k, 1]
+        data = tb[2]
+        grid, te, tdl = data[off:off + nt], data[off + 3 * nt:off + 4 * nt], data[off + 5 * nt:off + 6 * nt]
+        rows = (grid, data[off + nt:off + 2 * nt], data[off + 2 * nt:off + 3 * nt], te, data[off + 4 * nt:off + 5 * nt])
+        lo, invdelta = tb[1][k, 0], tb[1][k, 1]
+        par = (lo, invdelta, tb[1][k, 2], nt - 2)
+        shift = _table_linear(cut, min(int((cut - lo) * invdelta), nt - 2), grid, te, tdl, invdelta)
         return _eface(_table_force, _table_energy, False, X, RAD, groups, g, d, side, coord, rows, par,
                       tb[0][k, 2] != 0, cut, 0.0, n, shift)
 
