@@ -445,7 +445,7 @@ if njit is not None:
         """Whether atom i is a contact of a flat face (`_eloop`; src = X, groups, g, d, side, coord):
         its distance into the allowed region r < rc and the atom in the group."""
         X, groups, g, d, sidef, coord = src
-        return ((X[d, i] - coord) * -sidef < cut) & (groups[g, i] != 0)
+        return (X[d, i] - coord) * -sidef < cut and groups[g, i] != 0  # the group read only within rc
 
     @inline
     def _flat_contact(src, j, i):
