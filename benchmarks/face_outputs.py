@@ -1,15 +1,16 @@
-"""Sampled every step, the soft faces' outputs loop (engine/compiled.py `_eface`) runs over every
-atom at every step: this times the scenes whose faces report through it (flat lj93, wall/table
-linear and spline, wall/lepton with 2 parameters and with 4, its parameters as an array; the
-lepton kernels forced compiled) for one or more source trees, alternating between them in fresh
-processes, so two versions of the package are compared in one sitting:
+"""Sampled every step, the outputs loop of soft faces and wall/region fixes (engine/compiled.py
+`_eloop`) runs over every atom at every step: this times the scenes that report through it (flat
+lj93, wall/table linear and spline, wall/lepton with 2 parameters and with 4, its parameters as an
+array, the lepton kernels forced compiled; wall/region lj93 in a sphere cavity and a cylinder) for
+one or more source trees, alternating between them in fresh processes, so two versions of the
+package are compared in one sitting:
 
     flock /tmp/wb-cpu.lock python benchmarks/face_outputs.py --src /path/a/src --src /path/b/src
 
 Prints, per tree and scene, the best of `--repeat` runs of N = 1000 atoms, `--steps` steps at
 thermo 1 (after a warm-up run that loads or compiles the kernels), in ns per atom-step, and with
 `--compile` the CPU seconds of a first run with empty numba and kernel caches minus a warm run
-of the same scene (the compile of its kernel).
+of the same scene (the compile of its kernel; `--compile-rounds` alternations between the trees).
 """
 
 from __future__ import annotations
@@ -26,7 +27,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 N = 1000
-SCENES = ("flat lj93", "table linear", "table spline", "lepton 2 params", "lepton 4 params")
+SCENES = ("flat lj93", "table linear", "table spline", "lepton 2 params", "lepton 4 params", "region sphere",
+          "region cylinder")
 
 
 def config(common: object, scene: str, steps: int) -> dict:
@@ -34,6 +36,8 @@ def config(common: object, scene: str, steps: int) -> dict:
     c = common
     if scene == "flat lj93":
         return c.gas_slit(N, "lj93", steps=steps, thermo=1)
+    if scene.startswith("region"):
+        return c.region_gas(N, scene.split()[1], steps=steps, thermo=1)
     if scene.startswith("table"):
         cfg = c.table_slit(N, steps=steps, thermo=1)
         cfg["walls"]["tab"]["tabstyle"] = scene.split()[1]
@@ -84,6 +88,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--rounds", type=int, default=2, help="alternations between the trees")
     ap.add_argument("--compile", action="store_true", help="also the cold-cache compile of each scene's kernel")
+    ap.add_argument("--compile-rounds", type=int, default=1, help="alternations between the trees of those compiles")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--scene", default="", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -107,16 +112,14 @@ def main() -> None:
                 print(f"{scene:16s} round {rnd}  {ans['ns']:7.2f} ns per atom-step  {ans['path']:36s} {src}",
                       flush=True)
     if args.compile:
-        for scene in scenes:
-            for src in srcs:
-                with tempfile.TemporaryDirectory(prefix="wb_face_outputs_") as tmp:
-                    cold_env = dict(env, NUMBA_CACHE_DIR=str(Path(tmp) / "numba"),
-                                    WALLBATCH_CACHE_DIR=str(Path(tmp) / "wb"))
-                    cargs = ["--scene", scene, "--steps", "20", "--repeat", "1"]
-                    _, cold = run_child(src, cargs, cold_env)
-                    _, warm = run_child(src, cargs, cold_env)
-                print(f"{scene:16s} compile {cold - warm:6.1f} s CPU (cold {cold:.1f}, warm {warm:.1f})  {src}",
-                      flush=True)
+        for scene, _rnd, src in ((s, r, t) for s in scenes for r in range(args.compile_rounds) for t in srcs):
+            with tempfile.TemporaryDirectory(prefix="wb_face_outputs_") as tmp:
+                cold_env = dict(env, NUMBA_CACHE_DIR=str(Path(tmp) / "numba"),
+                                WALLBATCH_CACHE_DIR=str(Path(tmp) / "wb"))
+                cargs = ["--scene", scene, "--steps", "20", "--repeat", "1"]
+                _, cold = run_child(src, cargs, cold_env)
+                _, warm = run_child(src, cargs, cold_env)
+            print(f"{scene:16s} compile {cold - warm:6.1f} s CPU (cold {cold:.1f}, warm {warm:.1f})  {src}", flush=True)
     caches.cleanup()
     print(f"load average {os.getloadavg()}", flush=True)
 

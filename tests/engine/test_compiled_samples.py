@@ -14,6 +14,7 @@ for the scenes the kernel does not sample, that they did not.
 from __future__ import annotations
 
 import copy
+import types
 
 import numpy as np
 import pytest
@@ -390,9 +391,18 @@ def test_both_ways_of_sampling_share_one_kernel(monkeypatch):
     assert near.fast.kernel_names == far.fast.kernel_names and len(near.fast.kernel_names) == 1
 
 
+def python_eface():
+    """`_eface` as Python, with the contacts loop `_eloop` and the flat face's contact readers it
+    calls as Python too (so it takes Python force and energy functions)."""
+    names = ("_eloop", "_flat_at", "_flat_contact")
+    env = {**fast._eface.py_func.__globals__, **{n: getattr(fast, n).py_func for n in names}}
+    return types.FunctionType(fast._eface.py_func.__code__, env)
+
+
 @pytest.mark.parametrize("form", ["positional", "array"])
 def test_lepton_energy_offset_is_evaluated_once_per_face_and_sample(form):
-    """The outputs loop of a wall/lepton face (`_eface` through the generated `_face_out` /
+    """The outputs loop of a wall/lepton face (`_eface`, the contacts loop `_eloop` on a flat
+    face, through the generated `_face_out` /
     `_vector_out` dispatch, run here as Python with a harmonic E(r) = k (rc - r)^2 + b that records
     each r it is evaluated at) subtracts E(rc) evaluated once per call, not once per atom, and
     returns sum E(r) - E(rc), sum side F(r) and sum F(r) r over the group atoms within the cut-off,
@@ -412,14 +422,14 @@ def test_lepton_energy_offset_is_evaluated_once_per_face_and_sample(form):
     X[2] = z
     groups = np.array([[1, 1, 1, 1, 1, 0]])  # the last atom, within the cut-off, is not in the group
     if form == "positional":
-        ns = {"_eface": fast._eface.py_func, "_nan": np.nan,
+        ns = {"_eface": python_eface(), "_nan": np.nan,
               "_EXTRA_0": lambda r, p0, p1, p2, c, rad, ron: force(r, (p0, p1)),
               "_EEXTRA_0": lambda r, p0, p1, p2, c, rad, ron: energy(r, (p0, p1))}
         exec(fast._outputs_source((), "face", (0,)), ns)  # noqa: S102 - the generated dispatch
         e, fs, vir = ns["_face_out"](len(fast.COMPILED_STYLES), fast.SHIFT, X, np.zeros(z.size), groups, 0, 2, -1,
                                      coord, k, b, 0.0, rc, 0.0, z.size)
     else:
-        ns = {"_eface": fast._eface.py_func, "_nan": np.nan, "_VEXTRA_0": fast._vector_args(force),
+        ns = {"_eface": python_eface(), "_nan": np.nan, "_VEXTRA_0": fast._vector_args(force),
               "_VEENERGY_0": fast._vector_args(energy)}
         exec(fast._vector_outputs_source((fast.VECTOR_MARK + "kernel\ndef energy(",)), ns)  # noqa: S102
         e, fs, vir = ns["_vector_out"](0, X, np.zeros(z.size), groups, 0, 2, -1, coord, np.array([k, b]), rc,

@@ -350,20 +350,27 @@ def test_compiled_lepton_equals_numpy_bit_for_bit(monkeypatch, thermo):
     assert_same_results(numpy_res, compiled)  # every output, bit for bit
 
 
+# wall/lepton faces with 4 and 5 parameters (their parameters as an array) and one of 2 (p0, p1)
+LEPTON_FOUR = ("{coord: EDGE, cutoff: 2.0, expression: 'a*(r-rc)^2 + b*exp(-r/l)', "
+               "params: {a: 20.0, rc: 2.0, b: 3.0, l: 0.4}}")
+LEPTON_FIVE = ("{coord: EDGE, cutoff: 1.5, expression: 'k*(r-c)^2*(1+q*r) + s*exp(-r/w)', "
+               "params: {k: 30.0, c: 1.5, q: 0.2, s: 1.0, w: 0.3}}")
+LEPTON_TWO = "{coord: EDGE, cutoff: 1.0, expression: 'k*(r-rc)^2', params: {k: 5.0, rc: 1.0}}"
+LEPTON_ARRAY_WALLS = (f"w: {{style: lepton, units: box, energy: true, zlo: {LEPTON_FOUR}, zhi: {LEPTON_FIVE}}}\n"
+                      f"h: {{style: lepton, units: box, energy: true, zlo: {LEPTON_TWO}}}\n")
+
+
 @pytest.mark.slow
 def test_compiled_lepton_sweep_sampled_every_step_equals_numpy(tmp_path, monkeypatch):
-    """A 3-case sweep of an expression parameter (eps of an lj93 spelled out, 2 parameters, and
-    b of a 4-parameter expression whose parameters go as an array), sampled every step: the
-    kernel records every sample (energies from the generated E(r) - E(rc)) and the trajectories
-    and outputs equal the NumPy engine's bit for bit, differing between the cases."""
-    lj = "{coord: EDGE, cutoff: 2.5, expression: 'eps*(2/15*(sig/r)^9-(sig/r)^3)', params: {eps: 1.0, sig: 1.0}}"
-    four = ("{coord: EDGE, cutoff: 2.0, expression: 'a*(r-rc)^2 + b*exp(-r/l)', "
-            "params: {a: 20.0, rc: 2.0, b: 3.0, l: 0.4}}")
-    text = slit(f"w: {{style: lepton, units: box, energy: true, virial: true, zlo: {lj}, zhi: {four}}}\n",
-                steps=200, thermo=1,
+    """A 3-case sweep of expression parameters (k of a 2-parameter expression, p0 and p1, and b of a
+    4-parameter expression whose parameters go as an array), sampled every step: the kernel
+    records every sample (energies from the generated E(r) - E(rc)) and the trajectories and
+    outputs equal the NumPy engine's bit for bit, differing between the cases. (The walls of
+    test_compiled_lepton_with_more_than_three_parameters_equals_numpy: one kernel for both.)"""
+    text = slit(LEPTON_ARRAY_WALLS.replace("energy: true", "energy: true, virial: true"), steps=200, thermo=1,
                 extra="sweep:\n  zip:\n    dim: strength\n    params:\n"
-                      "      eps: {path: walls.w.zlo.params.eps, values: [0.5, 1.0, 2.0]}\n"
-                      "      b: {path: walls.w.zhi.params.b, values: [1.0, 3.0, 5.0]}\n"
+                      "      k: {path: walls.h.zlo.params.k, values: [2.0, 5.0, 8.0]}\n"
+                      "      b: {path: walls.w.zlo.params.b, values: [1.0, 3.0, 5.0]}\n"
                 ).replace("etot]", "etot, press]")
     plan = load_plan(write(tmp_path, text))
     cases = [build_case(c.config, c.seed_key) for c in plan.cases]
@@ -371,7 +378,9 @@ def test_compiled_lepton_sweep_sampled_every_step_equals_numpy(tmp_path, monkeyp
     (compiled, fast), (numpy_res, none) = lepton_both_ways(monkeypatch, cases)
     assert none is None and fast is not None and fast.fallbacks == 0 and fast.sampled_calls > 0
     assert fast.compiled_chunks == 200  # every sample from the kernel
-    assert all(n.status == "ok" and np.all(n.data["wall_force"][1:] != 0.0) for n in numpy_res)
+    for n in numpy_res:  # every face acts (h's short cut-off: at some steps); wall_energy per fix
+        assert n.status == "ok" and np.all(n.data["wall_force"][1:, :2] != 0.0)
+        assert np.any(n.data["wall_force"][1:, 2] != 0.0) and np.any(n.data["wall_energy"][1:, 1] != 0.0)
     assert_same_results(numpy_res, compiled)
     assert len({float(r.data["wall_energy"][1:].sum()) for r in numpy_res}) == 3
 
@@ -546,13 +555,7 @@ def test_compiled_lepton_with_more_than_three_parameters_equals_numpy(tmp_path, 
     """Expressions with more than 3 parameters run compiled with their parameters as a per-face
     row of an array (swept per case), beside an expression of 2 parameters (p0, p1): the
     trajectories and outputs equal the NumPy engine's bit for bit, and differ between cases."""
-    four = ("{coord: EDGE, cutoff: 2.0, expression: 'a*(r-rc)^2 + b*exp(-r/l)', "
-            "params: {a: 20.0, rc: 2.0, b: 3.0, l: 0.4}}")
-    five = ("{coord: EDGE, cutoff: 1.5, expression: 'k*(r-c)^2*(1+q*r) + s*exp(-r/w)', "
-            "params: {k: 30.0, c: 1.5, q: 0.2, s: 1.0, w: 0.3}}")
-    two = "{coord: EDGE, cutoff: 1.0, expression: 'k*(r-rc)^2', params: {k: 5.0, rc: 1.0}}"
-    text = slit(f"w: {{style: lepton, units: box, energy: true, zlo: {four}, zhi: {five}}}\n"
-                f"h: {{style: lepton, units: box, zlo: {two}}}\n", steps=300,
+    text = slit(LEPTON_ARRAY_WALLS, steps=300,
                 extra="sweep:\n  product:\n    b: {path: walls.w.zlo.params.b, values: [1.0, 4.0]}\n")
     plan = load_plan(write(tmp_path, text))
     cases = [build_case(c.config, c.seed_key) for c in plan.cases]

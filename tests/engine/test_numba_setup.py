@@ -45,13 +45,22 @@ print(json.dumps(out))
 """
 
 
-def probe(setup: str, dot: str = "") -> dict:
+def start(setup: str, dot: str = "") -> subprocess.Popen:
+    """A probe process (its answer: `answer`)."""
     env = {**os.environ, "WALLBATCH_NUMBA": "1", "WALLBATCH_THREADS": "1",
            "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
-    proc = subprocess.run([sys.executable, "-c", PROBE, setup, dot or "-"], capture_output=True, text=True,
-                          env=env, timeout=900)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return json.loads(proc.stdout.splitlines()[-1])
+    return subprocess.Popen([sys.executable, "-c", PROBE, setup, dot or "-"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
+
+
+def answer(proc: subprocess.Popen) -> dict:
+    out, err = proc.communicate(timeout=900)
+    assert proc.returncode == 0, err[-3000:]
+    return json.loads(out.splitlines()[-1])
+
+
+def probe(setup: str, dot: str = "") -> dict:
+    return answer(start(setup, dot))
 
 
 def test_a_compiled_run_imports_no_scipy_linalg_and_a_later_blas_use_still_works():
@@ -63,7 +72,8 @@ def test_a_compiled_run_imports_no_scipy_linalg_and_a_later_blas_use_still_works
 
 
 def test_the_results_are_the_bits_of_numbas_own_set_up():
-    ours, own = probe("wallbatch"), probe("numba-own")
+    procs = start("wallbatch"), start("numba-own")  # two processes at once (two cores)
+    ours, own = (answer(p) for p in procs)
     assert own["scipy_linalg"] is True and own["have_blas"] is True  # the probe ran as numba has it
     assert ours["scipy_linalg"] is False
     assert len(ours["data"]["etot"]) == 5

@@ -10,7 +10,7 @@ import xarray as xr
 from scipy import stats as sps
 
 from wallbatch.api import load, run
-from wallbatch.batch.runner import build_cases, run_config
+from wallbatch.batch.runner import build_cases, run_config, run_plan
 from wallbatch.config.models import config_from_dict, load_config_text
 from wallbatch.config.source import ConfigError
 from wallbatch.engine.engine import Engine, run_cases
@@ -149,17 +149,21 @@ def test_boltzmann_profile_between_harmonic_walls_chi_square():
     thermostat never forgets its atoms' energies (each atom's motion is periodic), so the error
     bars come from independent replicas (positions and velocities drawn anew), not from the time
     series. Chi-square over the bins; the same data against a flat profile and against the profile
-    at T = 1.3 must fail."""
+    at T = 1.3 must fail. The replicas are one sweep (a zip of seed and start positions), so they
+    run as one batch, each case with its own velocity stream."""
     n, reps = 1000, 16
     prof = {"axis": "z", "bins": 20, "every": 20, "repeat": 10, "freq": 200, "quantities": ["density/number"]}
-    profiles = []
-    for r in range(reps):
-        cfg = ideal_gas(n, 4000, HARMONIC, prof, thermo=200, seed=100 + r)
-        cfg["atoms"][0]["create"] = {"positions": boltzmann_positions(n, 2026 + r)}
-        ds = run(cfg)
-        assert ds.status.item() == "ok"
-        profiles.append(ds["profile_across_density_number_mean"].values)
-    profiles = np.array(profiles)
+    cfg = ideal_gas(n, 4000, HARMONIC, prof, thermo=200)
+    cfg["sweep"] = {"zip": {"dim": "replica", "params": {
+        "seed": {"path": "seed", "values": [100 + r for r in range(reps)]},
+        "start": {"path": "atoms.0.create.positions",
+                  "values": [boltzmann_positions(n, 2026 + r) for r in range(reps)]}}}}
+    cfg["atoms"][0]["create"] = {"positions": boltzmann_positions(n, 2026)}
+    res = run_plan(load(cfg), progress=False, as_xarray=False)  # plain results: "start" is no coordinate
+    assert res.dims["replica"] == reps and (res["status"].data == "ok").all()
+    mean = res["profile_across_density_number_mean"]
+    assert mean.dims == ("replica", "across_bin")
+    profiles = mean.data
     mean = profiles.mean(axis=0)
     err = profiles.std(axis=0, ddof=1) / np.sqrt(reps)
 

@@ -407,28 +407,81 @@ if njit is not None:
 
 
     @inline
-    def _eface(force, energy, use_radius, X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n, e0):
-        """The outputs of one soft face over a case's n atoms (walls.SoftWallKernel.apply with
-        outputs): (sum of E(r) - e0, sum of side F(r): the force on the wall, sum of F(r) r: the
-        virial), each summed atom by atom in atom order as np.bincount does. `force` and `energy`
-        take the registry's force arguments (r, p0, p1, p2, rc, radius, r_on), whatever p0, p1, p2
-        are (floats; a wall/lepton face's parameter array; a wall/table face's rows): E is the
-        energy under the cut-off mode (e0 = 0) or an unshifted energy whose offset e0 at the
-        cut-off the caller computes once (wall/lepton: E(rc); wall/table: E_lin(rc))."""
-        sidef = float(side)
-        sign = -sidef
+    def _eloop(at, contact, force, energy, use_radius, src, RAD, nslot, n, p0, p1, p2, cut, ron, e0):
+        """The outputs of one soft face or wall/region fix over a case's n atoms, from its contacts
+        slot by slot (a flat face: one slot), as walls.SoftWallKernel.apply and
+        RegionWallKernel.apply sum them with np.bincount, contact by contact in (slot, atom)
+        order: (sum of E(r) - e0, sum of (F(r) / q) c over the contacts: the force on the wall
+        x, y, z, sum of F(r) r: the virial). `at(src, j, i, cut)`: is atom i a contact in slot j;
+        `contact(src, j, i)` -> (r, q, c0, c1, c2) of a contact, read from the geometry's data src
+        (a flat face: `_flat_at`, `_flat_contact`, q = 1, c = (side, 0, 0); a region:
+        `_region_at`, `_region_contact`, q = r, c = its delta). `force` and `energy` take the
+        registry's force arguments (r, p0, p1, p2, rc, radius, r_on), whatever p0, p1, p2 are
+        (floats; a wall/lepton face's parameter array; a wall/table face's rows): E is the energy
+        under the cut-off mode (e0 = 0) or an unshifted energy whose offset e0 at the cut-off the
+        caller computes once (wall/lepton: E(rc); wall/table: E_lin(rc)). All are literals at
+        every call, so each gets its own loop."""
         e = 0.0
-        fs = 0.0
+        f0 = 0.0
+        f1 = 0.0
+        f2 = 0.0
         vir = 0.0
-        for i in range(n):
-            r = (X[d, i] - coord) * sign
-            if r < cut and groups[g, i] != 0:
-                rad = RAD[i] if use_radius else 0.0
-                fi = force(r, p0, p1, p2, cut, rad, ron)
-                e += energy(r, p0, p1, p2, cut, rad, ron) - e0
-                fs += sidef * fi
-                vir += fi * r
+        for j in range(nslot):
+            for i in range(n):
+                if at(src, j, i, cut):
+                    r, q, c0, c1, c2 = contact(src, j, i)
+                    rad = RAD[i] if use_radius else 0.0
+                    fi = force(r, p0, p1, p2, cut, rad, ron)
+                    e += energy(r, p0, p1, p2, cut, rad, ron) - e0
+                    s = fi / q
+                    f0 += s * c0
+                    f1 += s * c1
+                    f2 += s * c2
+                    vir += fi * r
+        return e, f0, f1, f2, vir
+
+    @inline
+    def _flat_at(src, j, i, cut):
+        """Whether atom i is a contact of a flat face (`_eloop`; src = X, groups, g, d, side, coord):
+        its distance into the allowed region r < rc and the atom in the group."""
+        X, groups, g, d, sidef, coord = src
+        return (X[d, i] - coord) * -sidef < cut and groups[g, i] != 0  # the group read only within rc
+
+    @inline
+    def _flat_contact(src, j, i):
+        """A flat face's contact with atom i (`_eloop`): r (x - coord on a lo face, coord - x on a
+        hi face, exactly), and the force on the wall per unit F(r): side along its axis (only the
+        first component is reported)."""
+        X, groups, g, d, sidef, coord = src
+        return (X[d, i] - coord) * -sidef, 1.0, sidef, 0.0, 0.0
+
+    @inline
+    def _region_at(RB, j, i, cut):
+        """Whether atom i has a contact in slot j of a wall/region fix's RB (`_region_contacts`)."""
+        return RB[j, 0, i] != 0.0
+
+    @inline
+    def _region_contact(RB, j, i):
+        """A wall/region contact (`_eloop`): r, and the force on the wall per unit F(r): delta / r."""
+        r = RB[j, 1, i]
+        return r, r, RB[j, 2, i], RB[j, 3, i], RB[j, 4, i]
+
+    @inline
+    def _eface(force, energy, use_radius, X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n, e0):
+        """The outputs of one flat soft face over a case's n atoms (walls.SoftWallKernel.apply with
+        outputs), the contacts loop `_eloop` on the face's own contacts: (sum of E(r) - e0, sum of
+        side F(r): the force on the wall, sum of F(r) r: the virial)."""
+        e, fs, _f1, _f2, vir = _eloop(_flat_at, _flat_contact, force, energy, use_radius,
+                                      (X, groups, g, d, float(side), coord), RAD, 1, n, p0, p1, p2, cut, ron, e0)
         return e, fs, vir
+
+    @inline
+    def _rout(force, energy, use_radius, RAD, RB, nslot, n, p0, p1, p2, cut, ron):
+        """The outputs of a wall/region fix from a case's contacts in RB (all n atoms, slot by
+        slot: RegionGeom.contacts' order), the contacts loop `_eloop`: (energy, sum of
+        (F(r)/r) delta x, y, z, sum of F(r) r)."""
+        return _eloop(_region_at, _region_contact, force, energy, use_radius, RB, RAD, nslot, n, p0, p1, p2, cut,
+                      ron, 0.0)
 
     def _sample_faces(c, si, X, RAD, groups, sf_meta, sf_val, tb, lp, out):
         """Every soft face's outputs (`_eface`, through the scene's `_face_out` dispatch; wall/table
@@ -449,30 +502,6 @@ if njit is not None:
             out[k, 0] = e
             out[k, 1] = fs
             out[k, 2] = vir
-
-    @inline
-    def _rout(force, energy, use_radius, RAD, RB, nslot, n, p0, p1, p2, cut, ron):
-        """The outputs of a wall/region fix from a case's contacts in RB (all n atoms, slot by
-        slot: RegionGeom.contacts' order), as RegionWallKernel.apply sums them with np.bincount:
-        (energy, sum of (F(r)/r) delta x, y, z, sum of F(r) r)."""
-        e = 0.0
-        f0 = 0.0
-        f1 = 0.0
-        f2 = 0.0
-        vir = 0.0
-        for j in range(nslot):
-            for i in range(n):
-                if RB[j, 0, i] != 0.0:
-                    r = RB[j, 1, i]
-                    rad = RAD[i] if use_radius else 0.0
-                    fi = force(r, p0, p1, p2, cut, rad, ron)
-                    s = fi / r
-                    e += energy(r, p0, p1, p2, cut, rad, ron)
-                    f0 += s * RB[j, 2, i]
-                    f1 += s * RB[j, 3, i]
-                    f2 += s * RB[j, 4, i]
-                    vir += fi * r
-        return e, f0, f1, f2, vir
 
     def _sample_regions(c, X, RAD, groups, rg_meta, rg_geo, rg_val, RB, out):
         """Every wall/region fix's outputs of case c at the current positions into out[k] =
@@ -527,7 +556,10 @@ if njit is not None:
         time, their marks are packed into the bits of one word (8 bytes at once: the byte-to-bit
         multiply) and only the marked atoms are visited, lowest bit first (atom order), each with
         its table lookup. (Faster than a branch per atom, a branch-free lookup of every atom and
-        a list of the atoms within the cut-off: benchmarks/table.py.)"""
+        a list of the atoms within the cut-off: benchmarks/table.py.) So it is a loop of its own,
+        not `_face` (whose forces are branch-free arithmetic); and it calls the lookups directly
+        rather than the outputs' `_table_force` on a tuple of rows, which measured ~9% slower
+        (spline, sampled every step) and a longer compile (benchmarks/face_outputs.py)."""
         sidef = float(side)
         sign = -sidef
         n2 = grid.shape[0] - 2
