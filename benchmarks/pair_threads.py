@@ -8,7 +8,10 @@ shifted, neighbor skin 0.3 checked every step, lj93 walls at the z edges, dt 0.0
 every steps / 10. Each wallbatch run is a new process (WALLBATCH_THREADS=k, NUMBA_NUM_THREADS=k)
 that warms its kernels on a 10-step run, then times `Engine([case]).run()`; the one- and
 two-thread runs alternate (`--repeat` rounds, best of each), and the final kinetic and potential
-energy of both must be the same bits. LAMMPS runs the scene exported by wallbatch
+energy of both must be the same bits. Each run also reports its CPU seconds, its page faults and
+the CPU seconds the rest of the machine used meanwhile (from /proc/stat: another process on a
+core slows the threaded run most, and after a starved chunk the engine runs 4 chunks on one
+thread); `--show-runs` prints every run. LAMMPS runs the scene exported by wallbatch
 (`wallbatch export-lammps`, LAMMPS's default neighbor settings: every 1 delay 0 check yes), serial
 and with `mpiexec -np 2`, its "Loop time" timed. The machine may be shared: compare within one run.
 """
@@ -29,32 +32,43 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 CHILD = """
-import sys, time
+import os, resource, sys, time
 sys.path.insert(0, {here!r})
 import common
 from wallbatch.engine.engine import Engine
 n, steps = {n}, {steps}
 Engine([common.build(common.lj_fcc_slit(n, steps=10, thermo=10))]).run()
 case = common.build(common.lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10)))
+def busy():
+    try:
+        v = [int(t) for t in open("/proc/stat").readline().split()[1:]]
+    except OSError:
+        return 0.0
+    return (sum(v) - v[3] - v[4] - (v[7] if len(v) > 7 else 0)) / os.sysconf("SC_CLK_TCK")
+b0, r0 = busy(), resource.getrusage(resource.RUSAGE_SELF)
 t0 = time.perf_counter()
 eng = Engine([case])
 res = eng.run()[0]
 sec = time.perf_counter() - t0
+b1, r1 = busy(), resource.getrusage(resource.RUSAGE_SELF)
+cpu = r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime
 fast = eng.fast
 print("RESULT", sec, res.status, case.natoms, getattr(fast, "threaded_chunks", 0),
-      float(res.data["ke"][-1]).hex(), float(res.data["pe"][-1]).hex())
+      float(res.data["ke"][-1]).hex(), float(res.data["pe"][-1]).hex(), cpu, max(0.0, b1 - b0 - cpu),
+      r1.ru_minflt - r0.ru_minflt)
 """
 
 
-def wallbatch_run(n: int, steps: int, threads: int) -> tuple[float, int, int, str]:
-    """(seconds, atoms, chunks run over threads, final ke and pe as hex) of one child process."""
+def wallbatch_run(n: int, steps: int, threads: int) -> tuple[float, int, int, str, float, float, int]:
+    """(seconds, atoms, chunks run over threads, final ke and pe as hex, CPU seconds, other
+    processes' CPU seconds meanwhile, page faults) of one child process."""
     env = dict(os.environ, WALLBATCH_THREADS=str(threads), NUMBA_NUM_THREADS=str(threads))
     out = subprocess.run([sys.executable, "-c", CHILD.format(here=str(HERE), n=n, steps=steps)], env=env,
                          capture_output=True, text=True, check=True).stdout
     f = next(ln.split()[1:] for ln in out.splitlines() if ln.startswith("RESULT"))
     if f[1] != "ok":
         raise RuntimeError(f"wallbatch run: {f[1]}")
-    return float(f[0]), int(f[2]), int(f[3]), f"{f[4]} {f[5]}"
+    return float(f[0]), int(f[2]), int(f[3]), f"{f[4]} {f[5]}", float(f[6]), float(f[7]), int(f[8])
 
 
 def lmp_binary() -> str | None:
@@ -94,6 +108,7 @@ def main() -> None:
     ap.add_argument("--atom-steps", type=float, default=5e6, help="atoms x steps of each run")
     ap.add_argument("--repeat", type=int, default=2, help="rounds of 1 and 2 threads, interleaved (best of each)")
     ap.add_argument("--no-lammps", action="store_true")
+    ap.add_argument("--show-runs", action="store_true", help="print every run (seconds, CPU, others' CPU, faults)")
     args = ap.parse_args()
     load = os.getloadavg()[0]
     print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, load {load:.2f}")
@@ -105,12 +120,16 @@ def main() -> None:
         best: dict[int, float] = {}
         bits: dict[int, set[str]] = {1: set(), 2: set()}
         atoms = threaded = 0
+        runs: list[str] = []
         for _ in range(args.repeat):
             for k in (1, 2):
-                sec, atoms, thr, b = wallbatch_run(n, steps, k)
+                sec, atoms, thr, b, cpu, others, faults = wallbatch_run(n, steps, k)
                 best[k] = min(best.get(k, sec), sec)
                 bits[k].add(b)
                 threaded = max(threaded, thr) if k == 2 else threaded
+                runs.append(f"  N {atoms}, {k} thread{'s' if k > 1 else ''}: {sec:.3f} s, CPU {cpu:.3f} s, "
+                            f"other processes' CPU {others:.2f} s, {faults} page faults"
+                            + (f", {thr} chunks over threads" if k > 1 else ""))
         same = "yes" if len(bits[1] | bits[2]) == 1 else "NO"
         lmp = {} if args.no_lammps else lammps_runs(n, steps, args.repeat)
         l1, l2 = lmp.get(1), lmp.get(2)
@@ -119,6 +138,8 @@ def main() -> None:
         print(f"| {atoms} | {steps} | {best[1]:.2f} | {best[2]:.2f} | {best[1] / best[2]:.2f}x | {same} "
               f"| {f(l1, '.2f')} | {f(l2, '.2f')} | {f(None if l1 is None or l2 is None else l1 / l2, '.2f')}"
               f"{'' if l2 is None else 'x'} | {f(vs, '.2f')}{'' if vs is None else 'x'} |")
+        if args.show_runs:
+            print("\n".join(runs))
         if threaded == 0:
             print(f"  (N = {atoms}: the two-thread run did not split its chunks)")
 

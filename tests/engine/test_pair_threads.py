@@ -280,3 +280,52 @@ def test_pair_compute_of_one_large_case_on_threads(monkeypatch):
     for n in (2, 3):
         for a, b in zip(got[n], got[1]):
             np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("parts", [2, 3])
+def test_row_split_logs_exactly_what_its_parts_write(parts):
+    """RowSplit sizes each part's log to the additions its rows log (counted in `_mixed`: partners
+    and owners whose first part is another), so a pass fills every part's log exactly, from both
+    ends (q up from logs[p], qd down from logs[p+1], meeting), whatever the side cut; the count is
+    the one of the firstp rule recomputed here in NumPy; part 0 logs nothing."""
+    x, lo, length, per = liquid()
+    owner, first, neigh, m = one_thread_list(x, lo, length, per)
+    f1 = np.zeros_like(x)
+    pair_compiled.forces_case(x, f1, owner, first, neigh, E24, E4, SIG2, RC2, OFF, length, per, False)
+    split = pair_compiled.RowSplit(owner, first, neigh, parts)
+    rowpart = np.searchsorted(split.rb, np.arange(len(owner)), side="right") - 1
+    i, j = np.repeat(owner, np.diff(first)), neigh[:m]
+    want = np.bincount(np.repeat(rowpart, np.diff(first))[split.firstp[j] != np.repeat(rowpart, np.diff(first))],
+                       minlength=parts) + np.bincount(rowpart[split.firstp[owner] != rowpart], minlength=parts)
+    np.testing.assert_array_equal(np.diff(split.logs), want)
+    assert want[0] == 0 and (want[1:] > 0).all() and want.sum() < m // 2  # logs far shorter than the pairs
+    for cut in (0, len(x) // 2, len(x)):
+        f2 = np.zeros_like(x)
+        pair_compiled.forces_threaded(x, f2, owner, first, neigh, split, E24, E4, SIG2, RC2, OFF, length, per,
+                                      cut=cut)
+        np.testing.assert_array_equal(split.ends, split.downs)  # each part's log written end to end
+        np.testing.assert_array_equal(f2, f1)
+
+
+def test_row_splits_of_one_workspace_share_its_log_arrays():
+    """Splits made with a Workspace's `buffer` take their logs and row outputs from it (kept
+    arrays: no fresh pages per split), one after another on lists of moved atoms, and each pass
+    still gives the one-thread forces, energy and virial bit for bit."""
+    x, lo, length, per = liquid()
+    ws = pair_compiled.Workspace()
+    crew = ws.crew(2)
+    seen = set()
+    for step in range(3):
+        xs = x + 0.05 * step * np.random.default_rng(step).normal(size=x.shape)
+        owner, first, neigh, m = one_thread_list(xs, lo, length, per)
+        f1 = np.zeros_like(xs)
+        e1, w1 = pair_compiled.forces_case(xs, f1, owner, first, neigh, E24, E4, SIG2, RC2, OFF, length, per, True)
+        split = pair_compiled.RowSplit(owner, first, neigh, 2, crew, buffer=ws.buffer)
+        seen.add((id(split.lj), id(split.lv)))
+        f2 = np.zeros_like(xs)
+        _, e2, w2 = pair_compiled.forces_threaded(xs, f2, owner, first, neigh, split, E24, E4, SIG2, RC2, OFF,
+                                                  length, per, crew, outputs=True)
+        np.testing.assert_array_equal(f2, f1)
+        assert (e2, w2) == (e1, w1)
+        assert split.row_outputs() is ws.buffer("rowew", (len(owner), 2), np.float64)
+    assert len(seen) == 1 and split.lj is ws.buffer("log_j", split.lj.shape, np.int32)

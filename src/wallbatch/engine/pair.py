@@ -342,7 +342,8 @@ class PairLJCut:
             energy[0], virial[0], split = self._nb.forces_case_threaded(
                 x[0], out[0], self._owner[0], self._first[0], self._neigh[0], 24.0 * float(eps[0]),
                 4.0 * float(eps[0]), float(sig[0] * sig[0]), float(rc[0] * rc[0]), float(offset[0]), self.length,
-                self.periodic, bool(outputs), parts, None if held is None else held[1], self.workspace().crew(parts))
+                self.periodic, bool(outputs), parts, None if held is None else held[1], self.workspace().crew(parts),
+                self.workspace().buffer)
             self._split = (self.builds, split)  # kept while no build changes the list
         else:
             self._nb.forces(x, out, self._owner, self._first, self._neigh, eps, sig * sig, rc * rc, offset,

@@ -582,18 +582,21 @@ if njit is not None:
         return esum, wsum
 
     @jit
-    def _mixed(fr: np.ndarray, nc: np.ndarray, s_lo: int, s_hi: int, rb: np.ndarray, firstp: np.ndarray,
-               mixed: np.ndarray) -> None:
+    def _mixed(fr: np.ndarray, nc: np.ndarray, ow: np.ndarray, s_lo: int, s_hi: int, rb: np.ndarray,
+               firstp: np.ndarray, mixed: np.ndarray, room: np.ndarray) -> None:
         """mixed[s] = some partner of row s (s_lo <= s < s_hi) is first touched by a part before the
-        row's own (rows rb[p] .. rb[p+1] - 1 are part p's)."""
+        row's own (rows rb[p] .. rb[p+1] - 1 are part p's); room[p] += the additions part p's rows
+        here log in `forces_part` (partners and owners whose first part is another): its exact
+        log length."""
         p = 0
         for s in range(s_lo, s_hi):
             while rb[p + 1] <= s:
                 p += 1
             m = 0
             for k in range(fr[s], fr[s + 1]):
-                m |= firstp[nc[k]] != p
-            mixed[s] = m
+                m += firstp[nc[k]] != p
+            mixed[s] = m > 0
+            room[p] += m + (firstp[ow[s]] != p)
 
     @jit
     def _replay_atoms(fc: np.ndarray, lj: np.ndarray, lv: np.ndarray, starts: np.ndarray, ends: np.ndarray,
@@ -837,12 +840,14 @@ def case_parts(natoms: int) -> int:
 def forces_case_threaded(x: np.ndarray, f: np.ndarray, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray,
                          e24: float, e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray,
                          periodic: np.ndarray, outputs: bool, parts: int, split: "RowSplit | None" = None,
-                         run: Callable[[list], list] = threads._in_threads) -> tuple[float, float, "RowSplit"]:
+                         run: Callable[[list], list] = threads._in_threads,
+                         buffer: "Buffer | None" = None) -> tuple[float, float, "RowSplit"]:
     """`forces_case` over `parts` threads (`RowSplit`, `forces_threaded`, the logs replayed by the
     threads, each a run of atoms; `run`: threads._in_threads or a `Crew`): the same bits; returns
-    (energy, virial, the split), the split to pass again while the list stays the same."""
+    (energy, virial, the split), the split to pass again while the list stays the same; `buffer`:
+    the split's scratch arrays (`RowSplit`; default fresh ones)."""
     if split is None or len(split.rb) != parts + 1 or len(split.mixed) != len(owner):
-        split = RowSplit(owner, first, neigh, parts, run)
+        split = RowSplit(owner, first, neigh, parts, run, buffer=_fresh if buffer is None else buffer)
     N = len(f)
     cut = [N * p // parts for p in range(parts + 1)]
     _, e, w = forces_threaded(x, f, owner, first, neigh, split, e24, e4, s2c, rcut2, off, length, periodic, run,
@@ -950,13 +955,15 @@ _NO_ROWS = np.empty((0, 2))
 class RowSplit:
     """The parts of a list's threaded force pass: rows rb[p] .. rb[p+1] - 1 for part p (about equal
     pairs, or `build_threaded`'s parts with its marks); firstp[j] = the first part whose rows touch atom j (owner or partner), the one that
-    adds into f[j] at once: a later part logs its additions to j (lj, lv; part p's from logs[p],
-    room for all of its rows' additions, pages touched only as written) for `replay`. `reuse`: an
-    earlier split whose log arrays this one may take (it must not be used after)."""
+    adds into f[j] at once: a later part logs its additions to j (lj, lv; part p's at logs[p] ..
+    logs[p+1] - 1, exactly as many as its rows log) for `replay`. `reuse`: an earlier split whose
+    arrays this one may take (it must not be used after); `buffer`: where the log arrays and the
+    rows' outputs come from when not reused (scratch, consumed within a pass: a `Workspace`'s
+    kept arrays may serve every split of one pair)."""
 
     def __init__(self, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int,
                  run: Callable[[list], list] = threads._in_threads, marks: np.ndarray | None = None,
-                 rows: np.ndarray | None = None, reuse: "RowSplit | None" = None):
+                 rows: np.ndarray | None = None, reuse: "RowSplit | None" = None, buffer: "Buffer" = _fresh):
         nrow = len(owner)
         total = int(first[nrow])
         if marks is None or rows is None or rows[0] < 0:  # parts of about equal pairs, marked here
@@ -976,16 +983,18 @@ class RowSplit:
         self.mixed = reuse.mixed if keep else np.empty(nrow, np.uint8)
         self.mixed[:rb[1]] = 0  # rows of part 0 have none; the others' rows shared out
         cut = [int(rb[1]) + (nrow - int(rb[1])) * p // parts for p in range(parts + 1)]
-        run([lambda p=p: _mixed(first, neigh, cut[p], cut[p + 1], rb, self.firstp, self.mixed) for p in range(parts)])
-        room = (first[rb[1:]] - first[rb[:-1]]) + (rb[1:] - rb[:-1])
-        room[0] = 0  # part 0 is the first to touch every atom it touches
+        rooms = np.zeros((parts, parts), np.int64)  # per thread: each part's logged additions
+        run([lambda p=p: _mixed(first, neigh, owner, cut[p], cut[p + 1], rb, self.firstp, self.mixed, rooms[p])
+             for p in range(parts)])
+        room = rooms.sum(axis=0)  # exact: part 0 logs nothing, the others only their mixed rows' additions
         self.logs = np.concatenate(([0], np.cumsum(room))).astype(np.int64)
         need = int(self.logs[-1])
         if reuse is not None and len(reuse.lj) >= need:  # the last split's logs: their pages are mapped
-            self.lj, self.lv = reuse.lj, reuse.lv  # (a fresh array of this size is a fresh mmap each time)
-        else:
-            self.lj = np.empty(need + need // 8, np.int32)  # room for the list to grow a little
-            self.lv = np.empty((len(self.lj), 3))
+            self.lj, self.lv = reuse.lj, reuse.lv
+        else:  # kept arrays of a size class (`buffer`): a fresh array is a fresh mapping whose pages
+            size = 1 << max(12, (need + need // 8).bit_length())  # fault on first touch (~10-60 us each)
+            self.lj, self.lv = buffer("log_j", (size,), np.int32), buffer("log_v", (size, 3), np.float64)
+        self._buffer = buffer
         self._rowew = None if reuse is None or reuse._rowew is None or len(reuse._rowew) != nrow else reuse._rowew
 
     def replay(self, f: np.ndarray, a_lo: int, a_hi: int) -> None:
@@ -997,7 +1006,7 @@ class RowSplit:
     def row_outputs(self) -> np.ndarray:
         """The (rows, 2) array the parts write each row's energy and virial sums into (kept)."""
         if self._rowew is None:
-            self._rowew = np.empty((len(self.mixed), 2))
+            self._rowew = self._buffer("rowew", (len(self.mixed), 2), np.float64)
         return self._rowew
 
 
@@ -1189,6 +1198,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
     split = held.get("split")  # the starting list's, if the caller kept it
     builds = 0
     built = False  # the list is this chunk's build: its marks and parts serve RowSplit
+    fast = None  # each part's least CPU time of a pass on this chunk's latest list (`_rebalance`)
     marks, rows = buffer("marks", (parts, N), np.uint8), np.empty(parts + 1, np.int64)
     shares = held.get("shares")
     if shares is None or len(shares) != parts + 1:
@@ -1212,17 +1222,19 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
             xref[:] = x
             builds += 1
             split, old = None, split
-            built = True
+            built, fast = True, None
         if split is None:
-            split = RowSplit(owner, first, neigh, parts, crew, *((marks, rows) if built else (None, None)), reuse=old)
+            split = RowSplit(owner, first, neigh, parts, crew, *((marks, rows) if built else (None, None)), reuse=old,
+                             buffer=buffer)
         last = sample and step == nsteps - 1  # the sample's pair pass: also the energy and virial
         cpu, e, w = forces_threaded(x, f, owner, first, neigh, split, *lj, length, per, crew, replay=False,
                                     outputs=last, cut=runs[1].start if parts == 2 else N)
         pending = split  # its logs are replayed by tail_pre, each part its own atoms
         if last:
             a["ew"][0], a["ew"][1] = e, w
-        if built and rows[0] >= 0 and cpu.min() > 0:  # next build: parts of about equal force time
-            shares = _rebalance(shares, rows / N, cpu)
+        if built and rows[0] >= 0 and cpu.min() > 0:  # next build: parts of about equal force time, from
+            fast = cpu if fast is None else np.minimum(fast, cpu)  # each part's quickest pass on this list
+            shares = _rebalance(shares, rows / N, fast)  # (a pass slowed by other work would skew it)
         if len(tails) == parts:  # the rest of this step and the start of the next, atoms in parts
             got = crew([lambda p=p: tail_pre(p, step) for p in range(parts)])
         else:  # wall/flow: the rest of the step on all atoms, then the next start in parts
