@@ -227,10 +227,10 @@ def _region_dispatch_source(pairs: tuple[tuple[int, int], ...]) -> str:
 
 
 # the two output dispatches of sampled chunks (`_outputs_source`): function, its arguments after
-# (style, mode) (passed on to the loop as they are), the output loop, the number of outputs, and
-# whether the loop takes the face's energy offset e0 as its last argument (`_eface`)
-_OUTPUTS = {"face": ("_face_out", "X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n", "_eface", 3, True),
-            "region": ("_region_out", "RAD, RB, nslot, n, p0, p1, p2, cut, ron", "_rout", 5, False)}
+# (style, mode) (passed on to the loop as they are, then the energy offset e0), the output loop,
+# the number of outputs
+_OUTPUTS = {"face": ("_face_out", "X, RAD, groups, g, d, side, coord, p0, p1, p2, cut, ron, n", "_eface", 3),
+            "region": ("_region_out", "RAD, RB, nslot, n, p0, p1, p2, cut, ron", "_rout", 5)}
 
 
 def _outputs_source(pairs: tuple[tuple[int, int], ...], kind: str = "face", extra: tuple[int, ...] = ()) -> str:
@@ -242,14 +242,14 @@ def _outputs_source(pairs: tuple[tuple[int, int], ...], kind: str = "face", extr
     energy (`_EEXTRA_j`: the unshifted E(r), less the offset E(rc) computed once per call), each
     calling the output loop with that force and energy inlined; NaNs for any other pair
     (`sampled_eligible` keeps those scenes out)."""
-    name, args, loop, nout, offset = _OUTPUTS[kind]
+    name, args, loop, nout = _OUTPUTS[kind]
     lines = [f"def {name}(style, mode, {args}):"]
     k = 0
     for (cond, force, rad, note), (i, m) in zip(_branches(pairs, 0), pairs):
         if not energy_compiled(COMPILED_STYLES[i]):
             continue
         lines.append(f"    {'if' if k == 0 else 'elif'} {cond}:  # {note}")
-        lines.append(f"        return {loop}({force}, _ENERGY_{i}_{m}, {rad}, {args}{', 0.0' if offset else ''})")
+        lines.append(f"        return {loop}({force}, _ENERGY_{i}_{m}, {rad}, {args}, 0.0)")
         k += 1
     for cond, force, rad, note in _branches((), extra):
         j = force.rpartition("_")[2]
@@ -476,12 +476,12 @@ if njit is not None:
         return e, fs, vir
 
     @inline
-    def _rout(force, energy, use_radius, RAD, RB, nslot, n, p0, p1, p2, cut, ron):
+    def _rout(force, energy, use_radius, RAD, RB, nslot, n, p0, p1, p2, cut, ron, e0):
         """The outputs of a wall/region fix from a case's contacts in RB (all n atoms, slot by
-        slot: RegionGeom.contacts' order), the contacts loop `_eloop`: (energy, sum of
-        (F(r)/r) delta x, y, z, sum of F(r) r)."""
+        slot: RegionGeom.contacts' order), the contacts loop `_eloop`: (energy less e0 per
+        contact, sum of (F(r)/r) delta x, y, z, sum of F(r) r)."""
         return _eloop(_region_at, _region_contact, force, energy, use_radius, RB, RAD, nslot, n, p0, p1, p2, cut,
-                      ron, 0.0)
+                      ron, e0)
 
     def _sample_faces(c, si, X, RAD, groups, sf_meta, sf_val, tb, lp, out):
         """Every soft face's outputs (`_eface`, through the scene's `_face_out` dispatch; wall/table

@@ -928,7 +928,7 @@ def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic
 
     def scan(p: int) -> int:
         return _scan(xs, cstart, nb, owner, length, periodic, reach, int(qb[p]), int(qb[p + 1]), int(base[p]),
-                     int(edges[p + 1]) if p else cap, first, aside if p else neigh,
+                     int(edges[p + 1]), first, aside if p else neigh,
                      none if marks is None else marks[p], p < parts - 1)
 
     ends = np.asarray(run([lambda p=p: scan(p) for p in range(parts)]), np.int64)
