@@ -46,6 +46,8 @@ def scenes(common: object, scale: float, thermo: int = 1) -> dict:
         "stochastic": lambda: c.stochastic_slit(N, steps=s2, thermo=thermo),
         "ellipsoids ees": lambda: c.ellipsoid_slit(N, steps=s1, thermo=thermo),
         "region/ees sphere": lambda: c.region_ees(N, steps=s1, thermo=thermo),
+        "lj liquid (pair)": lambda: c.lj_fcc_slit(N, steps=s1, thermo=thermo),
+        "flow lj liquid (pair)": lambda: c.flow_lj(N, steps=s1, thermo=thermo),
     }
 
 

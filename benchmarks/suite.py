@@ -444,7 +444,8 @@ def every_step_one() -> dict:
 @row("every-step-kinds", at_least(1))
 def every_step_kinds() -> dict:
     """Every scene kind of benchmarks/every_step.py (flat, region sphere and cylinder, flow gas,
-    nvt, langevin, 2-D, table, dt/reset, lepton, stochastic, ellipsoids with ees, region/ees),
+    nvt, langevin, 2-D, table, dt/reset, lepton, stochastic, ellipsoids with ees, region/ees, an
+    LJ liquid slit and an LJ liquid between flow walls with pair lj/cut),
     N = 1000, sampled every step (thermo 1 in both), 3x that script's steps, warm (the lepton
     expressions' kernel compiled beforehand, as after a first run: the auto choice then loads it);
     the value is the worst ratio, the note lists every one."""

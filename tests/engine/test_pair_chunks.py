@@ -195,9 +195,11 @@ def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
 
 
 def test_sample_takes_the_chunk_outputs(monkeypatch):
-    """A sampled chunk's last step gives the pair energy and virial in its own force pass: the
-    sample's pair.compute at those positions takes them (no second pass over the list: the only
-    `forces` call is the set-up's), with the per-step path's bits."""
+    """A chunk ending at a sample (samples not recorded in the kernel, as for a case over
+    threads) gives the pair energy and virial in its last force pass: the sample's pair.compute
+    at those positions takes them (no second pass over the list: the only `forces` call is the
+    set-up's), with the per-step path's bits."""
+    monkeypatch.setattr(PairChunks, "samples_in_kernel", lambda self, at: False)
     cases = cases_of(slit(1.0), slit(1.3))
     got, fused, ref, step = run_fused_and_stepwise(monkeypatch, cases)
     assert_bits(got, ref)
@@ -206,7 +208,7 @@ def test_sample_takes_the_chunk_outputs(monkeypatch):
     monkeypatch.setattr(pair_compiled, "forces", lambda *a: calls.append(1) or forces(*a))
     eng = Engine(cases)
     assert_bits(eng.run(), ref)
-    assert eng.fast.compiled_chunks == 4 and len(got[0].data["pe"]) == 5
+    assert eng.fast.compiled_chunks == 4 and len(got[0].data["pe"]) == 5 and not eng.sample_blocks
     assert len(calls) == 1  # the set-up's forces; the 4 chunk-end samples took the chunks' outputs
     assert eng.pair._memo is None  # taken by the last sample
 
@@ -255,3 +257,81 @@ def test_trouble_in_a_one_case_batch_keeps_its_list(monkeypatch):
     got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(bad))
     assert_bits(got, ref)
     assert got[0].status == "failed" and fused.fast.fallbacks >= 1
+
+
+def every(d: dict, thermo: int = 1, steps: int | None = None) -> dict:
+    """The scene `d` sampled every `thermo` steps (and run `steps` steps)."""
+    d = dict(d)
+    d["run"] = {"steps": steps or d["run"]["steps"], "thermo": thermo}
+    return d
+
+
+def assert_sampled_in_kernel(eng):
+    """The samples after step 0 came from the kernel (sample blocks), none from a NumPy sample."""
+    assert eng.fast.sampled_calls >= 1 and eng.sample_blocks
+    assert len(eng.samples) == 1  # step 0's (the set-up's)
+
+
+@pytest.mark.parametrize("scene", ["slit", "flow", "cavity"])
+def test_samples_in_the_kernel_same_bits_as_stepwise(monkeypatch, scene):
+    """Sampled every step (every 3rd for the cavity), each fused chunk records its samples itself
+    (sum m v^2, the pair energy and virial of the step's pass, each wall's energy, force on the
+    wall and virial, the flow redraws since the last sample): every output is the per-step
+    compiled path's, bit for bit, whose samples come from the NumPy code (Engine.sample)."""
+    configs = {"slit": lambda: [every(slit(1.0)), every(slit(1.3))],
+               "flow": lambda: [every(flow_fluid("exact"), steps=80)],
+               "cavity": lambda: [every(sphere_cavity(), thermo=3, steps=90)]}[scene]()
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(*configs))
+    assert_bits(got, ref)
+    assert_sampled_in_kernel(fused)
+    assert fused.fast.fallbacks == 0 and len(got[0].data["step"]) == configs[0]["run"]["steps"] // (
+        configs[0]["run"]["thermo"]) + 1
+    if scene == "slit":
+        assert np.ptp(got[0].data["press"]) > 0.1 and np.ptp(got[0].data["wall_energy"]) > 0
+    if scene == "flow":
+        crossings = got[0].data["flow_crossings"][1:]
+        assert crossings.sum() >= 10 and crossings.max() > crossings.min()  # per sample, not summed
+    if scene == "cavity":
+        assert np.abs(got[0].data["region_force"][1:]).max() > 0 and np.ptp(got[0].data["wall_energy"][1:, 1]) > 0
+
+
+def test_moving_wall_sampled_in_the_kernel(monkeypatch):
+    """A wall moving with a variable and a ramped epsilon (per-step wall values) around an LJ
+    liquid, sampled every step in the kernel: each sample uses its own step's values."""
+    d = every(slit(), steps=30)
+    d["variables"] = {"lo": "vdisplace(0.0, 2.0)", "eps": "ramp(0.5, 2.0)"}
+    d["walls"]["pore"]["zlo"] = {"coord": "v_lo", "epsilon": "v_eps", "sigma": 1.0, "cutoff": 2.5}
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(d))
+    assert_bits(got, ref)
+    assert_sampled_in_kernel(fused)
+    assert np.count_nonzero(np.diff(got[0].data["wall_force"][:, 0])) > 20
+
+
+def test_trouble_in_a_sampled_chunk(monkeypatch):
+    """A bullet through the wall in one case of two, sampled every step: the sampled chunk hands
+    back, the NumPy loop fails that case at the per-step path's step with its message, and the
+    other case goes on with samples in the kernel again."""
+    bad = every(slit(steps=30))
+    bad["atoms"].append({"group": "bullet", "create": {"positions": [[3.4, 3.4, 0.9]]}, "mass": 1.0,
+                         "velocity": {"values": [[0.0, 0.0, -400.0]]}})
+    good = every(slit(steps=30))
+    good["atoms"].append({"group": "bullet", "create": {"positions": [[3.4, 3.4, 0.9]]}, "mass": 1.0,
+                          "velocity": {"values": [[0.0, 0.0, 0.0]]}})
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(bad, good))
+    assert_bits(got, ref)
+    assert got[0].status == "failed" and got[1].status == "ok"
+    assert fused.fast.fallbacks >= 1 and fused.fast.sampled_calls >= 1 and fused.sample_blocks
+
+
+def test_a_case_over_threads_samples_one_instant_at_a_time(monkeypatch):
+    """A case cut over threads (`case_parts` 2 here) keeps one chunk per sample, its outputs
+    taken from the chunk's last pass: the same bits as samples in the kernel and as stepwise."""
+    cases = cases_of(every(slit(), steps=12))
+    inkernel, _, ref, _ = run_fused_and_stepwise(monkeypatch, cases)
+    monkeypatch.setattr(pair_compiled, "case_parts", lambda n: 2)
+    eng = Engine(cases)
+    got = eng.run()
+    assert_bits(got, ref)
+    assert_bits(inkernel, ref)
+    assert eng.fast.sampled_calls == 0 and not eng.sample_blocks and eng.fast.compiled_chunks == 12
+    assert eng.fast.threaded_chunks >= 1  # (a chunk judged slowed by other work runs the next ones in one call)

@@ -2621,16 +2621,17 @@ def _sample_arrays(at: np.ndarray | None, C: int, nface: int, nrf: int, fx: tupl
             np.zeros((C, S, K, 4)), np.zeros((C, S, width)), np.zeros((C, S)), np.zeros((C, S, nreg, 5)))
 
 
-def _sample_record(plan: ChunkPlan, sm: tuple, fixes: list[Any]) -> dict[str, Any]:
+def _sample_record(plan: ChunkPlan, sm: tuple, fixes: list[Any], virial: np.ndarray | None = None
+                   ) -> dict[str, Any]:
     """The arguments of Engine.record (plan.record_samples) from a sampled chunk's `sm` arrays:
-    the fix outputs summed as compute_forces sums them (face by face from zero), the clock, the
-    reflect statistics, the flow redraws and the thermostats' ecouple (Ensemble.ecouple on the
-    samples' accumulators and chains, all samples at once)."""
+    the fix outputs summed as compute_forces sums them (face by face from zero; the virial from
+    `virial`, the pair's, else zero), the clock, the reflect statistics, the flow redraws and the
+    thermostats' ecouple (Ensemble.ecouple on the samples' accumulators and chains, all samples at once)."""
     _, mv2, clock, face, rstat, acc, chain, cross, reg = sm
     C, S = mv2.shape
     out: dict[str, tuple[np.ndarray, ...]] = {}
     k = 0
-    virial = np.zeros((C, S))
+    virial = np.zeros((C, S)) if virial is None else virial.copy()
     for w in plan.soft:
         energy = np.zeros((C, S))
         vector = np.zeros((C, S, len(w.faces)))

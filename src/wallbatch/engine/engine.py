@@ -366,9 +366,12 @@ class Engine:
         return rec
 
     def record_samples(self, out: dict[str, tuple[np.ndarray, ...]], virial: np.ndarray | None = None,
-                       **ingredients: np.ndarray) -> None:
+                       pair: tuple[np.ndarray, np.ndarray] | None = None, **ingredients: np.ndarray) -> None:
         """Append S samples of every live case computed by a compiled chunk: `record`'s
-        ingredients with a leading (C, S), the total virial W (C, S) when press is an output."""
+        ingredients with a leading (C, S), the total virial W (C, S) when press is an output, the
+        pair style's (energy, virial) (C, S) in a pair scene."""
+        if pair is not None:
+            out = {**out, PAIR: pair}
         if virial is not None:
             out = {**out, VIRIAL: (virial,)}
         self.record_block(self.record(out=out, **ingredients))

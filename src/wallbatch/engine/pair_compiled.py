@@ -18,8 +18,10 @@ own chunks decline because of the pair): a whole chunk of steps of one case in o
 step of engine.Engine.step (kick, drift, wrap, list check and rebuild, force clear, pair forces,
 flat soft faces and wall/region fixes with compiled.py's kernels, lost atoms, kick, wall/flow with
 compiled.py's `_flow_step`), so no Python runs between steps. It calls the very kernels of the
-per-step compiled path, so both give the same bits; trouble hands the chunk back to NumPy. Not
-fused: wall/reflect, dt/reset, thermostats and other fixes, wall/lepton faces, time-based runs.
+per-step compiled path, so both give the same bits; trouble hands the chunk back to NumPy. The
+samples of a chunk are recorded in it (`PairChunks.advance_sampled`: the outputs of
+Engine.sample, with compiled.py's sample functions). Not fused: wall/reflect, dt/reset,
+thermostats and other fixes, wall/lepton faces, time-based runs.
 
 One large case over threads (`_chunk_threaded`, THREAD_MIN_ATOMS atoms per thread at least):
 the same step in pieces, with the list build (runs of cells, `build_threaded`) and the force pass
@@ -654,7 +656,8 @@ if njit is not None:
     def _soft_face(*args):  # noqa: ANN002, ANN202 - placeholders: pair_chunk_for links the scene's pieces
         raise NotImplementedError
 
-    _region_walls = _flow_step = _soft_face
+    _region_walls = _flow_step = _sample_faces = _sample_regions = _soft_face
+    _th_mv2, _th_pairwise = _compiled._th_mv2, _compiled._th_pairwise  # Engine.sample's sum m v^2, its bits
 
     @jit
     def _moved(xc: np.ndarray, xref: np.ndarray, length: np.ndarray, periodic: np.ndarray, limit2: float) -> bool:
@@ -727,7 +730,7 @@ if njit is not None:
         def pair_chunk(nsteps, post, x, v, f, mass, radius, dt, ftm2v, lo, hi, box_per, length, pair_per, reach,
                        limit2, e24, e4, s2c, rcut2, off, sample, fpair, ew, xref, owner, first, neigh, spare, sf_meta,
                        sf_val, groups, rg_meta, rg_geo, rg_val, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend,
-                       fl_prev, fl_cross, fl_rng):
+                       fl_prev, fl_cross, fl_rng, sm):
             """Advance one case (x, v, f: (N, 3), written in place) by nsteps velocity-Verlet steps
             of engine.Engine.step: v += dtfm f, x += dt v; periodic wrap; the pair list rebuilt
             (`build_case`) when an atom moved more than skin/2 since xref; f = 0, pair forces
@@ -740,7 +743,14 @@ if njit is not None:
             status 0, 1 (an atom on/behind a wall), 2 (a lost atom) or 3 (a non-finite value; the
             caller then hands the chunk back to NumPy); neigh is the list after the chunk: the caller's
             (not written) if no build ran, else `spare` (the first build writes there, so the
-            caller's list survives a chunk handed back) or a longer array when the list grew."""
+            caller's list survives a chunk handed back) or a longer array when the list grew.
+
+            sm = (at, mv2, ew, face, reg, cross): samples recorded in the kernel (`PairChunks.
+            advance_sampled`; at (S,) empty: none). After step at[k] (steps of this chunk, counted
+            from 1) the outputs of Engine.sample go to row k: sum m v^2, the pair energy and virial
+            of that step's pair pass, each soft face's (energy, force on the wall, virial) and each
+            wall/region fix's (energy, force x y z, virial) (compiled.py's `_sample_faces` and
+            `_sample_regions`, the flat chunks' own), and the flow redraws since the last sample."""
             if nsteps == -fingerprint:  # never: ties the on-disk cache to the wall kernels
                 return 5, 0, neigh
             N = x.shape[0]
@@ -750,9 +760,18 @@ if njit is not None:
             RB = np.empty((6, 5, BLOCK))
             CI = np.empty(N if fl_int[0] != 0 else 0, np.int64)
             DIR = np.empty(N if fl_int[0] != 0 else 0)
+            sm_at, sm_mv2, sm_ew, sm_face, sm_reg, sm_cross = sm
+            nsm, ism = sm_at.shape[0], 0
+            KS = np.empty(N if nsm else 0)  # m v^2 per atom at a sample
+            RBS = np.empty((6, 5, N if nsm and rg_meta.shape[0] else 0))  # a case's region contacts at a sample
+            SF = sf_val.reshape((1, sf_val.shape[0], sf_val.shape[1], sf_val.shape[2]))  # `_sample_faces`' (C, S, K, 6)
+            TB = (np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(0))  # no wall/table faces (chunk_eligible)
+            LP = np.zeros((1, sf_meta.shape[0], 1))  # no wall/lepton faces
             builds = 0
+            e, w = 0.0, 0.0
             for step in range(nsteps):
                 si = step if vary else 0
+                due = ism < nsm and step + 1 == sm_at[ism]  # a sample recorded here
                 if not post:  # post: the pair forces of this step are in f (`_chunk_threaded`)
                     _drift(x, v, f, dtfm, dt, lo, hi, box_per)
                     if _moved(x, xref, length, pair_per, limit2):  # neighbor list (check yes)
@@ -768,7 +787,8 @@ if njit is not None:
                         builds += 1
                     f[:] = 0.0  # force clear, pair forces
                     last = sample and step == nsteps - 1
-                    e, w = forces_case(x, f, owner, first, neigh, e24, e4, s2c, rcut2, off, length, pair_per, last)
+                    e, w = forces_case(x, f, owner, first, neigh, e24, e4, s2c, rcut2, off, length, pair_per,
+                                       last or due)
                     if last:
                         ew[0], ew[1] = e, w
                         fpair[:] = f
@@ -794,6 +814,19 @@ if njit is not None:
                 if fl_int[0] != 0:  # fix wall/flow (end_of_step)
                     _flow_step(X, V, mass, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross,
                                fl_rng, CI, DIR)
+                if due:  # the outputs of Engine.sample at this step (positions are the force pass's)
+                    _sample_faces(0, si, X, radius, groups, sf_meta, SF, TB, LP, sm_face[ism])
+                    if rg_meta.shape[0]:
+                        _sample_regions(0, X, radius, groups, rg_meta, rg_geo, rg_val, RBS, sm_reg[ism])
+                    for a in range(N):
+                        KS[a] = _th_mv2(mass[a], v[a, 0], v[a, 1], v[a, 2])
+                    sm_mv2[ism] = 0.0 + _th_pairwise(KS, 0, N)
+                    sm_ew[ism, 0] = e
+                    sm_ew[ism, 1] = w
+                    if fl_int[0] != 0:  # flow redraws since the last sample (take_crossings)
+                        sm_cross[ism] = fl_cross[0]
+                        fl_cross[0] = 0.0
+                    ism += 1
             for a in range(N):
                 for d in range(3):
                     if not (math.isfinite(x[a, d]) and math.isfinite(v[a, d])):
@@ -818,7 +851,8 @@ if njit is not None:
         h.update(inspect.getsource(_compiled).encode())
         fp = int(h.hexdigest()[:15], 16)
         fn = _compiled._relink(_make_pair_chunk(fp).py_func, name=f"pair_chunk_{fp:015x}", _soft_face=p.soft_face,
-                               _region_walls=p.region_walls, _flow_step=p.flow_step)
+                               _region_walls=p.region_walls, _flow_step=p.flow_step, _sample_faces=p.sample_faces,
+                               _sample_regions=p.sample_regions)
         return njit(cache=True, nogil=True, error_model="numpy")(fn)
 
 
@@ -1288,7 +1322,9 @@ class PairChunks:
     Anything the kernel meets (an atom on/behind a wall, a lost atom, a non-finite value) hands the
     chunk back to the NumPy loop, which re-runs it from the same state (random streams restored)
     and reports as always. On a sampled chunk the outputs come from the NumPy `compute_forces` at
-    the final positions (as compiled.FastPath). Step-based runs only; `advance_to_time` declines."""
+    the final positions (as compiled.FastPath), or, for a case on one thread, all the samples of a
+    run of them are recorded in the kernel (`advance_sampled`). Step-based runs only;
+    `advance_to_time` declines."""
 
     def __init__(self, plan_source: Callable[[], "_compiled.ChunkPlan"], pair: Any):
         self.plan_source = plan_source
@@ -1303,6 +1339,11 @@ class PairChunks:
         # the chunks' copies of the state, kept across chunks (`Workspace.buffer`: a fresh array of
         # this size is a fresh mapping whose pages fault again, about 2 ms per 2.4 MB here)
         self._buffer = Workspace().buffer
+        self.sampled_calls = 0  # kernel calls that recorded samples themselves (advance_sampled)
+        self._sampled_refused = False  # the scene's samples are not recorded in the kernel
+        # a sampled chunk met trouble before this step (with this many live cases): sample by sample
+        # up to it, or until the NumPy loop dropped the case with trouble
+        self._numpy_until = (-1, 0)
 
     def _reuse(self, c: int, C: int, parts: int, owner: np.ndarray, first: np.ndarray, pair: Any) -> dict:
         """What `_chunk_threaded` may reuse for case c (`held`): the last threaded chunk's, if it
@@ -1323,10 +1364,53 @@ class PairChunks:
 
     def advance(self, nsteps: int, sample: bool) -> bool:
         """Run nsteps steps (and the sample of the last one); False: let the NumPy loop do it."""
+        return self._chunk(nsteps, sample)
+
+    def samples_in_kernel(self, at: np.ndarray) -> bool:
+        """Whether `advance_sampled` records the samples `at` (steps from now, increasing) in the
+        kernel: a scene `chunk_eligible` takes whose cases run on one thread each (`case_parts`;
+        a case over threads samples one instant at a time, as before). Decided by the scene alone,
+        so a run keeps to one way (batch/runner.py warms that kernel); either way gives the same bits."""
+        at = np.asarray(at, np.int64)
+        if self._sampled_refused or at.size == 0 or at[0] <= 0 or np.any(np.diff(at) <= 0):
+            return False
+        plan = self.plan_source()
+        s = plan.state
+        if s.ncases == 0 or not enabled() or not chunk_eligible(plan, self.pair) or case_parts(s.x.shape[1]) >= 2:
+            self._sampled_refused = s.ncases > 0  # not asked again
+            return False
+        until, live = self._numpy_until  # not over steps a sampled chunk met trouble in
+        return int(s.step.min()) >= until or s.ncases != live
+
+    def advance_sampled(self, at: np.ndarray) -> int:
+        """Run to the sample steps `at` (counted from now, increasing), recording every sample inside
+        the kernel (Engine.record_samples); returns how many were run: all of them, or 0 (nothing
+        done: the caller goes sample by sample, the NumPy loop meeting the trouble a chunk met)."""
+        if not self.samples_in_kernel(at):
+            return 0
+        at = np.asarray(at, np.int64)
+        plan = self.plan_source()
+        C = max(1, plan.state.ncases)
+        width = 6 + 3 * sum(len(w.faces) for w in plan.soft) + 5 * len(plan.region)
+        at = at[:max(1, _compiled.SAMPLE_BUDGET // (width * C))]
+        if _compiled.FastPath._uses_time(plan):  # per-step wall values: within VALUE_BUDGET (`_chunk`)
+            at = at[at * max(1, sum(len(w.faces) for w in plan.soft)) * 6 * C <= _compiled.VALUE_BUDGET]
+            if at.size == 0:
+                return 0
+        start = int(plan.state.step.max())
+        if self._chunk(int(at[-1]), True, at):
+            return int(at.size)
+        self._numpy_until = (start + int(at[-1]), plan.state.ncases)  # sample by sample (`samples_in_kernel`)
+        return 0
+
+    def _chunk(self, nsteps: int, sample: bool, at: np.ndarray | None = None) -> bool:
+        """`advance`, or with `at` (sample steps of this chunk, the last = nsteps) `advance_sampled`'s
+        chunk: every case's samples recorded in its kernel call, then appended as one block."""
         plan = self.plan_source()
         s, pair = plan.state, self.pair
         if s.ncases == 0 or s.failed or nsteps <= 0 or not enabled() or not chunk_eligible(plan, pair):
             return False
+        sample = sample and at is None  # (samples in the kernel: not the last pass's outputs handed to NumPy)
         if pair._first is None or pair._xref is None or pair._xref.shape != s.x.shape or pair._bad.any():
             return False
         C, N = s.x.shape[:2]
@@ -1367,7 +1451,14 @@ class PairChunks:
         if fk is not None:
             rng_states = [r.bit_generator.state for r in fk.rngs]
             phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
-            prev, cross = np.ascontiguousarray(fk.prev, dtype=float).copy(), np.zeros((C, 1))
+            # redraws since the last sample: the pending count, then the chunk's (a sample in the
+            # kernel reports and zeroes it)
+            prev = np.ascontiguousarray(fk.prev, dtype=float).copy()
+            cross = np.array(fk.crossings, dtype=float).reshape(C, 1)
+        S = 0 if at is None else at.size
+        sm = (np.zeros(0, np.int64) if at is None else np.ascontiguousarray(at, np.int64), np.zeros((C, S)),
+              np.zeros((C, S, 2)), np.zeros((C, S, sf_meta.shape[0], 3)), np.zeros((C, S, rg_meta.shape[0], 5)),
+              np.zeros((C, S)))
         n = len(_compiled.COMPILED_STYLES)
         kernel = pair_chunk_for(tuple({(int(r[0]), int(r[4])) for r in sf_meta if r[0] < n}),
                                 tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None)
@@ -1392,8 +1483,9 @@ class PairChunks:
                     box_per, pair.length, pair.periodic, float(pair.cutoff[c] + pair.skin), (0.5 * pair.skin) ** 2,
                     24.0 * float(pair.epsilon[c]), 4.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2),
                     float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
-                    sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl)
-            parts = case_parts(N)
+                    sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl,
+                    (sm[0], *(a[c] for a in sm[1:])))
+            parts = case_parts(N) if at is None else 1  # (samples in the kernel: one thread, samples_in_kernel)
             if parts >= 2 and self.busy_skip > 0:  # the cores were busy with other work: one thread
                 self.busy_skip -= 1
                 parts = 1
@@ -1430,17 +1522,43 @@ class PairChunks:
                 np.copyto(kept[0], owner)
                 np.copyto(kept[1], first)
                 self._held = ((c, C, int(pair.case_builds[c]), len(held["shares"]) - 1, N), *kept, held)
-        if sample:  # the sample's pair.compute at these positions takes them instead of a second pass
+        if sample and at is None:  # the sample's pair.compute at these positions takes them instead of a second pass
             pair.remember(s.x, fpair, ew[:, 0].copy(), ew[:, 1].copy())
+        step0 = s.step.copy()
         s.step += nsteps
         s.ctx = None
         s.var_step = {}
         if fk is not None:
             fk.phys, fk.pend, fk.prev = phys.astype(np.intp), pend.astype(np.int8), prev
-            fk.crossings += cross[:, 0]
+            fk.crossings = cross[:, 0].copy()
+        if at is not None:
+            self.compiled_chunks += int(at.size)  # once per sample: each the chunk it replaces
+            self.sampled_calls += 1
+            plan.record_samples(**self._sample_record(plan, sm, step0))
+            return True
         self.compiled_chunks += 1
         _compiled.finish_chunk(plan, s, sample)
         return True
+
+    @staticmethod
+    def _sample_record(plan: "_compiled.ChunkPlan", sm: tuple, step0: np.ndarray) -> dict[str, Any]:
+        """Engine.record_samples' arguments from a sampled chunk's `sm` arrays: compiled.py's
+        `_sample_record` of the walls' outputs (clock: the steps at[k] after step0, dt and the
+        time origin unchanged in the chunk), with the pair's energy and virial, the virial summed
+        from the pair's as Engine.compute_forces sums it."""
+        at, mv2, ew, face, reg, cross = sm
+        s = plan.state
+        C, S = mv2.shape
+        clock = np.empty((C, S, 4))
+        clock[:, :, 0] = step0[:, None] + at[None, :]
+        clock[:, :, 1] = s.dt[:, None]
+        clock[:, :, 2] = s.atime[:, None]
+        clock[:, :, 3] = s.atimestep[:, None]
+        none = np.zeros((C, S, 0, 2))
+        args = _compiled._sample_record(plan, (at, mv2, clock, face, none, none, none, cross, reg), [],
+                                        virial=ew[:, :, 1])
+        args["pair"] = (ew[:, :, 0].copy(), ew[:, :, 1].copy())
+        return args
 
 
 def attach_pair_chunks(plan_source: Callable[[], "_compiled.ChunkPlan"], pair: Any) -> PairChunks | None:
