@@ -62,7 +62,7 @@ sys.path.insert(0, str(HERE))
 import common  # noqa: E402
 from common import (build, ellipsoid_slit, flow_gas, flow_lj, gas_2d, gas_slit, lammps_export_run,  # noqa: E402
                     lammps_module, lammps_script, lepton_slit, lj_fcc_slit, region_ees, region_gas, stochastic_slit,
-                    table_slit, thermostat_slit, with_dt_reset)
+                    table_slit, thermostat_slit, THERMOSTATS, with_dt_reset, with_fixes)
 
 from wallbatch.engine.engine import Engine  # noqa: E402
 
@@ -359,6 +359,20 @@ def _ljcut(n: int, atom_steps: float) -> Callable[[], dict]:
 
     return fn
 
+
+def _ljcut_thermostat(kind: str, n: int, atom_steps: float) -> Callable[[], dict]:
+    def fn() -> dict:
+        steps = scaled(atom_steps, n)
+        cfg = with_fixes(lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10)), THERMOSTATS[kind], kind)
+        return speed(f"LJ liquid slit, pair lj/cut + fix {kind}", cfg)
+
+    return fn
+
+
+for _kind_name in ("langevin", "nvt"):
+    for _n in (1000, 4000):
+        register(f"ljcut-{_kind_name}-{_n}", _ljcut_thermostat(_kind_name, _n, 2e6), at_least(1.5),
+                 "issue 15 (thermostats; pair lj/cut: >= 1.5x)")
 
 register("ljcut-4000", _ljcut(4000, 4e6), at_least(1.5))
 register("ljcut-32000", _ljcut(32000, 6.4e6), at_least(1.5))

@@ -180,14 +180,18 @@ def test_list_grows_inside_the_chunk(monkeypatch):
     np.testing.assert_array_equal(a.pair.case_builds, b.pair.case_builds)
 
 
-@pytest.mark.parametrize("what", ["reflect", "langevin"])
+@pytest.mark.parametrize("what", ["reflect", "dt_reset", "langevin over threads"])
 def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
-    """What the fused chunk does not run (wall/reflect, thermostats) keeps the per-step path."""
+    """What the fused chunk does not run (wall/reflect, dt/reset, a thermostat on a case cut over
+    threads) keeps the per-step path."""
     d = slit()
     if what == "reflect":
         d["walls"] = {"r": {"style": "reflect", "units": "box", "zlo": "EDGE", "zhi": "EDGE"}}
+    elif what == "dt_reset":
+        d["dt_reset"] = {"every": 1, "xmax": 0.05, "tmax": 0.005, "units": "box"}
     else:
         d["fixes"] = {"a": "fix a all nve", "b": "fix b all langevin 2.0 2.0 0.5 48279"}
+        monkeypatch.setattr(pair_compiled, "case_parts", lambda n: 2)
     monkeypatch.setenv("WALLBATCH_NUMBA", "1")
     eng = Engine(cases_of(d))
     assert eng.fast is None and eng.pair.compiled
@@ -335,3 +339,34 @@ def test_a_case_over_threads_samples_one_instant_at_a_time(monkeypatch):
     assert_bits(inkernel, ref)
     assert eng.fast.sampled_calls == 0 and not eng.sample_blocks and eng.fast.compiled_chunks == 12
     assert eng.fast.threaded_chunks >= 1  # (a chunk judged slowed by other work runs the next ones in one call)
+
+
+THERMOSTATS = {
+    "langevin": {"a": "fix a all nve", "b": "fix b all langevin 1.5 1.0 0.5 48279 zero yes tally yes"},
+    "nvt": {"a": "fix a all nvt temp 1.5 1.0 0.3"},
+    "berendsen": {"a": "fix a all nve", "b": "fix b all temp/berendsen 1.5 1.0 0.2"},
+    "rescale": {"a": "fix a all nve", "b": "fix b all temp/rescale 3 1.5 1.0 0.05 0.8"},
+}
+
+
+@pytest.mark.parametrize("kind", sorted(THERMOSTATS))
+@pytest.mark.parametrize("thermo", [1, 10])
+def test_thermostats_in_the_fused_chunk(monkeypatch, kind, thermo):
+    """An LJ liquid between lj93 walls held by a thermostat: the fused chunk runs compiled.py's fix
+    kernels (the same draws from the same Langevin streams), so the run gives the per-step path's
+    bits (its thermostats are the NumPy Ensemble's), fix nvt to 1e-14 (its chain's exp), with
+    ecouple and econserve from the samples the kernel records (every step, or every 10th)."""
+    d = every(slit(steps=40), thermo=thermo)
+    d["fixes"] = dict(THERMOSTATS[kind])
+    d["output"] = {"thermo": ["step", "temp", "pe", "etot", "press", "ecouple", "econserve"]}
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(d))
+    assert isinstance(fused.fast, PairChunks) and fused.fast.fallbacks == 0
+    assert_sampled_in_kernel(fused)
+    if kind == "nvt":
+        for name in got[0].data:
+            np.testing.assert_allclose(got[0].data[name], ref[0].data[name], rtol=1e-14, atol=1e-14, err_msg=name)
+    else:
+        assert_bits(got, ref)
+    assert np.ptp(got[0].data["ecouple"]) > 1e-3  # the thermostat exchanged energy
+    temp = got[0].data["temp"]
+    assert abs(temp[-1] - temp[0]) > 0.05

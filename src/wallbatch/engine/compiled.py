@@ -1006,6 +1006,35 @@ if njit is not None:
                         FR[2, i] = FR[2, i] - m2
         return 0
 
+    @inline
+    def _langevin_setup(c, k, M, fx, ftm2v, SQM, G1):
+        """Case c's per-atom factors of fix langevin (row k of fx): sqrt(m) for the random force
+        and the drag G1 (thermostats.langevin_drag)."""
+        for a in range(M.shape[0]):
+            SQM[a] = np.sqrt(M[a])
+            G1[a] = _th_drag(M[a], fx[1][c, k, 2], ftm2v)
+
+    @inline
+    def _sample_fixes(c, fx, acc, chain):
+        """Case c's fix state at a sample (what Ensemble.ecouple reads): each fix's accumulators
+        into acc (K, 4) and, with fix nvt (chain not empty), its chain eta, eta_dot, eta_mass and
+        t_target into chain (3 M + 2)."""
+        for k in range(fx[0].shape[0]):
+            for j in range(4):
+                acc[k, j] = fx[2][c, k, j]
+        if chain.shape[0]:
+            j = 0
+            for m in range(fx[3].shape[1]):
+                chain[j] = fx[3][c, m]
+                j += 1
+            for m in range(fx[4].shape[1]):
+                chain[j] = fx[4][c, m]
+                j += 1
+            for m in range(fx[6].shape[1]):
+                chain[j] = fx[6][c, m]
+                j += 1
+            chain[j] = fx[8][c]
+
     @jit_inner
     def _fix_end(c, stepn, dtc, V, M, groups, fx, KB, FL):
         """After the step's final kick: fix nvt's second half step (Ensemble.final_integrate), then
@@ -1387,9 +1416,7 @@ if njit is not None:
                     M[a] = mass[c, a]
                     RAD[a] = radius[c, a]
                 if _K_FIXES and langevin >= 0:
-                    for a in range(natom):
-                        SQM[a] = np.sqrt(M[a])
-                        G1[a] = _th_drag(M[a], fx[1][c, langevin, 2], ftm2v)
+                    _langevin_setup(c, langevin, M, fx, ftm2v, SQM, G1)
                 done = 0  # steps done for this case
                 ism = 0  # the case's next sample
                 stepwise = 0  # steps to run one at a time before the next window
@@ -1535,21 +1562,7 @@ if njit is not None:
                                 st_stat[c, k, 0] = 0.0
                                 st_stat[c, k, 1] = 0.0
                         if _K_FIXES:
-                            for k in range(fx[0].shape[0]):  # the fixes' accumulators (ecouple)
-                                for j in range(4):
-                                    sm_fx[c, ism, k, j] = fx[2][c, k, j]
-                        if _K_FIXES and sm_chain.shape[2]:  # fix nvt's chain: eta, eta_dot, eta_mass, t_target
-                            j = 0
-                            for m in range(fx[3].shape[1]):
-                                sm_chain[c, ism, j] = fx[3][c, m]
-                                j += 1
-                            for m in range(fx[4].shape[1]):
-                                sm_chain[c, ism, j] = fx[4][c, m]
-                                j += 1
-                            for m in range(fx[6].shape[1]):
-                                sm_chain[c, ism, j] = fx[6][c, m]
-                                j += 1
-                            sm_chain[c, ism, j] = fx[8][c]
+                            _sample_fixes(c, fx, sm_fx[c, ism], sm_chain[c, ism])
                         sm_cross[c, ism] = fl_cross[0] if _K_FLOW else 0.0  # flow redraws since the last sample
                         if _K_FLOW:  # (take_crossings)
                             fl_cross[0] = 0.0

@@ -20,8 +20,9 @@ flat soft faces and wall/region fixes with compiled.py's kernels, lost atoms, ki
 compiled.py's `_flow_step`), so no Python runs between steps. It calls the very kernels of the
 per-step compiled path, so both give the same bits; trouble hands the chunk back to NumPy. The
 samples of a chunk are recorded in it (`PairChunks.advance_sampled`: the outputs of
-Engine.sample, with compiled.py's sample functions). Not fused: wall/reflect, dt/reset,
-thermostats and other fixes, wall/lepton faces, time-based runs.
+Engine.sample, with compiled.py's sample functions). The `fixes:` compiled.py's kernels run
+(thermostats, enforce2d) run with its fix kernels, for a case on one thread. Not fused:
+wall/reflect, dt/reset, other fixes, wall/lepton faces, time-based runs.
 
 One large case over threads (`_chunk_threaded`, THREAD_MIN_ATOMS atoms per thread at least):
 the same step in pieces, with the list build (runs of cells, `build_threaded`) and the force pass
@@ -658,6 +659,9 @@ if njit is not None:
 
     _region_walls = _flow_step = _sample_faces = _sample_regions = _soft_face
     _th_mv2, _th_pairwise = _compiled._th_mv2, _compiled._th_pairwise  # Engine.sample's sum m v^2, its bits
+    # the `fixes:` of compiled.py's chunks (thermostats, enforce2d) and their state at a sample
+    _fix_pre, _fix_post_force, _fix_end = _compiled._fix_pre, _compiled._fix_post_force, _compiled._fix_end
+    _langevin_setup, _sample_fixes = _compiled._langevin_setup, _compiled._sample_fixes
 
     @jit
     def _moved(xc: np.ndarray, xref: np.ndarray, length: np.ndarray, periodic: np.ndarray, limit2: float) -> bool:
@@ -730,7 +734,7 @@ if njit is not None:
         def pair_chunk(nsteps, post, x, v, f, mass, radius, dt, ftm2v, lo, hi, box_per, length, pair_per, reach,
                        limit2, e24, e4, s2c, rcut2, off, sample, fpair, ew, xref, owner, first, neigh, spare, sf_meta,
                        sf_val, groups, rg_meta, rg_geo, rg_val, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend,
-                       fl_prev, fl_cross, fl_rng, sm):
+                       fl_prev, fl_cross, fl_rng, fx, fx_rng, step0, sm):
             """Advance one case (x, v, f: (N, 3), written in place) by nsteps velocity-Verlet steps
             of engine.Engine.step: v += dtfm f, x += dt v; periodic wrap; the pair list rebuilt
             (`build_case`) when an atom moved more than skin/2 since xref; f = 0, pair forces
@@ -745,12 +749,21 @@ if njit is not None:
             (not written) if no build ran, else `spare` (the first build writes there, so the
             caller's list survives a chunk handed back) or a longer array when the list grew.
 
-            sm = (at, mv2, ew, face, reg, cross): samples recorded in the kernel (`PairChunks.
-            advance_sampled`; at (S,) empty: none). After step at[k] (steps of this chunk, counted
-            from 1) the outputs of Engine.sample go to row k: sum m v^2, the pair energy and virial
-            of that step's pair pass, each soft face's (energy, force on the wall, virial) and each
-            wall/region fix's (energy, force x y z, virial) (compiled.py's `_sample_faces` and
-            `_sample_regions`, the flat chunks' own), and the flow redraws since the last sample."""
+            fx, fx_rng: the case's `fixes:` (compiled.py's `_fix_arrays` of this case alone, row 0;
+            its Langevin generator), run as compiled.py's kernels run them: `_fix_pre` before the
+            drift (fix nvt's first half step, the Langevin random forces), `_fix_post_force` after
+            the walls (Langevin forces, enforce2d), `_fix_end` after the final kick (fix nvt's
+            second half step, temp/berendsen, temp/rescale, the tally; status 6: a zero
+            temperature). step0: the case's step count before the chunk (ramps, temp/rescale's
+            every). Not with `post` (a case with fixes is not cut over threads).
+
+            sm = (at, mv2, ew, face, reg, cross, acc, chain): samples recorded in the kernel
+            (`PairChunks.advance_sampled`; at (S,) empty: none). After step at[k] (steps of this
+            chunk, counted from 1) the outputs of Engine.sample go to row k: sum m v^2, the pair
+            energy and virial of that step's pair pass, each soft face's (energy, force on the wall,
+            virial) and each wall/region fix's (energy, force x y z, virial) (compiled.py's
+            `_sample_faces` and `_sample_regions`, the flat chunks' own), the flow redraws since the
+            last sample and the fixes' state for ecouple (`_sample_fixes`)."""
             if nsteps == -fingerprint:  # never: ties the on-disk cache to the wall kernels
                 return 5, 0, neigh
             N = x.shape[0]
@@ -760,18 +773,30 @@ if njit is not None:
             RB = np.empty((6, 5, BLOCK))
             CI = np.empty(N if fl_int[0] != 0 else 0, np.int64)
             DIR = np.empty(N if fl_int[0] != 0 else 0)
-            sm_at, sm_mv2, sm_ew, sm_face, sm_reg, sm_cross = sm
+            sm_at, sm_mv2, sm_ew, sm_face, sm_reg, sm_cross, sm_fx, sm_chain = sm
             nsm, ism = sm_at.shape[0], 0
             KS = np.empty(N if nsm else 0)  # m v^2 per atom at a sample
             RBS = np.empty((6, 5, N if nsm and rg_meta.shape[0] else 0))  # a case's region contacts at a sample
             SF = sf_val.reshape((1, sf_val.shape[0], sf_val.shape[1], sf_val.shape[2]))  # `_sample_faces`' (C, S, K, 6)
             TB = (np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(0))  # no wall/table faces (chunk_eligible)
             LP = np.zeros((1, sf_meta.shape[0], 1))  # no wall/lepton faces
+            fx_meta = fx[0]
+            nfx = N if fx_meta.shape[0] else 0
+            thermo = False  # a fix that couples the atoms (not enforce2d alone)
+            SQM, G1, FR, FL = np.empty(nfx), np.empty(nfx), np.zeros((3, nfx)), np.zeros((3, nfx))
+            KB = np.empty(nfx)  # per-atom terms of a sum over atoms
+            for k in range(fx_meta.shape[0]):
+                thermo = thermo or fx_meta[k, 0] != _compiled.FIX_ENFORCE2D
+                if fx_meta[k, 0] == _compiled.FIX_LANGEVIN:
+                    _langevin_setup(0, k, mass, fx, ftm2v, SQM, G1)
+            fxp = (fx_meta, G1, FR, FL)
             builds = 0
             e, w = 0.0, 0.0
             for step in range(nsteps):
                 si = step if vary else 0
                 due = ism < nsm and step + 1 == sm_at[ism]  # a sample recorded here
+                if thermo:  # fix nvt's first half step, the Langevin random forces
+                    _fix_pre(0, step0 + step + 1, dt, V, mass, groups, fx, fx_rng, SQM, FR, KB)
                 if not post:  # post: the pair forces of this step are in f (`_chunk_threaded`)
                     _drift(x, v, f, dtfm, dt, lo, hi, box_per)
                     if _moved(x, xref, length, pair_per, limit2):  # neighbor list (check yes)
@@ -803,6 +828,8 @@ if njit is not None:
                                               rg_val, RB)
                 if nbad:
                     return 1, builds, neigh
+                if nfx:  # post_force fixes: Langevin forces, enforce2d
+                    _fix_post_force(0, N, V, F, groups, fxp)
                 for d in range(3):  # lost atoms
                     if not box_per[d]:
                         for a in range(N):
@@ -811,6 +838,9 @@ if njit is not None:
                 for a in range(N):  # final_integrate
                     for d in range(3):
                         v[a, d] = v[a, d] + dtfm[a] * f[a, d]
+                if thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
+                    if _fix_end(0, step0 + step + 1, dt, V, mass, groups, fx, KB, FL) != 0:
+                        return 6, builds, neigh
                 if fl_int[0] != 0:  # fix wall/flow (end_of_step)
                     _flow_step(X, V, mass, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross,
                                fl_rng, CI, DIR)
@@ -826,11 +856,15 @@ if njit is not None:
                     if fl_int[0] != 0:  # flow redraws since the last sample (take_crossings)
                         sm_cross[ism] = fl_cross[0]
                         fl_cross[0] = 0.0
+                    _sample_fixes(0, fx, sm_fx[ism], sm_chain[ism])
                     ism += 1
             for a in range(N):
                 for d in range(3):
                     if not (math.isfinite(x[a, d]) and math.isfinite(v[a, d])):
                         return 3, builds, neigh
+            for a in range(nfx):  # the last step's Langevin forces (the fix's `force`)
+                for d in range(3):
+                    fx[13][0, a, d] = FL[d, a]
             return 0, builds, neigh
 
         return pair_chunk
@@ -1301,10 +1335,13 @@ def _signature_names(kernel: Any) -> tuple[str, ...]:
 def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     """Whether `PairChunks` runs this plan: pair lj/cut on its compiled path with what the chunk
     kernels of compiled.py run (flat soft walls of the registry's compiled styles, wall/region,
-    one wall/flow), without wall/reflect, dt/reset, `fixes:` (thermostats, enforce2d), wall/lepton
-    faces or anything else."""
-    if njit is None or plan.others != ("pair",) or plan.reflect or plan.dt_reset is not None or plan.ensemble is not None:
+    one wall/flow, the `fixes:` of `compiled.fixes_eligible`: thermostats, enforce2d, except for a
+    case cut over threads), without wall/reflect, dt/reset, wall/lepton faces or anything else."""
+    if njit is None or plan.others != ("pair",) or plan.reflect or plan.dt_reset is not None:
         return False
+    if plan.ensemble is not None and (not _compiled.fixes_eligible(plan) or (
+            any(f.style in _compiled.FIX_KINDS for f in plan.ensemble.fixes) and case_parts(plan.state.x.shape[1]) >= 2)):
+        return False  # fixes the kernel does not run; or a case over threads (their per-step path keeps them)
     if not pair.compiled or pair.ncases != plan.state.ncases:
         return False
     if not _compiled.eligible(dataclasses.replace(plan, others=())):
@@ -1435,6 +1472,7 @@ class PairChunks:
                              w.cutoff.mode_id] for w in plan.soft
                             for st, face in zip(_compiled._face_styles(w), w.faces)], np.int64).reshape(-1, 5)
         rg_meta, rg_geo, rg_val = _compiled.FastPath._regions(plan, group)
+        fx, fx_fixes, fx_rngs = _compiled._fix_arrays(plan, group)  # thermostats, enforce2d
         groups_arr = np.stack(groups)
         box_per = np.zeros(3, np.int64)
         box_per[s.periodic] = 1
@@ -1448,17 +1486,19 @@ class PairChunks:
                                                             ("owner", pair._owner), ("first", pair._first))]
         ew = np.zeros((C, 2))
         fk = plan.flow[0] if plan.flow else None
+        generators = list(fx_rngs) + (list(fk.rngs) if fk is not None else [])  # drawn from in the kernel
+        rng_states = [r.bit_generator.state for r in generators]
         if fk is not None:
-            rng_states = [r.bit_generator.state for r in fk.rngs]
             phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
             # redraws since the last sample: the pending count, then the chunk's (a sample in the
             # kernel reports and zeroes it)
             prev = np.ascontiguousarray(fk.prev, dtype=float).copy()
             cross = np.array(fk.crossings, dtype=float).reshape(C, 1)
         S = 0 if at is None else at.size
+        nvt = bool(np.any(fx[0][:, 0] == _compiled.FIX_NVT))
         sm = (np.zeros(0, np.int64) if at is None else np.ascontiguousarray(at, np.int64), np.zeros((C, S)),
               np.zeros((C, S, 2)), np.zeros((C, S, sf_meta.shape[0], 3)), np.zeros((C, S, rg_meta.shape[0], 5)),
-              np.zeros((C, S)))
+              np.zeros((C, S)), np.zeros((C, S, fx[0].shape[0], 4)), np.zeros((C, S, 3 * fx[3].shape[1] + 2 if nvt else 0)))
         n = len(_compiled.COMPILED_STYLES)
         kernel = pair_chunk_for(tuple({(int(r[0]), int(r[4])) for r in sf_meta if r[0] < n}),
                                 tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None)
@@ -1484,8 +1524,10 @@ class PairChunks:
                     24.0 * float(pair.epsilon[c]), 4.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2),
                     float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
                     sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl,
-                    (sm[0], *(a[c] for a in sm[1:])))
-            parts = case_parts(N) if at is None else 1  # (samples in the kernel: one thread, samples_in_kernel)
+                    _compiled._fix_slice(fx, slice(c, c + 1)), fx_rngs[c] if fx_rngs else _compiled._NO_FLOW[-1],
+                    int(s.step[c]), (sm[0], *(a[c] for a in sm[1:])))
+            # one thread for samples in the kernel (`samples_in_kernel`) and for fixes (`chunk_eligible`)
+            parts = case_parts(N) if at is None and not fx[0].shape[0] else 1
             if parts >= 2 and self.busy_skip > 0:  # the cores were busy with other work: one thread
                 self.busy_skip -= 1
                 parts = 1
@@ -1503,9 +1545,8 @@ class PairChunks:
                 status, builds, neigh = kernel(*args)
             if status != 0:
                 self._held = None
-                if fk is not None:  # the NumPy loop re-runs the chunk with the same random numbers
-                    for r, st in zip(fk.rngs, rng_states):
-                        r.bit_generator.state = st
+                for r, st in zip(generators, rng_states):  # the NumPy loop re-runs the chunk with the same draws
+                    r.bit_generator.state = st
                 self.fallbacks += 1
                 return False
             done.append((x, v, f, xref, owner, first, neigh, builds, held))
@@ -1531,22 +1572,24 @@ class PairChunks:
         if fk is not None:
             fk.phys, fk.pend, fk.prev = phys.astype(np.intp), pend.astype(np.int8), prev
             fk.crossings = cross[:, 0].copy()
+        if fx_fixes:
+            _compiled._fix_store(fx, fx_fixes, plan)
         if at is not None:
             self.compiled_chunks += int(at.size)  # once per sample: each the chunk it replaces
             self.sampled_calls += 1
-            plan.record_samples(**self._sample_record(plan, sm, step0))
+            plan.record_samples(**self._sample_record(plan, sm, step0, fx_fixes))
             return True
         self.compiled_chunks += 1
         _compiled.finish_chunk(plan, s, sample)
         return True
 
     @staticmethod
-    def _sample_record(plan: "_compiled.ChunkPlan", sm: tuple, step0: np.ndarray) -> dict[str, Any]:
+    def _sample_record(plan: "_compiled.ChunkPlan", sm: tuple, step0: np.ndarray, fixes: list[Any]) -> dict[str, Any]:
         """Engine.record_samples' arguments from a sampled chunk's `sm` arrays: compiled.py's
         `_sample_record` of the walls' outputs (clock: the steps at[k] after step0, dt and the
         time origin unchanged in the chunk), with the pair's energy and virial, the virial summed
         from the pair's as Engine.compute_forces sums it."""
-        at, mv2, ew, face, reg, cross = sm
+        at, mv2, ew, face, reg, cross, acc, chain = sm
         s = plan.state
         C, S = mv2.shape
         clock = np.empty((C, S, 4))
@@ -1554,9 +1597,8 @@ class PairChunks:
         clock[:, :, 1] = s.dt[:, None]
         clock[:, :, 2] = s.atime[:, None]
         clock[:, :, 3] = s.atimestep[:, None]
-        none = np.zeros((C, S, 0, 2))
-        args = _compiled._sample_record(plan, (at, mv2, clock, face, none, none, none, cross, reg), [],
-                                        virial=ew[:, :, 1])
+        args = _compiled._sample_record(plan, (at, mv2, clock, face, np.zeros((C, S, 0, 2)), acc, chain, cross, reg),
+                                        fixes, virial=ew[:, :, 1])
         args["pair"] = (ew[:, :, 0].copy(), ew[:, :, 1].copy())
         return args
 
