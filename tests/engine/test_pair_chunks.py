@@ -180,13 +180,14 @@ def test_list_grows_inside_the_chunk(monkeypatch):
     np.testing.assert_array_equal(a.pair.case_builds, b.pair.case_builds)
 
 
-@pytest.mark.parametrize("what", ["reflect", "dt_reset", "langevin over threads"])
+@pytest.mark.parametrize("what", ["stochastic", "dt_reset", "langevin over threads"])
 def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
-    """What the fused chunk does not run (wall/reflect, dt/reset, a thermostat on a case cut over
-    threads) keeps the per-step path."""
+    """What the fused chunk does not run (wall/reflect/stochastic, dt/reset, a thermostat on a
+    case cut over threads) keeps the per-step path."""
     d = slit()
-    if what == "reflect":
-        d["walls"] = {"r": {"style": "reflect", "units": "box", "zlo": "EDGE", "zhi": "EDGE"}}
+    if what == "stochastic":
+        d["walls"] = {"th": {"style": "reflect/stochastic", "rstyle": "diffusive", "seed": 2024, "units": "box",
+                             "zlo": {"coord": "EDGE", "temp": 2.0}, "zhi": {"coord": "EDGE", "temp": 2.0}}}
     elif what == "dt_reset":
         d["dt_reset"] = {"every": 1, "xmax": 0.05, "tmax": 0.005, "units": "box"}
     else:
@@ -370,3 +371,22 @@ def test_thermostats_in_the_fused_chunk(monkeypatch, kind, thermo):
     assert np.ptp(got[0].data["ecouple"]) > 1e-3  # the thermostat exchanged energy
     temp = got[0].data["temp"]
     assert abs(temp[-1] - temp[0]) > 0.05
+
+
+@pytest.mark.parametrize("thermo", [1, 7])
+def test_reflect_walls_in_the_fused_chunk(monkeypatch, thermo):
+    """An LJ liquid between wall/reflect faces, one moving with a variable (frame wall: the
+    reflected velocity is taken relative to the wall's), with reflect_count and reflect_impulse:
+    the fused chunk reflects with compiled.py's `_reflect_face` and records the statistics per
+    sample (take_stats), the per-step path's bits."""
+    d = every(slit(steps=60), thermo=thermo)
+    d["variables"] = {"top": "vdisplace(7.0, -1.0)"}
+    d["walls"] = {"r": {"style": "reflect", "units": "box", "frame": "wall", "zlo": 1.6, "zhi": "v_top"}}
+    d["output"] = {"thermo": ["step", "temp", "pe", "etot", "press", "reflect_count", "reflect_impulse"]}
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(d))
+    assert_bits(got, ref)
+    assert_sampled_in_kernel(fused)
+    assert fused.fast.fallbacks == 0
+    counts = got[0].data["reflect_count"][1:]
+    assert counts.sum(axis=0).min() >= 3 and counts.max() >= 1  # both faces reflected, per sample
+    assert np.abs(got[0].data["reflect_impulse"][1:]).sum() > 0

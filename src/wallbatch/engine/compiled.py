@@ -1940,6 +1940,43 @@ def _plain_reflect(plan: ChunkPlan) -> list[ReflectKernel]:
     return [w for w in plan.reflect if type(w) is ReflectKernel]
 
 
+def _reflect_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    """The kernel's arrays of the plan's wall/reflect faces (`_plain_reflect`): rf_meta (K, 4) =
+    dim, side, frame wall (1) or box (0), group row; rf_prev (C, K): each face's coord at the last
+    step (its velocity is the change over a step); rf_stat (C, K, 2): reflections and impulse so
+    far (with reflect statistics, else zeros); and whether statistics are kept."""
+    reflect = _plain_reflect(plan)
+    C = plan.state.ncases
+    meta = np.array([[face.dim, face.side, 1 if w.frame == "wall" else 0, group(w.group, w.all_atoms)]
+                     for w in reflect for face in w.faces], np.int64).reshape(-1, 4)
+    stats = bool(reflect) and reflect[0].stats
+    prev = np.ascontiguousarray(np.stack([p for w in reflect for p in w.previous], axis=1),
+                                dtype=float) if reflect else np.zeros((C, 0))
+    prev = np.broadcast_to(prev, (C, prev.shape[1])).copy()
+    if stats:
+        stat = np.stack([np.stack([w.count[:, k], w.impulse[:, k]], axis=1)
+                         for w in reflect for k in range(len(w.faces))], axis=1)
+    else:
+        stat = np.zeros((C, meta.shape[0], 2))
+    return meta, prev, np.ascontiguousarray(stat), stats
+
+
+def _reflect_store(plan: ChunkPlan, rf_prev: np.ndarray, rf_stat: np.ndarray) -> None:
+    """Write a successful chunk's wall/reflect state back to the fixes (`_reflect_arrays`' rows)."""
+    reflect = _plain_reflect(plan)
+    stats = bool(reflect) and reflect[0].stats
+    k = 0
+    for w in reflect:
+        for j, face in enumerate(w.faces):
+            # as ReflectKernel.apply: a constant wall keeps its coord array, a variable one a copy
+            w.previous[j] = face.coord if isinstance(face.coord, np.ndarray) else rf_prev[:, k].copy()
+            if stats:
+                w.count[:, j] = rf_stat[:, k, 0]
+                w.impulse[:, j] = rf_stat[:, k, 1]
+            k += 1
+
+
 def _stochastic_kernel(plan: ChunkPlan) -> StochasticKernel | None:
     """The plan's wall/reflect/stochastic fix (`eligible`: at most one, after the wall/reflect ones)."""
     return next((w for w in plan.reflect if isinstance(w, StochasticKernel)), None)
@@ -2481,9 +2518,7 @@ class FastPath:
         sf_meta = np.array([[style_id(st), face.dim, face.side, group(w.group, w.all_atoms),
                              w.cutoff.mode_id] for w, st, face in soft_faces], np.int64).reshape(-1, 5)
         reflect = _plain_reflect(plan)  # wall/reflect fixes (wall/reflect/stochastic: st arrays)
-        rf_meta = np.array([[face.dim, face.side, 1 if w.frame == "wall" else 0, group(w.group, w.all_atoms)]
-                            for w in reflect for face in w.faces], np.int64).reshape(-1, 4)
-        stats = bool(reflect) and reflect[0].stats
+        rf_meta, rf_prev, rf_stat, stats = _reflect_arrays(plan, group)
         C = s.ncases
         dtr = plan.dt_reset
         if dtr is not None:
@@ -2496,14 +2531,6 @@ class FastPath:
         sk = _stochastic_kernel(plan)
         sto = _stochastic_arrays(plan, group)
         groups_arr = np.stack(groups)
-        rf_prev = np.ascontiguousarray(np.stack([p for w in reflect for p in w.previous], axis=1),
-                                       dtype=float) if reflect else np.zeros((C, 0))
-        rf_prev = np.broadcast_to(rf_prev, (C, rf_prev.shape[1])).copy()
-        if stats:
-            rf_stat = np.stack([np.stack([w.count[:, k], w.impulse[:, k]], axis=1)
-                                for w in reflect for k in range(len(w.faces))], axis=1)
-        else:
-            rf_stat = np.zeros((C, rf_meta.shape[0], 2))
         periodic = np.zeros(3, np.int64)
         periodic[s.periodic] = 1
 
@@ -2600,15 +2627,7 @@ class FastPath:
         if sk is not None and sk.stats:
             sk.count[...] = sto[2][:, :, 0]
             sk.impulse[...] = sto[2][:, :, 1]
-        k = 0
-        for w in reflect:
-            for j, face in enumerate(w.faces):
-                # as ReflectKernel.apply: a constant wall keeps its coord array, a variable one a copy
-                w.previous[j] = face.coord if isinstance(face.coord, np.ndarray) else rf_prev[:, k].copy()
-                if stats:
-                    w.count[:, j] = rf_stat[:, k, 0]
-                    w.impulse[:, j] = rf_stat[:, k, 1]
-                k += 1
+        _reflect_store(plan, rf_prev, rf_stat)
         if at is not None:
             s.ctx = None
             s.var_step = {}

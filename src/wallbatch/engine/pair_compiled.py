@@ -21,8 +21,9 @@ compiled.py's `_flow_step`), so no Python runs between steps. It calls the very 
 per-step compiled path, so both give the same bits; trouble hands the chunk back to NumPy. The
 samples of a chunk are recorded in it (`PairChunks.advance_sampled`: the outputs of
 Engine.sample, with compiled.py's sample functions). The `fixes:` compiled.py's kernels run
-(thermostats, enforce2d) run with its fix kernels, for a case on one thread. Not fused:
-wall/reflect, dt/reset, other fixes, wall/lepton faces, time-based runs.
+(thermostats, enforce2d) run with its fix kernels, and wall/reflect faces on fixed dimensions
+with its `_reflect_face`, for a case on one thread. Not fused: wall/reflect/stochastic,
+dt/reset, other fixes, wall/lepton faces, time-based runs.
 
 One large case over threads (`_chunk_threaded`, THREAD_MIN_ATOMS atoms per thread at least):
 the same step in pieces, with the list build (runs of cells, `build_threaded`) and the force pass
@@ -662,6 +663,7 @@ if njit is not None:
     # the `fixes:` of compiled.py's chunks (thermostats, enforce2d) and their state at a sample
     _fix_pre, _fix_post_force, _fix_end = _compiled._fix_pre, _compiled._fix_post_force, _compiled._fix_end
     _langevin_setup, _sample_fixes = _compiled._langevin_setup, _compiled._sample_fixes
+    _reflect_face = _compiled._reflect_face  # wall/reflect
 
     @jit
     def _moved(xc: np.ndarray, xref: np.ndarray, length: np.ndarray, periodic: np.ndarray, limit2: float) -> bool:
@@ -734,7 +736,7 @@ if njit is not None:
         def pair_chunk(nsteps, post, x, v, f, mass, radius, dt, ftm2v, lo, hi, box_per, length, pair_per, reach,
                        limit2, e24, e4, s2c, rcut2, off, sample, fpair, ew, xref, owner, first, neigh, spare, sf_meta,
                        sf_val, groups, rg_meta, rg_geo, rg_val, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend,
-                       fl_prev, fl_cross, fl_rng, fx, fx_rng, step0, sm):
+                       fl_prev, fl_cross, fl_rng, fx, fx_rng, step0, rf_meta, rf_val, rf_prev, rf_stat, stats, sm):
             """Advance one case (x, v, f: (N, 3), written in place) by nsteps velocity-Verlet steps
             of engine.Engine.step: v += dtfm f, x += dt v; periodic wrap; the pair list rebuilt
             (`build_case`) when an atom moved more than skin/2 since xref; f = 0, pair forces
@@ -757,13 +759,20 @@ if njit is not None:
             temperature). step0: the case's step count before the chunk (ramps, temp/rescale's
             every). Not with `post` (a case with fixes is not cut over threads).
 
-            sm = (at, mv2, ew, face, reg, cross, acc, chain): samples recorded in the kernel
+            rf_meta, rf_val, rf_prev, rf_stat, stats: the case's wall/reflect faces (compiled.py's
+            `_reflect_arrays`; rf_val (S or 1, K): each face's coord per step), reflected after the
+            drift and wrap (`chunk_eligible`: on fixed dimensions, where the wrap does not act) by
+            compiled.py's `_reflect_face` with the face's velocity over the step; with `stats` the
+            reflections and impulse added to rf_stat. Not with `post` either.
+
+            sm = (at, mv2, ew, face, reg, cross, acc, chain, rstat): samples recorded in the kernel
             (`PairChunks.advance_sampled`; at (S,) empty: none). After step at[k] (steps of this
             chunk, counted from 1) the outputs of Engine.sample go to row k: sum m v^2, the pair
             energy and virial of that step's pair pass, each soft face's (energy, force on the wall,
             virial) and each wall/region fix's (energy, force x y z, virial) (compiled.py's
             `_sample_faces` and `_sample_regions`, the flat chunks' own), the flow redraws since the
-            last sample and the fixes' state for ecouple (`_sample_fixes`)."""
+            last sample, the fixes' state for ecouple (`_sample_fixes`) and the reflect statistics
+            since the last sample (take_stats)."""
             if nsteps == -fingerprint:  # never: ties the on-disk cache to the wall kernels
                 return 5, 0, neigh
             N = x.shape[0]
@@ -773,7 +782,10 @@ if njit is not None:
             RB = np.empty((6, 5, BLOCK))
             CI = np.empty(N if fl_int[0] != 0 else 0, np.int64)
             DIR = np.empty(N if fl_int[0] != 0 else 0)
-            sm_at, sm_mv2, sm_ew, sm_face, sm_reg, sm_cross, sm_fx, sm_chain = sm
+            sm_at, sm_mv2, sm_ew, sm_face, sm_reg, sm_cross, sm_fx, sm_chain, sm_rstat = sm
+            nrf = rf_meta.shape[0]
+            RS = np.zeros((1, nrf, 2))  # one step's reflect statistics (`_reflect_face`'s rstat)
+            rvary = rf_val.shape[0] > 1
             nsm, ism = sm_at.shape[0], 0
             KS = np.empty(N if nsm else 0)  # m v^2 per atom at a sample
             RBS = np.empty((6, 5, N if nsm and rg_meta.shape[0] else 0))  # a case's region contacts at a sample
@@ -799,6 +811,16 @@ if njit is not None:
                     _fix_pre(0, step0 + step + 1, dt, V, mass, groups, fx, fx_rng, SQM, FR, KB)
                 if not post:  # post: the pair forces of this step are in f (`_chunk_threaded`)
                     _drift(x, v, f, dtfm, dt, lo, hi, box_per)
+                    for k in range(nrf):  # wall/reflect (post_integrate)
+                        coord = rf_val[step if rvary else 0, k]
+                        vwall = (coord - rf_prev[k]) / dt if dt > 0 else 0.0
+                        RS[0, k, 0] = 0.0
+                        RS[0, k, 1] = 0.0
+                        _reflect_face(rf_meta[k, 0], rf_meta[k, 1], rf_meta[k, 2] == 1, rf_meta[k, 3], coord, vwall,
+                                      stats, 0, k, X, V, mass, groups, RS, ftm2v, 0, N)
+                        rf_prev[k] = coord
+                        rf_stat[k, 0] += RS[0, k, 0]
+                        rf_stat[k, 1] += RS[0, k, 1]
                     if _moved(x, xref, length, pair_per, limit2):  # neighbor list (check yes)
                         if not _finite(x):
                             return 3, builds, neigh
@@ -857,6 +879,12 @@ if njit is not None:
                         sm_cross[ism] = fl_cross[0]
                         fl_cross[0] = 0.0
                     _sample_fixes(0, fx, sm_fx[ism], sm_chain[ism])
+                    if stats:  # reflect statistics since the last sample (take_stats)
+                        for k in range(nrf):
+                            sm_rstat[ism, k, 0] = rf_stat[k, 0]
+                            sm_rstat[ism, k, 1] = rf_stat[k, 1]
+                            rf_stat[k, 0] = 0.0
+                            rf_stat[k, 1] = 0.0
                     ism += 1
             for a in range(N):
                 for d in range(3):
@@ -1335,10 +1363,16 @@ def _signature_names(kernel: Any) -> tuple[str, ...]:
 def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     """Whether `PairChunks` runs this plan: pair lj/cut on its compiled path with what the chunk
     kernels of compiled.py run (flat soft walls of the registry's compiled styles, wall/region,
-    one wall/flow, the `fixes:` of `compiled.fixes_eligible`: thermostats, enforce2d, except for a
-    case cut over threads), without wall/reflect, dt/reset, wall/lepton faces or anything else."""
-    if njit is None or plan.others != ("pair",) or plan.reflect or plan.dt_reset is not None:
+    one wall/flow; and, except for a case cut over threads, the `fixes:` of
+    `compiled.fixes_eligible` (thermostats, enforce2d) and wall/reflect on fixed dimensions),
+    without wall/reflect/stochastic, dt/reset, wall/lepton faces or anything else."""
+    if njit is None or plan.others != ("pair",) or plan.dt_reset is not None:
         return False
+    reflect = _compiled._plain_reflect(plan)  # wall/reflect (not wall/reflect/stochastic) on fixed dims only
+    if len(reflect) != len(plan.reflect) or any(face.dim in plan.state.periodic for w in reflect for face in w.faces):
+        return False
+    if reflect and case_parts(plan.state.x.shape[1]) >= 2:
+        return False  # a case over threads: its per-step path keeps them
     if plan.ensemble is not None and (not _compiled.fixes_eligible(plan) or (
             any(f.style in _compiled.FIX_KINDS for f in plan.ensemble.fixes) and case_parts(plan.state.x.shape[1]) >= 2)):
         return False  # fixes the kernel does not run; or a case over threads (their per-step path keeps them)
@@ -1473,6 +1507,8 @@ class PairChunks:
                             for st, face in zip(_compiled._face_styles(w), w.faces)], np.int64).reshape(-1, 5)
         rg_meta, rg_geo, rg_val = _compiled.FastPath._regions(plan, group)
         fx, fx_fixes, fx_rngs = _compiled._fix_arrays(plan, group)  # thermostats, enforce2d
+        rf_meta, rf_prev, rf_stat, stats = _compiled._reflect_arrays(plan, group)  # wall/reflect
+        rf_val = np.ascontiguousarray(values[1])
         groups_arr = np.stack(groups)
         box_per = np.zeros(3, np.int64)
         box_per[s.periodic] = 1
@@ -1498,7 +1534,8 @@ class PairChunks:
         nvt = bool(np.any(fx[0][:, 0] == _compiled.FIX_NVT))
         sm = (np.zeros(0, np.int64) if at is None else np.ascontiguousarray(at, np.int64), np.zeros((C, S)),
               np.zeros((C, S, 2)), np.zeros((C, S, sf_meta.shape[0], 3)), np.zeros((C, S, rg_meta.shape[0], 5)),
-              np.zeros((C, S)), np.zeros((C, S, fx[0].shape[0], 4)), np.zeros((C, S, 3 * fx[3].shape[1] + 2 if nvt else 0)))
+              np.zeros((C, S)), np.zeros((C, S, fx[0].shape[0], 4)), np.zeros((C, S, 3 * fx[3].shape[1] + 2 if nvt else 0)),
+              np.zeros((C, S, rf_meta.shape[0], 2)))
         n = len(_compiled.COMPILED_STYLES)
         kernel = pair_chunk_for(tuple({(int(r[0]), int(r[4])) for r in sf_meta if r[0] < n}),
                                 tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None)
@@ -1525,9 +1562,9 @@ class PairChunks:
                     float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
                     sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl,
                     _compiled._fix_slice(fx, slice(c, c + 1)), fx_rngs[c] if fx_rngs else _compiled._NO_FLOW[-1],
-                    int(s.step[c]), (sm[0], *(a[c] for a in sm[1:])))
-            # one thread for samples in the kernel (`samples_in_kernel`) and for fixes (`chunk_eligible`)
-            parts = case_parts(N) if at is None and not fx[0].shape[0] else 1
+                    int(s.step[c]), rf_meta, rf_val[c], rf_prev[c], rf_stat[c], bool(stats), (sm[0], *(a[c] for a in sm[1:])))
+            # one thread for samples in the kernel (`samples_in_kernel`), fixes and wall/reflect (`chunk_eligible`)
+            parts = case_parts(N) if at is None and not fx[0].shape[0] and not rf_meta.shape[0] else 1
             if parts >= 2 and self.busy_skip > 0:  # the cores were busy with other work: one thread
                 self.busy_skip -= 1
                 parts = 1
@@ -1574,6 +1611,7 @@ class PairChunks:
             fk.crossings = cross[:, 0].copy()
         if fx_fixes:
             _compiled._fix_store(fx, fx_fixes, plan)
+        _compiled._reflect_store(plan, rf_prev, rf_stat)
         if at is not None:
             self.compiled_chunks += int(at.size)  # once per sample: each the chunk it replaces
             self.sampled_calls += 1
@@ -1589,7 +1627,7 @@ class PairChunks:
         `_sample_record` of the walls' outputs (clock: the steps at[k] after step0, dt and the
         time origin unchanged in the chunk), with the pair's energy and virial, the virial summed
         from the pair's as Engine.compute_forces sums it."""
-        at, mv2, ew, face, reg, cross, acc, chain = sm
+        at, mv2, ew, face, reg, cross, acc, chain, rstat = sm
         s = plan.state
         C, S = mv2.shape
         clock = np.empty((C, S, 4))
@@ -1597,7 +1635,7 @@ class PairChunks:
         clock[:, :, 1] = s.dt[:, None]
         clock[:, :, 2] = s.atime[:, None]
         clock[:, :, 3] = s.atimestep[:, None]
-        args = _compiled._sample_record(plan, (at, mv2, clock, face, np.zeros((C, S, 0, 2)), acc, chain, cross, reg),
+        args = _compiled._sample_record(plan, (at, mv2, clock, face, rstat, acc, chain, cross, reg),
                                         fixes, virial=ew[:, :, 1])
         args["pair"] = (ew[:, :, 0].copy(), ew[:, :, 1].copy())
         return args
