@@ -390,3 +390,24 @@ def test_reflect_walls_in_the_fused_chunk(monkeypatch, thermo):
     counts = got[0].data["reflect_count"][1:]
     assert counts.sum(axis=0).min() >= 3 and counts.max() >= 1  # both faces reflected, per sample
     assert np.abs(got[0].data["reflect_impulse"][1:]).sum() > 0
+
+
+@pytest.mark.parametrize("tabstyle", ["linear", "spline"])
+def test_table_walls_in_the_fused_chunk(monkeypatch, tabstyle):
+    """An LJ liquid between wall/table faces (the shipped table file: LJ93 below, HARMONIC above),
+    sampled every 2 steps: the fused chunk runs compiled.py's table loop (`_table_faces`) and
+    records the table energies in the kernel, the per-step path's bits."""
+    from pathlib import Path
+
+    table = str(Path(__file__).resolve().parents[2] / "configs" / "tables" / "walls.table")
+    d = every(slit(steps=40), thermo=2)
+    d["walls"] = {"tab": {"style": "table", "tabstyle": tabstyle, "N": 500, "units": "box", "energy": True,
+                          "virial": True,
+                          "zlo": {"coord": 0.8, "file": table, "keyword": "LJ93", "cutoff": 2.5},
+                          "zhi": {"coord": 7.5, "file": table, "keyword": "HARMONIC", "cutoff": 1.5}}}
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(d))
+    assert_bits(got, ref)
+    assert_sampled_in_kernel(fused)
+    assert fused.fast.fallbacks == 0
+    energy = got[0].data["wall_energy"][1:, 0]
+    assert np.ptp(energy) > 0 and np.abs(got[0].data["wall_force"][1:]).min(axis=0).max() > 0

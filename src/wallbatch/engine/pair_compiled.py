@@ -16,7 +16,7 @@ the positions alone (cell order, then atom index), and atoms near in space are n
 Fused chunks (`pair_chunk`, driven by `PairChunks`, attached by the engine when compiled.py's
 own chunks decline because of the pair): a whole chunk of steps of one case in one call, the
 step of engine.Engine.step (kick, drift, wrap, list check and rebuild, force clear, pair forces,
-flat soft faces and wall/region fixes with compiled.py's kernels, lost atoms, kick, wall/flow with
+flat soft faces (wall/table faces too) and wall/region fixes with compiled.py's kernels, lost atoms, kick, wall/flow with
 compiled.py's `_flow_step`), so no Python runs between steps. It calls the very kernels of the
 per-step compiled path, so both give the same bits; trouble hands the chunk back to NumPy. The
 samples of a chunk are recorded in it (`PairChunks.advance_sampled`: the outputs of
@@ -658,7 +658,8 @@ if njit is not None:
     def _soft_face(*args):  # noqa: ANN002, ANN202 - placeholders: pair_chunk_for links the scene's pieces
         raise NotImplementedError
 
-    _region_walls = _flow_step = _sample_faces = _sample_regions = _soft_face
+    _region_walls = _flow_step = _sample_faces = _sample_regions = _table_faces = _soft_face
+    TABLE_STYLE = _compiled.TABLE_STYLE
     _th_mv2, _th_pairwise = _compiled._th_mv2, _compiled._th_pairwise  # Engine.sample's sum m v^2, its bits
     # the `fixes:` of compiled.py's chunks (thermostats, enforce2d) and their state at a sample
     _fix_pre, _fix_post_force, _fix_end = _compiled._fix_pre, _compiled._fix_post_force, _compiled._fix_end
@@ -736,7 +737,7 @@ if njit is not None:
         def pair_chunk(nsteps, post, x, v, f, mass, radius, dt, ftm2v, lo, hi, box_per, length, pair_per, reach,
                        limit2, e24, e4, s2c, rcut2, off, sample, fpair, ew, xref, owner, first, neigh, spare, sf_meta,
                        sf_val, groups, rg_meta, rg_geo, rg_val, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend,
-                       fl_prev, fl_cross, fl_rng, fx, fx_rng, step0, rf_meta, rf_val, rf_prev, rf_stat, stats, sm):
+                       fl_prev, fl_cross, fl_rng, fx, fx_rng, step0, rf_meta, rf_val, rf_prev, rf_stat, stats, tb, sm):
             """Advance one case (x, v, f: (N, 3), written in place) by nsteps velocity-Verlet steps
             of engine.Engine.step: v += dtfm f, x += dt v; periodic wrap; the pair list rebuilt
             (`build_case`) when an atom moved more than skin/2 since xref; f = 0, pair forces
@@ -765,6 +766,9 @@ if njit is not None:
             compiled.py's `_reflect_face` with the face's velocity over the step; with `stats` the
             reflections and impulse added to rf_stat. Not with `post` either.
 
+            tb: the wall/table faces' tables (compiled.py's `_tables` and a scratch of N bytes
+            rounded up to 64: `_table_faces`, style TABLE_STYLE in sf_meta).
+
             sm = (at, mv2, ew, face, reg, cross, acc, chain, rstat): samples recorded in the kernel
             (`PairChunks.advance_sampled`; at (S,) empty: none). After step at[k] (steps of this
             chunk, counted from 1) the outputs of Engine.sample go to row k: sum m v^2, the pair
@@ -790,7 +794,6 @@ if njit is not None:
             KS = np.empty(N if nsm else 0)  # m v^2 per atom at a sample
             RBS = np.empty((6, 5, N if nsm and rg_meta.shape[0] else 0))  # a case's region contacts at a sample
             SF = sf_val.reshape((1, sf_val.shape[0], sf_val.shape[1], sf_val.shape[2]))  # `_sample_faces`' (C, S, K, 6)
-            TB = (np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(0))  # no wall/table faces (chunk_eligible)
             LP = np.zeros((1, sf_meta.shape[0], 1))  # no wall/lepton faces
             fx_meta = fx[0]
             nfx = N if fx_meta.shape[0] else 0
@@ -841,9 +844,14 @@ if njit is not None:
                         fpair[:] = f
                 nbad = 0
                 for k in range(sf_meta.shape[0]):  # soft flat walls, fix order
-                    nbad += _soft_face(sf_meta[k, 0], sf_meta[k, 4], X, F, radius, groups, sf_meta[k, 3],
-                                       sf_meta[k, 1], sf_meta[k, 2], sf_val[si, k, 0], sf_val[si, k, 1],
-                                       sf_val[si, k, 2], sf_val[si, k, 3], sf_val[si, k, 4], sf_val[si, k, 5], 0, N)
+                    if sf_meta[k, 0] == TABLE_STYLE:  # wall/table: the face's table from tb (data, not code)
+                        nbad += _table_faces(tb, k, X, F, groups, sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2],
+                                             sf_val[si, k, 0], sf_val[si, k, 4], 0, N)
+                    else:
+                        nbad += _soft_face(sf_meta[k, 0], sf_meta[k, 4], X, F, radius, groups, sf_meta[k, 3],
+                                           sf_meta[k, 1], sf_meta[k, 2], sf_val[si, k, 0], sf_val[si, k, 1],
+                                           sf_val[si, k, 2], sf_val[si, k, 3], sf_val[si, k, 4], sf_val[si, k, 5], 0,
+                                           N)
                 if rg_meta.shape[0]:  # wall/region fixes, block by block
                     for u0 in range(0, N, BLOCK):
                         nbad += _region_walls(0, u0, min(u0 + BLOCK, N), X, F, radius, groups, rg_meta, rg_geo,
@@ -867,7 +875,7 @@ if njit is not None:
                     _flow_step(X, V, mass, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross,
                                fl_rng, CI, DIR)
                 if due:  # the outputs of Engine.sample at this step (positions are the force pass's)
-                    _sample_faces(0, si, X, radius, groups, sf_meta, SF, TB, LP, sm_face[ism])
+                    _sample_faces(0, si, X, radius, groups, sf_meta, SF, tb, LP, sm_face[ism])
                     if rg_meta.shape[0]:
                         _sample_regions(0, X, radius, groups, rg_meta, rg_geo, rg_val, RBS, sm_reg[ism])
                     for a in range(N):
@@ -898,23 +906,25 @@ if njit is not None:
         return pair_chunk
 
     def pair_chunk_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (),
-                       flow: bool = False) -> Any:
+                       flow: bool = False, tables: bool = False) -> Any:
         """The fused chunk kernel of one kind of pair scene: `pair_chunk` linked to the scene's
         soft-face dispatch, region walls and flow step from compiled.pieces_for (the same
         specialised pieces as the scene's chunk kernel), named by their fingerprint so numba
         caches each on disk in its own index file."""
-        return _pair_chunk_for(tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow))
+        return _pair_chunk_for(tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow), bool(tables))
 
     @functools.lru_cache(maxsize=32)
-    def _pair_chunk_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool) -> Any:
-        p = _compiled.pieces_for(soft, region, flow)
+    def _pair_chunk_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
+                        tables: bool = False) -> Any:
+        p = _compiled.pieces_for(soft, region, flow, tables=tables)
         h = hashlib.sha256()
         h.update(str(p.fingerprint).encode())
         h.update(inspect.getsource(_compiled).encode())
         fp = int(h.hexdigest()[:15], 16)
         fn = _compiled._relink(_make_pair_chunk(fp).py_func, name=f"pair_chunk_{fp:015x}", _soft_face=p.soft_face,
                                _region_walls=p.region_walls, _flow_step=p.flow_step, _sample_faces=p.sample_faces,
-                               _sample_regions=p.sample_regions)
+                               _sample_regions=p.sample_regions,
+                               _table_faces=_compiled._table_faces if tables else _compiled._no_table_faces)
         return njit(cache=True, nogil=True, error_model="numpy")(fn)
 
 
@@ -1363,7 +1373,7 @@ def _signature_names(kernel: Any) -> tuple[str, ...]:
 def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     """Whether `PairChunks` runs this plan: pair lj/cut on its compiled path with what the chunk
     kernels of compiled.py run (flat soft walls of the registry's compiled styles, wall/region,
-    one wall/flow; and, except for a case cut over threads, the `fixes:` of
+    one wall/flow, wall/table faces; and, except for a case cut over threads, the `fixes:` of
     `compiled.fixes_eligible` (thermostats, enforce2d) and wall/reflect on fixed dimensions),
     without wall/reflect/stochastic, dt/reset, wall/lepton faces or anything else."""
     if njit is None or plan.others != ("pair",) or plan.dt_reset is not None:
@@ -1380,8 +1390,10 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
         return False
     if not _compiled.eligible(dataclasses.replace(plan, others=())):
         return False
-    for w in plan.soft:
+    for w in plan.soft:  # the registry's compiled styles, or wall/table
         for st in _compiled._face_styles(w):
+            if _compiled._is_table(st):
+                continue
             if _compiled.STYLE_IDS.get(st.name) is None or _compiled.COMPILED_STYLES[_compiled.STYLE_IDS[st.name]] != st:
                 return False
     return not any(w.style.needs_radius and not w._radius_checked for w in plan.region)
@@ -1502,9 +1514,12 @@ class PairChunks:
             groups.append(np.asarray(mask).astype(np.uint8))
             return len(groups) - 1
 
-        sf_meta = np.array([[_compiled.STYLE_IDS[st.name], face.dim, face.side, group(w.group, w.all_atoms),
-                             w.cutoff.mode_id] for w in plan.soft
-                            for st, face in zip(_compiled._face_styles(w), w.faces)], np.int64).reshape(-1, 5)
+        soft_faces = [(w, st, face) for w in plan.soft for st, face in zip(_compiled._face_styles(w), w.faces)]
+        sf_meta = np.array([[_compiled.TABLE_STYLE if _compiled._is_table(st) else _compiled.STYLE_IDS[st.name],
+                             face.dim, face.side, group(w.group, w.all_atoms), w.cutoff.mode_id]
+                            for w, st, face in soft_faces], np.int64).reshape(-1, 5)
+        tables = bool(np.any(sf_meta[:, 0] == _compiled.TABLE_STYLE))
+        tb = (*_compiled._tables(soft_faces), np.zeros(((N + 63) // 64) * 64 if tables else 0, np.uint8))
         rg_meta, rg_geo, rg_val = _compiled.FastPath._regions(plan, group)
         fx, fx_fixes, fx_rngs = _compiled._fix_arrays(plan, group)  # thermostats, enforce2d
         rf_meta, rf_prev, rf_stat, stats = _compiled._reflect_arrays(plan, group)  # wall/reflect
@@ -1537,8 +1552,8 @@ class PairChunks:
               np.zeros((C, S)), np.zeros((C, S, fx[0].shape[0], 4)), np.zeros((C, S, 3 * fx[3].shape[1] + 2 if nvt else 0)),
               np.zeros((C, S, rf_meta.shape[0], 2)))
         n = len(_compiled.COMPILED_STYLES)
-        kernel = pair_chunk_for(tuple({(int(r[0]), int(r[4])) for r in sf_meta if r[0] < n}),
-                                tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None)
+        kernel = pair_chunk_for(tuple({(int(r[0]), int(r[4])) for r in sf_meta if 0 <= r[0] < n}),
+                                tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None, tables)
         if not kernel.signatures:
             _compiled.announce_compile(kernel)
         done = []
@@ -1562,7 +1577,8 @@ class PairChunks:
                     float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
                     sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl,
                     _compiled._fix_slice(fx, slice(c, c + 1)), fx_rngs[c] if fx_rngs else _compiled._NO_FLOW[-1],
-                    int(s.step[c]), rf_meta, rf_val[c], rf_prev[c], rf_stat[c], bool(stats), (sm[0], *(a[c] for a in sm[1:])))
+                    int(s.step[c]), rf_meta, rf_val[c], rf_prev[c], rf_stat[c], bool(stats), tb,
+                    (sm[0], *(a[c] for a in sm[1:])))
             # one thread for samples in the kernel (`samples_in_kernel`), fixes and wall/reflect (`chunk_eligible`)
             parts = case_parts(N) if at is None and not fx[0].shape[0] and not rf_meta.shape[0] else 1
             if parts >= 2 and self.busy_skip > 0:  # the cores were busy with other work: one thread
