@@ -180,14 +180,18 @@ def test_list_grows_inside_the_chunk(monkeypatch):
     np.testing.assert_array_equal(a.pair.case_builds, b.pair.case_builds)
 
 
-@pytest.mark.parametrize("what", ["stochastic", "dt_reset", "langevin over threads"])
+@pytest.mark.parametrize("what", ["lepton", "dt_reset", "langevin over threads", "reflect over threads"])
 def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
-    """What the fused chunk does not run (wall/reflect/stochastic, dt/reset, a thermostat on a
-    case cut over threads) keeps the per-step path."""
+    """What the fused chunk does not run (wall/lepton faces, dt/reset, a thermostat or a reflect
+    wall on a case cut over threads) keeps the per-step path."""
     d = slit()
-    if what == "stochastic":
-        d["walls"] = {"th": {"style": "reflect/stochastic", "rstyle": "diffusive", "seed": 2024, "units": "box",
-                             "zlo": {"coord": "EDGE", "temp": 2.0}, "zhi": {"coord": "EDGE", "temp": 2.0}}}
+    if what == "lepton":
+        d["walls"] = {"w": {"style": "lepton", "units": "box", "zlo": {
+            "coord": "EDGE", "cutoff": 2.5, "expression": "eps*(2/15*(sig/r)^9-(sig/r)^3)",
+            "params": {"eps": 1.0, "sig": 1.0}}}}
+    elif what == "reflect over threads":
+        d["walls"] = {"r": {"style": "reflect", "units": "box", "zlo": "EDGE", "zhi": "EDGE"}}
+        monkeypatch.setattr(pair_compiled, "case_parts", lambda n: 2)
     elif what == "dt_reset":
         d["dt_reset"] = {"every": 1, "xmax": 0.05, "tmax": 0.005, "units": "box"}
     else:
@@ -411,3 +415,21 @@ def test_table_walls_in_the_fused_chunk(monkeypatch, tabstyle):
     assert fused.fast.fallbacks == 0
     energy = got[0].data["wall_energy"][1:, 0]
     assert np.ptp(energy) > 0 and np.abs(got[0].data["wall_force"][1:]).min(axis=0).max() > 0
+
+
+@pytest.mark.parametrize("rstyle", ["diffusive", "maxwell"])
+def test_stochastic_walls_in_the_fused_chunk(monkeypatch, rstyle):
+    """An LJ liquid between wall/reflect/stochastic thermal walls (reflect counts and impulses):
+    the fused chunk draws from the fix's streams in NumPy's order (`_stochastic_faces`), the
+    per-step path's bits, the statistics recorded per sample in the kernel."""
+    d = every(slit(steps=60), thermo=3)
+    extra = {"accom": 0.5} if rstyle == "maxwell" else {}
+    d["walls"] = {"th": {"style": "reflect/stochastic", "rstyle": rstyle, "seed": 2024, "units": "box",
+                         "zlo": {"coord": 1.65, "temp": 1.0, **extra}, "zhi": {"coord": 6.9, "temp": 3.0, **extra}}}
+    d["output"] = {"thermo": ["step", "temp", "pe", "etot", "reflect_count", "reflect_impulse"]}
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(d))
+    assert_bits(got, ref)
+    assert_sampled_in_kernel(fused)
+    assert fused.fast.fallbacks == 0
+    counts = got[0].data["reflect_count"][1:]
+    assert counts.sum(axis=0).min() >= 3 and counts.max() >= 1

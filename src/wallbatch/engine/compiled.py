@@ -1962,8 +1962,13 @@ def _reflect_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]
     return meta, prev, np.ascontiguousarray(stat), stats
 
 
-def _reflect_store(plan: ChunkPlan, rf_prev: np.ndarray, rf_stat: np.ndarray) -> None:
-    """Write a successful chunk's wall/reflect state back to the fixes (`_reflect_arrays`' rows)."""
+def _reflect_store(plan: ChunkPlan, rf_prev: np.ndarray, rf_stat: np.ndarray, st_stat: np.ndarray) -> None:
+    """Write a successful chunk's wall/reflect state back to the fixes (`_reflect_arrays`' rows),
+    and wall/reflect/stochastic's counters (`_stochastic_arrays`' st_stat)."""
+    sk = _stochastic_kernel(plan)
+    if sk is not None and sk.stats:
+        sk.count[...] = st_stat[:, :, 0]
+        sk.impulse[...] = st_stat[:, :, 1]
     reflect = _plain_reflect(plan)
     stats = bool(reflect) and reflect[0].stats
     k = 0
@@ -2624,10 +2629,7 @@ class FastPath:
             fk.crossings = cross[:, 0].copy()
         self._spare = (s.x, s.v, s.f)
         s.x, s.v, s.f = xo, vo, fo
-        if sk is not None and sk.stats:
-            sk.count[...] = sto[2][:, :, 0]
-            sk.impulse[...] = sto[2][:, :, 1]
-        _reflect_store(plan, rf_prev, rf_stat)
+        _reflect_store(plan, rf_prev, rf_stat, sto[2])
         if at is not None:
             s.ctx = None
             s.var_step = {}

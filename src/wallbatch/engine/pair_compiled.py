@@ -21,9 +21,9 @@ compiled.py's `_flow_step`), so no Python runs between steps. It calls the very 
 per-step compiled path, so both give the same bits; trouble hands the chunk back to NumPy. The
 samples of a chunk are recorded in it (`PairChunks.advance_sampled`: the outputs of
 Engine.sample, with compiled.py's sample functions). The `fixes:` compiled.py's kernels run
-(thermostats, enforce2d) run with its fix kernels, and wall/reflect faces on fixed dimensions
-with its `_reflect_face`, for a case on one thread. Not fused: wall/reflect/stochastic,
-dt/reset, other fixes, wall/lepton faces, time-based runs.
+(thermostats, enforce2d) run with its fix kernels, and wall/reflect and wall/reflect/stochastic
+faces on fixed dimensions with its `_reflect_face` and `_stochastic_faces`, for a case on one
+thread. Not fused: dt/reset, other fixes, wall/lepton faces, time-based runs.
 
 One large case over threads (`_chunk_threaded`, THREAD_MIN_ATOMS atoms per thread at least):
 the same step in pieces, with the list build (runs of cells, `build_threaded`) and the force pass
@@ -658,7 +658,7 @@ if njit is not None:
     def _soft_face(*args):  # noqa: ANN002, ANN202 - placeholders: pair_chunk_for links the scene's pieces
         raise NotImplementedError
 
-    _region_walls = _flow_step = _sample_faces = _sample_regions = _table_faces = _soft_face
+    _region_walls = _flow_step = _sample_faces = _sample_regions = _table_faces = _stochastic_faces = _soft_face
     TABLE_STYLE = _compiled.TABLE_STYLE
     _th_mv2, _th_pairwise = _compiled._th_mv2, _compiled._th_pairwise  # Engine.sample's sum m v^2, its bits
     # the `fixes:` of compiled.py's chunks (thermostats, enforce2d) and their state at a sample
@@ -737,7 +737,8 @@ if njit is not None:
         def pair_chunk(nsteps, post, x, v, f, mass, radius, dt, ftm2v, lo, hi, box_per, length, pair_per, reach,
                        limit2, e24, e4, s2c, rcut2, off, sample, fpair, ew, xref, owner, first, neigh, spare, sf_meta,
                        sf_val, groups, rg_meta, rg_geo, rg_val, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend,
-                       fl_prev, fl_cross, fl_rng, fx, fx_rng, step0, rf_meta, rf_val, rf_prev, rf_stat, stats, tb, sm):
+                       fl_prev, fl_cross, fl_rng, fx, fx_rng, step0, rf_meta, rf_val, rf_prev, rf_stat, stats, tb,
+                       st_meta, st_val, st_stat, st_flag, st_rng, mvv2e, sm):
             """Advance one case (x, v, f: (N, 3), written in place) by nsteps velocity-Verlet steps
             of engine.Engine.step: v += dtfm f, x += dt v; periodic wrap; the pair list rebuilt
             (`build_case`) when an atom moved more than skin/2 since xref; f = 0, pair forces
@@ -769,6 +770,10 @@ if njit is not None:
             tb: the wall/table faces' tables (compiled.py's `_tables` and a scratch of N bytes
             rounded up to 64: `_table_faces`, style TABLE_STYLE in sf_meta).
 
+            st_meta, st_val, st_stat, st_flag, st_rng: a wall/reflect/stochastic fix (compiled.py's
+            `_stochastic_arrays` of this case, row 0; its generator), after the wall/reflect faces
+            (`_stochastic_faces`; faces on fixed dimensions); mvv2e: the units' m v^2 to energy.
+
             sm = (at, mv2, ew, face, reg, cross, acc, chain, rstat): samples recorded in the kernel
             (`PairChunks.advance_sampled`; at (S,) empty: none). After step at[k] (steps of this
             chunk, counted from 1) the outputs of Engine.sample go to row k: sum m v^2, the pair
@@ -787,7 +792,9 @@ if njit is not None:
             CI = np.empty(N if fl_int[0] != 0 else 0, np.int64)
             DIR = np.empty(N if fl_int[0] != 0 else 0)
             sm_at, sm_mv2, sm_ew, sm_face, sm_reg, sm_cross, sm_fx, sm_chain, sm_rstat = sm
-            nrf = rf_meta.shape[0]
+            nrf, nst = rf_meta.shape[0], st_meta.shape[0]
+            ST = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(N if nst else 0, np.int64),
+                  np.empty((4, N if nst else 0)))  # `_stochastic_faces`' arguments and scratch
             RS = np.zeros((1, nrf, 2))  # one step's reflect statistics (`_reflect_face`'s rstat)
             rvary = rf_val.shape[0] > 1
             nsm, ism = sm_at.shape[0], 0
@@ -824,6 +831,8 @@ if njit is not None:
                         rf_prev[k] = coord
                         rf_stat[k, 0] += RS[0, k, 0]
                         rf_stat[k, 1] += RS[0, k, 1]
+                    if nst:  # wall/reflect/stochastic (post_integrate, after the wall/reflect fixes)
+                        _stochastic_faces(0, 0, N, X, V, mass, groups, ST, ftm2v, mvv2e)
                     if _moved(x, xref, length, pair_per, limit2):  # neighbor list (check yes)
                         if not _finite(x):
                             return 3, builds, neigh
@@ -893,6 +902,12 @@ if njit is not None:
                             sm_rstat[ism, k, 1] = rf_stat[k, 1]
                             rf_stat[k, 0] = 0.0
                             rf_stat[k, 1] = 0.0
+                    if st_flag[0] != 0:  # wall/reflect/stochastic's, after them
+                        for k in range(nst):
+                            sm_rstat[ism, nrf + k, 0] = st_stat[0, k, 0]
+                            sm_rstat[ism, nrf + k, 1] = st_stat[0, k, 1]
+                            st_stat[0, k, 0] = 0.0
+                            st_stat[0, k, 1] = 0.0
                     ism += 1
             for a in range(N):
                 for d in range(3):
@@ -906,17 +921,18 @@ if njit is not None:
         return pair_chunk
 
     def pair_chunk_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (),
-                       flow: bool = False, tables: bool = False) -> Any:
+                       flow: bool = False, tables: bool = False, stochastic: bool = False) -> Any:
         """The fused chunk kernel of one kind of pair scene: `pair_chunk` linked to the scene's
         soft-face dispatch, region walls and flow step from compiled.pieces_for (the same
         specialised pieces as the scene's chunk kernel), named by their fingerprint so numba
         caches each on disk in its own index file."""
-        return _pair_chunk_for(tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow), bool(tables))
+        return _pair_chunk_for(tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow), bool(tables),
+                               bool(stochastic))
 
     @functools.lru_cache(maxsize=32)
     def _pair_chunk_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
-                        tables: bool = False) -> Any:
-        p = _compiled.pieces_for(soft, region, flow, tables=tables)
+                        tables: bool = False, stochastic: bool = False) -> Any:
+        p = _compiled.pieces_for(soft, region, flow, tables=tables, stochastic=stochastic)
         h = hashlib.sha256()
         h.update(str(p.fingerprint).encode())
         h.update(inspect.getsource(_compiled).encode())
@@ -924,7 +940,9 @@ if njit is not None:
         fn = _compiled._relink(_make_pair_chunk(fp).py_func, name=f"pair_chunk_{fp:015x}", _soft_face=p.soft_face,
                                _region_walls=p.region_walls, _flow_step=p.flow_step, _sample_faces=p.sample_faces,
                                _sample_regions=p.sample_regions,
-                               _table_faces=_compiled._table_faces if tables else _compiled._no_table_faces)
+                               _table_faces=_compiled._table_faces if tables else _compiled._no_table_faces,
+                               _stochastic_faces=_compiled._stochastic_faces if stochastic
+                               else _compiled._no_stochastic_faces)
         return njit(cache=True, nogil=True, error_model="numpy")(fn)
 
 
@@ -1374,14 +1392,16 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     """Whether `PairChunks` runs this plan: pair lj/cut on its compiled path with what the chunk
     kernels of compiled.py run (flat soft walls of the registry's compiled styles, wall/region,
     one wall/flow, wall/table faces; and, except for a case cut over threads, the `fixes:` of
-    `compiled.fixes_eligible` (thermostats, enforce2d) and wall/reflect on fixed dimensions),
-    without wall/reflect/stochastic, dt/reset, wall/lepton faces or anything else."""
+    `compiled.fixes_eligible` (thermostats, enforce2d) and wall/reflect and wall/reflect/stochastic
+    (`compiled._stochastic_eligible`) on fixed dimensions), without dt/reset, wall/lepton faces or
+    anything else."""
     if njit is None or plan.others != ("pair",) or plan.dt_reset is not None:
         return False
-    reflect = _compiled._plain_reflect(plan)  # wall/reflect (not wall/reflect/stochastic) on fixed dims only
-    if len(reflect) != len(plan.reflect) or any(face.dim in plan.state.periodic for w in reflect for face in w.faces):
+    # wall/reflect and wall/reflect/stochastic (as compiled.py's kernels run it) on fixed dims only
+    if not _compiled._stochastic_eligible(plan) or any(face.dim in plan.state.periodic
+                                                          for w in plan.reflect for face in w.faces):
         return False
-    if reflect and case_parts(plan.state.x.shape[1]) >= 2:
+    if plan.reflect and case_parts(plan.state.x.shape[1]) >= 2:
         return False  # a case over threads: its per-step path keeps them
     if plan.ensemble is not None and (not _compiled.fixes_eligible(plan) or (
             any(f.style in _compiled.FIX_KINDS for f in plan.ensemble.fixes) and case_parts(plan.state.x.shape[1]) >= 2)):
@@ -1523,6 +1543,8 @@ class PairChunks:
         rg_meta, rg_geo, rg_val = _compiled.FastPath._regions(plan, group)
         fx, fx_fixes, fx_rngs = _compiled._fix_arrays(plan, group)  # thermostats, enforce2d
         rf_meta, rf_prev, rf_stat, stats = _compiled._reflect_arrays(plan, group)  # wall/reflect
+        sto = _compiled._stochastic_arrays(plan, group)  # wall/reflect/stochastic
+        sk = _compiled._stochastic_kernel(plan)
         rf_val = np.ascontiguousarray(values[1])
         groups_arr = np.stack(groups)
         box_per = np.zeros(3, np.int64)
@@ -1537,7 +1559,7 @@ class PairChunks:
                                                             ("owner", pair._owner), ("first", pair._first))]
         ew = np.zeros((C, 2))
         fk = plan.flow[0] if plan.flow else None
-        generators = list(fx_rngs) + (list(fk.rngs) if fk is not None else [])  # drawn from in the kernel
+        generators = list(fx_rngs) + (list(fk.rngs) if fk is not None else []) + (list(sk.rngs) if sk else [])
         rng_states = [r.bit_generator.state for r in generators]
         if fk is not None:
             phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
@@ -1550,10 +1572,10 @@ class PairChunks:
         sm = (np.zeros(0, np.int64) if at is None else np.ascontiguousarray(at, np.int64), np.zeros((C, S)),
               np.zeros((C, S, 2)), np.zeros((C, S, sf_meta.shape[0], 3)), np.zeros((C, S, rg_meta.shape[0], 5)),
               np.zeros((C, S)), np.zeros((C, S, fx[0].shape[0], 4)), np.zeros((C, S, 3 * fx[3].shape[1] + 2 if nvt else 0)),
-              np.zeros((C, S, rf_meta.shape[0], 2)))
+              np.zeros((C, S, rf_meta.shape[0] + sto[0].shape[0], 2)))
         n = len(_compiled.COMPILED_STYLES)
         kernel = pair_chunk_for(tuple({(int(r[0]), int(r[4])) for r in sf_meta if 0 <= r[0] < n}),
-                                tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None, tables)
+                                tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None, tables, sk is not None)
         if not kernel.signatures:
             _compiled.announce_compile(kernel)
         done = []
@@ -1577,10 +1599,11 @@ class PairChunks:
                     float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
                     sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl,
                     _compiled._fix_slice(fx, slice(c, c + 1)), fx_rngs[c] if fx_rngs else _compiled._NO_FLOW[-1],
-                    int(s.step[c]), rf_meta, rf_val[c], rf_prev[c], rf_stat[c], bool(stats), tb,
-                    (sm[0], *(a[c] for a in sm[1:])))
+                    int(s.step[c]), rf_meta, rf_val[c], rf_prev[c], rf_stat[c], bool(stats), tb, sto[0],
+                    sto[1][c:c + 1], sto[2][c:c + 1], sto[3], sk.rngs[c] if sk is not None else _compiled._NO_FLOW[-1],
+                    float(s.units.mvv2e), (sm[0], *(a[c] for a in sm[1:])))
             # one thread for samples in the kernel (`samples_in_kernel`), fixes and wall/reflect (`chunk_eligible`)
-            parts = case_parts(N) if at is None and not fx[0].shape[0] and not rf_meta.shape[0] else 1
+            parts = case_parts(N) if at is None and not fx[0].shape[0] and not plan.reflect else 1
             if parts >= 2 and self.busy_skip > 0:  # the cores were busy with other work: one thread
                 self.busy_skip -= 1
                 parts = 1
@@ -1627,7 +1650,7 @@ class PairChunks:
             fk.crossings = cross[:, 0].copy()
         if fx_fixes:
             _compiled._fix_store(fx, fx_fixes, plan)
-        _compiled._reflect_store(plan, rf_prev, rf_stat)
+        _compiled._reflect_store(plan, rf_prev, rf_stat, sto[2])
         if at is not None:
             self.compiled_chunks += int(at.size)  # once per sample: each the chunk it replaces
             self.sampled_calls += 1
