@@ -32,6 +32,7 @@ shared: compare ratios within one run, and read the load average in the header.
 from __future__ import annotations
 
 import argparse
+import copy
 import contextlib
 import fnmatch
 import math
@@ -373,6 +374,43 @@ for _kind_name in ("langevin", "nvt"):
     for _n in (1000, 4000):
         register(f"ljcut-{_kind_name}-{_n}", _ljcut_thermostat(_kind_name, _n, 2e6), at_least(1.5),
                  "issue 15 (thermostats; pair lj/cut: >= 1.5x)")
+
+def _with_walls(cfg: dict, walls_from: dict) -> dict:
+    """The scene `cfg` with the walls of the scene `walls_from`."""
+    return dict(cfg, walls=copy.deepcopy(walls_from["walls"]))
+
+
+PAIR_WALLS: dict[str, Callable[[int, int, int], dict]] = {  # LJ liquid slit + another wall kind: (n, steps, thermo)
+    "reflect": lambda n, s, t: _with_walls(lj_fcc_slit(n, steps=s, thermo=t), gas_slit(1000, "reflect")),
+    "table": lambda n, s, t: _with_walls(lj_fcc_slit(n, steps=s, thermo=t), table_slit(1000)),
+    "stochastic": lambda n, s, t: _with_walls(lj_fcc_slit(n, steps=s, thermo=t), stochastic_slit(1000)),
+    "lepton": lambda n, s, t: _with_walls(lj_fcc_slit(n, steps=s, thermo=t), lepton_slit(1000)),
+    "dt_reset": lambda n, s, t: with_dt_reset(lj_fcc_slit(n, steps=s, thermo=t)),
+}
+
+
+@row("ljcut-wall-kinds", at_least(1.5), "issue 15 (pair lj/cut: >= 1.5x at N = 4000)")
+def ljcut_wall_kinds() -> dict:
+    """The LJ liquid slit of ljcut-4000 between each other kind of wall (wall/reflect, wall/table,
+    wall/reflect/stochastic, wall/lepton) and with fix dt/reset, N = 4000; the value is the worst
+    ratio, the note lists every one."""
+    n = 4000
+    steps = scaled(2e6, n)
+    ratios: dict[str, float] = {}
+    wb = lmp = 0.0
+    for name, make in PAIR_WALLS.items():
+        r = speed(name, make(n, steps, max(1, steps // 10)))
+        if r.get("ratio") is None:
+            return {"scene": "LJ liquid slit with each wall kind", "N": n, "steps": steps,
+                    "note": f"{name}: {r.get('why', 'no ratio')}"}
+        ratios[name] = r["ratio"]
+        wb += r["wb_s"]
+        lmp += r["lmp_s"]
+    worst = min(ratios, key=ratios.get)
+    return {"scene": f"LJ liquid slit (pair lj/cut) with {len(ratios)} wall kinds, worst of them", "N": n,
+            "steps": steps, "wb": f"{wb:.2f} s in all", "lmp": f"{lmp:.2f} s in all", "ratio": ratios[worst],
+            "value": ratios[worst], "note": f"worst {worst}; " + ", ".join(f"{k} {v:.2f}" for k, v in ratios.items())}
+
 
 register("ljcut-4000", _ljcut(4000, 4e6), at_least(1.5))
 register("ljcut-32000", _ljcut(32000, 6.4e6), at_least(1.5))

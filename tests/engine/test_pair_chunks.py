@@ -180,10 +180,11 @@ def test_list_grows_inside_the_chunk(monkeypatch):
     np.testing.assert_array_equal(a.pair.case_builds, b.pair.case_builds)
 
 
-@pytest.mark.parametrize("what", ["lepton", "dt_reset", "langevin over threads", "reflect over threads"])
+@pytest.mark.parametrize("what", ["lepton", "dt_reset with a moving wall", "langevin over threads",
+                                  "reflect over threads"])
 def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
-    """What the fused chunk does not run (wall/lepton faces, dt/reset, a thermostat or a reflect
-    wall on a case cut over threads) keeps the per-step path."""
+    """What the fused chunk does not run (wall/lepton faces, dt/reset with per-step wall values, a
+    thermostat or a reflect wall on a case cut over threads) keeps the per-step path."""
     d = slit()
     if what == "lepton":
         d["walls"] = {"w": {"style": "lepton", "units": "box", "zlo": {
@@ -192,8 +193,10 @@ def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
     elif what == "reflect over threads":
         d["walls"] = {"r": {"style": "reflect", "units": "box", "zlo": "EDGE", "zhi": "EDGE"}}
         monkeypatch.setattr(pair_compiled, "case_parts", lambda n: 2)
-    elif what == "dt_reset":
+    elif what == "dt_reset with a moving wall":
         d["dt_reset"] = {"every": 1, "xmax": 0.05, "tmax": 0.005, "units": "box"}
+        d["variables"] = {"lo": "vdisplace(0.0, 0.5)"}
+        d["walls"]["pore"]["zlo"] = {"coord": "v_lo", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5}
     else:
         d["fixes"] = {"a": "fix a all nve", "b": "fix b all langevin 2.0 2.0 0.5 48279"}
         monkeypatch.setattr(pair_compiled, "case_parts", lambda n: 2)
@@ -433,3 +436,22 @@ def test_stochastic_walls_in_the_fused_chunk(monkeypatch, rstyle):
     assert fused.fast.fallbacks == 0
     counts = got[0].data["reflect_count"][1:]
     assert counts.sum(axis=0).min() >= 3 and counts.max() >= 1
+
+
+@pytest.mark.parametrize(("every_n", "thermo"), [(1, 1), (3, 5)])
+def test_dt_reset_in_the_fused_chunk(monkeypatch, every_n, thermo):
+    """fix dt/reset (every 1 and every 3) on an LJ liquid between lj93 walls: the fused chunk
+    resets dt in the kernel (each atom's candidate, the group's minimum, the clamp to tmin/tmax),
+    closing the time accumulator as BatchState.set_dt does: the same dt, time and outputs as the
+    per-step path, bit for bit, and the run's end state (dt, atime) the same."""
+    d = every(slit(steps=30, temperature=3.0), thermo=thermo)
+    d["dt_reset"] = {"every": every_n, "xmax": 0.02, "tmin": 0.0005, "tmax": 0.006, "units": "box"}
+    d["output"] = {"thermo": ["step", "time", "dt", "temp", "pe", "etot", "press"]}
+    got, fused, ref, step = run_fused_and_stepwise(monkeypatch, cases_of(d))
+    assert_bits(got, ref)
+    assert_sampled_in_kernel(fused)
+    assert fused.fast.fallbacks == 0
+    dt = got[0].data["dt"]
+    assert np.unique(dt).size >= 3 and dt.min() >= 0.0005 and dt.max() <= 0.006  # dt did change
+    for name in ("dt", "atime", "atimestep", "step"):
+        np.testing.assert_array_equal(getattr(fused.state, name), getattr(step.state, name), err_msg=name)

@@ -23,7 +23,7 @@ samples of a chunk are recorded in it (`PairChunks.advance_sampled`: the outputs
 Engine.sample, with compiled.py's sample functions). The `fixes:` compiled.py's kernels run
 (thermostats, enforce2d) run with its fix kernels, and wall/reflect and wall/reflect/stochastic
 faces on fixed dimensions with its `_reflect_face` and `_stochastic_faces`, for a case on one
-thread. Not fused: dt/reset, other fixes, wall/lepton faces, time-based runs.
+thread, and fix dt/reset. Not fused: other fixes, wall/lepton faces, time-based runs.
 
 One large case over threads (`_chunk_threaded`, THREAD_MIN_ATOMS atoms per thread at least):
 the same step in pieces, with the list build (runs of cells, `build_threaded`) and the force pass
@@ -665,6 +665,7 @@ if njit is not None:
     _fix_pre, _fix_post_force, _fix_end = _compiled._fix_pre, _compiled._fix_post_force, _compiled._fix_end
     _langevin_setup, _sample_fixes = _compiled._langevin_setup, _compiled._sample_fixes
     _reflect_face = _compiled._reflect_face  # wall/reflect
+    _dt_candidate, _clamp = _compiled._dt_candidate, _compiled._clamp  # fix dt/reset
 
     @jit
     def _moved(xc: np.ndarray, xref: np.ndarray, length: np.ndarray, periodic: np.ndarray, limit2: float) -> bool:
@@ -738,7 +739,7 @@ if njit is not None:
                        limit2, e24, e4, s2c, rcut2, off, sample, fpair, ew, xref, owner, first, neigh, spare, sf_meta,
                        sf_val, groups, rg_meta, rg_geo, rg_val, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend,
                        fl_prev, fl_cross, fl_rng, fx, fx_rng, step0, rf_meta, rf_val, rf_prev, rf_stat, stats, tb,
-                       st_meta, st_val, st_stat, st_flag, st_rng, mvv2e, sm):
+                       st_meta, st_val, st_stat, st_flag, st_rng, mvv2e, dtr_every, dtr_group, dtr_par, clk, sm):
             """Advance one case (x, v, f: (N, 3), written in place) by nsteps velocity-Verlet steps
             of engine.Engine.step: v += dtfm f, x += dt v; periodic wrap; the pair list rebuilt
             (`build_case`) when an atom moved more than skin/2 since xref; f = 0, pair forces
@@ -774,14 +775,19 @@ if njit is not None:
             `_stochastic_arrays` of this case, row 0; its generator), after the wall/reflect faces
             (`_stochastic_faces`; faces on fixed dimensions); mvv2e: the units' m v^2 to energy.
 
-            sm = (at, mv2, ew, face, reg, cross, acc, chain, rstat): samples recorded in the kernel
+            dtr_every, dtr_group, dtr_par (xmax, emax, tmin, tmax): fix dt/reset (every 0: none),
+            at the end of each due step (engine.Engine.reset_dt: compiled.py's `_dt_candidate` per
+            atom, the group's minimum, `_clamp`); a new dt closes the time accumulator as
+            BatchState.set_dt does. clk (in and out): dt, atime, atimestep of the case.
+
+            sm = (at, mv2, ew, face, reg, cross, acc, chain, rstat, clock): samples recorded in the kernel
             (`PairChunks.advance_sampled`; at (S,) empty: none). After step at[k] (steps of this
             chunk, counted from 1) the outputs of Engine.sample go to row k: sum m v^2, the pair
             energy and virial of that step's pair pass, each soft face's (energy, force on the wall,
             virial) and each wall/region fix's (energy, force x y z, virial) (compiled.py's
             `_sample_faces` and `_sample_regions`, the flat chunks' own), the flow redraws since the
-            last sample, the fixes' state for ecouple (`_sample_fixes`) and the reflect statistics
-            since the last sample (take_stats)."""
+            last sample, the fixes' state for ecouple (`_sample_fixes`), the reflect statistics
+            since the last sample (take_stats) and the clock (step, dt, atime, atimestep)."""
             if nsteps == -fingerprint:  # never: ties the on-disk cache to the wall kernels
                 return 5, 0, neigh
             N = x.shape[0]
@@ -791,7 +797,8 @@ if njit is not None:
             RB = np.empty((6, 5, BLOCK))
             CI = np.empty(N if fl_int[0] != 0 else 0, np.int64)
             DIR = np.empty(N if fl_int[0] != 0 else 0)
-            sm_at, sm_mv2, sm_ew, sm_face, sm_reg, sm_cross, sm_fx, sm_chain, sm_rstat = sm
+            sm_at, sm_mv2, sm_ew, sm_face, sm_reg, sm_cross, sm_fx, sm_chain, sm_rstat, sm_clock = sm
+            CAND = np.empty(N if dtr_every > 0 else 0)  # fix dt/reset: each atom's largest dt
             nrf, nst = rf_meta.shape[0], st_meta.shape[0]
             ST = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(N if nst else 0, np.int64),
                   np.empty((4, N if nst else 0)))  # `_stochastic_faces`' arguments and scratch
@@ -883,6 +890,22 @@ if njit is not None:
                 if fl_int[0] != 0:  # fix wall/flow (end_of_step)
                     _flow_step(X, V, mass, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross,
                                fl_rng, CI, DIR)
+                now = step0 + step + 1  # the case's step count after this step
+                if dtr_every > 0 and now % dtr_every == 0:  # fix dt/reset (end_of_step)
+                    low = np.inf
+                    nnan = 0
+                    for a in range(N):
+                        CAND[a] = _dt_candidate(v[a, 0], v[a, 1], v[a, 2], f[a, 0], f[a, 1], f[a, 2], mass[a], ftm2v,
+                                                mvv2e, dtr_par[0], dtr_par[1])
+                        ca = CAND[a] if groups[dtr_group, a] != 0 else np.inf
+                        nnan += ca != ca
+                        low = ca if ca < low else low
+                    new = _clamp(np.nan if nnan else low, N, dtr_par)
+                    if new != dt:  # BatchState.set_dt
+                        clk[1] = clk[1] + (now - clk[2]) * dt
+                        clk[2] = now
+                        dt = new
+                        dtfm = _dtfm(mass, dt, ftm2v)
                 if due:  # the outputs of Engine.sample at this step (positions are the force pass's)
                     _sample_faces(0, si, X, radius, groups, sf_meta, SF, tb, LP, sm_face[ism])
                     if rg_meta.shape[0]:
@@ -908,6 +931,10 @@ if njit is not None:
                             sm_rstat[ism, nrf + k, 1] = st_stat[0, k, 1]
                             st_stat[0, k, 0] = 0.0
                             st_stat[0, k, 1] = 0.0
+                    sm_clock[ism, 0] = now
+                    sm_clock[ism, 1] = dt
+                    sm_clock[ism, 2] = clk[1]
+                    sm_clock[ism, 3] = clk[2]
                     ism += 1
             for a in range(N):
                 for d in range(3):
@@ -916,6 +943,7 @@ if njit is not None:
             for a in range(nfx):  # the last step's Langevin forces (the fix's `force`)
                 for d in range(3):
                     fx[13][0, a, d] = FL[d, a]
+            clk[0] = dt
             return 0, builds, neigh
 
         return pair_chunk
@@ -1392,11 +1420,15 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     """Whether `PairChunks` runs this plan: pair lj/cut on its compiled path with what the chunk
     kernels of compiled.py run (flat soft walls of the registry's compiled styles, wall/region,
     one wall/flow, wall/table faces; and, except for a case cut over threads, the `fixes:` of
-    `compiled.fixes_eligible` (thermostats, enforce2d) and wall/reflect and wall/reflect/stochastic
-    (`compiled._stochastic_eligible`) on fixed dimensions), without dt/reset, wall/lepton faces or
-    anything else."""
-    if njit is None or plan.others != ("pair",) or plan.dt_reset is not None:
+    `compiled.fixes_eligible` (thermostats, enforce2d), wall/reflect and wall/reflect/stochastic
+    (`compiled._stochastic_eligible`) on fixed dimensions and fix dt/reset (not with wall/flow or
+    values that vary with time)),
+    without wall/lepton faces or anything else."""
+    if njit is None or plan.others != ("pair",):
         return False
+    if plan.dt_reset is not None and (plan.flow or case_parts(plan.state.x.shape[1]) >= 2
+                                      or _compiled.FastPath._uses_time(plan)):
+        return False  # fix dt/reset: not with wall/flow (compiled.py's order), over threads, or per-step values
     # wall/reflect and wall/reflect/stochastic (as compiled.py's kernels run it) on fixed dims only
     if not _compiled._stochastic_eligible(plan) or any(face.dim in plan.state.periodic
                                                           for w in plan.reflect for face in w.faces):
@@ -1545,6 +1577,13 @@ class PairChunks:
         rf_meta, rf_prev, rf_stat, stats = _compiled._reflect_arrays(plan, group)  # wall/reflect
         sto = _compiled._stochastic_arrays(plan, group)  # wall/reflect/stochastic
         sk = _compiled._stochastic_kernel(plan)
+        dtr = plan.dt_reset  # fix dt/reset
+        if dtr is not None:  # (no per-step values with it: `chunk_eligible`)
+            dtr_group = group(dtr.group, bool(dtr.group.all()))
+            dtr_par = np.ascontiguousarray(plan.dt_reset_params, dtype=float)
+        else:
+            dtr_group, dtr_par = 0, np.zeros((C, 4))
+        clk = np.stack([s.dt, s.atime, s.atimestep], axis=1).astype(float)  # (C, 3), written by the kernel
         rf_val = np.ascontiguousarray(values[1])
         groups_arr = np.stack(groups)
         box_per = np.zeros(3, np.int64)
@@ -1572,7 +1611,7 @@ class PairChunks:
         sm = (np.zeros(0, np.int64) if at is None else np.ascontiguousarray(at, np.int64), np.zeros((C, S)),
               np.zeros((C, S, 2)), np.zeros((C, S, sf_meta.shape[0], 3)), np.zeros((C, S, rg_meta.shape[0], 5)),
               np.zeros((C, S)), np.zeros((C, S, fx[0].shape[0], 4)), np.zeros((C, S, 3 * fx[3].shape[1] + 2 if nvt else 0)),
-              np.zeros((C, S, rf_meta.shape[0] + sto[0].shape[0], 2)))
+              np.zeros((C, S, rf_meta.shape[0] + sto[0].shape[0], 2)), np.zeros((C, S, 4)))
         n = len(_compiled.COMPILED_STYLES)
         kernel = pair_chunk_for(tuple({(int(r[0]), int(r[4])) for r in sf_meta if 0 <= r[0] < n}),
                                 tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None, tables, sk is not None)
@@ -1601,9 +1640,10 @@ class PairChunks:
                     _compiled._fix_slice(fx, slice(c, c + 1)), fx_rngs[c] if fx_rngs else _compiled._NO_FLOW[-1],
                     int(s.step[c]), rf_meta, rf_val[c], rf_prev[c], rf_stat[c], bool(stats), tb, sto[0],
                     sto[1][c:c + 1], sto[2][c:c + 1], sto[3], sk.rngs[c] if sk is not None else _compiled._NO_FLOW[-1],
-                    float(s.units.mvv2e), (sm[0], *(a[c] for a in sm[1:])))
+                    float(s.units.mvv2e), int(dtr.every) if dtr is not None else 0, dtr_group, dtr_par[c], clk[c],
+                    (sm[0], *(a[c] for a in sm[1:])))
             # one thread for samples in the kernel (`samples_in_kernel`), fixes and wall/reflect (`chunk_eligible`)
-            parts = case_parts(N) if at is None and not fx[0].shape[0] and not plan.reflect else 1
+            parts = case_parts(N) if at is None and not fx[0].shape[0] and not plan.reflect and dtr is None else 1
             if parts >= 2 and self.busy_skip > 0:  # the cores were busy with other work: one thread
                 self.busy_skip -= 1
                 parts = 1
@@ -1641,8 +1681,8 @@ class PairChunks:
                 self._held = ((c, C, int(pair.case_builds[c]), len(held["shares"]) - 1, N), *kept, held)
         if sample and at is None:  # the sample's pair.compute at these positions takes them instead of a second pass
             pair.remember(s.x, fpair, ew[:, 0].copy(), ew[:, 1].copy())
-        step0 = s.step.copy()
         s.step += nsteps
+        s.dt[...], s.atime[...], s.atimestep[...] = clk[:, 0], clk[:, 1], clk[:, 2]  # (fix dt/reset)
         s.ctx = None
         s.var_step = {}
         if fk is not None:
@@ -1654,26 +1694,18 @@ class PairChunks:
         if at is not None:
             self.compiled_chunks += int(at.size)  # once per sample: each the chunk it replaces
             self.sampled_calls += 1
-            plan.record_samples(**self._sample_record(plan, sm, step0, fx_fixes))
+            plan.record_samples(**self._sample_record(plan, sm, fx_fixes))
             return True
         self.compiled_chunks += 1
         _compiled.finish_chunk(plan, s, sample)
         return True
 
     @staticmethod
-    def _sample_record(plan: "_compiled.ChunkPlan", sm: tuple, step0: np.ndarray, fixes: list[Any]) -> dict[str, Any]:
+    def _sample_record(plan: "_compiled.ChunkPlan", sm: tuple, fixes: list[Any]) -> dict[str, Any]:
         """Engine.record_samples' arguments from a sampled chunk's `sm` arrays: compiled.py's
-        `_sample_record` of the walls' outputs (clock: the steps at[k] after step0, dt and the
-        time origin unchanged in the chunk), with the pair's energy and virial, the virial summed
-        from the pair's as Engine.compute_forces sums it."""
-        at, mv2, ew, face, reg, cross, acc, chain, rstat = sm
-        s = plan.state
-        C, S = mv2.shape
-        clock = np.empty((C, S, 4))
-        clock[:, :, 0] = step0[:, None] + at[None, :]
-        clock[:, :, 1] = s.dt[:, None]
-        clock[:, :, 2] = s.atime[:, None]
-        clock[:, :, 3] = s.atimestep[:, None]
+        `_sample_record` of the walls' outputs, fixes and clock, with the pair's energy and
+        virial, the virial summed from the pair's as Engine.compute_forces sums it."""
+        at, mv2, ew, face, reg, cross, acc, chain, rstat, clock = sm
         args = _compiled._sample_record(plan, (at, mv2, clock, face, rstat, acc, chain, cross, reg),
                                         fixes, virial=ew[:, :, 1])
         args["pair"] = (ew[:, :, 0].copy(), ew[:, :, 1].copy())
