@@ -455,3 +455,25 @@ def test_dt_reset_in_the_fused_chunk(monkeypatch, every_n, thermo):
     assert np.unique(dt).size >= 3 and dt.min() >= 0.0005 and dt.max() <= 0.006  # dt did change
     for name in ("dt", "atime", "atimestep", "step"):
         np.testing.assert_array_equal(getattr(fused.state, name), getattr(step.state, name), err_msg=name)
+
+
+def test_two_dimensional_liquid_in_the_fused_chunk(monkeypatch):
+    """A 2-D LJ liquid (dimension 2: enforce2d among the fixes, z left out of the pair's minimum
+    image) in a channel between lj93 walls at the y edges: the fused chunk gives the per-step
+    path's bits, and every atom stays in the plane."""
+    rng = np.random.default_rng(4)
+    side = np.arange(0.6, 11.0, 1.1)
+    x = np.array([[a, b, 0.0] for a in side for b in np.arange(1.6, 8.0, 1.1)]) + rng.uniform(-0.05, 0.05, (1, 3)) * [1, 1, 0]
+    d = {"name": "lj-2d", "units": "lj", "seed": 9, "dimension": 2,
+         "box": {"lo": [0, 0, -0.5], "hi": [11.0, 9.5, 0.5], "boundary": ["p", "f", "p"]},
+         "atoms": [{"group": "fluid", "create": {"positions": x.tolist()}, "mass": 1.0, "velocity": {"temperature": 1.5}}],
+         "pair": {"style": "lj/cut", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
+         "walls": {"w": {"style": "lj93", "units": "box", "energy": True, "ylo": list(WALL), "yhi": list(WALL)}},
+         "timestep": 0.004, "run": {"steps": 60, "thermo": 2}, "output": {"thermo": ["step", "temp", "pe", "etot"]}}
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(d))
+    assert_bits(got, ref)
+    assert_sampled_in_kernel(fused)
+    assert fused.fast.fallbacks == 0
+    assert [f.style for f in fused.ensemble.fixes if f.style == "enforce2d"] == ["enforce2d"]
+    assert np.all(fused.state.x[..., 2] == 0.0) and np.all(fused.state.v[..., 2] == 0.0)
+    assert np.ptp(got[0].data["pe"]) > 0.1

@@ -659,6 +659,8 @@ if njit is not None:
         raise NotImplementedError
 
     _region_walls = _flow_step = _sample_faces = _sample_regions = _table_faces = _stochastic_faces = _soft_face
+    # what a scene's pair chunk compiles (`pair_chunk_for`: False leaves that code out, numba prunes it)
+    _K_FIXES = _K_REFLECT = _K_DTR = True
     TABLE_STYLE = _compiled.TABLE_STYLE
     _th_mv2, _th_pairwise = _compiled._th_mv2, _compiled._th_pairwise  # Engine.sample's sum m v^2, its bits
     # the `fixes:` of compiled.py's chunks (thermostats, enforce2d) and their state at a sample
@@ -814,7 +816,7 @@ if njit is not None:
             thermo = False  # a fix that couples the atoms (not enforce2d alone)
             SQM, G1, FR, FL = np.empty(nfx), np.empty(nfx), np.zeros((3, nfx)), np.zeros((3, nfx))
             KB = np.empty(nfx)  # per-atom terms of a sum over atoms
-            for k in range(fx_meta.shape[0]):
+            for k in range(fx_meta.shape[0] if _K_FIXES else 0):
                 thermo = thermo or fx_meta[k, 0] != _compiled.FIX_ENFORCE2D
                 if fx_meta[k, 0] == _compiled.FIX_LANGEVIN:
                     _langevin_setup(0, k, mass, fx, ftm2v, SQM, G1)
@@ -824,11 +826,11 @@ if njit is not None:
             for step in range(nsteps):
                 si = step if vary else 0
                 due = ism < nsm and step + 1 == sm_at[ism]  # a sample recorded here
-                if thermo:  # fix nvt's first half step, the Langevin random forces
+                if _K_FIXES and thermo:  # fix nvt's first half step, the Langevin random forces
                     _fix_pre(0, step0 + step + 1, dt, V, mass, groups, fx, fx_rng, SQM, FR, KB)
                 if not post:  # post: the pair forces of this step are in f (`_chunk_threaded`)
                     _drift(x, v, f, dtfm, dt, lo, hi, box_per)
-                    for k in range(nrf):  # wall/reflect (post_integrate)
+                    for k in range(nrf if _K_REFLECT else 0):  # wall/reflect (post_integrate)
                         coord = rf_val[step if rvary else 0, k]
                         vwall = (coord - rf_prev[k]) / dt if dt > 0 else 0.0
                         RS[0, k, 0] = 0.0
@@ -874,7 +876,7 @@ if njit is not None:
                                               rg_val, RB)
                 if nbad:
                     return 1, builds, neigh
-                if nfx:  # post_force fixes: Langevin forces, enforce2d
+                if _K_FIXES and nfx:  # post_force fixes: Langevin forces, enforce2d
                     _fix_post_force(0, N, V, F, groups, fxp)
                 for d in range(3):  # lost atoms
                     if not box_per[d]:
@@ -884,14 +886,14 @@ if njit is not None:
                 for a in range(N):  # final_integrate
                     for d in range(3):
                         v[a, d] = v[a, d] + dtfm[a] * f[a, d]
-                if thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
+                if _K_FIXES and thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
                     if _fix_end(0, step0 + step + 1, dt, V, mass, groups, fx, KB, FL) != 0:
                         return 6, builds, neigh
                 if fl_int[0] != 0:  # fix wall/flow (end_of_step)
                     _flow_step(X, V, mass, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross,
                                fl_rng, CI, DIR)
                 now = step0 + step + 1  # the case's step count after this step
-                if dtr_every > 0 and now % dtr_every == 0:  # fix dt/reset (end_of_step)
+                if _K_DTR and dtr_every > 0 and now % dtr_every == 0:  # fix dt/reset (end_of_step)
                     low = np.inf
                     nnan = 0
                     for a in range(N):
@@ -918,8 +920,9 @@ if njit is not None:
                     if fl_int[0] != 0:  # flow redraws since the last sample (take_crossings)
                         sm_cross[ism] = fl_cross[0]
                         fl_cross[0] = 0.0
-                    _sample_fixes(0, fx, sm_fx[ism], sm_chain[ism])
-                    if stats:  # reflect statistics since the last sample (take_stats)
+                    if _K_FIXES:
+                        _sample_fixes(0, fx, sm_fx[ism], sm_chain[ism])
+                    if _K_REFLECT and stats:  # reflect statistics since the last sample (take_stats)
                         for k in range(nrf):
                             sm_rstat[ism, k, 0] = rf_stat[k, 0]
                             sm_rstat[ism, k, 1] = rf_stat[k, 1]
@@ -940,7 +943,7 @@ if njit is not None:
                 for d in range(3):
                     if not (math.isfinite(x[a, d]) and math.isfinite(v[a, d])):
                         return 3, builds, neigh
-            for a in range(nfx):  # the last step's Langevin forces (the fix's `force`)
+            for a in range(nfx if _K_FIXES else 0):  # the last step's Langevin forces (the fix's `force`)
                 for d in range(3):
                     fx[13][0, a, d] = FL[d, a]
             clk[0] = dt
@@ -949,20 +952,25 @@ if njit is not None:
         return pair_chunk
 
     def pair_chunk_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (),
-                       flow: bool = False, tables: bool = False, stochastic: bool = False) -> Any:
+                       flow: bool = False, tables: bool = False, stochastic: bool = False, fixes: bool = False,
+                       reflect: bool = False, dtr: bool = False) -> Any:
         """The fused chunk kernel of one kind of pair scene: `pair_chunk` linked to the scene's
         soft-face dispatch, region walls and flow step from compiled.pieces_for (the same
-        specialised pieces as the scene's chunk kernel), named by their fingerprint so numba
-        caches each on disk in its own index file."""
+        specialised pieces as the scene's chunk kernel), with the code of `fixes:`, wall/reflect
+        (and wall/reflect/stochastic) and fix dt/reset only if the scene has them, named by their
+        fingerprint so numba caches each on disk in its own index file."""
         return _pair_chunk_for(tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow), bool(tables),
-                               bool(stochastic))
+                               bool(stochastic), bool(fixes), bool(reflect), bool(dtr))
 
     @functools.lru_cache(maxsize=32)
     def _pair_chunk_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
-                        tables: bool = False, stochastic: bool = False) -> Any:
+                        tables: bool = False, stochastic: bool = False, fixes: bool = False, reflect: bool = False,
+                        dtr: bool = False) -> Any:
         p = _compiled.pieces_for(soft, region, flow, tables=tables, stochastic=stochastic)
+        flags = {"_K_FIXES": fixes, "_K_REFLECT": reflect or stochastic, "_K_DTR": dtr}
         h = hashlib.sha256()
         h.update(str(p.fingerprint).encode())
+        h.update(repr(sorted(flags.items())).encode())
         h.update(inspect.getsource(_compiled).encode())
         fp = int(h.hexdigest()[:15], 16)
         fn = _compiled._relink(_make_pair_chunk(fp).py_func, name=f"pair_chunk_{fp:015x}", _soft_face=p.soft_face,
@@ -970,7 +978,7 @@ if njit is not None:
                                _sample_regions=p.sample_regions,
                                _table_faces=_compiled._table_faces if tables else _compiled._no_table_faces,
                                _stochastic_faces=_compiled._stochastic_faces if stochastic
-                               else _compiled._no_stochastic_faces)
+                               else _compiled._no_stochastic_faces, **flags)
         return njit(cache=True, nogil=True, error_model="numpy")(fn)
 
 
@@ -1614,7 +1622,8 @@ class PairChunks:
               np.zeros((C, S, rf_meta.shape[0] + sto[0].shape[0], 2)), np.zeros((C, S, 4)))
         n = len(_compiled.COMPILED_STYLES)
         kernel = pair_chunk_for(tuple({(int(r[0]), int(r[4])) for r in sf_meta if 0 <= r[0] < n}),
-                                tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None, tables, sk is not None)
+                                tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None, tables, sk is not None,
+                                fixes=bool(fx[0].shape[0]), reflect=bool(rf_meta.shape[0]), dtr=dtr is not None)
         if not kernel.signatures:
             _compiled.announce_compile(kernel)
         done = []
