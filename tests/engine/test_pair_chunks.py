@@ -463,10 +463,12 @@ def test_two_dimensional_liquid_in_the_fused_chunk(monkeypatch):
     path's bits, and every atom stays in the plane."""
     rng = np.random.default_rng(4)
     side = np.arange(0.6, 11.0, 1.1)
-    x = np.array([[a, b, 0.0] for a in side for b in np.arange(1.6, 8.0, 1.1)]) + rng.uniform(-0.05, 0.05, (1, 3)) * [1, 1, 0]
+    x = np.array([[a, b, 0.0] for a in side for b in np.arange(1.6, 8.0, 1.1)])
+    x += rng.uniform(-0.05, 0.05, (1, 3)) * [1, 1, 0]
     d = {"name": "lj-2d", "units": "lj", "seed": 9, "dimension": 2,
          "box": {"lo": [0, 0, -0.5], "hi": [11.0, 9.5, 0.5], "boundary": ["p", "f", "p"]},
-         "atoms": [{"group": "fluid", "create": {"positions": x.tolist()}, "mass": 1.0, "velocity": {"temperature": 1.5}}],
+         "atoms": [{"group": "fluid", "create": {"positions": x.tolist()}, "mass": 1.0,
+                    "velocity": {"temperature": 1.5}}],
          "pair": {"style": "lj/cut", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
          "walls": {"w": {"style": "lj93", "units": "box", "energy": True, "ylo": list(WALL), "yhi": list(WALL)}},
          "timestep": 0.004, "run": {"steps": 60, "thermo": 2}, "output": {"thermo": ["step", "temp", "pe", "etot"]}}

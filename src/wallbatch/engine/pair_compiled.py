@@ -16,14 +16,14 @@ the positions alone (cell order, then atom index), and atoms near in space are n
 Fused chunks (`pair_chunk`, driven by `PairChunks`, attached by the engine when compiled.py's
 own chunks decline because of the pair): a whole chunk of steps of one case in one call, the
 step of engine.Engine.step (kick, drift, wrap, list check and rebuild, force clear, pair forces,
-flat soft faces (wall/table faces too) and wall/region fixes with compiled.py's kernels, lost atoms, kick, wall/flow with
-compiled.py's `_flow_step`), so no Python runs between steps. It calls the very kernels of the
-per-step compiled path, so both give the same bits; trouble hands the chunk back to NumPy. The
-samples of a chunk are recorded in it (`PairChunks.advance_sampled`: the outputs of
-Engine.sample, with compiled.py's sample functions). The `fixes:` compiled.py's kernels run
-(thermostats, enforce2d) run with its fix kernels, and wall/reflect and wall/reflect/stochastic
-faces on fixed dimensions with its `_reflect_face` and `_stochastic_faces`, for a case on one
-thread, and fix dt/reset. Not fused: other fixes, wall/lepton faces, time-based runs.
+flat soft faces (wall/table faces too) and wall/region fixes with compiled.py's kernels, lost
+atoms, kick, wall/flow with compiled.py's `_flow_step`), so no Python runs between steps. It
+calls the very kernels of the per-step compiled path, so both give the same bits; trouble hands
+the chunk back to NumPy. The samples of a chunk are recorded in it (`PairChunks.advance_sampled`:
+the outputs of Engine.sample, with compiled.py's sample functions). For a case on one thread it
+also runs, with compiled.py's functions, the `fixes:` its kernels run (thermostats, enforce2d),
+wall/reflect and wall/reflect/stochastic faces on fixed dimensions and fix dt/reset. Not fused:
+other fixes, wall/lepton faces, time-based runs.
 
 One large case over threads (`_chunk_threaded`, THREAD_MIN_ATOMS atoms per thread at least):
 the same step in pieces, with the list build (runs of cells, `build_threaded`) and the force pass
@@ -1426,26 +1426,24 @@ def _signature_names(kernel: Any) -> tuple[str, ...]:
 
 def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     """Whether `PairChunks` runs this plan: pair lj/cut on its compiled path with what the chunk
-    kernels of compiled.py run (flat soft walls of the registry's compiled styles, wall/region,
-    one wall/flow, wall/table faces; and, except for a case cut over threads, the `fixes:` of
-    `compiled.fixes_eligible` (thermostats, enforce2d), wall/reflect and wall/reflect/stochastic
-    (`compiled._stochastic_eligible`) on fixed dimensions and fix dt/reset (not with wall/flow or
-    values that vary with time)),
-    without wall/lepton faces or anything else."""
+    kernels of compiled.py run: flat soft walls of the registry's compiled styles and wall/table
+    faces, wall/region, one wall/flow; and, for a case on one thread (`case_parts`), the `fixes:`
+    of `compiled.fixes_eligible` (thermostats, enforce2d), wall/reflect and wall/reflect/stochastic
+    (`compiled._stochastic_eligible`) on fixed dimensions, and fix dt/reset (not with wall/flow or
+    wall values that vary with time). Not wall/lepton faces or anything else."""
     if njit is None or plan.others != ("pair",):
         return False
-    if plan.dt_reset is not None and (plan.flow or case_parts(plan.state.x.shape[1]) >= 2
-                                      or _compiled.FastPath._uses_time(plan)):
-        return False  # fix dt/reset: not with wall/flow (compiled.py's order), over threads, or per-step values
-    # wall/reflect and wall/reflect/stochastic (as compiled.py's kernels run it) on fixed dims only
+    ens = plan.ensemble
+    fixes = ens is not None and any(f.style in _compiled.FIX_KINDS for f in ens.fixes)
+    if (fixes or plan.reflect or plan.dt_reset is not None) and case_parts(plan.state.x.shape[1]) >= 2:
+        return False  # a case over threads: its per-step path keeps them
+    if ens is not None and not _compiled.fixes_eligible(plan):
+        return False
+    if plan.dt_reset is not None and (plan.flow or _compiled.FastPath._uses_time(plan)):
+        return False  # compiled.py's order with wall/flow; per-step wall values depend on dt
     if not _compiled._stochastic_eligible(plan) or any(face.dim in plan.state.periodic
                                                           for w in plan.reflect for face in w.faces):
-        return False
-    if plan.reflect and case_parts(plan.state.x.shape[1]) >= 2:
-        return False  # a case over threads: its per-step path keeps them
-    if plan.ensemble is not None and (not _compiled.fixes_eligible(plan) or (
-            any(f.style in _compiled.FIX_KINDS for f in plan.ensemble.fixes) and case_parts(plan.state.x.shape[1]) >= 2)):
-        return False  # fixes the kernel does not run; or a case over threads (their per-step path keeps them)
+        return False  # reflect faces on fixed dims only (the kernel reflects after the wrap)
     if not pair.compiled or pair.ncases != plan.state.ncases:
         return False
     if not _compiled.eligible(dataclasses.replace(plan, others=())):
@@ -1454,7 +1452,8 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
         for st in _compiled._face_styles(w):
             if _compiled._is_table(st):
                 continue
-            if _compiled.STYLE_IDS.get(st.name) is None or _compiled.COMPILED_STYLES[_compiled.STYLE_IDS[st.name]] != st:
+            sid = _compiled.STYLE_IDS.get(st.name)
+            if sid is None or _compiled.COMPILED_STYLES[sid] != st:
                 return False
     return not any(w.style.needs_radius and not w._radius_checked for w in plan.region)
 
@@ -1618,12 +1617,14 @@ class PairChunks:
         nvt = bool(np.any(fx[0][:, 0] == _compiled.FIX_NVT))
         sm = (np.zeros(0, np.int64) if at is None else np.ascontiguousarray(at, np.int64), np.zeros((C, S)),
               np.zeros((C, S, 2)), np.zeros((C, S, sf_meta.shape[0], 3)), np.zeros((C, S, rg_meta.shape[0], 5)),
-              np.zeros((C, S)), np.zeros((C, S, fx[0].shape[0], 4)), np.zeros((C, S, 3 * fx[3].shape[1] + 2 if nvt else 0)),
+              np.zeros((C, S)), np.zeros((C, S, fx[0].shape[0], 4)),
+              np.zeros((C, S, 3 * fx[3].shape[1] + 2 if nvt else 0)),
               np.zeros((C, S, rf_meta.shape[0] + sto[0].shape[0], 2)), np.zeros((C, S, 4)))
         n = len(_compiled.COMPILED_STYLES)
         kernel = pair_chunk_for(tuple({(int(r[0]), int(r[4])) for r in sf_meta if 0 <= r[0] < n}),
-                                tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None, tables, sk is not None,
-                                fixes=bool(fx[0].shape[0]), reflect=bool(rf_meta.shape[0]), dtr=dtr is not None)
+                                tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None, tables,
+                                sk is not None, fixes=bool(fx[0].shape[0]), reflect=bool(rf_meta.shape[0]),
+                                dtr=dtr is not None)
         if not kernel.signatures:
             _compiled.announce_compile(kernel)
         done = []
