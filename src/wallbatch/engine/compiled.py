@@ -2522,7 +2522,6 @@ class FastPath:
 
         sf_meta = np.array([[style_id(st), face.dim, face.side, group(w.group, w.all_atoms),
                              w.cutoff.mode_id] for w, st, face in soft_faces], np.int64).reshape(-1, 5)
-        reflect = _plain_reflect(plan)  # wall/reflect fixes (wall/reflect/stochastic: st arrays)
         rf_meta, rf_prev, rf_stat, stats = _reflect_arrays(plan, group)
         C = s.ncases
         dtr = plan.dt_reset
