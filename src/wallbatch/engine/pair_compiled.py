@@ -816,32 +816,35 @@ if njit is not None:
             thermo = False  # a fix that couples the atoms (not enforce2d alone)
             SQM, G1, FR, FL = np.empty(nfx), np.empty(nfx), np.zeros((3, nfx)), np.zeros((3, nfx))
             KB = np.empty(nfx)  # per-atom terms of a sum over atoms
-            for k in range(fx_meta.shape[0] if _K_FIXES else 0):
-                thermo = thermo or fx_meta[k, 0] != _compiled.FIX_ENFORCE2D
-                if fx_meta[k, 0] == _compiled.FIX_LANGEVIN:
-                    _langevin_setup(0, k, mass, fx, ftm2v, SQM, G1)
+            if _K_FIXES:  # (an `if` on the flag: numba prunes the branch, a scene without fixes compiles none of it)
+                for k in range(fx_meta.shape[0]):
+                    thermo = thermo or fx_meta[k, 0] != _compiled.FIX_ENFORCE2D
+                    if fx_meta[k, 0] == _compiled.FIX_LANGEVIN:
+                        _langevin_setup(0, k, mass, fx, ftm2v, SQM, G1)
             fxp = (fx_meta, G1, FR, FL)
             builds = 0
             e, w = 0.0, 0.0
             for step in range(nsteps):
                 si = step if vary else 0
                 due = ism < nsm and step + 1 == sm_at[ism]  # a sample recorded here
-                if _K_FIXES and thermo:  # fix nvt's first half step, the Langevin random forces
-                    _fix_pre(0, step0 + step + 1, dt, V, mass, groups, fx, fx_rng, SQM, FR, KB)
+                if _K_FIXES:
+                    if thermo:  # fix nvt's first half step, the Langevin random forces
+                        _fix_pre(0, step0 + step + 1, dt, V, mass, groups, fx, fx_rng, SQM, FR, KB)
                 if not post:  # post: the pair forces of this step are in f (`_chunk_threaded`)
                     _drift(x, v, f, dtfm, dt, lo, hi, box_per)
-                    for k in range(nrf if _K_REFLECT else 0):  # wall/reflect (post_integrate)
-                        coord = rf_val[step if rvary else 0, k]
-                        vwall = (coord - rf_prev[k]) / dt if dt > 0 else 0.0
-                        RS[0, k, 0] = 0.0
-                        RS[0, k, 1] = 0.0
-                        _reflect_face(rf_meta[k, 0], rf_meta[k, 1], rf_meta[k, 2] == 1, rf_meta[k, 3], coord, vwall,
-                                      stats, 0, k, X, V, mass, groups, RS, ftm2v, 0, N)
-                        rf_prev[k] = coord
-                        rf_stat[k, 0] += RS[0, k, 0]
-                        rf_stat[k, 1] += RS[0, k, 1]
-                    if nst:  # wall/reflect/stochastic (post_integrate, after the wall/reflect fixes)
-                        _stochastic_faces(0, 0, N, X, V, mass, groups, ST, ftm2v, mvv2e)
+                    if _K_REFLECT:
+                        for k in range(nrf):  # wall/reflect (post_integrate)
+                            coord = rf_val[step if rvary else 0, k]
+                            vwall = (coord - rf_prev[k]) / dt if dt > 0 else 0.0
+                            RS[0, k, 0] = 0.0
+                            RS[0, k, 1] = 0.0
+                            _reflect_face(rf_meta[k, 0], rf_meta[k, 1], rf_meta[k, 2] == 1, rf_meta[k, 3], coord,
+                                          vwall, stats, 0, k, X, V, mass, groups, RS, ftm2v, 0, N)
+                            rf_prev[k] = coord
+                            rf_stat[k, 0] += RS[0, k, 0]
+                            rf_stat[k, 1] += RS[0, k, 1]
+                        if nst:  # wall/reflect/stochastic (post_integrate, after the wall/reflect fixes)
+                            _stochastic_faces(0, 0, N, X, V, mass, groups, ST, ftm2v, mvv2e)
                     if _moved(x, xref, length, pair_per, limit2):  # neighbor list (check yes)
                         if not _finite(x):
                             return 3, builds, neigh
@@ -876,8 +879,9 @@ if njit is not None:
                                               rg_val, RB)
                 if nbad:
                     return 1, builds, neigh
-                if _K_FIXES and nfx:  # post_force fixes: Langevin forces, enforce2d
-                    _fix_post_force(0, N, V, F, groups, fxp)
+                if _K_FIXES:
+                    if nfx:  # post_force fixes: Langevin forces, enforce2d
+                        _fix_post_force(0, N, V, F, groups, fxp)
                 for d in range(3):  # lost atoms
                     if not box_per[d]:
                         for a in range(N):
@@ -886,28 +890,30 @@ if njit is not None:
                 for a in range(N):  # final_integrate
                     for d in range(3):
                         v[a, d] = v[a, d] + dtfm[a] * f[a, d]
-                if _K_FIXES and thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
-                    if _fix_end(0, step0 + step + 1, dt, V, mass, groups, fx, KB, FL) != 0:
-                        return 6, builds, neigh
+                if _K_FIXES:
+                    if thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
+                        if _fix_end(0, step0 + step + 1, dt, V, mass, groups, fx, KB, FL) != 0:
+                            return 6, builds, neigh
                 if fl_int[0] != 0:  # fix wall/flow (end_of_step)
                     _flow_step(X, V, mass, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross,
                                fl_rng, CI, DIR)
                 now = step0 + step + 1  # the case's step count after this step
-                if _K_DTR and dtr_every > 0 and now % dtr_every == 0:  # fix dt/reset (end_of_step)
-                    low = np.inf
-                    nnan = 0
-                    for a in range(N):
-                        CAND[a] = _dt_candidate(v[a, 0], v[a, 1], v[a, 2], f[a, 0], f[a, 1], f[a, 2], mass[a], ftm2v,
-                                                mvv2e, dtr_par[0], dtr_par[1])
-                        ca = CAND[a] if groups[dtr_group, a] != 0 else np.inf
-                        nnan += ca != ca
-                        low = ca if ca < low else low
-                    new = _clamp(np.nan if nnan else low, N, dtr_par)
-                    if new != dt:  # BatchState.set_dt
-                        clk[1] = clk[1] + (now - clk[2]) * dt
-                        clk[2] = now
-                        dt = new
-                        dtfm = _dtfm(mass, dt, ftm2v)
+                if _K_DTR:
+                    if dtr_every > 0 and now % dtr_every == 0:  # fix dt/reset (end_of_step)
+                        low = np.inf
+                        nnan = 0
+                        for a in range(N):
+                            CAND[a] = _dt_candidate(v[a, 0], v[a, 1], v[a, 2], f[a, 0], f[a, 1], f[a, 2], mass[a],
+                                                    ftm2v, mvv2e, dtr_par[0], dtr_par[1])
+                            ca = CAND[a] if groups[dtr_group, a] != 0 else np.inf
+                            nnan += ca != ca
+                            low = ca if ca < low else low
+                        new = _clamp(np.nan if nnan else low, N, dtr_par)
+                        if new != dt:  # BatchState.set_dt
+                            clk[1] = clk[1] + (now - clk[2]) * dt
+                            clk[2] = now
+                            dt = new
+                            dtfm = _dtfm(mass, dt, ftm2v)
                 if due:  # the outputs of Engine.sample at this step (positions are the force pass's)
                     _sample_faces(0, si, X, radius, groups, sf_meta, SF, tb, LP, sm_face[ism])
                     if rg_meta.shape[0]:
@@ -922,18 +928,19 @@ if njit is not None:
                         fl_cross[0] = 0.0
                     if _K_FIXES:
                         _sample_fixes(0, fx, sm_fx[ism], sm_chain[ism])
-                    if _K_REFLECT and stats:  # reflect statistics since the last sample (take_stats)
-                        for k in range(nrf):
-                            sm_rstat[ism, k, 0] = rf_stat[k, 0]
-                            sm_rstat[ism, k, 1] = rf_stat[k, 1]
-                            rf_stat[k, 0] = 0.0
-                            rf_stat[k, 1] = 0.0
-                    if st_flag[0] != 0:  # wall/reflect/stochastic's, after them
-                        for k in range(nst):
-                            sm_rstat[ism, nrf + k, 0] = st_stat[0, k, 0]
-                            sm_rstat[ism, nrf + k, 1] = st_stat[0, k, 1]
-                            st_stat[0, k, 0] = 0.0
-                            st_stat[0, k, 1] = 0.0
+                    if _K_REFLECT:
+                        if stats:  # reflect statistics since the last sample (take_stats)
+                            for k in range(nrf):
+                                sm_rstat[ism, k, 0] = rf_stat[k, 0]
+                                sm_rstat[ism, k, 1] = rf_stat[k, 1]
+                                rf_stat[k, 0] = 0.0
+                                rf_stat[k, 1] = 0.0
+                        if st_flag[0] != 0:  # wall/reflect/stochastic's, after them
+                            for k in range(nst):
+                                sm_rstat[ism, nrf + k, 0] = st_stat[0, k, 0]
+                                sm_rstat[ism, nrf + k, 1] = st_stat[0, k, 1]
+                                st_stat[0, k, 0] = 0.0
+                                st_stat[0, k, 1] = 0.0
                     sm_clock[ism, 0] = now
                     sm_clock[ism, 1] = dt
                     sm_clock[ism, 2] = clk[1]
@@ -943,9 +950,10 @@ if njit is not None:
                 for d in range(3):
                     if not (math.isfinite(x[a, d]) and math.isfinite(v[a, d])):
                         return 3, builds, neigh
-            for a in range(nfx if _K_FIXES else 0):  # the last step's Langevin forces (the fix's `force`)
-                for d in range(3):
-                    fx[13][0, a, d] = FL[d, a]
+            if _K_FIXES:
+                for a in range(nfx):  # the last step's Langevin forces (the fix's `force`)
+                    for d in range(3):
+                        fx[13][0, a, d] = FL[d, a]
             clk[0] = dt
             return 0, builds, neigh
 
