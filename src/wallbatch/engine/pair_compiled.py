@@ -740,8 +740,7 @@ if njit is not None:
         def pair_chunk(nsteps, post, x, v, f, mass, radius, dt, ftm2v, lo, hi, box_per, length, pair_per, reach,
                        limit2, e24, e4, s2c, rcut2, off, sample, fpair, ew, xref, owner, first, neigh, spare, sf_meta,
                        sf_val, groups, rg_meta, rg_geo, rg_val, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend,
-                       fl_prev, fl_cross, fl_rng, fx, fx_rng, step0, rf_meta, rf_val, rf_prev, rf_stat, stats, tb,
-                       st_meta, st_val, st_stat, st_flag, st_rng, mvv2e, dtr_every, dtr_group, dtr_par, clk, sm):
+                       fl_prev, fl_cross, fl_rng, fix, rfl, tb, sto, dtr, sm):
             """Advance one case (x, v, f: (N, 3), written in place) by nsteps velocity-Verlet steps
             of engine.Engine.step: v += dtfm f, x += dt v; periodic wrap; the pair list rebuilt
             (`build_case`) when an atom moved more than skin/2 since xref; f = 0, pair forces
@@ -756,15 +755,15 @@ if njit is not None:
             (not written) if no build ran, else `spare` (the first build writes there, so the
             caller's list survives a chunk handed back) or a longer array when the list grew.
 
-            fx, fx_rng: the case's `fixes:` (compiled.py's `_fix_arrays` of this case alone, row 0;
-            its Langevin generator), run as compiled.py's kernels run them: `_fix_pre` before the
+            fix = (fx, fx_rng, step0): the case's `fixes:` (compiled.py's `_fix_arrays` of this case
+            alone, row 0; its Langevin generator), run as compiled.py's kernels run them: `_fix_pre` before the
             drift (fix nvt's first half step, the Langevin random forces), `_fix_post_force` after
             the walls (Langevin forces, enforce2d), `_fix_end` after the final kick (fix nvt's
             second half step, temp/berendsen, temp/rescale, the tally; status 6: a zero
             temperature). step0: the case's step count before the chunk (ramps, temp/rescale's
             every). Not with `post` (a case with fixes is not cut over threads).
 
-            rf_meta, rf_val, rf_prev, rf_stat, stats: the case's wall/reflect faces (compiled.py's
+            rfl = (rf_meta, rf_val, rf_prev, rf_stat, stats): the case's wall/reflect faces (compiled.py's
             `_reflect_arrays`; rf_val (S or 1, K): each face's coord per step), reflected after the
             drift and wrap (`chunk_eligible`: on fixed dimensions, where the wrap does not act) by
             compiled.py's `_reflect_face` with the face's velocity over the step; with `stats` the
@@ -773,11 +772,12 @@ if njit is not None:
             tb: the wall/table faces' tables (compiled.py's `_tables` and a scratch of N bytes
             rounded up to 64: `_table_faces`, style TABLE_STYLE in sf_meta).
 
-            st_meta, st_val, st_stat, st_flag, st_rng: a wall/reflect/stochastic fix (compiled.py's
-            `_stochastic_arrays` of this case, row 0; its generator), after the wall/reflect faces
-            (`_stochastic_faces`; faces on fixed dimensions); mvv2e: the units' m v^2 to energy.
+            sto = (st_meta, st_val, st_stat, st_flag, st_rng, mvv2e): a wall/reflect/stochastic fix
+            (compiled.py's `_stochastic_arrays` of this case, row 0; its generator), after the
+            wall/reflect faces (`_stochastic_faces`; faces on fixed dimensions); mvv2e: the units'
+            m v^2 to energy.
 
-            dtr_every, dtr_group, dtr_par (xmax, emax, tmin, tmax): fix dt/reset (every 0: none),
+            dtr = (dtr_every, dtr_group, dtr_par (xmax, emax, tmin, tmax), clk): fix dt/reset (every 0: none),
             at the end of each due step (engine.Engine.reset_dt: compiled.py's `_dt_candidate` per
             atom, the group's minimum, `_clamp`); a new dt closes the time accumulator as
             BatchState.set_dt does. clk (in and out): dt, atime, atimestep of the case.
@@ -799,6 +799,10 @@ if njit is not None:
             RB = np.empty((6, 5, BLOCK))
             CI = np.empty(N if fl_int[0] != 0 else 0, np.int64)
             DIR = np.empty(N if fl_int[0] != 0 else 0)
+            fx, fx_rng, step0 = fix
+            rf_meta, rf_val, rf_prev, rf_stat, stats = rfl
+            st_meta, st_val, st_stat, st_flag, st_rng, mvv2e = sto
+            dtr_every, dtr_group, dtr_par, clk = dtr
             sm_at, sm_mv2, sm_ew, sm_face, sm_reg, sm_cross, sm_fx, sm_chain, sm_rstat, sm_clock = sm
             CAND = np.empty(N if dtr_every > 0 else 0)  # fix dt/reset: each atom's largest dt
             nrf, nst = rf_meta.shape[0], st_meta.shape[0]
@@ -1655,10 +1659,12 @@ class PairChunks:
                     24.0 * float(pair.epsilon[c]), 4.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2),
                     float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
                     sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl,
-                    _compiled._fix_slice(fx, slice(c, c + 1)), fx_rngs[c] if fx_rngs else _compiled._NO_FLOW[-1],
-                    int(s.step[c]), rf_meta, rf_val[c], rf_prev[c], rf_stat[c], bool(stats), tb, sto[0],
-                    sto[1][c:c + 1], sto[2][c:c + 1], sto[3], sk.rngs[c] if sk is not None else _compiled._NO_FLOW[-1],
-                    float(s.units.mvv2e), int(dtr.every) if dtr is not None else 0, dtr_group, dtr_par[c], clk[c],
+                    (_compiled._fix_slice(fx, slice(c, c + 1)), fx_rngs[c] if fx_rngs else _compiled._NO_FLOW[-1],
+                     int(s.step[c])),
+                    (rf_meta, rf_val[c], rf_prev[c], rf_stat[c], bool(stats)), tb,
+                    (sto[0], sto[1][c:c + 1], sto[2][c:c + 1], sto[3],
+                     sk.rngs[c] if sk is not None else _compiled._NO_FLOW[-1], float(s.units.mvv2e)),
+                    (int(dtr.every) if dtr is not None else 0, dtr_group, dtr_par[c], clk[c]),
                     (sm[0], *(a[c] for a in sm[1:])))
             # one thread for samples in the kernel (`samples_in_kernel`), fixes and wall/reflect (`chunk_eligible`)
             parts = case_parts(N) if at is None and not fx[0].shape[0] and not plan.reflect and dtr is None else 1
