@@ -2358,6 +2358,13 @@ class FastPath:
         return sf, rf
 
     @staticmethod
+    def value_steps(plan: ChunkPlan) -> int:
+        """The most steps of per-step wall values (`_values`: 6 doubles per soft or reflect face,
+        step and case) a chunk holds within VALUE_BUDGET; longer chunks are split."""
+        per_step = 6 * max(1, sum(len(w.faces) for w in plan.soft + plan.reflect)) * max(1, plan.state.ncases)
+        return max(1, VALUE_BUDGET // per_step)
+
+    @staticmethod
     def _uses_time(plan: ChunkPlan) -> bool:
         names = [v for w in list(plan.soft) + list(plan.reflect) for face in w.faces
                  for v in [face.coord, *face.params.values()] if isinstance(v, str)]
@@ -2470,8 +2477,7 @@ class FastPath:
         if varying and (plan.dt_reset is not None or time_mode):
             return False  # per-step values depend on a dt that changes inside the chunk
         if varying and not time_mode:
-            per_step = 6 * max(1, sum(len(w.faces) for w in plan.soft + plan.reflect)) * s.ncases
-            most = max(1, VALUE_BUDGET // per_step)
+            most = self.value_steps(plan)
             if at is not None and nsteps > most:  # a sampled chunk: the samples within `most` steps
                 at = at[at <= most]
                 if at.size == 0:

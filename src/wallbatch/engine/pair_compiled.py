@@ -1547,8 +1547,8 @@ class PairChunks:
         C = max(1, plan.state.ncases)
         width = 6 + 3 * sum(len(w.faces) for w in plan.soft) + 5 * len(plan.region)
         at = at[:max(1, _compiled.SAMPLE_BUDGET // (width * C))]
-        if _compiled.FastPath._uses_time(plan):  # per-step wall values: within VALUE_BUDGET (`_chunk`)
-            at = at[at * max(1, sum(len(w.faces) for w in plan.soft)) * 6 * C <= _compiled.VALUE_BUDGET]
+        if _compiled.FastPath._uses_time(plan):  # per-step wall values: the steps `_chunk` takes
+            at = at[at <= _compiled.FastPath.value_steps(plan)]
             if at.size == 0:
                 return 0
         start = int(plan.state.step.max())
@@ -1569,8 +1569,7 @@ class PairChunks:
             return False
         C, N = s.x.shape[:2]
         varying = _compiled.FastPath._uses_time(plan)
-        nfaces = max(1, sum(len(w.faces) for w in plan.soft))
-        if varying and nsteps * nfaces * 6 * C > _compiled.VALUE_BUDGET:
+        if varying and nsteps > _compiled.FastPath.value_steps(plan):
             return False
         values = _compiled.FastPath._values(plan, nsteps if varying else 1, varying)
         if values is None:
