@@ -65,11 +65,17 @@ def env_choice() -> bool | None:
 
 def numba_allowed() -> bool:
     """May this process use compiled kernels now: WALLBATCH_NUMBA if set, else the running
-    plan's choice, else yes. (numba must also import: each compiled module's `enabled`.)"""
+    plan's choice, else yes. A question only: numba must also import (`use_numba`)."""
     env = env_choice()
-    allowed = env if env is not None else (True if _plan_choice is None else _plan_choice)
-    if allowed and not _numba_prepared and "numba" in sys.modules:
-        prepare_numba()  # the compiled modules ask this after importing numba, before any kernel loads
+    return env if env is not None else (True if _plan_choice is None else _plan_choice)
+
+
+def use_numba() -> bool:
+    """For a compiled module that imported numba, before it loads a kernel: `numba_allowed()`, and
+    if so numba set up for this process (`prepare_numba`, once)."""
+    allowed = numba_allowed()
+    if allowed and "numba" in sys.modules:
+        prepare_numba()
     return allowed
 
 

@@ -144,8 +144,8 @@ FLAG_ARGS: dict[str, tuple[str, ...]] = {
 
 
 def enabled() -> bool:
-    """True if the compiled path may be used: numba imports and backend.numba_allowed()."""
-    return njit is not None and backend.numba_allowed()
+    """True if the compiled path may be used: numba imports and backend.use_numba()."""
+    return njit is not None and backend.use_numba()
 
 
 # ----------------------------------------------------------------------------- compiled kernels

@@ -32,8 +32,8 @@ _SQRT2 = float(np.sqrt(2.0))
 
 
 def enabled() -> bool:
-    """True if the compiled solver may be used: numba imports and backend.numba_allowed()."""
-    return njit is not None and backend.numba_allowed()
+    """True if the compiled solver may be used: numba imports and backend.use_numba()."""
+    return njit is not None and backend.use_numba()
 
 
 def _link(name: str, fused: str) -> "types.ExternalFunction":

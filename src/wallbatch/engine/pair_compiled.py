@@ -66,8 +66,8 @@ _FORMULA_KEY = hashlib.sha256((inspect.getsource(lj_terms) + inspect.getsource(m
 
 
 def enabled() -> bool:
-    """True if the compiled path may be used: numba imports and backend.numba_allowed()."""
-    return njit is not None and backend.numba_allowed()
+    """True if the compiled path may be used: numba imports and backend.use_numba()."""
+    return njit is not None and backend.use_numba()
 
 
 if njit is not None:
@@ -379,6 +379,64 @@ if njit is not None:
                 ty[k] = fpair * d1
                 tz[k] = fpair * d2
 
+    @njit(nogil=True, error_model="numpy", inline="always")
+    def _row_buffers(fr: np.ndarray, s_lo: int, s_hi: int, outputs: bool) -> np.ndarray:
+        """Scratch for the rows s_lo .. s_hi - 1 (`_row_terms`): 6 (8 with outputs) buffers as long
+        as the longest row."""
+        most = 0
+        for s in range(s_lo, s_hi):
+            most = max(most, fr[s + 1] - fr[s])
+        return np.empty((8 if outputs else 6, most))
+
+    @njit(nogil=True, error_model="numpy", inline="always")
+    def _images(length: np.ndarray, periodic: np.ndarray) -> tuple[float, float, float, float, float, float]:
+        """(1/L or 0 in non-periodic dimensions, then L) per dimension: `_image`'s arguments."""
+        return (1.0 / length[0] if periodic[0] else 0.0, 1.0 / length[1] if periodic[1] else 0.0,
+                1.0 / length[2] if periodic[2] else 0.0, length[0], length[1], length[2])
+
+    @njit(nogil=True, error_model="numpy", inline="always")
+    def _row_terms(xc: np.ndarray, nc: np.ndarray, i: int, k0: int, n: int, buf: np.ndarray, outputs: bool,
+                   e24: float, e4: float, s2c: float, rcut2: float, off: float,
+                   img: tuple[float, float, float, float, float, float]) -> None:
+        """One row of the half list (atom i, its n partners nc[k0:k0 + n]): gather the separations
+        x_i - x_j into contiguous buffers, then compute the pair terms for all of them in one
+        vectorised loop (`_pair_terms`; img: `_images`): forces into buf[3:6], with outputs
+        energies and virials into buf[6:8]."""
+        xi0, xi1, xi2 = xc[i, 0], xc[i, 1], xc[i, 2]
+        gx, gy, gz = buf[0], buf[1], buf[2]
+        for k in range(n):
+            j = nc[k0 + k]
+            gx[k] = xi0 - xc[j, 0]
+            gy[k] = xi1 - xc[j, 1]
+            gz[k] = xi2 - xc[j, 2]
+        te, tw = (buf[6], buf[7]) if outputs else (buf[0], buf[0])
+        _pair_terms(n, gx, gy, gz, buf[3], buf[4], buf[5], te, tw, outputs, e24, e4, s2c, rcut2, off, img[0], img[1],
+                    img[2], img[3], img[4], img[5])
+
+    @njit(nogil=True, error_model="numpy", inline="always")
+    def _row_ew(buf: np.ndarray, n: int) -> tuple[float, float]:
+        """A row's energy and virial sums, in list order (`_row_terms` with outputs)."""
+        te, tw = buf[6], buf[7]
+        er, wr = 0.0, 0.0
+        for k in range(n):
+            er += te[k]
+            wr += tw[k]
+        return er, wr
+
+    @njit(nogil=True, error_model="numpy", inline="always")
+    def _defer(lj: np.ndarray, lv: np.ndarray, q: int, qd: int, cut: int, j: int, a: float, b: float,
+               c: float) -> tuple[int, int]:
+        """Log the addition (a, b, c) to atom j (`forces_part`): upwards from q for j < cut, else
+        downwards from qd - 1. Returns the log's new ends (q, qd)."""
+        if j < cut:
+            lj[q] = j
+            lv[q, 0], lv[q, 1], lv[q, 2] = a, b, c
+            return q + 1, qd
+        qd -= 1
+        lj[qd] = j
+        lv[qd, 0], lv[qd, 1], lv[qd, 2] = a, b, c
+        return q, qd
+
     def forces_case(xc: np.ndarray, fc: np.ndarray, ow: np.ndarray, fr: np.ndarray, nc: np.ndarray, e24: float,
                     e4: float, s2c: float, rcut2: float, off: float, length: np.ndarray, periodic: np.ndarray,
                     outputs: bool) -> tuple[float, float]:
@@ -392,30 +450,16 @@ if njit is not None:
         (`_pair_terms`), then add them in list order: F_i += sum (one sum, added at the end of the
         row) and F_j -= each. The additions are the ones of a single fused loop in the same order,
         so the bits do not depend on the split."""
-        inv0 = 1.0 / length[0] if periodic[0] else 0.0
-        inv1 = 1.0 / length[1] if periodic[1] else 0.0
-        inv2 = 1.0 / length[2] if periodic[2] else 0.0
-        L0, L1, L2 = length[0], length[1], length[2]
         nrow = len(ow)
-        most = 0
-        for s in range(nrow):
-            most = max(most, fr[s + 1] - fr[s])
-        buf = np.empty((8 if outputs else 6, most))
-        gx, gy, gz, tx, ty, tz = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]
-        te, tw = (buf[6], buf[7]) if outputs else (buf[0], buf[0])
+        buf = _row_buffers(fr, 0, nrow, outputs)
+        img = _images(length, periodic)
+        tx, ty, tz = buf[3], buf[4], buf[5]
         esum, wsum = 0.0, 0.0
         for s in range(nrow):
             i = ow[s]
-            xi0, xi1, xi2 = xc[i, 0], xc[i, 1], xc[i, 2]
             k0 = fr[s]
             n = fr[s + 1] - k0
-            for k in range(n):
-                j = nc[k0 + k]
-                gx[k] = xi0 - xc[j, 0]
-                gy[k] = xi1 - xc[j, 1]
-                gz[k] = xi2 - xc[j, 2]
-            _pair_terms(n, gx, gy, gz, tx, ty, tz, te, tw, outputs, e24, e4, s2c, rcut2, off, inv0, inv1, inv2,
-                        L0, L1, L2)
+            _row_terms(xc, nc, i, k0, n, buf, outputs, e24, e4, s2c, rcut2, off, img)
             fi0, fi1, fi2 = 0.0, 0.0, 0.0
             for k in range(n):
                 j = nc[k0 + k]
@@ -430,10 +474,7 @@ if njit is not None:
             fc[i, 1] += fi1
             fc[i, 2] += fi2
             if outputs:
-                er, wr = 0.0, 0.0
-                for k in range(n):
-                    er += te[k]
-                    wr += tw[k]
+                er, wr = _row_ew(buf, n)
                 esum += er
                 wsum += wr
         return esum, wsum
@@ -488,29 +529,15 @@ if njit is not None:
         the row's energy and virial sums (as forces_case's; `_row_sums` adds them in row order).
         Returns the ends of the log written: (up, down).
         Parts run at once in threads: each writes only its own atoms of fc and its own rows."""
-        inv0 = 1.0 / length[0] if periodic[0] else 0.0
-        inv1 = 1.0 / length[1] if periodic[1] else 0.0
-        inv2 = 1.0 / length[2] if periodic[2] else 0.0
-        L0, L1, L2 = length[0], length[1], length[2]
-        most = 0
-        for s in range(s_lo, s_hi):
-            most = max(most, fr[s + 1] - fr[s])
-        buf = np.empty((8 if outputs else 6, most))
-        gx, gy, gz, tx, ty, tz = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]
-        te, tw = (buf[6], buf[7]) if outputs else (buf[0], buf[0])
+        buf = _row_buffers(fr, s_lo, s_hi, outputs)
+        img = _images(length, periodic)
+        tx, ty, tz = buf[3], buf[4], buf[5]
         q, qd = q0, q1
         for s in range(s_lo, s_hi):
             i = ow[s]
-            xi0, xi1, xi2 = xc[i, 0], xc[i, 1], xc[i, 2]
             k0 = fr[s]
             n = fr[s + 1] - k0
-            for k in range(n):
-                j = nc[k0 + k]
-                gx[k] = xi0 - xc[j, 0]
-                gy[k] = xi1 - xc[j, 1]
-                gz[k] = xi2 - xc[j, 2]
-            _pair_terms(n, gx, gy, gz, tx, ty, tz, te, tw, outputs, e24, e4, s2c, rcut2, off, inv0, inv1, inv2,
-                        L0, L1, L2)
+            _row_terms(xc, nc, i, k0, n, buf, outputs, e24, e4, s2c, rcut2, off, img)
             fi0, fi1, fi2 = 0.0, 0.0, 0.0
             if mixed[s]:  # some partner is another part's first: its additions wait in the log
                 for k in range(n):
@@ -523,14 +550,8 @@ if njit is not None:
                         fc[j, 0] -= a
                         fc[j, 1] -= b
                         fc[j, 2] -= c
-                    elif j < cut:  # x - a and x + (-a) are the same number
-                        lj[q] = j
-                        lv[q, 0], lv[q, 1], lv[q, 2] = -a, -b, -c
-                        q += 1
-                    else:
-                        qd -= 1
-                        lj[qd] = j
-                        lv[qd, 0], lv[qd, 1], lv[qd, 2] = -a, -b, -c
+                    else:  # x - a and x + (-a) are the same number
+                        q, qd = _defer(lj, lv, q, qd, cut, j, -a, -b, -c)
             else:  # forces_case's loop
                 for k in range(n):
                     j = nc[k0 + k]
@@ -545,21 +566,10 @@ if njit is not None:
                 fc[i, 0] += fi0
                 fc[i, 1] += fi1
                 fc[i, 2] += fi2
-            elif i < cut:
-                lj[q] = i
-                lv[q, 0], lv[q, 1], lv[q, 2] = fi0, fi1, fi2
-                q += 1
             else:
-                qd -= 1
-                lj[qd] = i
-                lv[qd, 0], lv[qd, 1], lv[qd, 2] = fi0, fi1, fi2
+                q, qd = _defer(lj, lv, q, qd, cut, i, fi0, fi1, fi2)
             if outputs:
-                er, wr = 0.0, 0.0
-                for k in range(n):
-                    er += te[k]
-                    wr += tw[k]
-                rowew[s, 0] = er
-                rowew[s, 1] = wr
+                rowew[s, 0], rowew[s, 1] = _row_ew(buf, n)
         return q, qd
 
     forces_part = _keyed(forces_part)
