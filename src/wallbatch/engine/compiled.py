@@ -757,111 +757,141 @@ if njit is not None:
         RB[j, 3, b] = d1
         RB[j, 4, b] = d2
 
-    @jit
-    def _region_contacts(kind, ax, geo, X, groups, g, cut, u0, u1, RB):
-        """The region's contacts of atoms u0..u1-1 (group g) into RB; returns (slots used, number
-        of group atoms on the wrong side of the region)."""
-        nslot = 6 if kind == 0 else (3 if kind == 4 else 1)
-        for j in range(nslot):
-            for i in range(u0, u1):
-                RB[j, 0, i - u0] = 0.0
+    @inline
+    def _block_contacts(kind, geo, X, groups, g, cut, u0, u1, RB):
+        """`_region_contacts` of a block region (kind 0: inside, six faces; 1: outside, one)."""
         nwrong = 0
-        R = geo[6]
         for i in range(u0, u1):
             if groups[g, i] == 0:
                 continue
             b = i - u0
             x0, x1, x2 = X[0, i], X[1, i], X[2, i]
-            if kind <= 1:  # block
-                if kind == 0:
-                    ins = True
-                    for d in range(3):
-                        ins = ins & (X[d, i] >= geo[d]) & (X[d, i] <= geo[3 + d])
-                    if not ins:
-                        nwrong += 1
-                        continue
-                    for d in range(3):
-                        dlo = X[d, i] - geo[d]
-                        dhi = geo[3 + d] - X[d, i]
-                        if dlo < cut:
-                            _slot(RB, 2 * d, b, dlo, 1.0 * dlo if d == 0 else 0.0, 1.0 * dlo if d == 1 else 0.0,
-                                  1.0 * dlo if d == 2 else 0.0)
-                        if dhi < cut:
-                            _slot(RB, 2 * d + 1, b, dhi, -dhi if d == 0 else 0.0, -dhi if d == 1 else 0.0,
-                                  -dhi if d == 2 else 0.0)
-                else:
-                    strictly = ((x0 > geo[0]) & (x0 < geo[3]) & (x1 > geo[1]) & (x1 < geo[4])
-                                & (x2 > geo[2]) & (x2 < geo[5]))
-                    inside = ((x0 >= geo[0]) & (x0 <= geo[3]) & (x1 >= geo[1]) & (x1 <= geo[4])
-                              & (x2 >= geo[2]) & (x2 <= geo[5]))
-                    if inside:
-                        nwrong += 1
-                        continue
-                    d0 = x0 - _clip(x0, geo[0], geo[3])
-                    d1 = x1 - _clip(x1, geo[1], geo[4])
-                    d2 = x2 - _clip(x2, geo[2], geo[5])
-                    r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-                    if (not strictly) and r < cut:
-                        _slot(RB, 0, b, r, d0, d1, d2)
-            elif kind <= 3:  # sphere
-                d0, d1, d2 = x0 - geo[7], x1 - geo[8], x2 - geo[9]
-                rho = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-                if kind == 2:
-                    if not rho <= R:
-                        nwrong += 1
-                        continue
-                    r = R - rho
-                    if rho > 0.0 and r < cut:
-                        s = 1.0 - R / rho
-                        _slot(RB, 0, b, r, d0 * s, d1 * s, d2 * s)
-                else:
-                    if rho <= R:
-                        nwrong += 1
-                        continue
-                    r = rho - R
-                    if r < cut:
-                        s = 1.0 - R / rho
-                        _slot(RB, 0, b, r, d0 * s, d1 * s, d2 * s)
-            else:  # cylinder: axis ax, centre (geo[7], geo[8]) in the two other dims, lo geo[0], hi geo[3]
-                o1 = 1 if ax == 0 else 0
-                o2 = 1 if ax == 2 else 2
-                e1 = X[o1, i] - geo[7]
-                e2 = X[o2, i] - geo[8]
-                rho = math.sqrt(e1 * e1 + e2 * e2)
-                a = X[ax, i]
-                ins = (rho <= R) & (a >= geo[0]) & (a <= geo[3])
-                if kind == 4:
-                    if not ins:
-                        nwrong += 1
-                        continue
-                    rw = R - rho
-                    if rho > 0.0 and rw < cut:
-                        s = 1.0 - R / rho
-                        c1, c2 = e1 * s, e2 * s
-                        _slot(RB, 0, b, rw, c1 if o1 == 0 else 0.0, c1 if o1 == 1 else (c2 if o2 == 1 else 0.0),
-                              c2 if o2 == 2 else 0.0)
-                    dlo = a - geo[0]
-                    dhi = geo[3] - a
+            if kind == 0:
+                ins = True
+                for d in range(3):
+                    ins = ins & (X[d, i] >= geo[d]) & (X[d, i] <= geo[3 + d])
+                if not ins:
+                    nwrong += 1
+                    continue
+                for d in range(3):
+                    dlo = X[d, i] - geo[d]
+                    dhi = geo[3 + d] - X[d, i]
                     if dlo < cut:
-                        _slot(RB, 1, b, dlo, 1.0 * dlo if ax == 0 else 0.0, 1.0 * dlo if ax == 1 else 0.0,
-                              1.0 * dlo if ax == 2 else 0.0)
+                        _slot(RB, 2 * d, b, dlo, 1.0 * dlo if d == 0 else 0.0, 1.0 * dlo if d == 1 else 0.0,
+                              1.0 * dlo if d == 2 else 0.0)
                     if dhi < cut:
-                        _slot(RB, 2, b, dhi, -dhi if ax == 0 else 0.0, -dhi if ax == 1 else 0.0,
-                              -dhi if ax == 2 else 0.0)
-                else:
-                    if ins:
-                        nwrong += 1
-                        continue
-                    strictly = (rho < R) & (a > geo[0]) & (a < geo[3])
-                    rim = 1.0 - R / rho if rho > R else 0.0
-                    c1, c2 = e1 * rim, e2 * rim
-                    ca = a - _clip(a, geo[0], geo[3])
-                    d0 = ca if ax == 0 else c1
-                    d1 = ca if ax == 1 else (c1 if o1 == 1 else c2)
-                    d2 = ca if ax == 2 else c2
-                    r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-                    if (not strictly) and r < cut:
-                        _slot(RB, 0, b, r, d0, d1, d2)
+                        _slot(RB, 2 * d + 1, b, dhi, -dhi if d == 0 else 0.0, -dhi if d == 1 else 0.0,
+                              -dhi if d == 2 else 0.0)
+            else:
+                strictly = ((x0 > geo[0]) & (x0 < geo[3]) & (x1 > geo[1]) & (x1 < geo[4])
+                            & (x2 > geo[2]) & (x2 < geo[5]))
+                inside = ((x0 >= geo[0]) & (x0 <= geo[3]) & (x1 >= geo[1]) & (x1 <= geo[4])
+                          & (x2 >= geo[2]) & (x2 <= geo[5]))
+                if inside:
+                    nwrong += 1
+                    continue
+                d0 = x0 - _clip(x0, geo[0], geo[3])
+                d1 = x1 - _clip(x1, geo[1], geo[4])
+                d2 = x2 - _clip(x2, geo[2], geo[5])
+                r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                if (not strictly) and r < cut:
+                    _slot(RB, 0, b, r, d0, d1, d2)
+        return nwrong
+
+    @inline
+    def _sphere_contacts(kind, geo, X, groups, g, cut, u0, u1, RB):
+        """`_region_contacts` of a sphere (kind 2: inside, 3: outside). Branch-free: every atom's
+        slot is written (flag 0.0 where no contact), so the loop vectorises."""
+        nwrong = 0
+        R, cx, cy, cz = geo[6], geo[7], geo[8], geo[9]
+        x0, x1, x2, mask = X[0], X[1], X[2], groups[g]  # rows: the loop vectorises
+        for i in range(u0, u1):
+            b = i - u0
+            ing = mask[i] != 0
+            d0, d1, d2 = x0[i] - cx, x1[i] - cy, x2[i] - cz
+            rho = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            inner = rho <= R  # (NaN: not inner)
+            if kind == 2:
+                wrong = ing & (not inner)
+                r = R - rho
+                con = ing & inner & (rho > 0.0) & (r < cut)
+            else:
+                wrong = ing & inner
+                r = rho - R
+                con = ing & (not inner) & (r < cut)
+            nwrong += wrong
+            s = 1.0 - R / rho
+            _slot(RB, 0, b, r, d0 * s, d1 * s, d2 * s)
+            RB[0, 0, b] = 1.0 if con else 0.0
+        return nwrong
+
+    @inline
+    def _cylinder_contacts(kind, ax, geo, X, groups, g, cut, u0, u1, RB):
+        """`_region_contacts` of a cylinder along axis ax, centre (geo[7], geo[8]) in the two other
+        dimensions, from geo[0] to geo[3] along ax (kind 4: inside, curved wall and two caps; 5:
+        outside, one)."""
+        nwrong = 0
+        R, lo, hi = geo[6], geo[0], geo[3]
+        o1 = 1 if ax == 0 else 0
+        o2 = 1 if ax == 2 else 2
+        for i in range(u0, u1):
+            if groups[g, i] == 0:
+                continue
+            b = i - u0
+            e1 = X[o1, i] - geo[7]
+            e2 = X[o2, i] - geo[8]
+            rho = math.sqrt(e1 * e1 + e2 * e2)
+            a = X[ax, i]
+            ins = (rho <= R) & (a >= lo) & (a <= hi)
+            if kind == 4:
+                if not ins:
+                    nwrong += 1
+                    continue
+                rw = R - rho
+                if rho > 0.0 and rw < cut:
+                    s = 1.0 - R / rho
+                    c1, c2 = e1 * s, e2 * s
+                    _slot(RB, 0, b, rw, c1 if o1 == 0 else 0.0, c1 if o1 == 1 else (c2 if o2 == 1 else 0.0),
+                          c2 if o2 == 2 else 0.0)
+                dlo = a - lo
+                dhi = hi - a
+                if dlo < cut:
+                    _slot(RB, 1, b, dlo, 1.0 * dlo if ax == 0 else 0.0, 1.0 * dlo if ax == 1 else 0.0,
+                          1.0 * dlo if ax == 2 else 0.0)
+                if dhi < cut:
+                    _slot(RB, 2, b, dhi, -dhi if ax == 0 else 0.0, -dhi if ax == 1 else 0.0,
+                          -dhi if ax == 2 else 0.0)
+            else:
+                if ins:
+                    nwrong += 1
+                    continue
+                strictly = (rho < R) & (a > lo) & (a < hi)
+                rim = 1.0 - R / rho if rho > R else 0.0
+                c1, c2 = e1 * rim, e2 * rim
+                ca = a - _clip(a, lo, hi)
+                d0 = ca if ax == 0 else c1
+                d1 = ca if ax == 1 else (c1 if o1 == 1 else c2)
+                d2 = ca if ax == 2 else c2
+                r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                if (not strictly) and r < cut:
+                    _slot(RB, 0, b, r, d0, d1, d2)
+        return nwrong
+
+    @jit
+    def _region_contacts(kind, ax, geo, X, groups, g, cut, u0, u1, RB):
+        """The region's contacts of atoms u0..u1-1 (group g) into RB; returns (slots used, number
+        of group atoms on the wrong side of the region). One atom loop per shape (the shape's
+        branches stay out of the loop)."""
+        nslot = 6 if kind == 0 else (3 if kind == 4 else 1)
+        if kind == 2 or kind == 3:  # spheres write every atom's slot
+            return nslot, _sphere_contacts(kind, geo, X, groups, g, cut, u0, u1, RB)
+        for j in range(nslot):
+            for i in range(u0, u1):
+                RB[j, 0, i - u0] = 0.0
+        if kind <= 1:
+            nwrong = _block_contacts(kind, geo, X, groups, g, cut, u0, u1, RB)
+        else:
+            nwrong = _cylinder_contacts(kind, ax, geo, X, groups, g, cut, u0, u1, RB)
         return nslot, nwrong
 
     @inline
@@ -869,17 +899,17 @@ if njit is not None:
         """The forces of a region's contacts in RB (RegionWallKernel.apply): F += (F(r) / r) delta,
         slot by slot. Returns the number of contacts too close (r <= 0; use_radius: r <= radius)."""
         nbad = 0
-        for j in range(nslot):
+        for j in range(nslot):  # branch-free (selects): every atom's force is computed, contacts add it
             for i in range(u0, u1):
                 b = i - u0
-                if RB[j, 0, b] != 0.0:
-                    r = RB[j, 1, b]
-                    rad = RAD[i] if use_radius else 0.0
-                    nbad += r <= rad
-                    s = force(r, p0, p1, p2, cut, rad, ron) / r
-                    F[0, i] = F[0, i] + s * RB[j, 2, b]
-                    F[1, i] = F[1, i] + s * RB[j, 3, b]
-                    F[2, i] = F[2, i] + s * RB[j, 4, b]
+                on = RB[j, 0, b] != 0.0
+                r = RB[j, 1, b] if on else cut  # (not a contact: a harmless r, its force unused)
+                rad = RAD[i] if use_radius else 0.0
+                nbad += on & (r <= rad)
+                s = force(r, p0, p1, p2, cut, rad, ron) / r
+                F[0, i] = F[0, i] + s * RB[j, 2, b] if on else F[0, i]
+                F[1, i] = F[1, i] + s * RB[j, 3, b] if on else F[1, i]
+                F[2, i] = F[2, i] + s * RB[j, 4, b] if on else F[2, i]
         return nbad
 
     def _region_walls(c, u0, u1, X, F, RAD, groups, rg_meta, rg_geo, rg_val, RB):
@@ -916,21 +946,22 @@ if njit is not None:
         """Engine.step's post_force fixes (Ensemble.post_force) on atoms u0..u1-1: the Langevin
         force G1 v + FR (kept in FL for the tally), then enforce2d (z force and velocity zeroed)."""
         fx_meta, G1, FR, FL = fxp
-        for k in range(fx_meta.shape[0]):
+        for k in range(fx_meta.shape[0]):  # rows and selects (every atom written): the loops vectorise
             if fx_meta[k, 0] == FIX_LANGEVIN:
-                g = fx_meta[k, 1]
+                mask = groups[fx_meta[k, 1]]
                 for d in range(3):
+                    vd, fd, rd, ld = V[d], F[d], FR[d], FL[d]
                     for i in range(u0, u1):
-                        fl = G1[i] * V[d, i] + FR[d, i] if groups[g, i] != 0 else 0.0
-                        FL[d, i] = fl
-                        F[d, i] = F[d, i] + fl
+                        fl = G1[i] * vd[i] + rd[i] if mask[i] != 0 else 0.0
+                        ld[i] = fl
+                        fd[i] = fd[i] + fl
         for k in range(fx_meta.shape[0]):
             if fx_meta[k, 0] == FIX_ENFORCE2D:
-                g = fx_meta[k, 1]
+                mask, fz, vz = groups[fx_meta[k, 1]], F[2], V[2]
                 for i in range(u0, u1):
-                    if groups[g, i] != 0:
-                        F[2, i] = 0.0
-                        V[2, i] = 0.0
+                    on = mask[i] != 0
+                    fz[i] = 0.0 if on else fz[i]
+                    vz[i] = 0.0 if on else vz[i]
 
     @jit_inner
     def _group_temperature(V, M, groups, g, dof, mvv2e, boltz, KB):
@@ -938,17 +969,20 @@ if njit is not None:
         n = V.shape[1]
         if dof <= 0:
             return 0.0
+        mask, v0, v1, v2 = groups[g], V[0], V[1], V[2]  # rows: the loop vectorises
         for i in range(n):
-            KB[i] = _th_mv2(M[i], V[0, i], V[1, i], V[2, i]) if groups[g, i] != 0 else 0.0
+            e = _th_mv2(M[i], v0[i], v1[i], v2[i])
+            KB[i] = e if mask[i] != 0 else 0.0
         return (0.0 + _th_pairwise(KB, 0, n)) * (mvv2e / (dof * boltz))
 
     @jit_inner
     def _scale_group(V, groups, g, factor):
         """thermostats.scale_group for one case: v *= factor on the group atoms."""
-        for d in range(3):
-            for i in range(V.shape[1]):
-                if groups[g, i] != 0:
-                    V[d, i] = V[d, i] * factor
+        mask = groups[g]
+        for d in range(3):  # every atom times factor or 1.0 (x * 1.0 is x, bit for bit): the loop vectorises
+            row = V[d]
+            for i in range(row.shape[0]):
+                row[i] = row[i] * (factor if mask[i] != 0 else 1.0)
 
     @jit_inner
     def _fix_pre(c, stepn, dtc, V, M, groups, fx, rng, SQM, FR, KB):
