@@ -479,3 +479,26 @@ def test_two_dimensional_liquid_in_the_fused_chunk(monkeypatch):
     assert [f.style for f in fused.ensemble.fixes if f.style == "enforce2d"] == ["enforce2d"]
     assert np.all(fused.state.x[..., 2] == 0.0) and np.all(fused.state.v[..., 2] == 0.0)
     assert np.ptp(got[0].data["pe"]) > 0.1
+
+
+def test_sample_budget_splits_the_sampled_chunks(monkeypatch):
+    """The samples a fused chunk records are bounded by compiled.SAMPLE_BUDGET through the flat
+    chunks' own rule (FastPath.sample_steps, plus the pair's energy and virial): 12 doubles a
+    sample for two reflect faces with statistics. With a budget of one sample per call, the 60
+    samples take 60 calls, reflect statistics handed on from call to call, the per-step bits."""
+    from wallbatch.engine import compiled
+
+    d = every(slit(steps=60), thermo=1)
+    d["walls"] = {"r": {"style": "reflect", "units": "box", "zlo": 1.6, "zhi": 6.6}}
+    d["output"] = {"thermo": ["step", "temp", "pe", "etot", "press", "reflect_count", "reflect_impulse"]}
+    cases = cases_of(d)
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    eng = Engine(cases)
+    plan = eng.fast.plan_source()
+    assert compiled.FastPath.sample_steps(plan, extra=2) == compiled.SAMPLE_BUDGET // 12
+    monkeypatch.setattr(compiled, "SAMPLE_BUDGET", 12)
+    assert compiled.FastPath.sample_steps(plan, extra=2) == 1
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases)
+    assert_bits(got, ref)
+    assert fused.fast.fallbacks == 0 and fused.fast.sampled_calls == 60
+    assert got[0].data["reflect_count"][1:].sum() >= 3

@@ -942,6 +942,36 @@ if njit is not None:
     _th_pairwise = jit(_th.pairwise_sum)
 
     @inline
+    def _mv2_sum(M, V, KS, n):
+        """sum m v^2 over atoms 0..n-1 (V (3, N)) in Engine.sample's order (NumPy's pairwise sum);
+        KS: scratch of n."""
+        for a in range(n):
+            KS[a] = _th_mv2(M[a], V[0, a], V[1, a], V[2, a])
+        return 0.0 + _th_pairwise(KS, 0, n)
+
+    @inline
+    def _take_stats(stat, out, k0):
+        """A sample's reflect statistics since the last one (take_stats): each face's (count,
+        impulse) of one case's stat (K, 2) into out[k0 + k]; the sums start again from zero."""
+        for k in range(stat.shape[0]):
+            out[k0 + k, 0] = stat[k, 0]
+            out[k0 + k, 1] = stat[k, 1]
+            stat[k, 0] = 0.0
+            stat[k, 1] = 0.0
+
+    @inline
+    def _group_low(CAND, groups, g, u0, u1):
+        """fix dt/reset: the smallest candidate dt over the group g's atoms u0..u1-1, NaN if any of
+        them is NaN (engine.Engine.reset_dt's minimum)."""
+        low = np.inf
+        nnan = 0
+        for i in range(u0, u1):
+            ci = CAND[i] if groups[g, i] != 0 else np.inf
+            nnan += ci != ci
+            low = ci if ci < low else low
+        return np.nan if nnan else low
+
+    @inline
     def _fix_post_force(u0, u1, V, F, groups, fxp):
         """Engine.step's post_force fixes (Ensemble.post_force) on atoms u0..u1-1: the Langevin
         force G1 v + FR (kept in FL for the tally), then enforce2d (z force and velocity zeroed)."""
@@ -1278,13 +1308,7 @@ if njit is not None:
         for i in range(u0, u1):  # fix dt/reset: each atom's largest dt
             CAND[i] = _dt_candidate(V[0, i], V[1, i], V[2, i], F[0, i], F[1, i], F[2, i], M[i], ftm2v, mvv2e,
                                     xmax, emax)
-        low = np.inf
-        nnan = 0
-        for i in range(u0, u1):
-            ci = CAND[i] if groups[dtr_group, i] != 0 else np.inf
-            nnan += ci != ci
-            low = ci if ci < low else low
-        return 0, (np.nan if nnan else low)
+        return 0, _group_low(CAND, groups, dtr_group, u0, u1)
 
     @inline
     def _clamp(low, natom, par):
@@ -1576,25 +1600,15 @@ if njit is not None:
                         _sample_faces(c, (done - 1) * vary, X, RAD, groups, sf_meta, sf_val, tb, lp_val, sm_face[c, ism])
                         if _K_REGION and rg_meta.shape[0]:
                             _sample_regions(c, X, RAD, groups, rg_meta, rg_geo, rg_val, RBS, sm_reg[c, ism])
-                        for a in range(natom):
-                            KS[a] = _th_mv2(M[a], V[0, a], V[1, a], V[2, a])
-                        sm_mv2[c, ism] = 0.0 + _th_pairwise(KS, 0, natom)
+                        sm_mv2[c, ism] = _mv2_sum(M, V, KS, natom)
                         sm_clock[c, ism, 0] = step[c]
                         sm_clock[c, ism, 1] = dt[c]
                         sm_clock[c, ism, 2] = atime[c]
                         sm_clock[c, ism, 3] = atimestep[c]
-                        if _K_REFLECT:
-                            for k in range(nrf):  # reflect statistics since the last sample (take_stats)
-                                sm_rstat[c, ism, k, 0] = rf_stat[c, k, 0]
-                                sm_rstat[c, ism, k, 1] = rf_stat[c, k, 1]
-                                rf_stat[c, k, 0] = 0.0
-                                rf_stat[c, k, 1] = 0.0
-                        if _K_STOCHASTIC and st_flag[0] != 0:
-                            for k in range(st_meta.shape[0]):  # wall/reflect/stochastic's, after them (take_stats)
-                                sm_rstat[c, ism, nrf + k, 0] = st_stat[c, k, 0]
-                                sm_rstat[c, ism, nrf + k, 1] = st_stat[c, k, 1]
-                                st_stat[c, k, 0] = 0.0
-                                st_stat[c, k, 1] = 0.0
+                        if _K_REFLECT:  # reflect statistics since the last sample
+                            _take_stats(rf_stat[c], sm_rstat[c, ism], 0)
+                        if _K_STOCHASTIC and st_flag[0] != 0:  # wall/reflect/stochastic's, after them
+                            _take_stats(st_stat[c], sm_rstat[c, ism], nrf)
                         if _K_FIXES:
                             _sample_fixes(c, fx, sm_fx[c, ism], sm_chain[c, ism])
                         sm_cross[c, ism] = fl_cross[0] if _K_FLOW else 0.0  # flow redraws since the last sample
@@ -2399,6 +2413,17 @@ class FastPath:
         return max(1, VALUE_BUDGET // per_step)
 
     @staticmethod
+    def sample_steps(plan: ChunkPlan, extra: int = 0) -> int:
+        """The most samples a sampled chunk records within SAMPLE_BUDGET doubles (its sample arrays,
+        (C, S, ...): sum m v^2, clock and flow redraws, each region's and soft face's outputs, each
+        reflect face's statistics, the fixes' state; `extra`: more per sample, e.g. a pair's energy
+        and virial); longer runs of samples take several calls."""
+        nfix = len(plan.ensemble.fixes) if plan.ensemble is not None else 0
+        width = (6 + extra + 5 * len(plan.region) + 3 * sum(len(w.faces) for w in plan.soft)
+                 + 2 * sum(len(w.faces) for w in plan.reflect) + 4 * nfix + (3 * MAX_CHAIN + 2 if nfix else 0))
+        return max(1, SAMPLE_BUDGET // (width * max(1, plan.state.ncases)))
+
+    @staticmethod
     def _uses_time(plan: ChunkPlan) -> bool:
         names = [v for w in list(plan.soft) + list(plan.reflect) for face in w.faces
                  for v in [face.coord, *face.params.values()] if isinstance(v, str)]
@@ -2470,11 +2495,7 @@ class FastPath:
             return 0
         at = np.asarray(at, np.int64)
         plan = self.plan_source()
-        # the sample arrays (C, S, ...) within SAMPLE_BUDGET doubles: fewer samples per call
-        nfix = len(plan.ensemble.fixes) if plan.ensemble is not None else 0
-        width = 6 + 5 * len(plan.region) + 3 * sum(len(w.faces) for w in plan.soft) + 2 * sum(len(w.faces) for w in plan.reflect) \
-            + 4 * nfix + (3 * MAX_CHAIN + 2 if nfix else 0)
-        at = at[:max(1, SAMPLE_BUDGET // (width * max(1, plan.state.ncases)))]
+        at = at[:self.sample_steps(plan)]  # the sample arrays within SAMPLE_BUDGET: fewer samples per call
         trouble = False
         while True:
             self._sampled_count = at.size

@@ -672,12 +672,12 @@ if njit is not None:
     # what a scene's pair chunk compiles (`pair_chunk_for`: False leaves that code out, numba prunes it)
     _K_FIXES = _K_REFLECT = _K_DTR = True
     TABLE_STYLE = _compiled.TABLE_STYLE
-    _th_mv2, _th_pairwise = _compiled._th_mv2, _compiled._th_pairwise  # Engine.sample's sum m v^2, its bits
+    _mv2_sum, _take_stats = _compiled._mv2_sum, _compiled._take_stats  # a sample's sum m v^2, reflect statistics
     # the `fixes:` of compiled.py's chunks (thermostats, enforce2d) and their state at a sample
     _fix_pre, _fix_post_force, _fix_end = _compiled._fix_pre, _compiled._fix_post_force, _compiled._fix_end
     _langevin_setup, _sample_fixes = _compiled._langevin_setup, _compiled._sample_fixes
     _reflect_face = _compiled._reflect_face  # wall/reflect
-    _dt_candidate, _clamp = _compiled._dt_candidate, _compiled._clamp  # fix dt/reset
+    _dt_candidate, _group_low, _clamp = _compiled._dt_candidate, _compiled._group_low, _compiled._clamp  # dt/reset
 
     @jit
     def _moved(xc: np.ndarray, xref: np.ndarray, length: np.ndarray, periodic: np.ndarray, limit2: float) -> bool:
@@ -792,8 +792,9 @@ if njit is not None:
             atom, the group's minimum, `_clamp`); a new dt closes the time accumulator as
             BatchState.set_dt does. clk (in and out): dt, atime, atimestep of the case.
 
-            sm = (at, mv2, ew, face, reg, cross, acc, chain, rstat, clock): samples recorded in the kernel
-            (`PairChunks.advance_sampled`; at (S,) empty: none). After step at[k] (steps of this
+            sm = (at, mv2, clock, face, rstat, acc, chain, cross, reg, ew): samples recorded in the kernel
+            (`PairChunks.advance_sampled`; compiled.py's `_sample_arrays` of this case, then the pair's
+            energy and virial (S, 2); at (S,) empty: none). After step at[k] (steps of this
             chunk, counted from 1) the outputs of Engine.sample go to row k: sum m v^2, the pair
             energy and virial of that step's pair pass, each soft face's (energy, force on the wall,
             virial) and each wall/region fix's (energy, force x y z, virial) (compiled.py's
@@ -813,7 +814,7 @@ if njit is not None:
             rf_meta, rf_val, rf_prev, rf_stat, stats = rfl
             st_meta, st_val, st_stat, st_flag, st_rng, mvv2e = sto
             dtr_every, dtr_group, dtr_par, clk = dtr
-            sm_at, sm_mv2, sm_ew, sm_face, sm_reg, sm_cross, sm_fx, sm_chain, sm_rstat, sm_clock = sm
+            sm_at, sm_mv2, sm_clock, sm_face, sm_rstat, sm_fx, sm_chain, sm_cross, sm_reg, sm_ew = sm
             CAND = np.empty(N if dtr_every > 0 else 0)  # fix dt/reset: each atom's largest dt
             nrf, nst = rf_meta.shape[0], st_meta.shape[0]
             ST = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(N if nst else 0, np.int64),
@@ -914,15 +915,10 @@ if njit is not None:
                 now = step0 + step + 1  # the case's step count after this step
                 if _K_DTR:
                     if dtr_every > 0 and now % dtr_every == 0:  # fix dt/reset (end_of_step)
-                        low = np.inf
-                        nnan = 0
                         for a in range(N):
                             CAND[a] = _dt_candidate(v[a, 0], v[a, 1], v[a, 2], f[a, 0], f[a, 1], f[a, 2], mass[a],
                                                     ftm2v, mvv2e, dtr_par[0], dtr_par[1])
-                            ca = CAND[a] if groups[dtr_group, a] != 0 else np.inf
-                            nnan += ca != ca
-                            low = ca if ca < low else low
-                        new = _clamp(np.nan if nnan else low, N, dtr_par)
+                        new = _clamp(_group_low(CAND, groups, dtr_group, 0, N), N, dtr_par)
                         if new != dt:  # BatchState.set_dt
                             clk[1] = clk[1] + (now - clk[2]) * dt
                             clk[2] = now
@@ -932,9 +928,7 @@ if njit is not None:
                     _sample_faces(0, si, X, radius, groups, sf_meta, SF, tb, LP, sm_face[ism])
                     if rg_meta.shape[0]:
                         _sample_regions(0, X, radius, groups, rg_meta, rg_geo, rg_val, RBS, sm_reg[ism])
-                    for a in range(N):
-                        KS[a] = _th_mv2(mass[a], v[a, 0], v[a, 1], v[a, 2])
-                    sm_mv2[ism] = 0.0 + _th_pairwise(KS, 0, N)
+                    sm_mv2[ism] = _mv2_sum(mass, V, KS, N)
                     sm_ew[ism, 0] = e
                     sm_ew[ism, 1] = w
                     if fl_int[0] != 0:  # flow redraws since the last sample (take_crossings)
@@ -942,19 +936,10 @@ if njit is not None:
                         fl_cross[0] = 0.0
                     if _K_FIXES:
                         _sample_fixes(0, fx, sm_fx[ism], sm_chain[ism])
-                    if _K_REFLECT:
-                        if stats:  # reflect statistics since the last sample (take_stats)
-                            for k in range(nrf):
-                                sm_rstat[ism, k, 0] = rf_stat[k, 0]
-                                sm_rstat[ism, k, 1] = rf_stat[k, 1]
-                                rf_stat[k, 0] = 0.0
-                                rf_stat[k, 1] = 0.0
+                    if _K_REFLECT:  # reflect statistics since the last sample
+                        _take_stats(rf_stat, sm_rstat[ism], 0)
                         if st_flag[0] != 0:  # wall/reflect/stochastic's, after them
-                            for k in range(nst):
-                                sm_rstat[ism, nrf + k, 0] = st_stat[0, k, 0]
-                                sm_rstat[ism, nrf + k, 1] = st_stat[0, k, 1]
-                                st_stat[0, k, 0] = 0.0
-                                st_stat[0, k, 1] = 0.0
+                            _take_stats(st_stat[0], sm_rstat[ism], nrf)
                     sm_clock[ism, 0] = now
                     sm_clock[ism, 1] = dt
                     sm_clock[ism, 2] = clk[1]
@@ -1554,9 +1539,7 @@ class PairChunks:
             return 0
         at = np.asarray(at, np.int64)
         plan = self.plan_source()
-        C = max(1, plan.state.ncases)
-        width = 6 + 3 * sum(len(w.faces) for w in plan.soft) + 5 * len(plan.region)
-        at = at[:max(1, _compiled.SAMPLE_BUDGET // (width * C))]
+        at = at[:_compiled.FastPath.sample_steps(plan, extra=2)]  # (+ the pair's energy and virial)
         if _compiled.FastPath._uses_time(plan):  # per-step wall values: the steps `_chunk` takes
             at = at[at <= _compiled.FastPath.value_steps(plan)]
             if at.size == 0:
@@ -1634,13 +1617,9 @@ class PairChunks:
             # kernel reports and zeroes it)
             prev = np.ascontiguousarray(fk.prev, dtype=float).copy()
             cross = np.array(fk.crossings, dtype=float).reshape(C, 1)
-        S = 0 if at is None else at.size
-        nvt = bool(np.any(fx[0][:, 0] == _compiled.FIX_NVT))
-        sm = (np.zeros(0, np.int64) if at is None else np.ascontiguousarray(at, np.int64), np.zeros((C, S)),
-              np.zeros((C, S, 2)), np.zeros((C, S, sf_meta.shape[0], 3)), np.zeros((C, S, rg_meta.shape[0], 5)),
-              np.zeros((C, S)), np.zeros((C, S, fx[0].shape[0], 4)),
-              np.zeros((C, S, 3 * fx[3].shape[1] + 2 if nvt else 0)),
-              np.zeros((C, S, rf_meta.shape[0] + sto[0].shape[0], 2)), np.zeros((C, S, 4)))
+        sm = (*_compiled._sample_arrays(at, C, sf_meta.shape[0], rf_meta.shape[0] + sto[0].shape[0], fx,
+                                         rg_meta.shape[0]),
+              np.zeros((C, 0 if at is None else at.size, 2)))  # (+ the pair's energy and virial)
         n = len(_compiled.COMPILED_STYLES)
         kernel = pair_chunk_for(tuple({(int(r[0]), int(r[4])) for r in sf_meta if 0 <= r[0] < n}),
                                 tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None, tables,
@@ -1738,9 +1717,8 @@ class PairChunks:
         """Engine.record_samples' arguments from a sampled chunk's `sm` arrays: compiled.py's
         `_sample_record` of the walls' outputs, fixes and clock, with the pair's energy and
         virial, the virial summed from the pair's as Engine.compute_forces sums it."""
-        at, mv2, ew, face, reg, cross, acc, chain, rstat, clock = sm
-        args = _compiled._sample_record(plan, (at, mv2, clock, face, rstat, acc, chain, cross, reg),
-                                        fixes, virial=ew[:, :, 1])
+        ew = sm[-1]
+        args = _compiled._sample_record(plan, sm[:-1], fixes, virial=ew[:, :, 1])
         args["pair"] = (ew[:, :, 0].copy(), ew[:, :, 1].copy())
         return args
 
