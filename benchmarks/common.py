@@ -413,10 +413,11 @@ def lammps_script(cfg: dict | Config, case: Case | None = None, folder: str | No
     with LAMMPS's default neighbor settings (the export's `neigh_modify every 1 delay 0 check no`,
     which matches wallbatch's wrapping every step, is dropped): (the script's commands before its
     final `run`, the run's steps, the export)."""
-    from wallbatch.lammps.export import export_case, write_export  # noqa: PLC0415 - only the LAMMPS rows
+    from wallbatch.lammps.export import export_case, lammps_ready, write_export  # noqa: PLC0415 - only the LAMMPS rows
 
     conf = cfg if isinstance(cfg, Config) else config_from_dict(cfg)
-    case = case if case is not None else build_case(conf)
+    conf = lammps_ready(conf)[0]  # a run to a simulated time: the same steps, as `export-lammps` writes it
+    case = case if case is not None and case.steps is not None else build_case(conf)
     exp = export_case(conf, case, data_dir=folder)
     write_export(exp, folder)
     lines = [ln for ln in exp.script.splitlines() if not ln.startswith("neigh_modify")]

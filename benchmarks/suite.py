@@ -128,6 +128,9 @@ def scaled(atom_steps: float, n: int, least: int = 20) -> int:
 
 
 def _short(cfg: dict, steps: int = 10) -> dict:
+    if "time" in cfg["run"]:  # a run to a simulated time: about `steps` steps of its timestep
+        span = steps * float(cfg.get("timestep", 0.005))
+        return dict(cfg, run={"time": span, "thermo": {"time": span}})
     return dict(cfg, run={**cfg["run"], "steps": steps, "thermo": steps})
 
 
@@ -413,6 +416,18 @@ def ljcut_wall_kinds() -> dict:
 
 
 register("ljcut-4000", _ljcut(4000, 4e6), at_least(1.5))
+
+
+@row("ljcut-time-4000", at_least(1.5), "issue 15 (pair lj/cut: >= 1.5x; a run to a simulated time)")
+def ljcut_time() -> dict:
+    """ljcut-4000's scene run to a simulated time sampled at times (`run: {time: T, thermo:
+    {time: T/10}}`; LAMMPS: the exported `run` of the same steps)."""
+    n = 4000
+    steps = scaled(4e6, n)
+    cfg = lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10))
+    span = steps * float(cfg["timestep"])
+    cfg["run"] = {"time": span, "thermo": {"time": span / 10}}
+    return speed("LJ liquid slit, pair lj/cut, run to a simulated time", cfg)
 register("ljcut-32000", _ljcut(32000, 6.4e6), at_least(1.5))
 register("ljcut-100000", _ljcut(100000, 5e6), at_least(1.5), "issue 15 (its 1.5x, extended to N = 1e5)")
 

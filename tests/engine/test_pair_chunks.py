@@ -502,3 +502,52 @@ def test_sample_budget_splits_the_sampled_chunks(monkeypatch):
     assert_bits(got, ref)
     assert fused.fast.fallbacks == 0 and fused.fast.sampled_calls == 60
     assert got[0].data["reflect_count"][1:].sum() >= 3
+
+
+def timed_slit(dt: float) -> dict:
+    """The slit run to a simulated time sampled at times (run: {time: ...}): intervals that are
+    not whole steps, so each ends with a clipped, landing step."""
+    d = slit(steps=1)
+    d["timestep"] = dt
+    d["run"] = {"time": 0.3, "thermo": {"time": 0.1}}
+    d["output"] = {"thermo": ["step", "time", "dt", "temp", "pe", "etot", "press"]}
+    return d
+
+
+def test_time_based_run_fuses_the_steps_before_each_landing(monkeypatch):
+    """A run to a simulated time, two cases of different timesteps in one batch: the steps before
+    each interval's landing step run in fused chunks, the landing steps in the NumPy loop; every
+    output (time, dt, step too) is the per-step path's, bit for bit."""
+    cases = cases_of(timed_slit(0.0045), timed_slit(0.007))
+    got, fused, ref, step = run_fused_and_stepwise(monkeypatch, cases)
+    assert_bits(got, ref)
+    assert fused.fast.compiled_chunks == 3 and fused.fast.fallbacks == 0  # one chunk per interval
+    # 0.1 / 0.0045 = 22.2: 22 steps, the 23rd lands; 0.1 / 0.007 = 14.3: the 15th lands, so the
+    # batch fuses min(22, 14) = 14 steps of each interval, then the loop finishes both cases
+    steps = [r.data["step"] for r in got]
+    np.testing.assert_array_equal(steps[0], [0, 23, 46, 69])
+    np.testing.assert_array_equal(steps[1], [0, 15, 30, 45])
+    np.testing.assert_allclose([r.data["time"] for r in got], [[0, 0.1, 0.2, 0.3]] * 2, rtol=0, atol=1e-14)
+    assert np.all(fused.pair.case_builds >= 1)
+
+
+def test_steps_before_counts_the_unclipped_steps_exactly():
+    """`steps_before` against the loop's own test, step by step, for times near the edges."""
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        dt = float(rng.uniform(1e-4, 0.1))
+        atime, base = float(rng.uniform(0, 5)), int(rng.integers(0, 50))
+        target = atime + base * dt + float(rng.choice([rng.uniform(0, 3), dt * rng.integers(0, 40)]))
+        tol = 1e-12 * max(1.0, abs(target))
+        k = 0
+        while True:  # Engine.advance_to_time's own conditions, one step at a time
+            now = np.float64(atime) + np.int64(base + k) * np.float64(dt)
+            if not (now < target - tol and not dt >= target - now - tol):
+                break
+            k += 1
+        got = pair_compiled.steps_before(np.array([atime]), np.array([base + 7]), np.array([7]), np.array([dt]),
+                                         target)
+        assert got == k, (dt, atime, base, target)
+    two = pair_compiled.steps_before(np.zeros(2), np.zeros(2, np.int64), np.zeros(2, np.int64),
+                                     np.array([0.01, 0.03]), 0.1)
+    assert two == 3  # 0.1 / 0.03: steps 1-3 end at 0.03, 0.06, 0.09; the 4th lands (clipped)

@@ -22,8 +22,9 @@ calls the very kernels of the per-step compiled path, so both give the same bits
 the chunk back to NumPy. The samples of a chunk are recorded in it (`PairChunks.advance_sampled`:
 the outputs of Engine.sample, with compiled.py's sample functions). For a case on one thread it
 also runs, with compiled.py's functions, the `fixes:` its kernels run (thermostats, enforce2d),
-wall/reflect and wall/reflect/stochastic faces on fixed dimensions and fix dt/reset. Not fused:
-other fixes, wall/lepton faces, time-based runs.
+wall/reflect and wall/reflect/stochastic faces on fixed dimensions and fix dt/reset. A run to a
+simulated time fuses the steps before each landing step (`PairChunks.advance_to_time`). Not
+fused: other fixes, wall/lepton faces, the landing steps of time-based runs, dt/reset in them.
 
 One large case over threads (`_chunk_threaded`, THREAD_MIN_ATOMS atoms per thread at least):
 the same step in pieces, with the list build (runs of cells, `build_threaded`) and the force pass
@@ -748,14 +749,13 @@ if njit is not None:
 
         @jit
         def pair_chunk(nsteps, post, x, v, f, mass, radius, dt, ftm2v, lo, hi, box_per, length, pair_per, reach,
-                       limit2, e24, e4, s2c, rcut2, off, sample, fpair, ew, xref, owner, first, neigh, spare, sf_meta,
-                       sf_val, groups, rg_meta, rg_geo, rg_val, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend,
-                       fl_prev, fl_cross, fl_rng, fix, rfl, tb, sto, dtr, sm):
+                       limit2, lj, sample, fpair, ew, xref, owner, first, neigh, spare, sf_meta, sf_val, groups, rg,
+                       fl, fix, rfl, tb, sto, dtr, sm):
             """Advance one case (x, v, f: (N, 3), written in place) by nsteps velocity-Verlet steps
             of engine.Engine.step: v += dtfm f, x += dt v; periodic wrap; the pair list rebuilt
             (`build_case`) when an atom moved more than skin/2 since xref; f = 0, pair forces
             (`forces_case`), soft flat faces and wall/region fixes (compiled.py's kernels), lost
-            atoms; v += dtfm f; wall/flow (fl_int[0] != 0). With `sample`, the last step's pair pass
+            atoms; v += dtfm f; wall/flow. With `sample`, the last step's pair pass
             also gives the pair energy and virial (ew[0], ew[1]) and its pair forces are copied to
             fpair (N, 3) (the outputs of that step, without a second pass). With `post` only the
             rest of the step after the pair forces (already in f): walls, lost atoms, final_integrate
@@ -764,6 +764,12 @@ if njit is not None:
             caller then hands the chunk back to NumPy); neigh is the list after the chunk: the caller's
             (not written) if no build ran, else `spare` (the first build writes there, so the
             caller's list survives a chunk handed back) or a longer array when the list grew.
+
+            lj = (24 eps, 4 eps, sigma^2, rc^2, energy offset): the pair's parameters (`forces_case`).
+
+            rg = (rg_meta, rg_geo, rg_val): the wall/region fixes (compiled.FastPath._regions, this
+            case's row of rg_val). fl = (fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev,
+            fl_cross, fl_rng): the case's wall/flow fix (compiled.py's `_flow_step`; fl_int[0] = 0: none).
 
             fix = (fx, fx_rng, step0): the case's `fixes:` (compiled.py's `_fix_arrays` of this case
             alone, row 0; its Langevin generator), run as compiled.py's kernels run them: `_fix_pre` before the
@@ -804,6 +810,9 @@ if njit is not None:
             if nsteps == -fingerprint:  # never: ties the on-disk cache to the wall kernels
                 return 5, 0, neigh
             N = x.shape[0]
+            e24, e4, s2c, rcut2, off = lj
+            rg_meta, rg_geo, rg_val = rg
+            fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng = fl
             X, V, F = x.T, v.T, f.T  # (3, N) views: the wall kernels' layout
             dtfm = _dtfm(mass, dt, ftm2v)
             vary = sf_val.shape[0] > 1
@@ -1326,14 +1335,14 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
     nsteps, x, v, f, xref = a["nsteps"], a["x"], a["v"], a["f"], a["xref"]
     owner, first, neigh, spare = a["owner"], a["first"], a["neigh"], a["spare"]
     lo, hi, box_per, length, per = a["lo"], a["hi"], a["box_per"], a["length"], a["pair_per"]
-    dt, limit2, lj = a["dt"], a["limit2"], (a["e24"], a["e4"], a["s2c"], a["rcut2"], a["off"])
+    dt, limit2, lj = a["dt"], a["limit2"], a["lj"]
     N = x.shape[0]
     dtfm = _dtfm(a["mass"], dt, a["ftm2v"])
     sf_val, sample, fpair = a["sf_val"], a["sample"], a["fpair"]
     vary = sf_val.shape[0] > 1
     runs = [slice(N * p // parts, N * (p + 1) // parts) for p in range(parts)]
     a.update(nsteps=1, post=True, sample=False)
-    if int(a["fl_int"][0]) != 0:  # wall/flow: the rest of the step on all atoms
+    if int(a["fl"][0][0]) != 0:  # wall/flow: the rest of the step on all atoms
         tails = [a]
     else:
         tails = [dict(a, x=x[r], v=v[r], f=f[r], mass=a["mass"][r], radius=a["radius"][r],
@@ -1472,8 +1481,8 @@ class PairChunks:
     chunk back to the NumPy loop, which re-runs it from the same state (random streams restored)
     and reports as always. On a sampled chunk the outputs come from the NumPy `compute_forces` at
     the final positions (as compiled.FastPath), or, for a case on one thread, all the samples of a
-    run of them are recorded in the kernel (`advance_sampled`). Step-based runs only;
-    `advance_to_time` declines."""
+    run of them are recorded in the kernel (`advance_sampled`). Time-based runs: the steps before
+    each landing step in one chunk (`advance_to_time`)."""
 
     def __init__(self, plan_source: Callable[[], "_compiled.ChunkPlan"], pair: Any):
         self.plan_source = plan_source
@@ -1509,6 +1518,21 @@ class PairChunks:
         return got[3]
 
     def advance_to_time(self, target: float) -> bool:
+        """Engine.advance_to_time for pair scenes: the steps every live case takes at its own dt
+        before the one that lands on `target` (`steps_before`) in one chunk (`advance`'s, no
+        sample), then False: the NumPy loop takes the last step(s), clipping dt to land, and
+        samples. Those steps are the ones of a step-based run (the loop's dt stays, its time
+        accumulator stays closed), so the bits are the NumPy loop's alone. Not with fix dt/reset
+        (dt may change at any step)."""
+        plan = self.plan_source()
+        s = plan.state
+        if s.ncases == 0 or plan.dt_reset is not None:
+            return False
+        k = steps_before(s.atime, s.step, s.atimestep, s.dt, target)
+        if _compiled.FastPath._uses_time(plan):  # per-step wall values: at most the steps `_chunk` takes
+            k = min(k, _compiled.FastPath.value_steps(plan))
+        if k > 0:
+            self._chunk(k, False)  # (trouble: nothing done, the NumPy loop meets it)
         return False
 
     def advance(self, nsteps: int, sample: bool) -> bool:
@@ -1644,9 +1668,9 @@ class PairChunks:
             args = (int(nsteps), False, x, v, f, np.ascontiguousarray(s.mass[c], dtype=float),
                     np.ascontiguousarray(s.radius[c], dtype=float), float(s.dt[c]), float(s.units.ftm2v), lo, hi,
                     box_per, pair.length, pair.periodic, float(pair.cutoff[c] + pair.skin), (0.5 * pair.skin) ** 2,
-                    24.0 * float(pair.epsilon[c]), 4.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2),
-                    float(rc2[c]), float(offset[c]), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
-                    sf_meta, sf_val[c], groups_arr, rg_meta, rg_geo, rg_val[c:c + 1], *fl,
+                    (24.0 * float(pair.epsilon[c]), 4.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2),
+                     float(rc2[c]), float(offset[c])), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
+                    sf_meta, sf_val[c], groups_arr, (rg_meta, rg_geo, rg_val[c:c + 1]), fl,
                     (_compiled._fix_slice(fx, slice(c, c + 1)), fx_rngs[c] if fx_rngs else _compiled._NO_FLOW[-1],
                      int(s.step[c])),
                     (rf_meta, rf_val[c], rf_prev[c], rf_stat[c], bool(stats)), tb,
@@ -1721,6 +1745,36 @@ class PairChunks:
         args = _compiled._sample_record(plan, sm[:-1], fixes, virial=ew[:, :, 1])
         args["pair"] = (ew[:, :, 0].copy(), ew[:, :, 1].copy())
         return args
+
+
+def steps_before(atime: np.ndarray, step: np.ndarray, atimestep: np.ndarray, dt: np.ndarray, target: float) -> int:
+    """The steps every case takes in Engine.advance_to_time(target) before its first step that
+    lands (or ends) the run: the least over the cases of the leading steps j = 0, 1, ... whose
+    time now = atime + (step + j - atimestep) dt (BatchState.time) satisfies now < target - tol
+    and dt < (target - now) - tol (not `landing`), with the loop's own expressions, so the count
+    is exact: each of them runs at dt unclipped, as a step-based step does."""
+    tol = 1e-12 * max(1.0, abs(target))
+    atime, dt = np.asarray(atime, float), np.asarray(dt, float)
+    base = np.asarray(step, np.int64) - np.asarray(atimestep, np.int64)
+
+    def unclipped(j: np.ndarray) -> np.ndarray:
+        now = atime + (base + j) * dt
+        return (now < target - tol) & (dt < target - now - tol)
+
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        guess = np.floor((target - atime) / dt) - base - 2.0  # about where the first clipped step is
+    j = np.where(np.isfinite(guess), np.clip(guess, 0.0, 2.0**52), 0.0).astype(np.int64)
+    while True:  # back to a step that is unclipped (or 0) ...
+        back = (j > 0) & ~unclipped(j - 1)
+        if not back.any():
+            break
+        j = np.where(back, j - 1, j)
+    while True:  # ... then forward to the first clipped one: j unclipped steps before it
+        ahead = unclipped(j)
+        if not ahead.any():
+            break
+        j = np.where(ahead, j + 1, j)
+    return int(j.min()) if j.size else 0
 
 
 def attach_pair_chunks(plan_source: Callable[[], "_compiled.ChunkPlan"], pair: Any) -> PairChunks | None:
