@@ -649,11 +649,29 @@ sys.path.insert(0, {here!r})
 import common
 from suite import engine_run
 n, steps = {n}, {steps}
-engine_run(common.build(common.gas_slit(20000, "lj93", steps=10, thermo=10)))
-case = common.build(common.gas_slit(n, "lj93", steps=steps, thermo=steps))
+engine_run(common.build(common.{scene}(20000, {extra}steps=10, thermo=10)))
+case = common.build(common.{scene}(n, {extra}steps=steps, thermo=steps))
 sec, res, path = engine_run(case)
 print("RESULT", sec, res.status, path, float(res.data["ke"][-1]).hex())
 """
+
+
+def two_threads(scene: str, n: int, steps: int, work: Path, extra: str = "") -> tuple[float, float, str, bool]:
+    """THREAD_SCRIPT's case (common.<scene>(n, <extra>steps=...)) in new processes with two threads
+    and with one (WALLBATCH_THREADS, NUMBA_NUM_THREADS), interleaved, best of two each: (1-thread
+    seconds, 2-thread seconds, the 2-thread run's path, whether every final ke was the same bits)."""
+    script = THREAD_SCRIPT.format(here=str(HERE), n=n, steps=steps, scene=scene, extra=extra)
+    got: dict[int, list[str]] = {}
+    finals: set[str] = set()
+    for _ in range(2):  # interleaved, best of two each: a short run moves with the load
+        for k in (1, 2):
+            env = dict(os.environ, WALLBATCH_THREADS=str(k), NUMBA_NUM_THREADS=str(k))
+            text = measured([sys.executable, "-c", script], work, env)[2]
+            new = next(ln.split()[1:] for ln in text.splitlines() if ln.startswith("RESULT"))
+            finals.add(new[-1])
+            if k not in got or float(new[0]) < float(got[k][0]):
+                got[k] = new
+    return float(got[1][0]), float(got[2][0]), " ".join(got[2][2:-1]), len(finals) == 1
 
 LAMMPS_BIG = """units lj
 boundary p p f
@@ -680,24 +698,11 @@ def threads() -> dict:
     lmp` on the same scene made by LAMMPS (create_atoms random), or serial without mpiexec."""
     n = 1_000_000
     steps = scaled(1e8, n, 20)
-    script = THREAD_SCRIPT.format(here=str(HERE), n=n, steps=steps)
-    got = {}
     with tempfile.TemporaryDirectory(prefix="wb_thr_") as tmp:
         work = Path(tmp)
-        finals: set[str] = set()
-        for _ in range(2):  # interleaved, best of two each: a run this short (~0.3 s) moves with the load
-            for k in (1, 2):
-                env = dict(os.environ, WALLBATCH_THREADS=str(k), NUMBA_NUM_THREADS=str(k))
-                text = measured([sys.executable, "-c", script], work, env)[2]
-                new = next(ln.split()[1:] for ln in text.splitlines() if ln.startswith("RESULT"))
-                finals.add(new[-1])
-                if k not in got or float(new[0]) < float(got[k][0]):
-                    got[k] = new
-        t1, t2 = float(got[1][0]), float(got[2][0])
-        same = len(finals) == 1
+        t1, t2, path, same = two_threads("gas_slit", n, steps, work, extra='"lj93", ')
         out = {"scene": "one case N = 1e6 (lj93 gas slit), 2 threads vs 1", "N": n, "steps": steps,
-               "wb": f"{t2:.2f} s (1 thread {t1:.2f} s)", "value": t1 / t2, "wb_s": t2,
-               "path": " ".join(got[2][2:-1]),
+               "wb": f"{t2:.2f} s (1 thread {t1:.2f} s)", "value": t1 / t2, "wb_s": t2, "path": path,
                "note": f"2 threads/1: {t1 / t2:.2f}x; final ke {'bit-identical' if same else 'DIFFERS'}"}
         if not same:
             out["value"] = 0.0
@@ -716,6 +721,22 @@ def threads() -> dict:
         else:
             out["lmp"] = "n/a"
     return out
+
+
+@row("threads-ellipsoids-1e5", at_least(1.6, "x one thread"))
+def threads_ellipsoids() -> dict:
+    """One case of 1e5 ellipsoids between wall/ees faces (common.ellipsoid_slit), two threads
+    against one (runs of atoms: `asphere_compiled.run_kernel`), each a new process, interleaved,
+    best of two; the final ke must be bit-identical. No LAMMPS column (its comparator here is
+    the flat threads-1e6 row's `mpiexec -np 2`)."""
+    n = 100_000
+    steps = scaled(2e7, n, 20)
+    with tempfile.TemporaryDirectory(prefix="wb_thr_") as tmp:
+        t1, t2, path, same = two_threads("ellipsoid_slit", n, steps, Path(tmp))
+    return {"scene": "one case N = 1e5 ellipsoids (wall/ees slit), 2 threads vs 1", "N": n, "steps": steps,
+            "wb": f"{t2:.2f} s (1 thread {t1:.2f} s)", "value": t1 / t2 if same else 0.0, "wb_s": t2, "path": path,
+            "lmp": "n/a (see threads-1e6)",
+            "note": f"2 threads/1: {t1 / t2:.2f}x; final ke {'bit-identical' if same else 'DIFFERS'}"}
 
 
 def lammps_two_cores(loops: dict[int, float], wb_seconds: float) -> dict:

@@ -32,7 +32,10 @@ each sample's per-atom energies, wall forces, m v^2 and rotational energy kept o
 summed over all atoms in the NumPy path's orders (np.bincount's atom order, region contacts slot by
 slot, NumPy's pairwise sum), appended by `ChunkPlan.record_samples`; `advance` (one chunk, the
 outputs of its last step from the NumPy `Engine.compute_forces` at the final positions, as in
-engine/compiled.py) serves the rest. `WALLBATCH_NUMBA=0` selects the NumPy path. The kernel is
+engine/compiled.py) serves the rest. A chunk runs over threads (`run_kernel`, threads.py's rule):
+runs of cases, or one case's runs of atoms when its samples are not recorded in the kernel (a
+single case with work for two threads between samples samples one instant at a time).
+`WALLBATCH_NUMBA=0` selects the NumPy path. The kernel is
 cached on disk (numba cache=True).
 """
 
@@ -49,6 +52,7 @@ import numpy as np
 
 from wallbatch.engine import compiled as _compiled
 from wallbatch.engine import thermostats as _th
+from wallbatch.engine import threads
 from wallbatch.engine.compiled import REGION_KINDS, ChunkPlan, enabled
 from wallbatch.engine.region_walls import RegionEESKernel
 from wallbatch.engine.walls import EESWallKernel
@@ -464,6 +468,32 @@ if njit is not None:
 # ----------------------------------------------------------------------------- the Python side
 
 
+# the chunk kernel's arguments split over threads (engine/threads.py): those with a leading case
+# axis, and those with an atom axis (its index); the ellipsoids never interact, and the kernel
+# writes no per-case counter, so any split gives the bits of one call
+CASE_AXIS = frozenset({"x", "v", "f", "quat", "angmom", "torque", "mass", "shape", "inertia", "dt", "ef_val", "rg_val",
+                       "xo", "vo", "fo", "qo", "lo_", "to", "sm_face", "sm_reg", "sm_kin"})
+ATOM_AXIS = {**{k: 1 for k in ("x", "v", "f", "quat", "angmom", "torque", "mass", "shape", "inertia", "xo", "vo",
+                               "fo", "qo", "lo_", "to")}, "groups": 1}
+
+
+def run_kernel(kernel: Any, args: tuple, rec: bool) -> int:
+    """`kernel(*args)` (`_run_chunk`) over the threads threads.count() allows: runs of cases, or
+    for one case, unless its samples are recorded (`rec`: their sums run over all atoms), runs of
+    atoms (threads.split_edges: enough work for each). Returns the first nonzero status (the
+    caller then hands the whole chunk back to NumPy)."""
+    names = threads._signature_names(kernel.py_func)
+    named = dict(zip(names, args))
+    ncase, natom = named["x"].shape[:2]
+    how = threads.split_edges(ncase, natom, int(named["at"][-1]), threads.count(), atoms=not rec)
+    if how is None:
+        return kernel(*args)
+    kind, parts = how
+    pieces = [threads.case_part(named, p, CASE_AXIS) if kind == "cases" else
+              threads.atom_part(named, p, ATOM_AXIS, counters=()) for p in parts]
+    return threads.call_parts(kernel, names, pieces, kind)
+
+
 def eligible(plan: ChunkPlan) -> bool:
     """Whitelist: ellipsoids integrated by fix nve/asphere, wall/ees faces and wall/region/ees
     fixes (block, sphere, cylinder; in or out) with constant coordinates and parameters; nothing
@@ -517,7 +547,13 @@ class AspherePath:
         if at.size == 0 or at[0] <= 0 or np.any(np.diff(at) <= 0):
             return False
         plan = self.plan_source()
-        return enabled() and eligible(plan) and sampled_eligible(plan)
+        if not (enabled() and eligible(plan) and sampled_eligible(plan)):
+            return False
+        # one case with enough work between two samples for threads over its atoms: one instant at
+        # a time (`advance`, its sample's outputs by NumPy), so that its chunks can be split
+        s = plan.state
+        steps = max(1, int(at[-1]) // at.size)
+        return s.ncases != 1 or threads.split_edges(1, s.x.shape[1], steps, threads.count()) is None
 
     def advance(self, nsteps: int, sample: bool) -> bool:
         """Run nsteps steps (and the sample of the last one, by the NumPy outputs); False: let the
@@ -598,11 +634,11 @@ class AspherePath:
         sm_face, sm_reg, sm_kin = np.zeros((C, S, len(faces), 2)), np.zeros((C, S, KR, 4)), np.zeros((C, S, 2))
         with warnings.catch_warnings():  # numba's pedantic SSA note on the inlined Horner loop, at compile
             warnings.simplefilter("ignore", NumbaIRAssumptionWarning)
-            status = _run_chunk(at, bool(rec), s.x, s.v, s.f, s.quat, s.angmom, s.torque, s.mass, s.shape,
+            status = run_kernel(_run_chunk, (at, bool(rec), s.x, s.v, s.f, s.quat, s.angmom, s.torque, s.mass, s.shape,
                                 s.inertia, np.ascontiguousarray(s.dt, dtype=float), np.asarray(s.box_lo, float),
                                 np.asarray(s.box_hi, float), periodic, float(s.units.ftm2v), ef_meta, ef_val,
                                 np.stack(groups), rg_meta, rg_geo, rg_val, xo, vo, fo, qo, lo_, to,
-                                sm_face, sm_reg, sm_kin)
+                                sm_face, sm_reg, sm_kin), bool(rec))  # in threads where there is work for them
         if status != 0:
             self.fallbacks += 1
             return False

@@ -19,6 +19,9 @@ Per-atom arithmetic is the same operations in the same order either way, so resu
 bit those of one thread. Anything this module does not recognise (an argument it does not know,
 a small chunk) is one plain call.
 
+The ellipsoid kernel (engine/asphere_compiled.py) splits its chunks with the same rule and pieces
+(`split_edges`, `case_part`, `atom_part`, `call_parts`) on its own argument names.
+
 Threads: WALLBATCH_THREADS if set (1 = one thread), else the cores this process may use; a
 `--jobs N` worker process defaults to its share of the cores (`set_default`).
 """
@@ -118,6 +121,16 @@ def plan_split(named: dict[str, Any], threads: int) -> tuple[str, list[slice]] |
     if flow != 0 or np.shape(named["st_meta"])[0] != 0:  # wall/flow, wall/reflect/stochastic: one case per
         return None  # call, its generator drawn from atom after atom
     steps = TIME_MODE_STEPS if named["time_mode"] else int(named["nsteps"])
+    # atoms coupled within the chunk (dt/reset) or sums in another order (statistics, samples): cases only
+    atoms = not (int(named["dtr_every"]) != 0 or bool(named["stats"]) or np.size(named[SAMPLES][0]))
+    return split_edges(ncase, natom, steps, threads, atoms)
+
+
+def split_edges(ncase: int, natom: int, steps: int, threads: int, atoms: bool = True) -> tuple[str, list[slice]] | None:
+    """The parts of a chunk of `steps` steps of ncase cases of natom atoms over at most `threads`
+    threads, each with at least MIN_WORK atom-steps: ("cases", runs of cases) for two cases or
+    more, else, if `atoms` (nothing couples the atoms within the chunk), ("atoms", runs of atoms
+    split at multiples of ALIGN); None: one call."""
     work = ncase * natom * max(1, steps)
     n = min(threads, work // MIN_WORK)
     if n < 2:
@@ -126,8 +139,8 @@ def plan_split(named: dict[str, Any], threads: int) -> tuple[str, list[slice]] |
         n = min(n, ncase)
         edges = [ncase * k // n for k in range(n + 1)]
         return "cases", [slice(edges[k], edges[k + 1]) for k in range(n)]
-    if int(named["dtr_every"]) != 0 or bool(named["stats"]) or np.size(named[SAMPLES][0]):
-        return None  # atoms coupled within the chunk (dt/reset) or sums in another order (statistics, samples)
+    if not atoms:
+        return None
     blocks = -(-natom // ALIGN)
     n = min(n, blocks)
     if n < 2:
@@ -136,23 +149,38 @@ def plan_split(named: dict[str, Any], threads: int) -> tuple[str, list[slice]] |
     return "atoms", [slice(edges[k], edges[k + 1]) for k in range(n)]
 
 
-def _case_part(named: dict[str, Any], c: slice) -> dict[str, Any]:
-    part = {k: (v[c] if k in CASE_AXIS else v) for k, v in named.items()}
-    sm = named[SAMPLES]
-    part[SAMPLES] = (sm[0],) + tuple(a[c] for a in sm[1:])
+def case_part(named: dict[str, Any], c: slice, case_axis: frozenset[str] = CASE_AXIS) -> dict[str, Any]:
+    """The arguments of cases c: those named in `case_axis` sliced along their first axis (the
+    sample arrays `sm` of the flat kernel: all but its first), the others as they are."""
+    part = {k: (v[c] if k in case_axis else v) for k, v in named.items()}
+    if SAMPLES in named:
+        sm = named[SAMPLES]
+        part[SAMPLES] = (sm[0],) + tuple(a[c] for a in sm[1:])
     return part
 
 
-def _atom_part(named: dict[str, Any], a: slice) -> dict[str, Any]:
+def atom_part(named: dict[str, Any], a: slice, atom_axis: dict[str, int] = ATOM_AXIS,
+              counters: tuple[str, ...] = COUNTERS) -> dict[str, Any]:
+    """The arguments of atoms a: those named in `atom_axis` sliced along that axis (groups
+    (G, N): a contiguous copy), the per-case `counters` the kernel writes copied, the others as
+    they are."""
     part = {}
     for k, v in named.items():
-        if k in ATOM_AXIS:
-            idx = (slice(None),) * ATOM_AXIS[k] + (a,)
+        if k in atom_axis:
+            idx = (slice(None),) * atom_axis[k] + (a,)
             v = np.ascontiguousarray(v[idx]) if k == "groups" else v[idx]  # groups (G, N): a copy
-        elif k in COUNTERS:
+        elif k in counters:
             v = v.copy()
         part[k] = v
     return part
+
+
+def call_parts(kernel: Callable[..., int], names: tuple[str, ...], pieces: list[dict[str, Any]], kind: str) -> int:
+    """kernel(*piece) for every piece (arguments by name), the first here and the others in
+    threads; the first nonzero status (0 if none)."""
+    statuses = _in_threads([lambda p=p: kernel(*(p[k] for k in names)) for p in pieces])
+    splits[kind] += 1
+    return next((st for st in statuses if st != 0), 0)
 
 
 def _in_threads(calls: list[Callable[[], int]]) -> list[int]:
@@ -190,11 +218,9 @@ def run_kernel(kernel: Callable[..., int], args: tuple, threads: int | None = No
     if how is None:
         return kernel(*args)
     kind, parts = how
-    cut = _case_part if kind == "cases" else _atom_part
+    cut = case_part if kind == "cases" else atom_part
     pieces = [cut(named, p) for p in parts]
-    statuses = _in_threads([lambda p=p: kernel(*(p[k] for k in names)) for p in pieces])
-    splits[kind] += 1
-    bad = next((st for st in statuses if st != 0), 0)
+    bad = call_parts(kernel, names, pieces, kind)
     if kind == "atoms" and bad == 0:
         first = pieces[0]
         for k in COUNTERS:
