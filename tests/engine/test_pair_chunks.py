@@ -551,3 +551,5 @@ def test_steps_before_counts_the_unclipped_steps_exactly():
     two = pair_compiled.steps_before(np.zeros(2), np.zeros(2, np.int64), np.zeros(2, np.int64),
                                      np.array([0.01, 0.03]), 0.1)
     assert two == 3  # 0.1 / 0.03: steps 1-3 end at 0.03, 0.06, 0.09; the 4th lands (clipped)
+    assert pair_compiled.steps_before(np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1),
+                                      0.1) == 0  # dt 0 never lands: nothing fused (no endless count)

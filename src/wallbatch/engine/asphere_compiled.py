@@ -35,8 +35,7 @@ outputs of its last step from the NumPy `Engine.compute_forces` at the final pos
 engine/compiled.py) serves the rest. A chunk runs over threads (`run_kernel`, threads.py's rule):
 runs of cases, or one case's runs of atoms when its samples are not recorded in the kernel (a
 single case with work for two threads between samples samples one instant at a time).
-`WALLBATCH_NUMBA=0` selects the NumPy path. The kernel is
-cached on disk (numba cache=True).
+`WALLBATCH_NUMBA=0` selects the NumPy path. The kernel is cached on disk (numba cache=True).
 """
 
 from __future__ import annotations

@@ -1756,6 +1756,8 @@ def steps_before(atime: np.ndarray, step: np.ndarray, atimestep: np.ndarray, dt:
     tol = 1e-12 * max(1.0, abs(target))
     atime, dt = np.asarray(atime, float), np.asarray(dt, float)
     base = np.asarray(step, np.int64) - np.asarray(atimestep, np.int64)
+    if not np.all(np.isfinite(dt) & (dt > 0.0)):  # (no step would land: leave it to the loop)
+        return 0
 
     def unclipped(j: np.ndarray) -> np.ndarray:
         now = atime + (base + j) * dt
