@@ -182,3 +182,48 @@ def test_two_dimensional_scene_runs_compiled(monkeypatch):
                                                          "t": "fix t all langevin 1.5 1.5 0.3 7"}}])
     assert eng.fast.compiled_chunks == 3 and eng2.fast.compiled_chunks == 3
     assert np.all(got[0].data["wall_force"][1:] != 0.0)  # atoms reached the y walls
+
+
+def run_threads(monkeypatch, configs, nthreads):
+    """The configs as one batch, compiled, with WALLBATCH_THREADS=nthreads: (results, engine,
+    case splits made by the run)."""
+    from wallbatch.engine import threads
+
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    monkeypatch.setenv("WALLBATCH_THREADS", str(nthreads))
+    before = threads.splits["cases"]
+    eng = Engine([build_case(config_from_dict(d)) for d in configs])
+    got = eng.run()
+    return got, eng, threads.splits["cases"] - before
+
+
+@pytest.mark.parametrize("fix", ["fix b all nvt temp 1.0 2.0 0.1", "fix b all langevin 1.0 2.0 0.5 48279"])
+def test_thermostat_batches_over_threads_give_the_bits_of_one_thread(monkeypatch, fix):
+    """Four cases with fix nvt (one call for a run of cases) or fix langevin (one call per case,
+    its own generator): two threads take runs of cases, and every output is one thread's, bit for
+    bit."""
+    fixes = {"b": fix} if "nvt" in fix else {"a": "fix a all nve", "b": fix}
+    configs = [gas(fixes, n=200, steps=600, thermo=100, seed=seed) for seed in (5, 6, 7, 8)]
+    one, eng1, split1 = run_threads(monkeypatch, configs, 1)
+    two, eng2, split2 = run_threads(monkeypatch, configs, 2)
+    assert split1 == 0 and split2 >= 1 and eng2.fast.fallbacks == 0 and eng2.fast.compiled_chunks > 0
+    assert_same(one, two)
+    assert not np.array_equal(two[0].data["temp"], two[3].data["temp"]) and two[3].data["temp"][-1] > 1.6  # heated
+
+
+def test_trouble_in_one_thread_falls_back_and_fails_as_numpy(monkeypatch):
+    """Four Langevin cases over two threads, the last driven behind a wall: the chunk is handed back
+    (every generator restored) and the NumPy loop reports what the NumPy path reports; the others
+    end as there."""
+    calm = [gas({"a": "fix a all nve", "b": f"fix b all langevin 1.0 1.0 0.5 {seed}"}, steps=2000, thermo=1000,
+                n=100, seed=seed) for seed in (9, 10, 11)]
+    bad = gas({"a": "fix a all nve", "b": "fix b all langevin 30.0 30.0 0.01 5"}, steps=2000, thermo=1000, n=100)
+    bad["walls"]["w"]["zlo"]["cutoff"] = 0.3
+    monkeypatch.setenv("WALLBATCH_THREADS", "2")
+    from wallbatch.engine import threads
+
+    before = threads.splits["cases"]
+    ref, got, eng = run_both(monkeypatch, [*calm, bad])
+    assert threads.splits["cases"] > before and eng.fast.fallbacks > 0
+    assert [r.status for r in got] == ["ok", "ok", "ok", "failed"] and "behind the wall" in got[3].error
+    assert_same(ref, got)

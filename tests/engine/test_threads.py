@@ -121,16 +121,16 @@ def test_coupled_atoms_are_not_split(monkeypatch, what):
         assert res[0].data["reflect_count"].sum() > 0
 
 
-def test_stochastic_reflect_is_not_split(monkeypatch):
+def test_stochastic_reflect_runs_of_cases_one_call_each(monkeypatch):
     """wall/reflect/stochastic draws from its case's generator atom after atom: its chunks run one
-    case per call in one thread, with the same numbers."""
+    case per call, runs of cases in threads (compiled.FastPath._chunk), with the same numbers."""
     def cfg(seed):
         # both faces stochastic, no other wall: the kernel of tests/engine/test_stochastic_engine.py
         return gas({"s": {"style": "reflect/stochastic", "rstyle": "maxwell", "seed": seed, "units": "box",
                           "zlo": {"coord": 1.5, "temp": 1.5, "accom": 0.5},
                           "zhi": {"coord": 8.0, "temp": 1.0, "accom": 0.8}}},
                    output=["step", "ke", "reflect_count"])
-    res = check(monkeypatch, [cfg(3), cfg(4)], None)
+    res = check(monkeypatch, [cfg(3), cfg(4)], "cases")
     assert all(r.data["reflect_count"].sum() > 0 for r in res)
 
 

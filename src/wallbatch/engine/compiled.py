@@ -2647,11 +2647,12 @@ class FastPath:
             # reports and zeroes it at each sample)
             prev = np.ascontiguousarray(fk.prev, dtype=float).copy()
             cross = np.array(fk.crossings, dtype=float).reshape(C, 1)
-        if not generators:
-            status = run(slice(None), _NO_FLOW)
-        else:
-            status = 0
-            for c in range(C):
+        def run_cases(c0: int, c1: int) -> int:
+            """Cases c0 .. c1 - 1: in one call, or, with generators, one call per case (in order,
+            up to the first trouble)."""
+            if not generators:
+                return run(slice(c0, c1), _NO_FLOW)
+            for c in range(c0, c1):
                 fl = _NO_FLOW
                 if fk is not None:
                     fl_int = np.array([1, fk.axis[c], int(fk.exact[c])], np.int64)
@@ -2662,7 +2663,20 @@ class FastPath:
                 status = run(slice(c, c + 1), fl, fx_rngs[c] if fx_rngs else _NO_FLOW[-1],
                              sk.rngs[c] if sk is not None else _NO_FLOW[-1])
                 if status != 0:
-                    break
+                    return status
+            return 0
+
+        # `fixes:` (per-fix layout, `_fix_slice`) or generators: threads.run_kernel does not split
+        # these calls, so runs of cases go to threads here, each case's calls those of one thread
+        how = None
+        if generators or fx_fixes:
+            how = threads.split_edges(C, s.x.shape[1], threads.TIME_MODE_STEPS if time_mode else int(nsteps),
+                                      threads.count(), atoms=False)
+        if how is None:
+            status = run_cases(0, C)
+        else:
+            status = threads.call_parts(run_cases, ("c0", "c1"), [{"c0": p.start, "c1": p.stop} for p in how[1]],
+                                        "cases")
         s.ctx = None
         s.var_step = {}
         if extra:  # compiled (and cached on disk by numba) by now: later processes load it

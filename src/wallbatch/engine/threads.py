@@ -6,7 +6,9 @@ parallel. `run_kernel` calls it as the caller would, on parts that do not intera
 - several cases: each thread takes a contiguous run of cases. Cases never interact, so every
   case's numbers are those of one call, whatever the split (any scene the kernel runs but those
   with `fixes:`, whose arrays are laid out per fix, and wall/flow or wall/reflect/stochastic,
-  run one case per call, their generators drawn from atom after atom);
+  which run one case per call, their generators drawn from atom after atom: for these
+  `compiled.FastPath._chunk` gives runs of cases to threads itself, with `split_edges` and
+  `call_parts`);
 - one case: each thread takes a contiguous run of atoms, split at a multiple of ALIGN atoms (the
   kernel's blocks stay the same blocks), when the atoms do not couple within a chunk: flat and
   region soft walls (tables and wall/lepton too), wall/reflect without statistics (their sums
