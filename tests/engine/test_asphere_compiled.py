@@ -14,6 +14,7 @@ import math
 import numpy as np
 import pytest
 from test_compiled import RTOL, assert_same, run_both
+from test_threads import run_with
 
 from wallbatch.config.models import config_from_dict
 from wallbatch.engine import asphere_compiled as ac
@@ -344,28 +345,15 @@ def test_trouble_in_a_sampled_call_falls_back_and_fails_as_numpy(monkeypatch):
     assert np.isfinite(got[1].data["pe"]).all() and got[1].data["step"][-1] == 400
 
 
-def run_on_threads(monkeypatch, configs, nthreads):
-    """The configs as one batch on the compiled path with WALLBATCH_THREADS=nthreads: (results,
-    engine, threads.splits added by the run)."""
-    from wallbatch.engine import threads
-
-    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
-    monkeypatch.setenv("WALLBATCH_THREADS", str(nthreads))
-    before = dict(threads.splits)
-    eng = Engine([build_case(config_from_dict(d)) for d in configs])
-    got = eng.run()
-    assert isinstance(eng.fast, AspherePath) and eng.fast.fallbacks == 0
-    return got, eng, {k: threads.splits[k] - before[k] for k in before}
-
-
 def test_threads_over_cases_give_the_bits_of_one_thread(monkeypatch):
     """Three cases (different epsilon, sigma, seeds), samples recorded in the kernel: two threads
     take runs of cases, and every output is the one thread's, bit for bit."""
     configs = [slit(n=150, side=18.0, eps=eps, sigma=sig, seed=seed, cutoff=3.0, steps=1200, thermo=200)
                for eps, sig, seed in ((2.0, 1.0, 7), (0.7, 1.2, 8), (3.5, 0.8, 9))]
-    one, eng1, split1 = run_on_threads(monkeypatch, configs, 1)
-    two, eng2, split2 = run_on_threads(monkeypatch, configs, 2)
+    one, eng1, split1 = run_with(monkeypatch, configs, 1)
+    two, eng2, split2 = run_with(monkeypatch, configs, 2)
     assert split1 == {"cases": 0, "atoms": 0} and split2["cases"] >= 1 and split2["atoms"] == 0
+    assert eng2.fast.fallbacks == 0
     assert eng1.fast.sampled_calls >= 1 and eng2.fast.sampled_calls == eng1.fast.sampled_calls
     for a, b in zip(one, two):
         assert a.status == b.status == "ok"
@@ -381,8 +369,8 @@ def test_threads_over_the_atoms_of_one_case_give_the_trajectory_of_one_thread(mo
     momenta) is the one thread's bit for bit; the wall energies agree to NumPy's log against
     libm's (an ulp at times, as for samples taken one instant at a time)."""
     d = slit(n=600, side=35.0, cutoff=3.0, steps=1400, thermo=700)
-    one, eng1, split1 = run_on_threads(monkeypatch, [d], 1)
-    two, eng2, split2 = run_on_threads(monkeypatch, [d], 2)
+    one, eng1, split1 = run_with(monkeypatch, [d], 1)
+    two, eng2, split2 = run_with(monkeypatch, [d], 2)
     assert split1["atoms"] == 0 and split2["atoms"] == 2 and split2["cases"] == 0  # one split per chunk
     assert eng1.fast.sampled_calls >= 1 and eng2.fast.sampled_calls == 0
     for name in ("ke", "erot", "temp", "step", "time"):

@@ -13,6 +13,7 @@ import copy
 import numpy as np
 import pytest
 from factories import assert_same_results, run_numpy_and_compiled, slab_gas
+from test_threads import run_with
 
 from wallbatch.config.models import config_from_dict
 from wallbatch.engine import compiled as fast
@@ -184,19 +185,6 @@ def test_two_dimensional_scene_runs_compiled(monkeypatch):
     assert np.all(got[0].data["wall_force"][1:] != 0.0)  # atoms reached the y walls
 
 
-def run_threads(monkeypatch, configs, nthreads):
-    """The configs as one batch, compiled, with WALLBATCH_THREADS=nthreads: (results, engine,
-    case splits made by the run)."""
-    from wallbatch.engine import threads
-
-    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
-    monkeypatch.setenv("WALLBATCH_THREADS", str(nthreads))
-    before = threads.splits["cases"]
-    eng = Engine([build_case(config_from_dict(d)) for d in configs])
-    got = eng.run()
-    return got, eng, threads.splits["cases"] - before
-
-
 @pytest.mark.parametrize("fix", ["fix b all nvt temp 1.0 2.0 0.1", "fix b all langevin 1.0 2.0 0.5 48279"])
 def test_thermostat_batches_over_threads_give_the_bits_of_one_thread(monkeypatch, fix):
     """Four cases with fix nvt (one call for a run of cases) or fix langevin (one call per case,
@@ -204,9 +192,9 @@ def test_thermostat_batches_over_threads_give_the_bits_of_one_thread(monkeypatch
     bit."""
     fixes = {"b": fix} if "nvt" in fix else {"a": "fix a all nve", "b": fix}
     configs = [gas(fixes, n=200, steps=600, thermo=100, seed=seed) for seed in (5, 6, 7, 8)]
-    one, eng1, split1 = run_threads(monkeypatch, configs, 1)
-    two, eng2, split2 = run_threads(monkeypatch, configs, 2)
-    assert split1 == 0 and split2 >= 1 and eng2.fast.fallbacks == 0 and eng2.fast.compiled_chunks > 0
+    one, eng1, split1 = run_with(monkeypatch, configs, 1)
+    two, eng2, split2 = run_with(monkeypatch, configs, 2)
+    assert split1["cases"] == 0 and split2["cases"] >= 1 and eng2.fast.fallbacks == 0 and eng2.fast.compiled_chunks > 0
     assert_same(one, two)
     assert not np.array_equal(two[0].data["temp"], two[3].data["temp"]) and two[3].data["temp"][-1] > 1.6  # heated
 
