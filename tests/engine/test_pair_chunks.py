@@ -553,3 +553,15 @@ def test_steps_before_counts_the_unclipped_steps_exactly():
     assert two == 3  # 0.1 / 0.03: steps 1-3 end at 0.03, 0.06, 0.09; the 4th lands (clipped)
     assert pair_compiled.steps_before(np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1),
                                       0.1) == 0  # dt 0 never lands: nothing fused (no endless count)
+
+
+def test_time_based_run_with_a_ramped_thermostat_stays_stepwise(monkeypatch):
+    """In a run to a simulated time a thermostat's target ramps with the time (time / run time),
+    which the fused chunk's fix kernels (ramped by steps) do not have: such a run stays on the
+    per-step path and gives its bits; without the thermostat the same scene is fused."""
+    d = timed_slit(0.005)
+    d["fixes"] = dict(THERMOSTATS["berendsen"])
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(d))
+    assert_bits(got, ref)
+    assert fused.fast.compiled_chunks == 0
+    assert got[0].data["temp"][-1] < 1.7  # cooled along the ramp (from 2 towards 1.5 .. 1.0)

@@ -24,7 +24,8 @@ the outputs of Engine.sample, with compiled.py's sample functions). For a case o
 also runs, with compiled.py's functions, the `fixes:` its kernels run (thermostats, enforce2d),
 wall/reflect and wall/reflect/stochastic faces on fixed dimensions and fix dt/reset. A run to a
 simulated time fuses the steps before each landing step (`PairChunks.advance_to_time`). Not
-fused: other fixes, wall/lepton faces, the landing steps of time-based runs, dt/reset in them.
+fused: other fixes, wall/lepton faces, the landing steps of time-based runs, dt/reset and
+thermostats in them.
 
 One large case over threads (`_chunk_threaded`, THREAD_MIN_ATOMS atoms per thread at least):
 the same step in pieces, with the list build (runs of cells, `build_threaded`) and the force pass
@@ -1523,10 +1524,11 @@ class PairChunks:
         sample), then False: the NumPy loop takes the last step(s), clipping dt to land, and
         samples. Those steps are the ones of a step-based run (the loop's dt stays, its time
         accumulator stays closed), so the bits are the NumPy loop's alone. Not with fix dt/reset
-        (dt may change at any step)."""
+        (dt may change at any step), nor with a thermostat (its target ramps with time / run time
+        in such a run, the chunk's fix kernels with the steps, as compiled.py's refuse it too)."""
         plan = self.plan_source()
         s = plan.state
-        if s.ncases == 0 or plan.dt_reset is not None:
+        if s.ncases == 0 or plan.dt_reset is not None or _compiled._thermostats(plan.ensemble):
             return False
         k = steps_before(s.atime, s.step, s.atimestep, s.dt, target)
         if _compiled.FastPath._uses_time(plan):  # per-step wall values: at most the steps `_chunk` takes
