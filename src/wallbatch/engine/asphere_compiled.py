@@ -548,11 +548,13 @@ class AspherePath:
         plan = self.plan_source()
         if not (enabled() and eligible(plan) and sampled_eligible(plan)):
             return False
-        # one case with enough work between two samples for threads over its atoms: one instant at
-        # a time (`advance`, its sample's outputs by NumPy), so that its chunks can be split
+        # one case with enough work between two samples for two threads over its atoms: one instant
+        # at a time (`advance`, its sample's outputs by NumPy), so that its chunks can be split. The
+        # rule counts two threads whatever this process has, so the path (and the last bits of its
+        # samples: NumPy's log against libm's) does not depend on WALLBATCH_THREADS
         s = plan.state
         steps = max(1, int(at[-1]) // at.size)
-        return s.ncases != 1 or threads.split_edges(1, s.x.shape[1], steps, threads.count()) is None
+        return s.ncases != 1 or threads.split_edges(1, s.x.shape[1], steps, 2) is None
 
     def advance(self, nsteps: int, sample: bool) -> bool:
         """Run nsteps steps (and the sample of the last one, by the NumPy outputs); False: let the
