@@ -395,8 +395,12 @@ def _worker_init(parent: int, nthreads: int = 1) -> None:
 
 
 def _stop_pool(pool: ProcessPoolExecutor) -> None:
-    """Cancel pending tasks and end the workers now (they hold no state worth keeping)."""
+    """Cancel pending tasks and end the workers now (they hold no state worth keeping), then wait
+    for the pool's manager thread to end: CPython 3.11's exit handler for process pools wakes
+    every manager thread still registered, and one ending at that moment can close its wake-up
+    pipe in between ("Bad file descriptor" and a traceback after an interrupted run's message)."""
     procs = list((getattr(pool, "_processes", None) or {}).values())
+    manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for p in procs:
         with contextlib.suppress(Exception):
@@ -408,6 +412,8 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
             if p.is_alive():
                 p.kill()
                 p.join(1.0)
+    if isinstance(manager, threading.Thread) and manager is not threading.current_thread():
+        manager.join(2.0)  # (it sees its workers gone and ends)
 
 
 @contextlib.contextmanager
