@@ -487,10 +487,7 @@ def run_kernel(kernel: Any, args: tuple, rec: bool) -> int:
     how = threads.split_edges(ncase, natom, int(named["at"][-1]), threads.count(), atoms=not rec)
     if how is None:
         return kernel(*args)
-    kind, parts = how
-    pieces = [threads.case_part(named, p, CASE_AXIS) if kind == "cases" else
-              threads.atom_part(named, p, ATOM_AXIS, counters=()) for p in parts]
-    return threads.call_parts(kernel, names, pieces, kind)
+    return threads.run_split(kernel, names, named, how, CASE_AXIS, ATOM_AXIS, counters=())
 
 
 def eligible(plan: ChunkPlan) -> bool:

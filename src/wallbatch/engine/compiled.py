@@ -79,7 +79,7 @@ from wallbatch.engine import stochastic as _st
 from wallbatch.engine import thermostats as _th
 from wallbatch.engine import threads
 from wallbatch.engine.dt_reset import BIG, dt_candidate
-from wallbatch.engine.state import BatchState
+from wallbatch.engine.state import BatchState, landing_tol
 from wallbatch.engine.region_walls import RegionWallKernel
 from wallbatch.engine.stochastic import RSTYLES, StochasticKernel
 from wallbatch.engine.walls import CustomWallKernel, ReflectKernel, SoftWallKernel
@@ -2622,7 +2622,7 @@ class FastPath:
         sf_val, rf_val, rf_stat = (np.ascontiguousarray(a) for a in (sf_val, rf_val, rf_stat))
         lo, hi = np.asarray(s.box_lo, float), np.asarray(s.box_hi, float)
         args = (int(nsteps), time_mode, float(target if time_mode else 0.0),
-                float(1e-12 * max(1.0, abs(target))) if time_mode else 0.0)
+                float(landing_tol(target)) if time_mode else 0.0)
         consts = (stats, int(dtr.every if dtr is not None else 0), dtr_group)
         units = (float(s.units.ftm2v), float(s.units.mvv2e))
         sm = _sample_arrays(at, C, sf_meta.shape[0], rf_meta.shape[0] + sto[0].shape[0], fx, rg[0].shape[0])

@@ -33,7 +33,7 @@ from wallbatch.engine.flow import FlowKernel
 from wallbatch.engine.minimize import minimize
 from wallbatch.engine.pair import PairLJCut
 from wallbatch.engine.profiles import ProfileSampler
-from wallbatch.engine.state import BatchState
+from wallbatch.engine.state import BatchState, landing_tol
 from wallbatch.engine.thermostats import kinetic_sum
 from wallbatch.engine.walls import build_kernels, build_region_kernels
 from wallbatch.geometry.quaternion import richardson, rotational_energy
@@ -454,7 +454,7 @@ class Engine:
         if self.fast is not None and self.fast.advance_to_time(target):
             return
         s = self.state
-        tol = 1e-12 * max(1.0, abs(target))
+        tol = landing_tol(target)
         while s.ncases and np.any(s.time < target - tol):
             now = s.time
             active = now < target - tol

@@ -56,6 +56,7 @@ from wallbatch.engine import backend
 from wallbatch.engine import compiled as _compiled
 from wallbatch.engine import threads
 from wallbatch.engine.lj import lj_terms, min_image
+from wallbatch.engine.state import landing_tol
 
 try:  # numba is a dependency, but the NumPy path must keep working without it
     from numba import njit
@@ -1755,7 +1756,7 @@ def steps_before(atime: np.ndarray, step: np.ndarray, atimestep: np.ndarray, dt:
     time now = atime + (step + j - atimestep) dt (BatchState.time) satisfies now < target - tol
     and dt < (target - now) - tol (not `landing`), with the loop's own expressions, so the count
     is exact: each of them runs at dt unclipped, as a step-based step does."""
-    tol = 1e-12 * max(1.0, abs(target))
+    tol = landing_tol(target)
     atime, dt = np.asarray(atime, float), np.asarray(dt, float)
     base = np.asarray(step, np.int64) - np.asarray(atimestep, np.int64)
     if not np.all(np.isfinite(dt) & (dt > 0.0)):  # (no step would land: leave it to the loop)

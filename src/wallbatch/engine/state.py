@@ -14,6 +14,13 @@ from wallbatch.scene.case import Case, Face
 from wallbatch.units import UnitSystem
 
 
+def landing_tol(target: float) -> float:
+    """A run to the simulated time `target` [time]: a case whose time is within this of it has
+    arrived (Engine.advance_to_time, the compiled chunks' time mode and the pair chunks' count of
+    the steps before a landing all use it)."""
+    return 1e-12 * max(1.0, abs(target))
+
+
 class BatchState:
     """Positions, velocities, forces and clocks of C cases of N atoms, plus failure bookkeeping."""
 

@@ -22,7 +22,7 @@ bit those of one thread. Anything this module does not recognise (an argument it
 a small chunk) is one plain call.
 
 The ellipsoid kernel (engine/asphere_compiled.py) splits its chunks with the same rule and pieces
-(`split_edges`, `case_part`, `atom_part`, `call_parts`) on its own argument names.
+(`split_edges`, `run_split` with its own axis tables) on its own argument names.
 
 Threads: WALLBATCH_THREADS if set (1 = one thread), else the cores this process may use; a
 `--jobs N` worker process defaults to its share of the cores (`set_default`).
@@ -219,13 +219,23 @@ def run_kernel(kernel: Callable[..., int], args: tuple, threads: int | None = No
     how = plan_split(named, count() if threads is None else threads)
     if how is None:
         return kernel(*args)
+    return run_split(kernel, names, named, how)
+
+
+def run_split(kernel: Callable[..., int], names: tuple[str, ...], named: dict[str, Any],
+              how: tuple[str, list[slice]], case_axis: frozenset[str] = CASE_AXIS,
+              atom_axis: dict[str, int] = ATOM_AXIS, counters: tuple[str, ...] = COUNTERS) -> int:
+    """The kernel (arguments `named`, in the order `names`) on the parts `how` (`split_edges`)
+    in threads, its arguments cut by `case_part` / `atom_part` with the kernel's own axis tables;
+    the first nonzero status. After an atom split the per-case `counters` each part advanced must
+    agree: the first part's are kept."""
     kind, parts = how
-    cut = case_part if kind == "cases" else atom_part
-    pieces = [cut(named, p) for p in parts]
+    pieces = [case_part(named, p, case_axis) if kind == "cases" else atom_part(named, p, atom_axis, counters)
+              for p in parts]
     bad = call_parts(kernel, names, pieces, kind)
     if kind == "atoms" and bad == 0:
         first = pieces[0]
-        for k in COUNTERS:
+        for k in counters:
             if any(not np.array_equal(first[k], p[k], equal_nan=True) for p in pieces[1:]):
                 return 3  # cannot happen for atoms that do not couple; the NumPy loop re-runs the chunk
             named[k][...] = first[k]
