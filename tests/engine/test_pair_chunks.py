@@ -558,7 +558,8 @@ def test_steps_before_counts_the_unclipped_steps_exactly():
 def test_time_based_run_with_a_ramped_thermostat_stays_stepwise(monkeypatch):
     """In a run to a simulated time a thermostat's target ramps with the time (time / run time),
     which the fused chunk's fix kernels (ramped by steps) do not have: such a run stays on the
-    per-step path and gives its bits; without the thermostat the same scene is fused."""
+    per-step path and gives its bits (without the thermostat the same scene is fused:
+    test_time_based_run_fuses_the_steps_before_each_landing)."""
     d = timed_slit(0.005)
     d["fixes"] = dict(THERMOSTATS["berendsen"])
     got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(d))
