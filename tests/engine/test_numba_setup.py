@@ -1,7 +1,8 @@
-"""numba's set-up in a process that runs compiled (engine/backend.py prepare_numba): the BLAS probe
-of numba.np.arraymath does not import scipy.linalg (~0.3 s of every process's start-up), the
-probe is restored for later BLAS uses, and the results are the same bits as with numba's own
-set-up."""
+"""numba's set-up in a process that runs compiled (engine/backend.py prepare_numba): a kernel
+loaded from the disk cache loads none of numba's registries (~0.2 s of every process's start-up);
+a kernel compiled loads them with the BLAS probe of numba.np.arraymath skipped (no scipy.linalg,
+~0.3 s); the probe is restored for later BLAS uses, and the results are the same bits as with
+numba's own set-up."""
 
 from __future__ import annotations
 
@@ -10,6 +11,8 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 PROBE = """
 import json, sys
@@ -31,10 +34,13 @@ d = {"seed": 3, "box": {"lo": [0, 0, 0], "hi": [6, 6, 10], "boundary": ["p", "p"
 engine = Engine([build_case(config_from_dict(d))])
 res = engine.run()[0]
 assert res.status == "ok" and engine.fast.compiled_chunks > 0 and engine.fast.fallbacks == 0
-import numba.np.arraymath as am, numba.np.linalg as nl
-out = {"scipy_linalg": "scipy.linalg" in sys.modules, "f2py": "numpy.f2py" in sys.modules,
-       "have_blas": am._HAVE_BLAS, "probe": [f.__module__ + "." + f.__name__ for f in (nl.ensure_blas, am.ensure_blas)],
+loaded = "numba.np.arraymath" in sys.modules  # numba's registries (arraymath among them) loaded
+out = {"registries": loaded, "scipy_linalg": "scipy.linalg" in sys.modules, "f2py": "numpy.f2py" in sys.modules,
        "data": {k: [float(x).hex() for x in np.ravel(v)] for k, v in sorted(res.data.items())}}
+if loaded:  # (importing it here would run the probe itself)
+    import numba.np.arraymath as am, numba.np.linalg as nl
+    out["have_blas"] = am._HAVE_BLAS
+    out["probe"] = [f.__module__ + "." + f.__name__ for f in (nl.ensure_blas, am.ensure_blas)]
 if sys.argv[2] == "dot":  # a BLAS use after the set-up: compiled with scipy's BLAS, as numba does it
     from numba import njit
     dot = njit(lambda a, b: np.dot(a, b))
@@ -45,10 +51,12 @@ print(json.dumps(out))
 """
 
 
-def start(setup: str, dot: str = "") -> subprocess.Popen:
-    """A probe process (its answer: `answer`)."""
+def start(setup: str, dot: str = "", cache: Path | None = None) -> subprocess.Popen:
+    """A probe process (its answer: `answer`); `cache`: numba's cache folder (NUMBA_CACHE_DIR)."""
     env = {**os.environ, "WALLBATCH_NUMBA": "1", "WALLBATCH_THREADS": "1",
            "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
+    if cache is not None:
+        env["NUMBA_CACHE_DIR"] = str(cache)
     return subprocess.Popen([sys.executable, "-c", PROBE, setup, dot or "-"], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env)
 
@@ -59,22 +67,39 @@ def answer(proc: subprocess.Popen) -> dict:
     return json.loads(out.splitlines()[-1])
 
 
-def probe(setup: str, dot: str = "") -> dict:
-    return answer(start(setup, dot))
+def probe(setup: str, dot: str = "", cache: Path | None = None) -> dict:
+    return answer(start(setup, dot, cache))
 
 
-def test_a_compiled_run_imports_no_scipy_linalg_and_a_later_blas_use_still_works():
-    ours = probe("wallbatch", "dot")
-    assert ours["scipy_linalg"] is False and ours["f2py"] is False
-    assert ours["have_blas"] is False  # what the skipped probe answered
-    assert ours["probe"] == ["numba.np.linalg.ensure_blas"] * 2  # restored in both modules
-    assert ours["dot"] is True and ours["scipy_linalg_after_dot"] is True  # np.dot found scipy's BLAS
+@pytest.fixture(scope="module")
+def cold_then_warm(tmp_path_factory) -> tuple[dict, dict]:
+    """Two probe processes on a new numba cache, one after the other: the first finds it empty and
+    compiles the scene's kernels, the second loads them."""
+    cache = tmp_path_factory.mktemp("numba-cache")
+    return probe("wallbatch", "dot", cache), probe("wallbatch", "dot", cache)
+
+
+def test_a_compile_loads_the_registries_without_scipy_linalg(cold_then_warm):
+    cold, _ = cold_then_warm
+    assert cold["registries"] is True
+    assert cold["scipy_linalg"] is False and cold["f2py"] is False
+    assert cold["have_blas"] is False  # what the skipped probe answered
+    assert cold["probe"] == ["numba.np.linalg.ensure_blas"] * 2  # restored in both modules
+    assert cold["dot"] is True and cold["scipy_linalg_after_dot"] is True  # np.dot found scipy's BLAS
+
+
+def test_a_run_of_cached_kernels_loads_no_registries_and_a_later_blas_use_still_works(cold_then_warm):
+    cold, warm = cold_then_warm
+    assert warm["registries"] is False  # only numba's runtime was set up to load them
+    assert warm["scipy_linalg"] is False and warm["f2py"] is False
+    assert warm["dot"] is True and warm["scipy_linalg_after_dot"] is True  # np.dot found scipy's BLAS
+    assert warm["data"] == cold["data"]
 
 
 def test_the_results_are_the_bits_of_numbas_own_set_up():
     procs = start("wallbatch"), start("numba-own")  # two processes at once (two cores)
     ours, own = (answer(p) for p in procs)
-    assert own["scipy_linalg"] is True and own["have_blas"] is True  # the probe ran as numba has it
+    assert own["registries"] is True and own["scipy_linalg"] is True and own["have_blas"] is True  # numba's way
     assert ours["scipy_linalg"] is False
     assert len(ours["data"]["etot"]) == 5
     assert ours["data"] == own["data"]

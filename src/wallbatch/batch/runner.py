@@ -331,18 +331,18 @@ def _warm_compiler(case: Case | None = None) -> None:
 
 
 def _set_up_numba() -> None:
-    """In a process about to run compiled kernels: import them and set numba up (its typing and
-    target registries) with the garbage collector paused. numba leaves ~300k long-lived
-    objects, and the collections its set-up triggers walk them again and again (~0.06 s); if the
-    caller froze its own start-up (gc.freeze: the command line does), numba's objects join it."""
-    if not backend.numba_allowed() or "numba.np.arraymath" in sys.modules:
+    """In a process about to run compiled kernels: import them and set numba up (backend.prepare_numba)
+    with the garbage collector paused. numba leaves ~50k long-lived objects, and the
+    collections its set-up triggers walk them again and again; if the caller froze its own
+    start-up (gc.freeze: the command line does), numba's objects join it."""
+    if not backend.numba_allowed() or ("wallbatch.engine.compiled" in sys.modules and backend.numba_prepared()):
         return  # a NumPy plan, or numba set up already
     frozen, enabled = gc.get_freeze_count() > 0, gc.isenabled()
     gc.disable()
     try:
         from wallbatch.engine import compiled
 
-        compiled.enabled()  # numba imports; backend.prepare_numba loads its registries now, not at the first kernel
+        compiled.enabled()  # numba imports; backend.prepare_numba sets up its cache loads
     finally:
         if frozen:
             gc.freeze()

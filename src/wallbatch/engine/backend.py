@@ -20,15 +20,18 @@ Flat walls, wall/reflect, wall/region, dt/reset and `fixes:` give the same bits 
 morse, pair lj/cut, wall/flow redraws and ellipsoids agree to ~1e-14 relative.
 
 numba's own set-up in a process that runs compiled (`prepare_numba`, once, before its first
-kernel is loaded): numba's first compile or cache load imports its NumPy implementations, and
-`numba.np.arraymath` probes at import whether BLAS is available by importing
-`scipy.linalg.cython_blas`: all of scipy.linalg and, through scipy's array API layer, numpy.f2py
-(~0.3 s of every process's start-up). wallbatch's kernels use no BLAS (no np.dot, np.linalg,
-np.correlate or np.convolve in jitted code), so the probe is skipped: the registries load with the
-probe answering "no BLAS" and the probe function is restored right after, so a later BLAS use in
-the same process (np.dot in a user's own @njit function) still finds scipy's BLAS. The only thing
-the answer selects is the inner product np.correlate and np.convolve use in compiled code (a plain
-loop instead of BLAS's dot). A numba without these names, or already set up, is left as it is.
+kernel is loaded). numba's cache load first loads all of numba's typing and target registries
+(its NumPy implementations, ~0.2 s of imports and templates), which only its compiler uses: a
+kernel found in the cache is loaded with numba's runtime (NRT) set up and nothing else, and the
+registries load only when a kernel is compiled. When they do, `numba.np.arraymath` probes at
+import whether BLAS is available by importing `scipy.linalg.cython_blas`: all of scipy.linalg and,
+through scipy's array API layer, numpy.f2py (~0.3 s). wallbatch's kernels use no BLAS (no np.dot,
+np.linalg, np.correlate or np.convolve in jitted code), so the probe is skipped: the registries
+load with the probe answering "no BLAS" and the probe function is restored right after, so a
+later BLAS use in the same process (np.dot in a user's own @njit function) still finds scipy's
+BLAS. The only thing the answer selects is the inner product np.correlate and np.convolve use in
+compiled code (a plain loop instead of BLAS's dot). A numba without these names, or already set
+up, is left as it is.
 """
 
 from __future__ import annotations
@@ -79,20 +82,35 @@ def use_numba() -> bool:
     return allowed
 
 
+def numba_prepared() -> bool:
+    """Has `prepare_numba` run in this process (or the process it was forked from)."""
+    return _numba_prepared
+
+
 def _no_blas() -> None:
     raise ImportError("wallbatch: numba's BLAS probe skipped at set-up (no BLAS in wallbatch's kernels)")
 
 
 def prepare_numba() -> None:
-    """Load numba's CPU target registries (what its first compile or cache load would do) with the
-    BLAS probe of `numba.np.arraymath` answering "no BLAS" instead of importing scipy.linalg (~0.3
-    s; see the module docstring); the probe is restored afterwards. Once per process; a no-op if
-    numba's registries are already loaded or its names differ from numba 0.5x-0.6x's."""
+    """Set numba up for this process, once: loading a kernel from the disk cache initialises only
+    numba's runtime (`_light_cache_load`), and numba's registries load when something is compiled,
+    with the BLAS probe skipped (`load_registries`). A no-op if numba is set up already or its
+    names differ from numba 0.5x-0.6x's (numba then sets itself up as usual)."""
     global _numba_prepared
     if _numba_prepared:
         return
     _numba_prepared = True
     if "numba.np.arraymath" in sys.modules:  # set up already (the probe has run): nothing to skip
+        return
+    if not _light_cache_load():
+        load_registries()
+
+
+def load_registries() -> None:
+    """Load numba's CPU typing and target registries (what its first compile does) with the BLAS
+    probe of `numba.np.arraymath` answering "no BLAS" instead of importing scipy.linalg (~0.3 s;
+    see the module docstring); the probe is restored afterwards. Once per process."""
+    if "numba.np.arraymath" in sys.modules:  # loaded already (the probe has run)
         return
     try:
         from numba.core.registry import cpu_target
@@ -113,6 +131,38 @@ def prepare_numba() -> None:
         arraymath = sys.modules.get("numba.np.arraymath")
         if arraymath is not None and getattr(arraymath, "ensure_blas", None) is _no_blas:
             arraymath.ensure_blas = real
+
+
+def _light_cache_load() -> bool:
+    """Make numba's disk-cache load initialise only what loaded machine code calls: numba's runtime
+    (NRT: allocation and reference counts). numba's own load first refreshes its whole typing and
+    target registries (~0.2 s of imports and templates), which only a compile uses; a load that
+    finds nothing calls `load_registries` before numba compiles (numba's compiler refreshes them
+    itself as well). False if numba's cache has another layout (nothing changed)."""
+    try:
+        from numba.core import caching
+        from numba.core.runtime import rtsys
+    except Exception:  # noqa: BLE001 - no numba, or another layout
+        return False
+    real = getattr(caching.Cache, "load_overload", None)
+    if getattr(real, "wallbatch_light", False):
+        return True
+    if not (callable(real) and hasattr(caching.Cache, "_load_overload")
+            and hasattr(caching.Cache, "_guard_against_spurious_io_errors") and hasattr(rtsys, "initialize")):
+        return False
+
+    def load_overload(self, sig, target_context):  # noqa: ANN001, ANN202 - numba's own signature
+        rtsys.initialize(target_context)
+        found = None
+        with self._guard_against_spurious_io_errors():
+            found = self._load_overload(sig, target_context)
+        if found is None:  # not in the cache: numba compiles next
+            load_registries()
+        return found
+
+    load_overload.wallbatch_light = True
+    caching.Cache.load_overload = load_overload
+    return True
 
 
 @contextlib.contextmanager
