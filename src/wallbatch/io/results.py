@@ -84,9 +84,8 @@ class Results:
         first = items[:self._constructed]
         coords = {k: xvar(v) for k, v in items if k in self.coord_names}
         ds = xr.Dataset({k: xvar(v) for k, v in first}, coords=coords)
-        for k, v in items[self._constructed:]:
-            if k not in self.coord_names:
-                ds[k] = xvar(v)
+        # the variables added after construction in one update, in order (one merge, not one each)
+        ds.update({k: xvar(v) for k, v in items[self._constructed:] if k not in self.coord_names})
         ds.attrs.update(self.attrs)
         return ds
 
