@@ -41,6 +41,18 @@ if loaded:  # (importing it here would run the probe itself)
     import numba.np.arraymath as am, numba.np.linalg as nl
     out["have_blas"] = am._HAVE_BLAS
     out["probe"] = [f.__module__ + "." + f.__name__ for f in (nl.ensure_blas, am.ensure_blas)]
+if sys.argv[3] == "then-harmonic":  # then a scene whose kernel is not in the cache: numba compiles it
+    for face in ("zlo", "zhi"):
+        d["walls"]["w"][face]["epsilon"] = 5.0
+    d["walls"]["w"]["style"] = "harmonic"
+    case = build_case(config_from_dict(d))
+    engine = Engine([case])
+    got = engine.run()[0]
+    assert got.status == "ok" and engine.fast.compiled_chunks > 0 and engine.fast.fallbacks == 0
+    with backend.plan_path(False):
+        ref = Engine([case]).run()[0]
+    out["then"] = {"registries": "numba.np.arraymath" in sys.modules, "scipy_linalg": "scipy.linalg" in sys.modules,
+                   "same_bits_as_numpy": all(np.array_equal(got.data[k], ref.data[k]) for k in ref.data)}
 if sys.argv[2] == "dot":  # a BLAS use after the set-up: compiled with scipy's BLAS, as numba does it
     from numba import njit
     dot = njit(lambda a, b: np.dot(a, b))
@@ -51,13 +63,14 @@ print(json.dumps(out))
 """
 
 
-def start(setup: str, dot: str = "", cache: Path | None = None) -> subprocess.Popen:
-    """A probe process (its answer: `answer`); `cache`: numba's cache folder (NUMBA_CACHE_DIR)."""
+def start(setup: str, dot: str = "", cache: Path | None = None, then: str = "") -> subprocess.Popen:
+    """A probe process (its answer: `answer`); `cache`: numba's cache folder (NUMBA_CACHE_DIR);
+    `then`: "then-harmonic" runs a harmonic-wall scene after the lj93 one."""
     env = {**os.environ, "WALLBATCH_NUMBA": "1", "WALLBATCH_THREADS": "1",
            "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
     if cache is not None:
         env["NUMBA_CACHE_DIR"] = str(cache)
-    return subprocess.Popen([sys.executable, "-c", PROBE, setup, dot or "-"], stdout=subprocess.PIPE,
+    return subprocess.Popen([sys.executable, "-c", PROBE, setup, dot or "-", then or "-"], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env)
 
 
@@ -67,16 +80,16 @@ def answer(proc: subprocess.Popen) -> dict:
     return json.loads(out.splitlines()[-1])
 
 
-def probe(setup: str, dot: str = "", cache: Path | None = None) -> dict:
-    return answer(start(setup, dot, cache))
+def probe(setup: str, dot: str = "", cache: Path | None = None, then: str = "") -> dict:
+    return answer(start(setup, dot, cache, then))
 
 
 @pytest.fixture(scope="module")
 def cold_then_warm(tmp_path_factory) -> tuple[dict, dict]:
     """Two probe processes on a new numba cache, one after the other: the first finds it empty and
-    compiles the scene's kernels, the second loads them."""
+    compiles the lj93 scene's kernels, the second loads them, then compiles a harmonic-wall scene's."""
     cache = tmp_path_factory.mktemp("numba-cache")
-    return probe("wallbatch", "dot", cache), probe("wallbatch", "dot", cache)
+    return probe("wallbatch", "dot", cache), probe("wallbatch", "dot", cache, "then-harmonic")
 
 
 def test_a_compile_loads_the_registries_without_scipy_linalg(cold_then_warm):
@@ -94,6 +107,12 @@ def test_a_run_of_cached_kernels_loads_no_registries_and_a_later_blas_use_still_
     assert warm["scipy_linalg"] is False and warm["f2py"] is False
     assert warm["dot"] is True and warm["scipy_linalg_after_dot"] is True  # np.dot found scipy's BLAS
     assert warm["data"] == cold["data"]
+
+
+def test_a_compile_after_cached_loads_loads_the_registries_without_scipy_linalg(cold_then_warm):
+    _, warm = cold_then_warm
+    assert warm["registries"] is False  # before the harmonic scene: loads only
+    assert warm["then"] == {"registries": True, "scipy_linalg": False, "same_bits_as_numpy": True}
 
 
 def test_the_results_are_the_bits_of_numbas_own_set_up():
