@@ -116,3 +116,34 @@ def test_scenes_build_and_export_for_lammps_with_its_default_neighbor_settings(s
     assert steps == 10 and exp.steps == 10
     assert not any(ln.startswith(("neigh_modify", "run")) for ln in setup)
     assert (tmp_path / exp.data_name).exists()
+
+
+def test_repeat_times_both_codes_in_turns_and_keeps_the_best_of_each(suite, monkeypatch):
+    calls: list[str] = []
+    wb_times, lmp_times = iter([0.01, 0.30, 0.20, 0.25]), iter([0.9, 1.1, 0.8])  # 0.01: the warm-up
+
+    class Result:
+        status, error = "ok", ""
+
+    def engine_run(case):
+        calls.append("wb")
+        return next(wb_times), Result(), "compiled"
+
+    def lammps_export_run(cfg, case):
+        calls.append("lmp")
+        return next(lmp_times)
+
+    monkeypatch.setattr(suite, "engine_run", engine_run)
+    monkeypatch.setattr(suite, "lammps_export_run", lammps_export_run)
+    monkeypatch.setattr(suite, "build", lambda cfg: Case.__new__(Case))
+    monkeypatch.setattr(Case, "natoms", 1000, raising=False)
+    monkeypatch.setattr(Case, "steps", 100, raising=False)
+    monkeypatch.setattr(suite, "USE_LAMMPS", True)
+    monkeypatch.setattr(suite, "REPEAT", 3)
+    out = suite.speed("scene", {"run": {"steps": 100, "thermo": 10}})
+    assert calls == ["wb"] + ["wb", "lmp"] * 3  # the warm-up, then in turns
+    assert out["wb_s"] == 0.20 and out["lmp_s"] == 0.8 and out["ratio"] == pytest.approx(4.0)  # warm-up not kept
+    monkeypatch.setattr(suite, "REPEAT", 1)
+    assert "one measurement per cell" in suite.header("now", "cpu")
+    monkeypatch.setattr(suite, "REPEAT", 2)
+    assert "best of 2 measurements per cell" in suite.header("now", "cpu")
