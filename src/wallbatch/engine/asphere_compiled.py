@@ -476,18 +476,18 @@ ATOM_AXIS = {**{k: 1 for k in ("x", "v", "f", "quat", "angmom", "torque", "mass"
                                "fo", "qo", "lo_", "to")}, "groups": 1}
 
 
-def run_kernel(kernel: Any, args: tuple, rec: bool) -> int:
-    """`kernel(*args)` (`_run_chunk`) over the threads threads.count() allows: runs of cases, or
-    for one case, unless its samples are recorded (`rec`: their sums run over all atoms), runs of
-    atoms (threads.split_edges: enough work for each). Returns the first nonzero status (the
-    caller then hands the whole chunk back to NumPy)."""
-    names = threads._signature_names(kernel.py_func)
-    named = dict(zip(names, args))
+def plan_split(named: dict[str, Any], nthreads: int) -> tuple[str, list[slice]] | None:
+    """How to split a `_run_chunk` call (threads.run_kernel's `plan`): runs of cases, or for one
+    case, unless its samples are recorded (`rec`: their sums run over all atoms), runs of atoms
+    (threads.split_edges: enough work for each); None: one call."""
     ncase, natom = named["x"].shape[:2]
-    how = threads.split_edges(ncase, natom, int(named["at"][-1]), threads.count(), atoms=not rec)
-    if how is None:
-        return kernel(*args)
-    return threads.run_split(kernel, names, named, how, CASE_AXIS, ATOM_AXIS, counters=())
+    return threads.split_edges(ncase, natom, int(named["at"][-1]), nthreads, atoms=not named["rec"])
+
+
+def run_kernel(kernel: Any, args: tuple) -> int:
+    """`kernel(*args)` (`_run_chunk`) over the threads threads.count() allows (`plan_split`);
+    the first nonzero status (the caller then hands the whole chunk back to NumPy)."""
+    return threads.run_kernel(kernel, args, plan=plan_split, case_axis=CASE_AXIS, atom_axis=ATOM_AXIS, counters=())
 
 
 def eligible(plan: ChunkPlan) -> bool:
@@ -636,7 +636,7 @@ class AspherePath:
                                 s.inertia, np.ascontiguousarray(s.dt, dtype=float), np.asarray(s.box_lo, float),
                                 np.asarray(s.box_hi, float), periodic, float(s.units.ftm2v), ef_meta, ef_val,
                                 np.stack(groups), rg_meta, rg_geo, rg_val, xo, vo, fo, qo, lo_, to,
-                                sm_face, sm_reg, sm_kin), bool(rec))  # in threads where there is work for them
+                                sm_face, sm_reg, sm_kin))  # in threads where there is work for them
         if status != 0:
             self.fallbacks += 1
             return False

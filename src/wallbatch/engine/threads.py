@@ -22,7 +22,7 @@ bit those of one thread. Anything this module does not recognise (an argument it
 a small chunk) is one plain call.
 
 The ellipsoid kernel (engine/asphere_compiled.py) splits its chunks with the same rule and pieces
-(`split_edges`, `run_split` with its own axis tables) on its own argument names.
+(`run_kernel` with its own `plan` built on `split_edges`, and its own axis tables).
 
 Threads: WALLBATCH_THREADS if set (1 = one thread), else the cores this process may use; a
 `--jobs N` worker process defaults to its share of the cores (`set_default`).
@@ -208,18 +208,23 @@ def _in_threads(calls: list[Callable[[], int]]) -> list[int]:
     return out
 
 
-def run_kernel(kernel: Callable[..., int], args: tuple, threads: int | None = None) -> int:
+def run_kernel(kernel: Callable[..., int], args: tuple, threads: int | None = None,
+               plan: Callable[[dict[str, Any], int], tuple[str, list[slice]] | None] = plan_split,
+               case_axis: frozenset[str] = CASE_AXIS, atom_axis: dict[str, int] = ATOM_AXIS,
+               counters: tuple[str, ...] = COUNTERS) -> int:
     """`kernel(*args)` (a compiled chunk kernel), split over `threads` threads (default `count()`)
     where the parts do not interact; returns the kernel's status (the first nonzero one of the
-    parts). The results are bit for bit those of the one call."""
+    parts). The results are bit for bit those of the one call. `plan` (arguments by name,
+    threads -> the parts or None) and the axis tables are the flat kernel's unless given (the
+    ellipsoid kernel passes its own)."""
     names = _names(kernel)
     if names is None or len(names) != len(args):
         return kernel(*args)
     named = dict(zip(names, args))
-    how = plan_split(named, count() if threads is None else threads)
+    how = plan(named, count() if threads is None else threads)
     if how is None:
         return kernel(*args)
-    return run_split(kernel, names, named, how)
+    return run_split(kernel, names, named, how, case_axis, atom_axis, counters)
 
 
 def run_split(kernel: Callable[..., int], names: tuple[str, ...], named: dict[str, Any],
