@@ -32,7 +32,8 @@ later BLAS use in the same process (np.dot in a user's own @njit function) still
 BLAS. The only thing the answer selects is the inner product np.correlate and np.convolve use in
 compiled code (a plain loop instead of BLAS's dot). A numba without these names, or already set
 up, is left as it is. A compile's IR inlining copies each inlined function's variable table once
-per copy instead of once per block (`_shared_scope_inlining`: same code, ~0.8 s less per kernel).
+per copy instead of once per block, and a Loc's cached source lines not at all
+(`_cheap_ir_copies`: same code, ~1 s less per kernel).
 """
 
 from __future__ import annotations
@@ -99,12 +100,12 @@ def prepare_numba() -> None:
     numba's runtime (`_light_cache_load`), and numba's registries load when something is compiled,
     with the BLAS probe skipped (`load_registries`). A no-op if numba is set up already or its
     names differ from numba 0.5x-0.6x's (numba then sets itself up as usual). Its compiles inline
-    functions without copying a whole variable table per block (`_shared_scope_inlining`)."""
+    functions without copying a whole variable table per block (`_cheap_ir_copies`)."""
     global _numba_prepared
     if _numba_prepared:
         return
     _numba_prepared = True
-    _shared_scope_inlining()  # a compile's IR inlining without its quadratic copies
+    _cheap_ir_copies()  # a compile's IR inlining without its quadratic copies
     if "numba.np.arraymath" in sys.modules:  # set up already (the probe has run): nothing to skip
         return
     if not _light_cache_load():
@@ -170,18 +171,21 @@ def _light_cache_load() -> bool:
     return True
 
 
-def _shared_scope_inlining() -> bool:
-    """Make numba's IR inliner copy a callee's variable table once per copy, not once per block.
+def _cheap_ir_copies() -> bool:
+    """Make numba's IR inliner copy what it copies once, not once per block or per Loc.
 
     Inlining a function (`inline="always"`, how the kernels put their pieces into one loop) copies
-    the callee's IR twice with `copy.deepcopy`, one block at a time. Every variable of every block
-    refers to the function's one Scope, which holds all its variables, so each block's deepcopy
-    copies the whole Scope again: an inline costs blocks x variables (~1 s of a flat-wall kernel's
-    compile, 2/3 of that for nothing). Here, during one `InlineWorker.inline_ir`, the blocks copied
-    from one Scope share one copy of it, as the original blocks share the original. numba then
-    renames the callee's variables from that copy and moves the blocks into the caller's scope, as
-    before: same IR, same machine code. True if installed (or already); False, nothing changed, if
-    numba's inliner has another layout."""
+    the callee's IR twice with `copy.deepcopy`, one block at a time. Two copies there are waste:
+    - Every variable of every block refers to the function's one Scope, which holds all its
+      variables, so each block's deepcopy copies the whole Scope again: an inline costs blocks x
+      variables. During one `InlineWorker.inline_ir`, the blocks copied from one Scope now share one
+      copy of it, as the original blocks share the original; numba then renames the callee's
+      variables from that copy and moves the blocks into the caller's scope, as before.
+    - A Loc (a source position) caches its file's lines once it has printed itself (numba's IR
+      warnings do), and deepcopy copied that list (thousands of strings) with every Loc: a copied
+      Loc now shares it (a read-only cache).
+    Same IR, same machine code; ~1 s less of a flat-wall kernel's compile. True if installed (or
+    already); False, nothing changed, if numba's inliner has another layout."""
     try:
         import copy
 
@@ -193,7 +197,9 @@ def _shared_scope_inlining() -> bool:
     real = getattr(worker, "inline_ir", None)
     if getattr(real, "wallbatch_shared_scope", False):
         return True
-    if not (callable(real) and getattr(icc, "copy", None) is copy and isinstance(getattr(ir, "Block", None), type)):
+    loc = getattr(ir, "Loc", None)
+    if not (callable(real) and getattr(icc, "copy", None) is copy and isinstance(getattr(ir, "Block", None), type)
+            and isinstance(loc, type) and "__deepcopy__" not in vars(loc)):
         return False
     state = threading.local()  # the Scope copies of the inline_ir call running in this thread
 
@@ -223,10 +229,16 @@ def _shared_scope_inlining() -> bool:
         finally:
             state.scopes = outer
 
+    def loc_deepcopy(self, memo):  # noqa: ANN001, ANN202 - copy's protocol
+        new = copy.copy(self)  # file, line, column, and the lines cache shared
+        memo[id(self)] = new
+        return new
+
     inline_ir.wallbatch_shared_scope = True
     inline_ir.__wrapped__ = real
     icc.copy = _Copy()
     worker.inline_ir = inline_ir
+    loc.__deepcopy__ = loc_deepcopy
     return True
 
 
