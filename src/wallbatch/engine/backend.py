@@ -175,7 +175,7 @@ def _cheap_ir_copies() -> bool:
     """Make numba's IR inliner copy what it copies once, not once per block or per Loc.
 
     Inlining a function (`inline="always"`, how the kernels put their pieces into one loop) copies
-    the callee's IR twice with `copy.deepcopy`, one block at a time. Two copies there are waste:
+    the callee's IR twice with `copy.deepcopy`, one block at a time, and copies two things in vain:
     - Every variable of every block refers to the function's one Scope, which holds all its
       variables, so each block's deepcopy copies the whole Scope again: an inline costs blocks x
       variables. During one `InlineWorker.inline_ir`, the blocks copied from one Scope now share one
