@@ -195,7 +195,7 @@ def _cheap_ir_copies() -> bool:
         return False
     worker = getattr(icc, "InlineWorker", None)
     real = getattr(worker, "inline_ir", None)
-    if getattr(real, "wallbatch_shared_scope", False):
+    if getattr(real, "wallbatch_cheap_copies", False):
         return True
     loc = getattr(ir, "Loc", None)
     if not (callable(real) and getattr(icc, "copy", None) is copy and isinstance(getattr(ir, "Block", None), type)
@@ -234,7 +234,7 @@ def _cheap_ir_copies() -> bool:
         memo[id(self)] = new
         return new
 
-    inline_ir.wallbatch_shared_scope = True
+    inline_ir.wallbatch_cheap_copies = True
     inline_ir.__wrapped__ = real
     icc.copy = _Copy()
     worker.inline_ir = inline_ir
