@@ -33,7 +33,8 @@ BLAS. The only thing the answer selects is the inner product np.correlate and np
 compiled code (a plain loop instead of BLAS's dot). A numba without these names, or already set
 up, is left as it is. A compile's IR inlining copies each inlined function's variable table once
 per copy instead of once per block, and a Loc's cached source lines not at all
-(`_cheap_ir_copies`: same code, ~1 s less per kernel).
+(`_cheap_ir_copies`: same code, ~1 s less per kernel), and the messages numba formats for the
+overloads it tries and rejects come without colour (`_plain_error_text`: ~0.1 s less per kernel).
 """
 
 from __future__ import annotations
@@ -100,12 +101,14 @@ def prepare_numba() -> None:
     numba's runtime (`_light_cache_load`), and numba's registries load when something is compiled,
     with the BLAS probe skipped (`load_registries`). A no-op if numba is set up already or its
     names differ from numba 0.5x-0.6x's (numba then sets itself up as usual). Its compiles inline
-    functions without copying a whole variable table per block (`_cheap_ir_copies`)."""
+    functions without copying a whole variable table per block (`_cheap_ir_copies`), and format
+    the messages of the overloads they reject without colour (`_plain_error_text`)."""
     global _numba_prepared
     if _numba_prepared:
         return
     _numba_prepared = True
     _cheap_ir_copies()  # a compile's IR inlining without its quadratic copies
+    _plain_error_text()  # nor colorama set up again for every overload it rejects
     if "numba.np.arraymath" in sys.modules:  # set up already (the probe has run): nothing to skip
         return
     if not _light_cache_load():
@@ -239,6 +242,33 @@ def _cheap_ir_copies() -> bool:
     icc.copy = _Copy()
     worker.inline_ir = inline_ir
     loc.__deepcopy__ = loc_deepcopy
+    return True
+
+
+def _plain_error_text() -> bool:
+    """Typing a kernel, numba tries overloads and formats a message for each one it rejects
+    (~4,700 for the flat-wall kernel), and with colorama installed its colour scheme wraps stdout
+    and stderr anew for every piece of such a message (colorama's init and deinit: ~0.1 s of a
+    kernel's compile). Unless the user chose a scheme (NUMBA_COLOR_SCHEME), numba's scheme now
+    returns the text as it is: its messages read the same, without colour or bold. True if set
+    (or already); False, nothing changed, where numba's scheme has another layout."""
+    if os.environ.get("NUMBA_COLOR_SCHEME"):
+        return False
+    try:
+        from numba.core import errors
+    except Exception:  # noqa: BLE001 - no numba
+        return False
+    scheme = errors.termcolor()  # the one instance numba's modules hold
+    if getattr(scheme, "_markup", None) is None:
+        return False
+    if getattr(scheme._markup, "wallbatch_plain", False):
+        return True
+
+    def plain(msg: str, color: Any = None, style: Any = None) -> str:
+        return msg
+
+    plain.wallbatch_plain = True
+    scheme._markup = plain
     return True
 
 

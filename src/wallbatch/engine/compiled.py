@@ -303,7 +303,8 @@ if njit is not None:
     # error_model="numpy": x/0 gives inf/nan as in NumPy (no zero-division checks, so loops vectorise)
     # no cfunc wrapper to build (each costs a compile of its own): nothing here is called as a
     # first-class function; the per-scene pieces (`_SCENE`), called from compiled code only, have no
-    # CPython wrapper either (the registry's compiled forces keep theirs: tests call them)
+    # CPython wrapper either, nor do the kernels' copies of the registry's forces (`_style_functions`;
+    # FORCES, MODE_FORCES and MODE_ENERGIES keep theirs: tests call them)
     _INNER = {"nogil": True, "error_model": "numpy", "no_cfunc_wrapper": True}
     _SCENE = {**_INNER, "no_cpython_wrapper": True}
     jit = njit(cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True)
@@ -350,14 +351,6 @@ if njit is not None:
     _nmin = inline(_scalar.nmin)  # np.minimum / np.maximum of two floats (engine/scalar.py)
     _nmax = inline(_scalar.nmax)
 
-    # the registry's force functions, compiled as they are (the same function objects)
-    FORCES = tuple(njit(**_INNER)(st.force) for st in COMPILED_STYLES)
-    # each style's force under each cut-off mode it runs: the closures of styles.cutoff around the
-    # compiled force (and, for force-shift and smooth, E(r) - E(rc)), compiled as they are
-    _SHIFTED = {i: njit(**_INNER)(st.shifted_fn) for i, st in enumerate(COMPILED_STYLES)
-                if len(_modes(st)) > 1}
-    _switch = njit(**_INNER)(_cutoff.switch)
-
     def _renamed(fn: Any, name: str) -> Any:
         """A copy of the Python function `fn` (same code, globals, closure) named `name`. numba's
         symbol of a compiled function is its module, name, argument types and a number counted
@@ -371,16 +364,31 @@ if njit is not None:
         out.__qualname__ = name
         return out
 
-    MODE_FORCES = {(i, m): njit(**_INNER)(_renamed(
-        cutoff_functions(FORCES[i], _SHIFTED.get(i, FORCES[i]), m, _switch)[0], f"force_{st.name}_{m}"))
-        for i, st in enumerate(COMPILED_STYLES) for m in _modes(st)}
-    # each style's reported energy under each cut-off mode (sampled chunks): styles.cutoff's
-    # closures around the compiled force and E(r) - E(rc), as the NumPy CutoffStyle.energy
-    _SHIFTED_E = {i: _SHIFTED[i] if i in _SHIFTED else njit(**_INNER)(st.shifted_fn)
-                  for i, st in enumerate(COMPILED_STYLES) if energy_compiled(st)}
-    MODE_ENERGIES = {(i, m): njit(**_INNER)(_renamed(
-        cutoff_functions(FORCES[i], _SHIFTED_E[i], m, _switch)[1], f"energy_{st.name}_{m}"))
-        for i, st in enumerate(COMPILED_STYLES) if i in _SHIFTED_E for m in _modes(st)}
+    def _style_functions(options: dict[str, Any], suffix: str = "") -> tuple[tuple, dict, dict, Any]:
+        """The registry's force functions compiled as they are (the same code), and
+        each style's force and reported energy under each cut-off mode it runs: styles.cutoff's
+        closures around the compiled force and, for force-shift and smooth, E(r) - E(rc) (the
+        energies: as the NumPy CutoffStyle.energy; sampled chunks). Returns (forces,
+        mode_forces, mode_energies, switch), numba dispatchers with `options`; `suffix` ends the
+        names of the ones compiled with other options (`_renamed`)."""
+        forces = tuple(njit(**options)(_renamed(st.force, st.force.__qualname__ + suffix) if suffix else st.force)
+                       for st in COMPILED_STYLES)
+        shifted = {i: njit(**options)(st.shifted_fn) for i, st in enumerate(COMPILED_STYLES)
+                   if len(_modes(st)) > 1 or energy_compiled(st)}
+        switch = njit(**options)(_cutoff.switch)
+        mode_forces = {(i, m): njit(**options)(_renamed(
+            cutoff_functions(forces[i], shifted[i] if len(_modes(st)) > 1 else forces[i], m, switch)[0],
+            f"force_{st.name}_{m}{suffix}")) for i, st in enumerate(COMPILED_STYLES) for m in _modes(st)}
+        mode_energies = {(i, m): njit(**options)(_renamed(
+            cutoff_functions(forces[i], shifted[i], m, switch)[1], f"energy_{st.name}_{m}{suffix}"))
+            for i, st in enumerate(COMPILED_STYLES) if energy_compiled(st) for m in _modes(st)}
+        return forces, mode_forces, mode_energies, switch
+
+    # for Python callers (tests): each with numba's CPython entry point
+    FORCES, MODE_FORCES, MODE_ENERGIES, _ = _style_functions(_INNER)
+    # what the scene kernels link in: the same functions without a CPython entry point (each costs
+    # a compile of its own, ~0.04 s), named apart from the ones above
+    _K_MODE_FORCES, _K_MODE_ENERGIES, _switch = _style_functions(_SCENE, "_k")[1:]
     _dt_candidate = njit(nogil=True, error_model="numpy", inline="always")(dt_candidate)
 
     @inline
@@ -939,7 +947,7 @@ if njit is not None:
     _th_berendsen = jit(_th.berendsen_factor)
     _th_rescale = jit(_th.rescale_factor)
     _th_nh = jit(_th.nh_half_step)
-    _th_pairwise = jit(_th.pairwise_sum)
+    _th_pairwise = jit_inner(_th.pairwise_sum)  # called from kernels only
 
     @inline
     def _mv2_sum(M, V, KS, n):
@@ -1740,9 +1748,9 @@ if njit is not None:
         # the name of each piece compiled on its own (`_renamed`): the scene's specialisation
         tag = hashlib.sha256(repr((soft, region, flow, extra, tables, stochastic)).encode()).hexdigest()[:15]
         base: dict[str, Any] = {"_face": _face, "_rface": _rface, "_eface": _eface, "_nan": math.nan,
-                                **{f"_FORCE_{i}_{m}": MODE_FORCES[(i, m)] for i, m in pairs},
-                                **{f"_ENERGY_{i}_{m}": MODE_ENERGIES[(i, m)] for i, m in soft
-                                   if (i, m) in MODE_ENERGIES}}
+                                **{f"_FORCE_{i}_{m}": _K_MODE_FORCES[(i, m)] for i, m in pairs},
+                                **{f"_ENERGY_{i}_{m}": _K_MODE_ENERGIES[(i, m)] for i, m in soft
+                                   if (i, m) in _K_MODE_ENERGIES}}
         filename = None
         if extra:
             source = _chunk_module_source(soft, extra)
@@ -1790,7 +1798,8 @@ if njit is not None:
         region_walls = _no_region_walls
         sample_regions = _no_sample_regions
         if region:
-            namespace.update({f"_ENERGY_{i}_{m}": MODE_ENERGIES[(i, m)] for i, m in region if (i, m) in MODE_ENERGIES})
+            namespace.update({f"_ENERGY_{i}_{m}": _K_MODE_ENERGIES[(i, m)] for i, m in region
+                              if (i, m) in _K_MODE_ENERGIES})
             namespace["_rout"] = _rout
             rsource = _region_dispatch_source(region) + _outputs_source(region, "region")
             source += rsource
