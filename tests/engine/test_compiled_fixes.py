@@ -30,6 +30,11 @@ WALLS = {"w": {"style": "lj93", "units": "box", "energy": True,
                "zhi": {"coord": 8.0, "epsilon": 1.5, "sigma": 1.0, "cutoff": 2.5}}}
 
 
+WALLS_2D = {"w": {"style": "lj93", "units": "box", "energy": True,
+                   "ylo": {"coord": 0.0, "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
+                   "yhi": {"coord": 8.0, "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5}}}
+
+
 def gas(fixes, *, n=300, steps=400, thermo=50, seed=5, temperature=1.5, **extra):
     """n atoms of an ideal gas between lj93 walls (x, y periodic) with the given fixes."""
     return slab_gas(copy.deepcopy(WALLS), n=n, hi=(6.0, 6.0, 8.0), margin=1.6, temperature=temperature, seed=seed, dt=0.005,
@@ -174,15 +179,45 @@ def test_two_dimensional_scene_runs_compiled(monkeypatch):
          "box": {"lo": [0, 0, -0.5], "hi": [10, 8, 0.5], "boundary": ["p", "f", "p"]},
          "atoms": [{"group": "gas", "create": {"positions": [[a, b, 0.0] for a, b in xy.tolist()]}, "mass": 1.0,
                     "velocity": {"temperature": 1.0}}],
-         "walls": {"w": {"style": "lj93", "units": "box", "energy": True,
-                         "ylo": {"coord": 0.0, "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
-                         "yhi": {"coord": 8.0, "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5}}},
-         "timestep": 0.005, "run": {"steps": 300, "thermo": 100}, "output": {"thermo": OUT}}
+         "walls": copy.deepcopy(WALLS_2D), "timestep": 0.005, "run": {"steps": 300, "thermo": 100},
+         "output": {"thermo": OUT}}
     _, got, eng = check(monkeypatch, [d])
     _, got2, eng2 = check(monkeypatch, [{**d, "fixes": {"a": "fix a all nve",
                                                          "t": "fix t all langevin 1.5 1.5 0.3 7"}}])
     assert eng.fast.compiled_chunks == 3 and eng2.fast.compiled_chunks == 3
     assert np.all(got[0].data["wall_force"][1:] != 0.0)  # atoms reached the y walls
+    # both ran the kernel that integrates x and y only (`_K_2D`), with the NumPy engine's bits
+    for e in (eng, eng2):
+        assert e.fast.kernel.dispatcher.py_func.__globals__["_K_2D"] is True
+
+
+def test_two_d_kernel_only_where_z_updates_are_the_identity(monkeypatch):
+    """`two_d_eligible`: a 2-D scene with enforce2d on every atom, after its setup (v_z = f_z =
+    +0.0); not with a -0.0 in v_z, f_z or z, a z outside the periodic box, or in 3-D."""
+    xy = np.random.default_rng(4).random((50, 2)) * [10.0, 5.0] + [0.0, 1.5]
+    d = {"units": "lj", "seed": 3, "dimension": 2,
+         "box": {"lo": [0, 0, -0.5], "hi": [10, 8, 0.5], "boundary": ["p", "f", "p"]},
+         "atoms": [{"group": "gas", "create": {"positions": [[a, b, 0.0] for a, b in xy.tolist()]}, "mass": 1.0,
+                    "velocity": {"temperature": 1.0}}],
+         "walls": copy.deepcopy(WALLS_2D), "timestep": 0.005, "run": {"steps": 20, "thermo": 10}}
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    eng = Engine([build_case(config_from_dict(d))])
+    eng.run()
+    plan = eng.fast.plan_source()
+    s = plan.state
+    assert fast.two_d_eligible(plan)
+    for name, index, value in (("v", (0, 3, 2), -0.0), ("f", (0, 3, 2), -0.0), ("x", (0, 3, 2), -0.0),
+                               ("x", (0, 3, 2), 0.7), ("v", (0, 3, 2), 1e-300)):
+        arr = getattr(s, name)
+        saved = arr[index]
+        arr[index] = value
+        assert not fast.two_d_eligible(plan), (name, value)
+        arr[index] = saved
+    assert fast.two_d_eligible(plan)
+    eng3 = Engine([build_case(config_from_dict(gas({"a": "fix a all nve"}, n=50, steps=20, thermo=10)))])
+    eng3.run()
+    assert not fast.two_d_eligible(eng3.fast.plan_source())
+    assert eng3.fast.kernel.dispatcher.py_func.__globals__["_K_2D"] is False
 
 
 @pytest.mark.parametrize("fix", ["fix b all nvt temp 1.0 2.0 0.1", "fix b all langevin 1.0 2.0 0.5 48279"])

@@ -130,6 +130,10 @@ KERNEL_FLAGS = ("_K_REFLECT", "_K_STOCHASTIC", "_K_TABLES", "_K_VECTOR", "_K_REG
                 "_K_FLOW", "_K_TIME", "_K_SAMPLES")
 _K_REFLECT = _K_STOCHASTIC = _K_TABLES = _K_VECTOR = _K_REGION = True
 _K_FIXES = _K_DTR = _K_FLOW = _K_TIME = _K_SAMPLES = True
+# True in a 2-D scene's kernel (`two_d_eligible`): the step integrates x and y only (z stays 0:
+# v_z = f_z = 0 at the chunk's start and enforce2d zeroes them every step, so z's updates are the
+# identity); False here: all three dimensions
+_K_2D = False
 # The chunk kernel's arguments read only by the code of one of those features: a scene kernel
 # without it gets None in their place (`SceneKernel`), so its compiled entry point neither unboxes
 # them nor holds them (fewer arguments to convert and release: a shorter first compile)
@@ -1216,7 +1220,7 @@ if njit is not None:
         if _K_REFLECT:
             for k in range(rf_meta.shape[0]):
                 early = early and box[2, rf_meta[k, 0]] == 0.0
-        for d in range(3):  # initial_integrate: v += dtfm f; x += dt v (then wrap, f = 0)
+        for d in range(2 if _K_2D else 3):  # initial_integrate: v += dtfm f; x += dt v (then wrap, f = 0)
             if early and box[2, d] != 0.0:
                 lod = box[0, d]
                 hid = box[1, d]
@@ -1240,7 +1244,7 @@ if njit is not None:
                               vw[row, k], stats, row, k, X, V, M, groups, rstat, ftm2v, u0, u1)
         if _K_STOCHASTIC and st[0].shape[0]:  # wall/reflect/stochastic (post_integrate, after the wall/reflect fixes: `eligible`)
             _stochastic_faces(c, u0, u1, X, V, M, groups, st, ftm2v, mvv2e)
-        for d in range(3):  # periodic wrap (when not done with the drift)
+        for d in range(2 if _K_2D else 3):  # periodic wrap (when not done with the drift)
             if box[2, d] != 0.0 and not early:
                 lod = box[0, d]
                 hid = box[1, d]
@@ -1281,7 +1285,7 @@ if njit is not None:
         if _K_DTR and due:  # (dtr_par is None in a kernel without dt/reset: `SceneKernel`)
             xmax, emax, tmax = dtr_par[c, 0], dtr_par[c, 1], dtr_par[c, 3]
         if not _K_DTR or not due or tmax != tmax:
-            for d in range(3):  # final_integrate: v += dtfm f
+            for d in range(2 if _K_2D else 3):  # final_integrate: v += dtfm f (2-D: z stays 0)
                 for i in range(u0, u1):
                     V[d, i] = V[d, i] + DTFM[i] * F[d, i]
             if not _K_DTR or not due:
@@ -1834,18 +1838,20 @@ if njit is not None:
     def kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
                    extra: tuple[str, ...] = (), parallel: bool = False, fixes: bool = True, dtr: bool = True,
                    tables: bool = False, stochastic: bool = False, reflect: bool = True, time: bool = True,
-                   sampled: bool = True) -> Any:
+                   sampled: bool = True, two_d: bool = False) -> Any:
         """The chunk kernel of one kind of scene (`_kernel_for`), one per specialisation and process;
         False leaves that code out: `fixes` (`fixes:`), `dtr` (fix dt/reset), `reflect`
         (wall/reflect), `time` (time-based runs, `FastPath.advance_to_time`), `sampled` (samples
-        recorded in the kernel, `FastPath.advance_sampled`)."""
+        recorded in the kernel, `FastPath.advance_sampled`); `two_d`: the step integrates x and y
+        only (`two_d_eligible`)."""
         return _kernel_for(*_scene_args(soft, region, flow, extra, tables, stochastic), bool(parallel), bool(fixes),
-                           bool(dtr), bool(reflect), bool(time), bool(sampled))
+                           bool(dtr), bool(reflect), bool(time), bool(sampled), bool(two_d))
 
     @functools.lru_cache(maxsize=64)
     def _kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
                     extra: tuple[str, ...], tables: bool, stochastic: bool, parallel: bool, fixes: bool = True,
-                    dtr: bool = True, reflect: bool = True, time: bool = True, sampled: bool = True) -> Any:
+                    dtr: bool = True, reflect: bool = True, time: bool = True, sampled: bool = True,
+                    two_d: bool = False) -> Any:
         """The chunk kernel of one kind of scene (`pieces_for`; `parallel`: compiled with numba
         parallel=True, reserved for a two-thread variant, not used by the engine yet): this
         module's chunk kernel re-linked to the scene's block and flow steps and to its
@@ -1855,7 +1861,8 @@ if njit is not None:
         p = _pieces_for(soft, region, flow, extra, tables, stochastic)
         flags = {"_K_REFLECT": reflect, "_K_STOCHASTIC": stochastic, "_K_TABLES": tables,
                  "_K_VECTOR": any(src.startswith(VECTOR_MARK) for src in extra), "_K_REGION": bool(region),
-                 "_K_FIXES": fixes, "_K_DTR": dtr, "_K_FLOW": flow, "_K_TIME": time, "_K_SAMPLES": sampled}
+                 "_K_FIXES": fixes, "_K_DTR": dtr, "_K_FLOW": flow, "_K_TIME": time, "_K_SAMPLES": sampled,
+                 "_K_2D": two_d}
         fp = _fingerprint(tuple(sorted(set(soft) | set(region))), flow, parallel,
                           p.source + "\n# " + ", ".join(f"{k} {v}" for k, v in flags.items()))
         gone: dict[str, Any] = {}
@@ -2221,6 +2228,31 @@ def eligible(plan: ChunkPlan) -> bool:
 def _thermostats(ensemble: Any) -> bool:
     """True when the batch has a fix that couples its atoms every step (not only enforce2d)."""
     return ensemble is not None and any(f.style in FIX_KINDS and f.style != "enforce2d" for f in ensemble.fixes)
+
+
+def two_d_eligible(plan: ChunkPlan) -> bool:
+    """Whether the chunk's kernel may integrate x and y only (`_K_2D`) and give the bits of the
+    three-dimensional step: a 2-D scene with fix enforce2d on every atom (it zeroes f_z and v_z
+    after the forces, every step), nothing that draws z velocities (wall/flow,
+    wall/reflect/stochastic) or reflects along z, and now v_z = f_z = +0.0 for every atom (as
+    enforce2d's setup leaves them), no z = -0.0 and z inside a periodic box: the step's updates
+    of z are then the identity, bit for bit."""
+    ens = plan.ensemble
+    if ens is None or ens.dimension != 2 or not any(f.all for f in ens.enforce2d):
+        return False
+    if plan.flow or _stochastic_kernel(plan) is not None:
+        return False
+    if any(face.dim == 2 for w in _plain_reflect(plan) for face in w.faces):
+        return False
+    s = plan.state
+    vz, fz, xz = s.v[..., 2], s.f[..., 2], s.x[..., 2]
+    if np.any(vz != 0.0) or np.any(fz != 0.0) or np.any(np.signbit(vz)) or np.any(np.signbit(fz)):
+        return False
+    if np.any((xz == 0.0) & np.signbit(xz)):
+        return False
+    if 2 in s.periodic and (np.any(xz < s.box_lo[2]) or np.any(xz >= s.box_hi[2])):
+        return False
+    return True
 
 
 def fixes_eligible(plan: ChunkPlan) -> bool:
@@ -2622,7 +2654,7 @@ class FastPath:
                             tables=bool(np.any(sf_meta[:, 0] == TABLE_STYLE)), stochastic=sk is not None,
                             reflect=bool(rf_meta.shape[0]), time=time_mode,
                             # one kernel for both ways of sampling (a second would be a second compile)
-                            sampled=sampled_eligible(plan))
+                            sampled=sampled_eligible(plan), two_d=two_d_eligible(plan))
         self.kernel = kernel  # the last chunk's kernel (tests read its cache statistics)
         self.kernel_names.add(kernel.py_func.__qualname__)
         if not kernel.signatures:
