@@ -313,7 +313,9 @@ if njit is not None:
     _SCENE = {**_INNER, "no_cpython_wrapper": True}
     jit = njit(cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True)
     # called from compiled code only: no CPython wrapper either (the fixes' take the 14-tuple fx,
-    # whose wrapper alone costs a good part of a second to compile)
+    # whose wrapper alone costs a good part of a second to compile); numba gives such a function
+    # no Python entry point, and calling it from Python crashes the process: tests call them
+    # through a jitted caller
     jit_inner = njit(cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True, no_cpython_wrapper=True)
     inline = njit(cache=True, nogil=True, error_model="numpy", inline="always")  # inlined in numba IR
 
@@ -391,7 +393,8 @@ if njit is not None:
     # for Python callers (tests): each with numba's CPython entry point
     FORCES, MODE_FORCES, MODE_ENERGIES, _ = _style_functions(_INNER)
     # what the scene kernels link in: the same functions without a CPython entry point (each costs
-    # a compile of its own, ~0.04 s), named apart from the ones above
+    # a compile of its own, ~0.04 s; from compiled code only, see `jit_inner`), named apart from
+    # the ones above
     _K_MODE_FORCES, _K_MODE_ENERGIES, _switch = _style_functions(_SCENE, "_k")[1:]
     _dt_candidate = njit(nogil=True, error_model="numpy", inline="always")(dt_candidate)
 
