@@ -265,3 +265,35 @@ def test_trouble_in_one_thread_falls_back_and_fails_as_numpy(monkeypatch):
     assert threads.splits["cases"] > before and eng.fast.fallbacks > 0
     assert [r.status for r in got] == ["ok", "ok", "ok", "failed"] and "behind the wall" in got[3].error
     assert_same(ref, got)
+
+
+# ----------------------------------------------------------------------------- call length
+
+
+@pytest.mark.parametrize("in_kernel", [True, False])
+def test_long_chunks_take_several_kernel_calls_with_the_same_bits(monkeypatch, in_kernel):
+    """A chunk longer than CALL_WORK atom-steps (samples recorded in the kernel, or one chunk per
+    sample) runs as several kernel calls, so a Ctrl-C between them stops the run soon; the
+    results are those of one call per chunk, bit for bit (here with fix nvt and two cases)."""
+    from wallbatch.engine import threads
+
+    configs = [gas({"b": "fix b all nvt temp 1.0 1.3 0.1"}, n=40, steps=600, thermo=200, seed=seed)
+               for seed in (5, 6)]
+    cases = [build_case(config_from_dict(d)) for d in configs]
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    if not in_kernel:
+        monkeypatch.setattr(fast.FastPath, "samples_in_kernel", lambda self, at: False)
+    calls = []
+    real = threads.run_kernel
+    monkeypatch.setattr(threads, "run_kernel", lambda *a, **k: (calls.append(a[1][0]), real(*a, **k))[1])
+    whole = Engine(cases).run()
+    n_whole, steps_whole = len(calls), max(calls)
+    calls.clear()
+    monkeypatch.setattr(fast, "CALL_WORK", 2 * 40 * 7)  # 7 steps of the two cases per call
+    split = Engine(cases).run()
+    if in_kernel:  # one call for the three samples; then one per sample (a call runs one at least)
+        assert (n_whole, steps_whole) == (1, 600) and calls == [200, 200, 200]
+    else:  # one call per sample's chunk; then calls of 7 steps
+        assert (n_whole, steps_whole) == (3, 200) and max(calls) == 7 and len(calls) >= 3 * (200 // 7)
+    assert_same(whole, split)
+    assert whole[0].data["temp"][-1] != whole[1].data["temp"][-1]  # two cases, real numbers

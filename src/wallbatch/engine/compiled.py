@@ -118,6 +118,10 @@ COMPILE_SECONDS = 5  # typical compile of one scene kernel on a 2-core machine (
 COMPILE_SECONDS_FIXES = 12  # the same with thermostats or dt/reset in the kernel (fix nvt: measured 11-12 s CPU, others up to ~14 s)
 VALUE_BUDGET = 4_000_000  # per-step wall values held at once (doubles); longer chunks are split
 SAMPLE_BUDGET = 4_000_000  # sample outputs of a sampled chunk held at once (doubles): fewer samples per call
+# atom-steps of one kernel call (~0.1 s of a flat-wall scene): a longer chunk or run of samples takes
+# several calls, so a Ctrl-C (handled between calls: a kernel call does not return to Python
+# before its end) stops the run within about that long; the results do not depend on the split
+CALL_WORK = 10_000_000
 MAX_CHAIN = 10  # the longest Nose-Hoover chain counted in that budget (longer ones only take more memory)
 # fixes of `fixes:` in the kernel (fx_meta's kind column); nve is the kernel's own integrator
 FIX_LANGEVIN, FIX_NVT, FIX_BERENDSEN, FIX_RESCALE, FIX_ENFORCE2D = 0, 1, 2, 3, 4
@@ -2457,6 +2461,11 @@ class FastPath:
         return max(1, VALUE_BUDGET // per_step)
 
     @staticmethod
+    def call_steps(plan: ChunkPlan) -> int:
+        """The most steps one kernel call runs: CALL_WORK atom-steps over the batch's cases."""
+        return max(1, CALL_WORK // max(1, plan.state.ncases * plan.state.x.shape[1]))
+
+    @staticmethod
     def sample_steps(plan: ChunkPlan, extra: int = 0) -> int:
         """The most samples a sampled chunk records within SAMPLE_BUDGET doubles (its sample arrays,
         (C, S, ...): sum m v^2, clock and flow redraws, each region's and soft face's outputs, each
@@ -2540,6 +2549,7 @@ class FastPath:
         at = np.asarray(at, np.int64)
         plan = self.plan_source()
         at = at[:self.sample_steps(plan)]  # the sample arrays within SAMPLE_BUDGET: fewer samples per call
+        at = at[at <= max(int(at[0]), self.call_steps(plan))]  # and the call within CALL_WORK (one sample at least)
         trouble = False
         while True:
             self._sampled_count = at.size
@@ -2555,6 +2565,20 @@ class FastPath:
             # trouble after some samples (of the case that met it; the cases before it ran them all):
             # run to the last sample before it in the kernel, the step with trouble then in NumPy
             at = at[:self._sampled_progress]
+
+    def _split(self, nsteps: int, sample: bool, most: int) -> bool:
+        """nsteps steps as chunks of at most `most` (the sample, if asked, after the last); a
+        chunk handed back to NumPy: the rest in NumPy. False if the first one was."""
+        done = 0
+        while done < nsteps:
+            n = min(most, nsteps - done)
+            if not self._chunk(n, sample and done + n == nsteps, None):
+                if done == 0:
+                    return False
+                self.plan_source().advance_numpy(nsteps - done, sample)  # the rest in NumPy
+                return True
+            done += n
+        return True
 
     def _chunk(self, nsteps: int, sample: bool, target: float | None, at: np.ndarray | None = None) -> bool:
         plan = self.plan_source()
@@ -2572,6 +2596,8 @@ class FastPath:
             return False  # the thermostats' ramp follows the time, which the kernel does not give them
         if not time_mode and nsteps <= 0:
             return False
+        if not time_mode and at is None and nsteps > self.call_steps(plan):  # within CALL_WORK per call
+            return self._split(nsteps, sample, self.call_steps(plan))
         varying = self._uses_time(plan)
         if varying and (plan.dt_reset is not None or time_mode):
             return False  # per-step values depend on a dt that changes inside the chunk
@@ -2584,16 +2610,7 @@ class FastPath:
                 nsteps = int(at[-1])
                 self._sampled_count = at.size
             if nsteps > most:  # split a long chunk: the values of fewer steps at a time
-                done = 0
-                while done < nsteps:
-                    n = min(most, nsteps - done)
-                    if not self._chunk(n, sample and done + n == nsteps, None):
-                        if done == 0:
-                            return False
-                        self.plan_source().advance_numpy(nsteps - done, sample)  # the rest in NumPy
-                        return True
-                    done += n
-                return True
+                return self._split(nsteps, sample, most)
         values = self._values(plan, nsteps if varying else 1, varying)
         if values is None:
             self.fallbacks += 1
