@@ -2252,10 +2252,11 @@ def two_d_eligible(plan: ChunkPlan) -> bool:
     if any(face.dim == 2 for w in _plain_reflect(plan) for face in w.faces):
         return False
     s = plan.state
-    vz, fz, xz = s.v[..., 2], s.f[..., 2], s.x[..., 2]
-    if np.any(vz != 0.0) or np.any(fz != 0.0) or np.any(np.signbit(vz)) or np.any(np.signbit(fz)):
+    xz = s.x[..., 2]
+    # +0.0 is the one double whose bits are all 0; -0.0 the one with only the sign bit
+    if np.any(s.v[..., 2].view(np.int64)) or np.any(s.f[..., 2].view(np.int64)):
         return False
-    if np.any((xz == 0.0) & np.signbit(xz)):
+    if np.any(xz.view(np.int64) == np.iinfo(np.int64).min):
         return False
     if 2 in s.periodic and (np.any(xz < s.box_lo[2]) or np.any(xz >= s.box_hi[2])):
         return False
@@ -2596,8 +2597,9 @@ class FastPath:
             return False  # the thermostats' ramp follows the time, which the kernel does not give them
         if not time_mode and nsteps <= 0:
             return False
-        if not time_mode and at is None and nsteps > self.call_steps(plan):  # within CALL_WORK per call
-            return self._split(nsteps, sample, self.call_steps(plan))
+        most = self.call_steps(plan)
+        if not time_mode and at is None and nsteps > most:  # within CALL_WORK per call
+            return self._split(nsteps, sample, most)
         varying = self._uses_time(plan)
         if varying and (plan.dt_reset is not None or time_mode):
             return False  # per-step values depend on a dt that changes inside the chunk
