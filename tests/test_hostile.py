@@ -385,7 +385,10 @@ def test_concurrent_runs_on_one_output(tmp_path):
     (tmp_path / "scene.yaml").write_text(SCENE.replace("steps: 40, thermo: 20", "steps: 200000000, thermo: 20000"))
     out = tmp_path / "r.nc"
     cmd = [sys.executable, "-m", "wallbatch.cli", "run", "scene.yaml", "-o", str(out), "-j", "1"]
-    first = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # Ctrl-C as in a terminal: a test run started in the background (`cmd &` without job control)
+    # ignores SIGINT, which its children inherit (as tests/batch/test_interrupt.py's runs)
+    first = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         lock = tmp_path / "r.nc.lock"
         for _ in range(1200):
