@@ -378,3 +378,57 @@ def test_threads_over_the_atoms_of_one_case_give_the_bits_of_one_thread(monkeypa
     assert np.ptp(two[0].data["erot"]) > 1e-5
     ref, _, _ = check(monkeypatch, [d])  # the NumPy path: to 1e-14
     assert_same(ref, two)
+
+
+@pytest.mark.parametrize("in_kernel", [True, False])
+def test_long_chunks_take_several_kernel_calls_with_the_same_bits(monkeypatch, in_kernel):
+    """A chunk longer than its share of compiled.CALL_WORK (an atom-step counted ASPHERE_STEP_COST
+    times) runs as several kernel calls, so a Ctrl-C between them stops the run soon: the
+    trajectory and every output are those of one call per chunk, bit for bit."""
+    from wallbatch.engine import compiled
+
+    configs = [slit(n=20, eps=2.0, seed=7, steps=120, thermo=40), slit(n=20, eps=0.7, seed=8, steps=120, thermo=40)]
+    cases = [build_case(config_from_dict(d)) for d in configs]
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    if not in_kernel:
+        monkeypatch.setattr(ac, "sampled_eligible", lambda plan: False)
+    calls = []
+    real = AspherePath._chunk
+    monkeypatch.setattr(AspherePath, "_chunk", lambda self, at, *a: (calls.append(int(at[-1])), real(self, at, *a))[1])
+    whole = Engine(cases)
+    got_whole = whole.run()
+    assert calls == ([120] if in_kernel else [40, 40, 40]) and whole.fast.fallbacks == 0
+    calls.clear()
+    monkeypatch.setattr(compiled, "CALL_WORK", compiled.ASPHERE_STEP_COST * 2 * 20 * 7)  # 7 steps a call
+    split = Engine(cases)
+    got_split = split.run()
+    # calls of 7 steps at most; with samples in the kernel, a sample's call runs the last 7 steps
+    # before it, the steps before those go first in calls of their own (Engine.run: `lead_steps`)
+    assert calls == (([7] * 4 + [5, 7]) if in_kernel else ([7] * 5 + [5])) * 3
+    assert split.fast.sampled_calls == (3 if in_kernel else 0)
+    for name in ("x", "v", "f", "quat", "angmom", "torque"):
+        np.testing.assert_array_equal(getattr(split.state, name), getattr(whole.state, name), err_msg=name)
+    for a, b in zip(got_split, got_whole):
+        for name in a.data:
+            np.testing.assert_array_equal(a.data[name], b.data[name], err_msg=name)
+    assert np.ptp(got_whole[0].data["erot"]) > 1e-4 and got_whole[0].data["pe"][-1] != got_whole[1].data["pe"][-1]
+
+
+def test_trouble_in_a_later_call_of_a_chunk_fails_as_numpy(monkeypatch):
+    """The rod driven into a weak wall with calls of 7 steps: the calls before the trouble stay,
+    the rest of the chunk runs in NumPy, which fails the case with its message, as the NumPy
+    engine does; the other case runs to the end."""
+    from wallbatch.engine import compiled
+
+    monkeypatch.setattr(compiled, "CALL_WORK", compiled.ASPHERE_STEP_COST * 2 * 21 * 7)
+    fast_rod = slit(n=20, eps=0.05, steps=400, thermo=100)
+    fast_rod["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 4.0]]}, **ROD,
+                              "velocity": {"values": [[0.0, 0.0, -30.0]]}})
+    calm = slit(n=20, eps=0.05, steps=400, thermo=100, seed=8)
+    calm["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 4.0]]}, **ROD,
+                          "velocity": {"values": [[0.0, 0.0, 0.1]]}})
+    monkeypatch.setattr(ac, "sampled_eligible", lambda plan: False)
+    ref, got, eng = check(monkeypatch, [fast_rod, calm])
+    assert [r.status for r in got] == ["failed", "ok"]
+    assert "Particle on or inside fix wall surface" in got[0].error and got[0].error == ref[0].error
+    assert eng.fast.fallbacks >= 1 and eng.fast.compiled_chunks >= 3

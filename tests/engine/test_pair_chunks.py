@@ -566,3 +566,44 @@ def test_time_based_run_with_a_ramped_thermostat_stays_stepwise(monkeypatch):
     assert_bits(got, ref)
     assert fused.fast.compiled_chunks == 0
     assert got[0].data["temp"][-1] < 1.7  # cooled along the ramp (from 2 towards 1.5 .. 1.0)
+
+
+@pytest.mark.parametrize("in_kernel", [True, False])
+@pytest.mark.parametrize("scene", ["slit", "flow"])
+def test_long_chunks_take_several_kernel_calls_with_the_same_bits(monkeypatch, scene, in_kernel):
+    """A chunk longer than its share of compiled.CALL_WORK (an atom-step counted PAIR_STEP_COST
+    times) runs as several kernel calls, so a Ctrl-C between them stops the run soon. Each call
+    hands the list, its reference positions and the flow walls' state to the next: the results
+    and the list builds are those of one call per chunk, bit for bit."""
+    from wallbatch.engine import compiled
+
+    configs = {"slit": [slit(1.0), slit(1.3)], "flow": [flow_fluid("exact")]}[scene]
+    if in_kernel:
+        configs = [every(d, thermo=d["run"]["thermo"]) for d in configs]
+    cases = cases_of(*configs)
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    if not in_kernel:
+        monkeypatch.setattr(PairChunks, "samples_in_kernel", lambda self, at: False)
+    calls = []
+    real = PairChunks._chunk
+    monkeypatch.setattr(PairChunks, "_chunk", lambda self, n, *a: (calls.append(n), real(self, n, *a))[1])
+    whole = Engine(cases)
+    got_whole = whole.run()
+    thermo, steps = configs[0]["run"]["thermo"], configs[0]["run"]["steps"]
+    # one call for all the samples, or one per sample's chunk
+    assert calls == ([steps] if in_kernel else [thermo] * (steps // thermo)) and whole.fast.fallbacks == 0
+    calls.clear()
+    natoms = whole.state.x.shape[1]
+    monkeypatch.setattr(compiled, "CALL_WORK", compiled.PAIR_STEP_COST * len(cases) * natoms * 3)  # 3 steps a call
+    split = Engine(cases)
+    got_split = split.run()
+    # calls of 3 steps at most; with samples in the kernel, a sample's call runs the last 3 steps
+    # before it, the steps before those go first in calls of their own (Engine.run: `lead_steps`)
+    def threes(n: int) -> list[int]:
+        return [3] * (n // 3) + [n % 3] * (n % 3 > 0)
+
+    assert calls == (threes(thermo - 3) + [3] if in_kernel else threes(thermo)) * (steps // thermo)
+    assert split.fast.sampled_calls == (steps // thermo if in_kernel else 0)
+    assert_bits(got_split, got_whole)
+    np.testing.assert_array_equal(split.pair.case_builds, whole.pair.case_builds)
+    assert whole.pair.case_builds.min() >= 2 and split.fast.fallbacks == 0

@@ -521,9 +521,11 @@ def sampled_eligible(plan: ChunkPlan) -> bool:
     return plan.record_samples is not None and not any(w.virial for w in plan.soft)
 
 
-class AspherePath:
+class AspherePath(_compiled.KernelPath):
     """The compiled path of one Engine with ellipsoids (see module docstring): `plan_source()`
     gives the plan of the next chunk (Engine.compiled_plan)."""
+
+    step_cost = _compiled.ASPHERE_STEP_COST
 
     def __init__(self, plan_source: Callable[[], ChunkPlan]):
         self.plan_source = plan_source
@@ -558,6 +560,12 @@ class AspherePath:
         NumPy loop do it."""
         if nsteps <= 0:
             return False
+        most = self.call_steps()
+        if nsteps > most:  # kernel calls of at most `most` steps: a Ctrl-C is seen between them
+            return _compiled.split_steps(self._steps, self.plan_source(), nsteps, sample, most)
+        return self._steps(nsteps, sample)
+
+    def _steps(self, nsteps: int, sample: bool) -> bool:
         return self._chunk(np.array([nsteps], np.int64), sample, False)
 
     def advance_sampled(self, at: np.ndarray) -> int:
@@ -571,6 +579,8 @@ class AspherePath:
         if not self.samples_in_kernel(at):
             return 0
         at = np.asarray(at, np.int64)
+        # the call within its share of CALL_WORK (one sample at least)
+        at = at[at <= max(int(at[0]), self.call_steps())]
         if self._chunk(at, True, True):
             return int(at.size)
         self._skip = int(at.size) - 1

@@ -43,7 +43,7 @@ import contextlib
 import os
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from wallbatch.config.models import Config
@@ -85,6 +85,21 @@ def use_numba() -> bool:
     if allowed and "numba" in sys.modules:
         prepare_numba()
     return allowed
+
+
+def call_kernel(kernel: Callable[..., Any], *args: Any) -> Any:
+    """`kernel(*args)`, a Ctrl-C seen during the call raised as KeyboardInterrupt. A compiled call
+    does not return to Python before its end, so the signal waits; a kernel that returns a tuple
+    holding an array then runs numba's Python helper as it boxes the array
+    (`numba.core.serialize._numba_unpickle`), which raises the pending KeyboardInterrupt, and numba
+    reports that as a SystemError caused by it (the pair chunks' kernel: a Ctrl-C failed the case
+    as an internal error instead of interrupting the run)."""
+    try:
+        return kernel(*args)
+    except SystemError as err:
+        if isinstance(err.__cause__, KeyboardInterrupt):
+            raise KeyboardInterrupt from None
+        raise
 
 
 def numba_prepared() -> bool:

@@ -122,6 +122,10 @@ SAMPLE_BUDGET = 4_000_000  # sample outputs of a sampled chunk held at once (dou
 # several calls, so a Ctrl-C (handled between calls: a kernel call does not return to Python
 # before its end) stops the run within about that long; the results do not depend on the split
 CALL_WORK = 10_000_000
+# what one atom-step of the pair and the ellipsoid kernels costs in flat-wall atom-steps (measured:
+# ~4.6 ns flat, ~95 ns ellipsoids between ees walls, ~285 ns an LJ fluid at density 0.6)
+PAIR_STEP_COST = 25
+ASPHERE_STEP_COST = 10
 MAX_CHAIN = 10  # the longest Nose-Hoover chain counted in that budget (longer ones only take more memory)
 # fixes of `fixes:` in the kernel (fx_meta's kind column); nve is the kernel's own integrator
 FIX_LANGEVIN, FIX_NVT, FIX_BERENDSEN, FIX_RESCALE, FIX_ENFORCE2D = 0, 1, 2, 3, 4
@@ -2385,7 +2389,33 @@ def announce_compile(kernel: Any, seconds: float = COMPILE_SECONDS) -> None:
           flush=True)
 
 
-class FastPath:
+class KernelPath:
+    """What the compiled paths of an Engine share (FastPath, pair_compiled.PairChunks,
+    asphere_compiled.AspherePath): the length of one kernel call, and the steps run before a
+    run of samples recorded in the kernel."""
+
+    step_cost = 1  # one atom-step of this path's kernel, in flat-wall atom-steps (CALL_WORK)
+    plan_source: Callable[[], ChunkPlan]
+
+    def call_steps(self) -> int:
+        """The most steps one kernel call runs (`call_steps` of the current plan)."""
+        return call_steps(self.plan_source(), self.step_cost)
+
+    def samples_in_kernel(self, at: np.ndarray) -> bool:
+        raise NotImplementedError
+
+    def lead_steps(self, at: np.ndarray) -> int:
+        """Steps Engine.run runs first, without a sample (Engine.advance: calls of at most
+        `call_steps` steps), before the samples `at` (steps from now, increasing) go to
+        `advance_sampled`: the first sample's steps beyond one call, so that a far sample (a run
+        sampled at its end only) is not one long call. The bits are those of one call."""
+        at = np.asarray(at, np.int64)
+        if at.size == 0 or not self.samples_in_kernel(at):
+            return 0
+        return max(0, int(at[0]) - self.call_steps())
+
+
+class FastPath(KernelPath):
     """The compiled path of one Engine (see module docstring): `plan_source()` gives the plan of
     the next chunk."""
 
@@ -2460,11 +2490,6 @@ class FastPath:
         step and case) a chunk holds within VALUE_BUDGET; longer chunks are split."""
         per_step = 6 * max(1, sum(len(w.faces) for w in plan.soft + plan.reflect)) * max(1, plan.state.ncases)
         return max(1, VALUE_BUDGET // per_step)
-
-    @staticmethod
-    def call_steps(plan: ChunkPlan) -> int:
-        """The most steps one kernel call runs: CALL_WORK atom-steps over the batch's cases."""
-        return max(1, CALL_WORK // max(1, plan.state.ncases * plan.state.x.shape[1]))
 
     @staticmethod
     def sample_steps(plan: ChunkPlan, extra: int = 0) -> int:
@@ -2550,7 +2575,7 @@ class FastPath:
         at = np.asarray(at, np.int64)
         plan = self.plan_source()
         at = at[:self.sample_steps(plan)]  # the sample arrays within SAMPLE_BUDGET: fewer samples per call
-        at = at[at <= max(int(at[0]), self.call_steps(plan))]  # and the call within CALL_WORK (one sample at least)
+        at = at[at <= max(int(at[0]), self.call_steps())]  # and the call within CALL_WORK (one sample at least)
         trouble = False
         while True:
             self._sampled_count = at.size
@@ -2567,19 +2592,8 @@ class FastPath:
             # run to the last sample before it in the kernel, the step with trouble then in NumPy
             at = at[:self._sampled_progress]
 
-    def _split(self, nsteps: int, sample: bool, most: int) -> bool:
-        """nsteps steps as chunks of at most `most` (the sample, if asked, after the last); a
-        chunk handed back to NumPy: the rest in NumPy. False if the first one was."""
-        done = 0
-        while done < nsteps:
-            n = min(most, nsteps - done)
-            if not self._chunk(n, sample and done + n == nsteps, None):
-                if done == 0:
-                    return False
-                self.plan_source().advance_numpy(nsteps - done, sample)  # the rest in NumPy
-                return True
-            done += n
-        return True
+    def _step_chunk(self, nsteps: int, sample: bool) -> bool:
+        return self._chunk(nsteps, sample, None)
 
     def _chunk(self, nsteps: int, sample: bool, target: float | None, at: np.ndarray | None = None) -> bool:
         plan = self.plan_source()
@@ -2597,9 +2611,9 @@ class FastPath:
             return False  # the thermostats' ramp follows the time, which the kernel does not give them
         if not time_mode and nsteps <= 0:
             return False
-        most = self.call_steps(plan)
+        most = call_steps(plan)
         if not time_mode and at is None and nsteps > most:  # within CALL_WORK per call
-            return self._split(nsteps, sample, most)
+            return split_steps(self._step_chunk, plan, nsteps, sample, most)
         varying = self._uses_time(plan)
         if varying and (plan.dt_reset is not None or time_mode):
             return False  # per-step values depend on a dt that changes inside the chunk
@@ -2612,7 +2626,7 @@ class FastPath:
                 nsteps = int(at[-1])
                 self._sampled_count = at.size
             if nsteps > most:  # split a long chunk: the values of fewer steps at a time
-                return self._split(nsteps, sample, most)
+                return split_steps(self._step_chunk, plan, nsteps, sample, most)
         values = self._values(plan, nsteps if varying else 1, varying)
         if values is None:
             self.fallbacks += 1
@@ -2889,6 +2903,29 @@ def _generated_energy(style: WallStyle) -> bool:
     """A face whose generated force comes with its generated energy (`_generated_force`)."""
     src = _generated_force(style)
     return src is not None and "\ndef energy(" in src
+
+
+def call_steps(plan: ChunkPlan, cost: int = 1) -> int:
+    """The most steps one kernel call runs: CALL_WORK atom-steps over the batch's cases, each
+    atom-step counted `cost` times (PAIR_STEP_COST, ASPHERE_STEP_COST)."""
+    return max(1, CALL_WORK // max(1, cost * plan.state.ncases * plan.state.x.shape[1]))
+
+
+def split_steps(chunk: Callable[[int, bool], bool], plan: ChunkPlan, nsteps: int, sample: bool, most: int) -> bool:
+    """nsteps steps as kernel calls `chunk(n, sample)` of at most `most` steps each (the sample, if
+    asked, after the last), so a Ctrl-C is seen between them; a call handed back to NumPy: the
+    rest in NumPy (plan.advance_numpy). False (nothing done) if the first one was. The calls
+    leave their whole state to the next, so the bits are those of one call."""
+    done = 0
+    while done < nsteps:
+        n = min(most, nsteps - done)
+        if not chunk(n, sample and done + n == nsteps):
+            if done == 0:
+                return False
+            plan.advance_numpy(nsteps - done, sample)  # the rest in NumPy
+            return True
+        done += n
+    return True
 
 
 def finish_chunk(plan: ChunkPlan, s: BatchState, sample: bool, keep: tuple[str, ...] = ("f",)) -> None:

@@ -549,7 +549,14 @@ class Engine:
                     sampled = getattr(self.fast, "advance_sampled", None)
                     ran = 0
                     if j > i and sampled is not None and self.state.ncases:
-                        ran = sampled(np.array(instants[i:j], np.int64) - done)
+                        # a far first sample: the steps before its last kernel call first, in calls
+                        # of their own (a Ctrl-C is seen between calls)
+                        lead = self.fast.lead_steps(np.array(instants[i:j], np.int64) - done)
+                        if lead:
+                            self.advance(lead, sample=False)
+                            done += lead
+                        if self.state.ncases:
+                            ran = sampled(np.array(instants[i:j], np.int64) - done)
                     if ran:
                         done = instants[i + ran - 1]
                         i += ran

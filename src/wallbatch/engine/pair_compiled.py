@@ -1364,7 +1364,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
                 fpair[r] = f[r]
         if t is not None:
             t.update(neigh=neigh, sf_val=sf_val[step:step + 1] if vary else sf_val)
-            st = kernel(*t.values())[0]
+            st = backend.call_kernel(kernel, *t.values())[0]  # (a Ctrl-C: KeyboardInterrupt)
             if st != 0:
                 return st, 0
         return 0, (pre(runs[p]) if step + 1 < nsteps and len(tails) == parts else 0)
@@ -1476,7 +1476,7 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     return not any(w.style.needs_radius and not w._radius_checked for w in plan.region)
 
 
-class PairChunks:
+class PairChunks(_compiled.KernelPath):
     """Engine.advance for pair scenes: each case's chunk of steps in one `pair_chunk` call, on
     copies of its state that replace it when every case of the batch finished the chunk cleanly.
     Anything the kernel meets (an atom on/behind a wall, a lost atom, a non-finite value) hands the
@@ -1485,6 +1485,8 @@ class PairChunks:
     the final positions (as compiled.FastPath), or, for a case on one thread, all the samples of a
     run of them are recorded in the kernel (`advance_sampled`). Time-based runs: the steps before
     each landing step in one chunk (`advance_to_time`)."""
+
+    step_cost = _compiled.PAIR_STEP_COST
 
     def __init__(self, plan_source: Callable[[], "_compiled.ChunkPlan"], pair: Any):
         self.plan_source = plan_source
@@ -1535,11 +1537,15 @@ class PairChunks:
         if _compiled.FastPath._uses_time(plan):  # per-step wall values: at most the steps `_chunk` takes
             k = min(k, _compiled.FastPath.value_steps(plan))
         if k > 0:
-            self._chunk(k, False)  # (trouble: nothing done, the NumPy loop meets it)
+            self.advance(k, False)  # (trouble: nothing done, the NumPy loop meets it)
         return False
 
     def advance(self, nsteps: int, sample: bool) -> bool:
-        """Run nsteps steps (and the sample of the last one); False: let the NumPy loop do it."""
+        """Run nsteps steps (and the sample of the last one), as kernel calls of at most
+        `call_steps` steps (a Ctrl-C is seen between them); False: let the NumPy loop do it."""
+        most = self.call_steps()
+        if nsteps > most:
+            return _compiled.split_steps(self._chunk, self.plan_source(), nsteps, sample, most)
         return self._chunk(nsteps, sample)
 
     def samples_in_kernel(self, at: np.ndarray) -> bool:
@@ -1567,6 +1573,8 @@ class PairChunks:
         at = np.asarray(at, np.int64)
         plan = self.plan_source()
         at = at[:_compiled.FastPath.sample_steps(plan, extra=2)]  # (+ the pair's energy and virial)
+        # the call within its share of CALL_WORK (one sample at least)
+        at = at[at <= max(int(at[0]), self.call_steps())]
         if _compiled.FastPath._uses_time(plan):  # per-step wall values: the steps `_chunk` takes
             at = at[at <= _compiled.FastPath.value_steps(plan)]
             if at.size == 0:
@@ -1697,7 +1705,7 @@ class PairChunks:
                 if wall > BUSY_MIN_WALL and cpu < THREAD_MIN_USE * parts * wall:
                     self.busy_skip = BUSY_SKIP
             else:
-                status, builds, neigh = kernel(*args)
+                status, builds, neigh = backend.call_kernel(kernel, *args)  # (a Ctrl-C: KeyboardInterrupt)
             if status != 0:
                 self._held = None
                 for r, st in zip(generators, rng_states):  # the NumPy loop re-runs the chunk with the same draws
