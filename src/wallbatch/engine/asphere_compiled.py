@@ -161,8 +161,13 @@ if njit is not None:
         nclosed = 0
         ox = _o(X + d)
         lo_side = side < 0
+        # the loops below read and write rows at constant offsets only (the position along d
+        # copied to R first, the force along d added after): the compiler then sees that no two
+        # rows overlap and vectorises them (a row offset that depends on d took ~40% longer)
+        for i in range(nb):
+            B[_o(R) + i] = B[ox + i]
         for i in range(nb):  # distance, sigma_n and the series, for every atom (branch-free)
-            xi = B[ox + i]
+            xi = B[_o(R) + i]
             r = xi - coord if lo_side else coord - xi
             a = _rotation(B[_o(Q) + i], B[_o(Q + 1) + i], B[_o(Q + 2) + i], B[_o(Q + 3) + i])
             sn = _sigma_n(a, B[_o(S) + i], B[_o(S + 1) + i], B[_o(S + 2) + i], n0, n1, n2)
@@ -195,14 +200,15 @@ if njit is not None:
             near = B[_o(NEAR) + i] != 0.0
             B[_o(E) + i] = e  # a sample's outputs (`_keep_face`)
             B[_o(W) + i] = sidef * f
-            fi = B[of_ + i]
-            B[of_ + i] = fi - sidef * f if near else fi
             ti = B[_o(T) + i]
             B[_o(T) + i] = ti + t0 if near else ti
             ti = B[_o(T + 1) + i]
             B[_o(T + 1) + i] = ti + t1 if near else ti
             ti = B[_o(T + 2) + i]
             B[_o(T + 2) + i] = ti + t2 if near else ti
+        for i in range(nb):  # F[d] -= side F of the contacts
+            fi = B[of_ + i]
+            B[of_ + i] = fi - B[_o(W) + i] if B[_o(NEAR) + i] != 0.0 else fi
         return nbad
 
     @inline
