@@ -400,6 +400,7 @@ def test_long_chunks_take_several_kernel_calls_with_the_same_bits(monkeypatch, i
     assert calls == ([120] if in_kernel else [40, 40, 40]) and whole.fast.fallbacks == 0
     calls.clear()
     monkeypatch.setattr(compiled, "CALL_WORK", compiled.ASPHERE_STEP_COST * 2 * 20 * 7)  # 7 steps a call
+    monkeypatch.setattr(AspherePath, "least_steps", 1)  # (not ASPHERE_MIN_CALL_STEPS)
     split = Engine(cases)
     got_split = split.run()
     # calls of 7 steps at most; with samples in the kernel, a sample's call runs the last 7 steps
@@ -421,6 +422,7 @@ def test_trouble_in_a_later_call_of_a_chunk_fails_as_numpy(monkeypatch):
     from wallbatch.engine import compiled
 
     monkeypatch.setattr(compiled, "CALL_WORK", compiled.ASPHERE_STEP_COST * 2 * 21 * 7)
+    monkeypatch.setattr(AspherePath, "least_steps", 1)
     fast_rod = slit(n=20, eps=0.05, steps=400, thermo=100)
     fast_rod["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 4.0]]}, **ROD,
                               "velocity": {"values": [[0.0, 0.0, -30.0]]}})

@@ -290,6 +290,7 @@ def test_long_chunks_take_several_kernel_calls_with_the_same_bits(monkeypatch, i
     n_whole, steps_whole = len(calls), max(calls)
     calls.clear()
     monkeypatch.setattr(fast, "CALL_WORK", 2 * 40 * 7)  # 7 steps of the two cases per call
+    monkeypatch.setattr(fast.FastPath, "least_steps", 1)  # (not FLAT_MIN_CALL_STEPS)
     split = Engine(cases).run()
     # one call for the three samples, or one per sample's chunk; then calls of 7 steps at most (with
     # samples in the kernel, a sample's call runs the last 7 steps before it, the steps before those
@@ -298,3 +299,30 @@ def test_long_chunks_take_several_kernel_calls_with_the_same_bits(monkeypatch, i
     assert calls == ([7] * 27 + [4, 7] if in_kernel else [7] * 28 + [4]) * 3
     assert_same(whole, split)
     assert whole[0].data["temp"][-1] != whole[1].data["temp"][-1]  # two cases, real numbers
+
+
+def test_a_call_runs_call_work_atom_steps_but_never_fewer_than_its_least_steps():
+    """call_steps: CALL_WORK atom-steps over the batch (an atom-step of the pair and the ellipsoid
+    kernels counted PAIR_STEP_COST and ASPHERE_STEP_COST times), but never fewer steps than each
+    path's least (a call copies every atom into the kernel and back: shorter calls of a large case
+    ran it 35% slower, N = 1e6 flat)."""
+    from types import SimpleNamespace
+
+    from wallbatch.engine.asphere_compiled import AspherePath
+    from wallbatch.engine.pair_compiled import PairChunks
+
+    def plan(ncases, natoms):
+        return SimpleNamespace(state=SimpleNamespace(ncases=ncases, x=np.zeros((ncases, natoms, 3))))
+
+    assert fast.call_steps(plan(2, 1000)) == fast.CALL_WORK // 2000 == 5000
+    assert fast.call_steps(plan(1, 1000), fast.PAIR_STEP_COST) == fast.CALL_WORK // (25 * 1000) == 400
+    assert fast.call_steps(plan(1, 10**6), 1, 200) == 200 and fast.call_steps(plan(1, 10**9)) == 1
+    for path, cost, least in ((fast.FastPath, 1, fast.FLAT_MIN_CALL_STEPS),
+                              (PairChunks, fast.PAIR_STEP_COST, fast.PAIR_MIN_CALL_STEPS),
+                              (AspherePath, fast.ASPHERE_STEP_COST, fast.ASPHERE_MIN_CALL_STEPS)):
+        p = SimpleNamespace(plan_source=lambda: plan(1, 10**6), step_cost=path.step_cost,
+                            least_steps=path.least_steps)
+        assert (path.step_cost, path.least_steps) == (cost, least)
+        assert fast.KernelPath.call_steps(p) == max(least, fast.CALL_WORK // (cost * 10**6))
+        p.plan_source = lambda: plan(1, 100)
+        assert fast.KernelPath.call_steps(p) == fast.CALL_WORK // (cost * 100)

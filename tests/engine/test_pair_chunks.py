@@ -595,6 +595,7 @@ def test_long_chunks_take_several_kernel_calls_with_the_same_bits(monkeypatch, s
     calls.clear()
     natoms = whole.state.x.shape[1]
     monkeypatch.setattr(compiled, "CALL_WORK", compiled.PAIR_STEP_COST * len(cases) * natoms * 3)  # 3 steps a call
+    monkeypatch.setattr(PairChunks, "least_steps", 1)  # (not PAIR_MIN_CALL_STEPS)
     split = Engine(cases)
     got_split = split.run()
     # calls of 3 steps at most; with samples in the kernel, a sample's call runs the last 3 steps

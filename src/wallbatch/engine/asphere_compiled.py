@@ -532,6 +532,7 @@ class AspherePath(_compiled.KernelPath):
     gives the plan of the next chunk (Engine.compiled_plan)."""
 
     step_cost = _compiled.ASPHERE_STEP_COST
+    least_steps = _compiled.ASPHERE_MIN_CALL_STEPS
 
     def __init__(self, plan_source: Callable[[], ChunkPlan]):
         self.plan_source = plan_source

@@ -126,6 +126,13 @@ CALL_WORK = 10_000_000
 # ~4.6 ns flat, ~95 ns ellipsoids between ees walls, ~285 ns an LJ fluid at density 0.6)
 PAIR_STEP_COST = 25
 ASPHERE_STEP_COST = 10
+# the fewest steps of a call, whatever CALL_WORK gives: each call copies every atom's state into
+# the kernel's buffers and back (measured at N = 1e6 flat: ~35 ns an atom, some 7 atom-steps; an
+# ellipsoid ~1.2 atom-steps; a pair case's copies are small beside a step), which these keep to a
+# few per cent. A large case's call is longer than ~0.1 s then (flat N = 1e6: ~1 s)
+FLAT_MIN_CALL_STEPS = 200
+ASPHERE_MIN_CALL_STEPS = 50
+PAIR_MIN_CALL_STEPS = 10
 MAX_CHAIN = 10  # the longest Nose-Hoover chain counted in that budget (longer ones only take more memory)
 # fixes of `fixes:` in the kernel (fx_meta's kind column); nve is the kernel's own integrator
 FIX_LANGEVIN, FIX_NVT, FIX_BERENDSEN, FIX_RESCALE, FIX_ENFORCE2D = 0, 1, 2, 3, 4
@@ -2395,11 +2402,12 @@ class KernelPath:
     run of samples recorded in the kernel."""
 
     step_cost = 1  # one atom-step of this path's kernel, in flat-wall atom-steps (CALL_WORK)
+    least_steps = FLAT_MIN_CALL_STEPS  # the fewest steps of a call (a call's set-up copies every atom)
     plan_source: Callable[[], ChunkPlan]
 
     def call_steps(self) -> int:
         """The most steps one kernel call runs (`call_steps` of the current plan)."""
-        return call_steps(self.plan_source(), self.step_cost)
+        return call_steps(self.plan_source(), self.step_cost, self.least_steps)
 
     def samples_in_kernel(self, at: np.ndarray) -> bool:
         raise NotImplementedError
@@ -2611,7 +2619,7 @@ class FastPath(KernelPath):
             return False  # the thermostats' ramp follows the time, which the kernel does not give them
         if not time_mode and nsteps <= 0:
             return False
-        most = call_steps(plan)
+        most = self.call_steps()
         if not time_mode and at is None and nsteps > most:  # within CALL_WORK per call
             return split_steps(self._step_chunk, plan, nsteps, sample, most)
         varying = self._uses_time(plan)
@@ -2905,10 +2913,10 @@ def _generated_energy(style: WallStyle) -> bool:
     return src is not None and "\ndef energy(" in src
 
 
-def call_steps(plan: ChunkPlan, cost: int = 1) -> int:
+def call_steps(plan: ChunkPlan, cost: int = 1, least: int = 1) -> int:
     """The most steps one kernel call runs: CALL_WORK atom-steps over the batch's cases, each
-    atom-step counted `cost` times (PAIR_STEP_COST, ASPHERE_STEP_COST)."""
-    return max(1, CALL_WORK // max(1, cost * plan.state.ncases * plan.state.x.shape[1]))
+    atom-step counted `cost` times (PAIR_STEP_COST, ASPHERE_STEP_COST), but `least` at least."""
+    return max(1, least, CALL_WORK // max(1, cost * plan.state.ncases * plan.state.x.shape[1]))
 
 
 def split_steps(chunk: Callable[[int, bool], bool], plan: ChunkPlan, nsteps: int, sample: bool, most: int) -> bool:

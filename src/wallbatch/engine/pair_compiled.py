@@ -1487,6 +1487,7 @@ class PairChunks(_compiled.KernelPath):
     each landing step in one chunk (`advance_to_time`)."""
 
     step_cost = _compiled.PAIR_STEP_COST
+    least_steps = _compiled.PAIR_MIN_CALL_STEPS
 
     def __init__(self, plan_source: Callable[[], "_compiled.ChunkPlan"], pair: Any):
         self.plan_source = plan_source
