@@ -105,16 +105,22 @@ def test_groups_and_point_atoms(monkeypatch):
     assert np.any(ref[0].data["wall_force"] != 0.0)
 
 
+def rod_into_a_weak_wall() -> list[dict]:
+    """Two cases of 20 rods and a bullet rod between weak wall/ees faces: in the first the bullet
+    is shot into the lower wall (z velocity -30), in the second it drifts (0.1)."""
+    configs = []
+    for vz, seed in ((-30.0, 7), (0.1, 8)):
+        d = slit(n=20, eps=0.05, steps=400, thermo=100, seed=seed)
+        d["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 4.0]]}, **ROD,
+                           "velocity": {"values": [[0.0, 0.0, vz]]}})
+        configs.append(d)
+    return configs
+
+
 def test_an_ellipsoid_inside_a_wall_falls_back_and_fails_as_numpy(monkeypatch):
     """A fast rod driven into a weak wall: the chunk falls back, NumPy fails the case with its
     message; the other case of the batch runs on (compiled again after the failure)."""
-    fast_rod = slit(n=20, eps=0.05, steps=400, thermo=100)
-    fast_rod["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 4.0]]}, **ROD,
-                              "velocity": {"values": [[0.0, 0.0, -30.0]]}})
-    calm = slit(n=20, eps=0.05, steps=400, thermo=100, seed=8)
-    calm["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 4.0]]}, **ROD,
-                          "velocity": {"values": [[0.0, 0.0, 0.1]]}})
-    ref, got, eng = check(monkeypatch, [fast_rod, calm])
+    ref, got, eng = check(monkeypatch, rod_into_a_weak_wall())
     assert [r.status for r in got] == ["failed", "ok"]
     assert "Particle on or inside fix wall surface" in got[0].error
     assert eng.fast.fallbacks >= 1 and eng.fast.compiled_chunks >= 1
@@ -423,14 +429,8 @@ def test_trouble_in_a_later_call_of_a_chunk_fails_as_numpy(monkeypatch):
 
     monkeypatch.setattr(compiled, "CALL_WORK", compiled.ASPHERE_STEP_COST * 2 * 21 * 7)
     monkeypatch.setattr(AspherePath, "least_steps", 1)
-    fast_rod = slit(n=20, eps=0.05, steps=400, thermo=100)
-    fast_rod["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 4.0]]}, **ROD,
-                              "velocity": {"values": [[0.0, 0.0, -30.0]]}})
-    calm = slit(n=20, eps=0.05, steps=400, thermo=100, seed=8)
-    calm["atoms"].append({"group": "bullet", "create": {"positions": [[6.0, 6.0, 4.0]]}, **ROD,
-                          "velocity": {"values": [[0.0, 0.0, 0.1]]}})
     monkeypatch.setattr(ac, "sampled_eligible", lambda plan: False)
-    ref, got, eng = check(monkeypatch, [fast_rod, calm])
+    ref, got, eng = check(monkeypatch, rod_into_a_weak_wall())
     assert [r.status for r in got] == ["failed", "ok"]
     assert "Particle on or inside fix wall surface" in got[0].error and got[0].error == ref[0].error
     assert eng.fast.fallbacks >= 1 and eng.fast.compiled_chunks >= 3
