@@ -1,7 +1,8 @@
 """Compiled chunks of steps (numba) for ellipsoid scenes: fix nve/asphere between wall/ees faces.
 
 The NumPy engine (engine.py, walls.EESWallKernel, geometry/quaternion.py) is the reference. This
-module runs its step in one compiled call per chunk (the steps between two samples), for every
+module runs its step in one compiled call per chunk (the steps between two samples; a long chunk in
+calls of `KernelPath.call_steps`), for every
 case of the batch, from the very functions the NumPy path calls (plain arithmetic on floats or
 arrays, compiled by numba for floats): `quaternion.richardson_step` (the Richardson quaternion
 update of fix nve/asphere), `quaternion.rotation_rows`, `ees.sigma_n_of`, `ees.ees_ratios`,

@@ -2,7 +2,7 @@
 
 The NumPy engine (engine.py, walls.py) is the reference; this module runs the same arithmetic,
 operation for operation and in the same order per atom, in one compiled call per chunk of steps
-(the steps between two samples), so results agree with NumPy bit for bit (morse, whose exp and
+(the steps between two samples; a long chunk in calls of `call_steps`), so results agree with NumPy bit for bit (morse, whose exp and
 expm1 come from another libm, to ~1e-15). One step of one atom is engine.Engine.step:
 
   v += dtfm f ; x += dt v ; wall/reflect ; periodic wrap ; f = 0 ; soft faces f[dim] -= side F(r) ;

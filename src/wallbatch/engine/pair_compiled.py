@@ -661,7 +661,8 @@ if njit is not None:
 
 
 # ----------------------------------------------------------------------------- fused pair chunks
-# Whole chunks of steps of a pair scene in one compiled call per case (PairChunks below): the step
+# Whole chunks of steps of a pair scene in one compiled call per case (a long chunk in several of
+# `KernelPath.call_steps` steps; PairChunks below): the step
 # of engine.Engine.step with the pair forces of `forces_case` and the wall forces of the chunk
 # kernels of engine/compiled.py (the registry's compiled functions, imported, not copied).
 
