@@ -2,10 +2,10 @@
 
 The NumPy engine (engine.py, walls.EESWallKernel, geometry/quaternion.py) is the reference. This
 module runs its step in one compiled call per chunk (the steps between two samples; a long chunk in
-calls of `KernelPath.call_steps`), for every
-case of the batch, from the very functions the NumPy path calls (plain arithmetic on floats or
-arrays, compiled by numba for floats): `quaternion.richardson_step` (the Richardson quaternion
-update of fix nve/asphere), `quaternion.rotation_rows`, `ees.sigma_n_of`, `ees.ees_ratios`,
+calls of `KernelPath.call_steps`), for every case of the batch, from the very functions the NumPy
+path calls (plain arithmetic on floats or arrays, compiled by numba for floats):
+`quaternion.richardson_step` (the Richardson quaternion update of fix nve/asphere),
+`quaternion.rotation_rows`, `ees.sigma_n_of`, `ees.ees_ratios`,
 `ees.ees_series` / `ees.ees_closed`, `ees.ees_combine` and `ees.torque_of`. Their one branch,
 `quaternion.select` (np.where), is overloaded here for scalars. One step of one atom is
 engine.Engine.step with ellipsoids:
@@ -568,10 +568,7 @@ class AspherePath(_compiled.KernelPath):
         NumPy loop do it."""
         if nsteps <= 0:
             return False
-        most = self.call_steps()
-        if nsteps > most:  # kernel calls of at most `most` steps: a Ctrl-C is seen between them
-            return _compiled.split_steps(self._steps, self.plan_source(), nsteps, sample, most)
-        return self._steps(nsteps, sample)
+        return self.in_calls(self._steps, nsteps, sample)  # (a Ctrl-C is seen between calls)
 
     def _steps(self, nsteps: int, sample: bool) -> bool:
         return self._chunk(np.array([nsteps], np.int64), sample, False)
@@ -587,8 +584,7 @@ class AspherePath(_compiled.KernelPath):
         if not self.samples_in_kernel(at):
             return 0
         at = np.asarray(at, np.int64)
-        # the call within its share of CALL_WORK (one sample at least)
-        at = at[at <= max(int(at[0]), self.call_steps())]
+        at = self.one_call(at)  # the call within its share of CALL_WORK
         if self._chunk(at, True, True):
             return int(at.size)
         self._skip = int(at.size) - 1

@@ -2,8 +2,9 @@
 
 The NumPy engine (engine.py, walls.py) is the reference; this module runs the same arithmetic,
 operation for operation and in the same order per atom, in one compiled call per chunk of steps
-(the steps between two samples; a long chunk in calls of `call_steps`), so results agree with NumPy bit for bit (morse, whose exp and
-expm1 come from another libm, to ~1e-15). One step of one atom is engine.Engine.step:
+(the steps between two samples; a long chunk in calls of `call_steps`), so results agree with
+NumPy bit for bit (morse, whose exp and expm1 come from another libm, to ~1e-15). One step of one
+atom is engine.Engine.step:
 
   v += dtfm f ; x += dt v ; wall/reflect ; periodic wrap ; f = 0 ; soft faces f[dim] -= side F(r) ;
   lost-atom test ; v += dtfm f ; (fix dt/reset: the atom's largest dt)
@@ -2410,6 +2411,19 @@ class KernelPath:
         """The most steps one kernel call runs (`call_steps` of the current plan)."""
         return call_steps(self.plan_source(), self.step_cost, self.least_steps)
 
+    def in_calls(self, chunk: Callable[[int, bool], bool], nsteps: int, sample: bool) -> bool:
+        """`chunk(nsteps, sample)` (a kernel call of this path), or, for more than `call_steps`
+        steps, several of them (`split_steps`)."""
+        most = self.call_steps()
+        if nsteps > most:
+            return split_steps(chunk, self.plan_source(), nsteps, sample, most)
+        return chunk(nsteps, sample)
+
+    def one_call(self, at: np.ndarray) -> np.ndarray:
+        """The samples `at` (steps from now, increasing) that one kernel call records: those
+        within `call_steps` steps, the first one at least."""
+        return at[at <= max(int(at[0]), self.call_steps())]
+
     def samples_in_kernel(self, at: np.ndarray) -> bool:
         raise NotImplementedError
 
@@ -2584,7 +2598,7 @@ class FastPath(KernelPath):
         at = np.asarray(at, np.int64)
         plan = self.plan_source()
         at = at[:self.sample_steps(plan)]  # the sample arrays within SAMPLE_BUDGET: fewer samples per call
-        at = at[at <= max(int(at[0]), self.call_steps())]  # and the call within CALL_WORK (one sample at least)
+        at = self.one_call(at)  # and the call within CALL_WORK
         trouble = False
         while True:
             self._sampled_count = at.size
@@ -2620,9 +2634,8 @@ class FastPath(KernelPath):
             return False  # the thermostats' ramp follows the time, which the kernel does not give them
         if not time_mode and nsteps <= 0:
             return False
-        most = self.call_steps()
-        if not time_mode and at is None and nsteps > most:  # within CALL_WORK per call
-            return split_steps(self._step_chunk, plan, nsteps, sample, most)
+        if not time_mode and at is None and nsteps > self.call_steps():  # within CALL_WORK per call
+            return self.in_calls(self._step_chunk, nsteps, sample)
         varying = self._uses_time(plan)
         if varying and (plan.dt_reset is not None or time_mode):
             return False  # per-step values depend on a dt that changes inside the chunk

@@ -35,8 +35,8 @@ the kernels); only the order of the sums differs, so the paths agree to rounding
 computed alone, so its numbers never depend on its batch. For N = 4000 at density 0.8 (137k
 pairs): force pass ~0.7 ms, build ~2 ms; for N = 97,556 (3.4M pairs) ~17 ms and ~33 ms. Scenes
 whose other fixes the chunk kernels run (flat soft walls, wall/region, one wall/flow) run whole
-chunks of steps in one compiled call per case (a long chunk in several: pair_compiled.PairChunks), with the same bits as
-this path step by step; a sampled chunk's outputs come from its last force pass (`remember`).
+chunks of steps in one compiled call per case (a long chunk in several: pair_compiled.PairChunks),
+with the same bits as this path step by step; a sampled chunk's outputs come from its last force pass (`remember`).
 """
 
 from __future__ import annotations

@@ -662,9 +662,9 @@ if njit is not None:
 
 # ----------------------------------------------------------------------------- fused pair chunks
 # Whole chunks of steps of a pair scene in one compiled call per case (a long chunk in several of
-# `KernelPath.call_steps` steps; PairChunks below): the step
-# of engine.Engine.step with the pair forces of `forces_case` and the wall forces of the chunk
-# kernels of engine/compiled.py (the registry's compiled functions, imported, not copied).
+# `KernelPath.call_steps` steps; PairChunks below): the step of engine.Engine.step with the pair
+# forces of `forces_case` and the wall forces of the chunk kernels of engine/compiled.py (the
+# registry's compiled functions, imported, not copied).
 
 if njit is not None:
     from wallbatch.engine.compiled import BLOCK
@@ -1545,10 +1545,7 @@ class PairChunks(_compiled.KernelPath):
     def advance(self, nsteps: int, sample: bool) -> bool:
         """Run nsteps steps (and the sample of the last one), as kernel calls of at most
         `call_steps` steps (a Ctrl-C is seen between them); False: let the NumPy loop do it."""
-        most = self.call_steps()
-        if nsteps > most:
-            return _compiled.split_steps(self._chunk, self.plan_source(), nsteps, sample, most)
-        return self._chunk(nsteps, sample)
+        return self.in_calls(self._chunk, nsteps, sample)
 
     def samples_in_kernel(self, at: np.ndarray) -> bool:
         """Whether `advance_sampled` records the samples `at` (steps from now, increasing) in the
@@ -1575,8 +1572,7 @@ class PairChunks(_compiled.KernelPath):
         at = np.asarray(at, np.int64)
         plan = self.plan_source()
         at = at[:_compiled.FastPath.sample_steps(plan, extra=2)]  # (+ the pair's energy and virial)
-        # the call within its share of CALL_WORK (one sample at least)
-        at = at[at <= max(int(at[0]), self.call_steps())]
+        at = self.one_call(at)  # the call within its share of CALL_WORK
         if _compiled.FastPath._uses_time(plan):  # per-step wall values: the steps `_chunk` takes
             at = at[at <= _compiled.FastPath.value_steps(plan)]
             if at.size == 0:
