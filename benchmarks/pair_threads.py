@@ -2,10 +2,13 @@
 (serial `lmp` and `mpiexec -np 2 lmp`), in one run.
 
     python benchmarks/pair_threads.py [--atoms 32000 100000] [--atom-steps 5e6] [--repeat 2] [--no-lammps]
+                                      [--fix langevin|nvt|berendsen]
 
 Scene: the LJ liquid slit of benchmarks/pair_lj.py (fcc at rho 0.8 melted at T = 2, lj/cut 2.5
 shifted, neighbor skin 0.3 checked every step, lj93 walls at the z edges, dt 0.005), thermo
-every steps / 10. Each wallbatch run is a new process (WALLBATCH_THREADS=k, NUMBA_NUM_THREADS=k)
+every steps / 10; with `--fix`, held at T = 1 by that thermostat (benchmarks/common.py's
+THERMOSTATS: its sums over all atoms run between the threads' parts of each step). Each
+wallbatch run is a new process (WALLBATCH_THREADS=k, NUMBA_NUM_THREADS=k)
 that warms its kernels on a 10-step run, then times `Engine([case]).run()`; the one- and
 two-thread runs alternate (`--repeat` rounds, best of each), and the final kinetic and potential
 energy of both must be the same bits. Each run also reports its CPU seconds, its page faults and
@@ -36,9 +39,12 @@ import os, resource, sys, time
 sys.path.insert(0, {here!r})
 import common
 from wallbatch.engine.engine import Engine
-n, steps = {n}, {steps}
-Engine([common.build(common.lj_fcc_slit(n, steps=10, thermo=10))]).run()
-case = common.build(common.lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10)))
+n, steps, fix = {n}, {steps}, {fix!r}
+def scene(steps, thermo):
+    cfg = common.lj_fcc_slit(n, steps=steps, thermo=thermo)
+    return common.with_fixes(cfg, common.THERMOSTATS[fix], fix) if fix else cfg
+Engine([common.build(scene(10, 10))]).run()
+case = common.build(scene(steps, max(1, steps // 10)))
 def busy():
     try:
         v = [int(t) for t in open("/proc/stat").readline().split()[1:]]
@@ -59,11 +65,20 @@ print("RESULT", sec, res.status, case.natoms, getattr(fast, "threaded_chunks", 0
 """
 
 
-def wallbatch_run(n: int, steps: int, threads: int) -> tuple[float, int, int, str, float, float, int]:
+def scene(n: int, steps: int, fix: str | None = None) -> dict:
+    """The benchmark's scene: the LJ liquid slit of n atoms, with the thermostat `fix` if given."""
+    import common  # noqa: PLC0415
+
+    cfg = common.lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10))
+    return common.with_fixes(cfg, common.THERMOSTATS[fix], fix) if fix else cfg
+
+
+def wallbatch_run(n: int, steps: int, threads: int, fix: str | None = None
+                  ) -> tuple[float, int, int, str, float, float, int]:
     """(seconds, atoms, chunks run over threads, final ke and pe as hex, CPU seconds, other
-    processes' CPU seconds meanwhile, page faults) of one child process."""
+    processes' CPU seconds meanwhile, page faults) of one child process (`fix`: a thermostat)."""
     env = dict(os.environ, WALLBATCH_THREADS=str(threads), NUMBA_NUM_THREADS=str(threads))
-    out = subprocess.run([sys.executable, "-c", CHILD.format(here=str(HERE), n=n, steps=steps)], env=env,
+    out = subprocess.run([sys.executable, "-c", CHILD.format(here=str(HERE), n=n, steps=steps, fix=fix)], env=env,
                          capture_output=True, text=True, check=True).stdout
     f = next(ln.split()[1:] for ln in out.splitlines() if ln.startswith("RESULT"))
     if f[1] != "ok":
@@ -76,7 +91,7 @@ def lmp_binary() -> str | None:
     return str(own) if own.exists() else shutil.which("lmp")
 
 
-def lammps_runs(n: int, steps: int, repeat: int) -> dict[int, float]:
+def lammps_runs(n: int, steps: int, repeat: int, fix: str | None = None) -> dict[int, float]:
     """Best "Loop time" [s] of LAMMPS serial (1) and `mpiexec -np 2` (2) on the exported scene."""
     import common  # noqa: PLC0415
 
@@ -84,7 +99,7 @@ def lammps_runs(n: int, steps: int, repeat: int) -> dict[int, float]:
     if lmp is None:
         return {}
     mpiexec = Path(sys.prefix) / "bin" / "mpiexec"
-    cfg = common.lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10))
+    cfg = scene(n, steps, fix)
     best: dict[int, float] = {}
     with tempfile.TemporaryDirectory(prefix="wb_pairthr_") as tmp:
         setup, nrun, _ = common.lammps_script(cfg, None, tmp)
@@ -109,9 +124,12 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=2, help="rounds of 1 and 2 threads, interleaved (best of each)")
     ap.add_argument("--no-lammps", action="store_true")
     ap.add_argument("--show-runs", action="store_true", help="print every run (seconds, CPU, others' CPU, faults)")
+    ap.add_argument("--fix", choices=["langevin", "nvt", "berendsen"],
+                    help="hold the liquid at T = 1 by this thermostat")
     args = ap.parse_args()
     load = os.getloadavg()[0]
-    print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, load {load:.2f}")
+    print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, load {load:.2f}"
+          + (f"; fix {args.fix}" if args.fix else ""))
     print(f"| N | steps | wb 1 thread [s] | wb 2 threads [s] | 2/1 | same bits | LAMMPS serial [s] | LAMMPS np 2 [s] "
           f"| LAMMPS 2/1 | wb 2 thr vs LAMMPS np 2 |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
@@ -123,7 +141,7 @@ def main() -> None:
         runs: list[str] = []
         for _ in range(args.repeat):
             for k in (1, 2):
-                sec, atoms, thr, b, cpu, others, faults = wallbatch_run(n, steps, k)
+                sec, atoms, thr, b, cpu, others, faults = wallbatch_run(n, steps, k, args.fix)
                 best[k] = min(best.get(k, sec), sec)
                 bits[k].add(b)
                 threaded = max(threaded, thr) if k == 2 else threaded
@@ -131,7 +149,7 @@ def main() -> None:
                             f"other processes' CPU {others:.2f} s, {faults} page faults"
                             + (f", {thr} chunks over threads" if k > 1 else ""))
         same = "yes" if len(bits[1] | bits[2]) == 1 else "NO"
-        lmp = {} if args.no_lammps else lammps_runs(n, steps, args.repeat)
+        lmp = {} if args.no_lammps else lammps_runs(n, steps, args.repeat, args.fix)
         l1, l2 = lmp.get(1), lmp.get(2)
         f = lambda v, spec: "n/a" if v is None else format(v, spec)  # noqa: E731
         vs = None if l2 is None else l2 / best[2]

@@ -765,6 +765,18 @@ def threads_ljcut() -> dict:
     (benchmarks/pair_threads.py: a new process each, WALLBATCH_THREADS and NUMBA_NUM_THREADS,
     interleaved, best of two; final ke and pe must be the same bits); LAMMPS: `mpiexec -np 2 lmp`
     on the exported scene, or serial without mpiexec."""
+    return _threads_ljcut(None)
+
+
+@row("threads-ljcut-langevin-1e5", at_least(1.6, "x one thread"))
+def threads_ljcut_langevin() -> dict:
+    """threads-ljcut-1e5's case held at T = 1 by fix langevin (its random forces drawn atom after
+    atom between the threads' parts of each step)."""
+    return _threads_ljcut("langevin")
+
+
+def _threads_ljcut(fix: str | None) -> dict:
+    """The threads-ljcut rows: the LJ liquid slit (with the thermostat `fix`), 2 threads vs 1."""
     import pair_threads  # noqa: PLC0415
 
     n = 100_000
@@ -774,17 +786,18 @@ def threads_ljcut() -> dict:
     atoms, others = 0, 0.0
     for _ in range(2):
         for k in (1, 2):
-            sec, atoms, _, b, _cpu, other, _faults = pair_threads.wallbatch_run(n, steps, k)
+            sec, atoms, _, b, _cpu, other, _faults = pair_threads.wallbatch_run(n, steps, k, fix)
             best[k] = min(best.get(k, sec), sec)
             bits.add(b)
             others = max(others, other)  # CPU other processes took during a run (machine noise)
     t1, t2 = best[1], best[2]
     same = len(bits) == 1
-    out = {"scene": "one LJ liquid case (pair lj/cut), 2 threads vs 1", "N": atoms, "steps": steps,
+    scene = "one LJ liquid case (pair lj/cut" + (f", fix {fix}" if fix else "") + "), 2 threads vs 1"
+    out = {"scene": scene, "N": atoms, "steps": steps,
            "wb": f"{t2:.2f} s (1 thread {t1:.2f} s)", "value": t1 / t2 if same else 0.0, "wb_s": t2,
            "note": f"2 threads/1: {t1 / t2:.2f}x; final ke, pe {'bit-identical' if same else 'DIFFER'}; "
                    f"other processes' CPU during a run <= {others:.2f} s"}
-    loops = pair_threads.lammps_runs(n, steps, 1) if USE_LAMMPS else {}
+    loops = pair_threads.lammps_runs(n, steps, 1, fix) if USE_LAMMPS else {}
     if loops:
         out.update(lammps_two_cores(loops, t2))
     else:

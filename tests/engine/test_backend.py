@@ -144,7 +144,9 @@ def test_a_ctrl_c_during_a_kernel_that_returns_an_array_is_an_interrupt():
     try:
         got_8 = backend.call_kernel(spin, 8)  # (no signal: the result)
         assert got_8[:2] == (0, 8) and np.array_equal(got_8[2], spin(8)[2]) and got_8[2][0] > 0
-        for call in (spin, lambda m: backend.call_kernel(spin, m)):
+        entry = backend.resolved(spin, (n,))  # (the entry point of `backend.resolved`: the same)
+        assert entry is not spin
+        for call in (spin, lambda m: backend.call_kernel(spin, m), lambda m: backend.call_kernel(entry, m)):
             threading.Timer(0.1, os.kill, (os.getpid(), signal.SIGINT)).start()
             with pytest.raises(BaseException) as got:
                 call(n)
@@ -155,3 +157,37 @@ def test_a_ctrl_c_during_a_kernel_that_returns_an_array_is_an_interrupt():
                 assert got.type is KeyboardInterrupt
     finally:
         signal.signal(signal.SIGINT, old)
+
+
+def test_resolved_entry_point_gives_the_dispatchers_bits_for_tuples_of_arrays():
+    """`backend.resolved`: for arguments of a compiled signature (nested tuples of arrays, as the
+    pair chunk kernel takes), the overload's own entry point, which writes and returns what the
+    dispatcher's call does; the dispatcher itself before that signature is compiled, for
+    arguments of another type, and a plain Python function as it is."""
+    numba = pytest.importorskip("numba")
+
+    @numba.njit(nogil=True)
+    def kick(k, x, pair):
+        a, (b, c) = pair
+        for i in range(x.shape[0]):
+            x[i] += k * a[i] * b[i] - c[i]
+        return 0, x.sum()
+
+    rng = np.random.default_rng(5)
+    x0 = rng.random(50)
+    pair = (rng.random(50), (rng.random(50), rng.random(50)))
+    assert backend.resolved(kick, (2, x0, pair)) is kick  # not compiled yet: the dispatcher
+    want = x0.copy()
+    ref = kick(2, want, pair)
+    entry = backend.resolved(kick, (3, x0, pair))  # (another int: the same int64 signature)
+    assert entry is not kick
+    got = x0.copy()
+    assert entry(2, got, pair) == ref
+    np.testing.assert_array_equal(got, want)
+    assert backend.resolved(kick, (2.0, x0, pair)) is kick  # a float k: no such overload
+    assert backend.resolved(kick, (2, x0.astype(np.float32), pair)) is kick
+
+    def plain(k):
+        return k
+
+    assert backend.resolved(plain, (1,)) is plain

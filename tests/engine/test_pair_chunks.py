@@ -180,11 +180,11 @@ def test_list_grows_inside_the_chunk(monkeypatch):
     np.testing.assert_array_equal(a.pair.case_builds, b.pair.case_builds)
 
 
-@pytest.mark.parametrize("what", ["lepton", "dt_reset with a moving wall", "langevin over threads",
+@pytest.mark.parametrize("what", ["lepton", "dt_reset with a moving wall", "dt_reset over threads",
                                   "reflect over threads"])
 def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
     """What the fused chunk does not run (wall/lepton faces, dt/reset with per-step wall values, a
-    thermostat or a reflect wall on a case cut over threads) keeps the per-step path."""
+    reflect wall or dt/reset on a case cut over threads) keeps the per-step path."""
     d = slit()
     if what == "lepton":
         d["walls"] = {"w": {"style": "lepton", "units": "box", "zlo": {
@@ -198,7 +198,7 @@ def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
         d["variables"] = {"lo": "vdisplace(0.0, 0.5)"}
         d["walls"]["pore"]["zlo"] = {"coord": "v_lo", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5}
     else:
-        d["fixes"] = {"a": "fix a all nve", "b": "fix b all langevin 2.0 2.0 0.5 48279"}
+        d["dt_reset"] = {"every": 1, "xmax": 0.05, "tmax": 0.005, "units": "box"}
         monkeypatch.setattr(pair_compiled, "case_parts", lambda n: 2)
     monkeypatch.setenv("WALLBATCH_NUMBA", "1")
     eng = Engine(cases_of(d))
@@ -457,22 +457,27 @@ def test_dt_reset_in_the_fused_chunk(monkeypatch, every_n, thermo):
         np.testing.assert_array_equal(getattr(fused.state, name), getattr(step.state, name), err_msg=name)
 
 
-def test_two_dimensional_liquid_in_the_fused_chunk(monkeypatch):
+def liquid_2d() -> dict:
     """A 2-D LJ liquid (dimension 2: enforce2d among the fixes, z left out of the pair's minimum
-    image) in a channel between lj93 walls at the y edges: the fused chunk gives the per-step
-    path's bits, and every atom stays in the plane."""
+    image) of 60 atoms in a channel between lj93 walls at the y edges, sampled every 2nd step."""
     rng = np.random.default_rng(4)
     side = np.arange(0.6, 11.0, 1.1)
     x = np.array([[a, b, 0.0] for a in side for b in np.arange(1.6, 8.0, 1.1)])
     x += rng.uniform(-0.05, 0.05, (1, 3)) * [1, 1, 0]
-    d = {"name": "lj-2d", "units": "lj", "seed": 9, "dimension": 2,
-         "box": {"lo": [0, 0, -0.5], "hi": [11.0, 9.5, 0.5], "boundary": ["p", "f", "p"]},
-         "atoms": [{"group": "fluid", "create": {"positions": x.tolist()}, "mass": 1.0,
-                    "velocity": {"temperature": 1.5}}],
-         "pair": {"style": "lj/cut", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
-         "walls": {"w": {"style": "lj93", "units": "box", "energy": True, "ylo": list(WALL), "yhi": list(WALL)}},
-         "timestep": 0.004, "run": {"steps": 60, "thermo": 2}, "output": {"thermo": ["step", "temp", "pe", "etot"]}}
-    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(d))
+    return {"name": "lj-2d", "units": "lj", "seed": 9, "dimension": 2,
+            "box": {"lo": [0, 0, -0.5], "hi": [11.0, 9.5, 0.5], "boundary": ["p", "f", "p"]},
+            "atoms": [{"group": "fluid", "create": {"positions": x.tolist()}, "mass": 1.0,
+                       "velocity": {"temperature": 1.5}}],
+            "pair": {"style": "lj/cut", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5},
+            "walls": {"w": {"style": "lj93", "units": "box", "energy": True, "ylo": list(WALL), "yhi": list(WALL)}},
+            "timestep": 0.004, "run": {"steps": 60, "thermo": 2},
+            "output": {"thermo": ["step", "temp", "pe", "etot"]}}
+
+
+def test_two_dimensional_liquid_in_the_fused_chunk(monkeypatch):
+    """The 2-D liquid (`liquid_2d`): the fused chunk gives the per-step path's bits, and every atom
+    stays in the plane."""
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(liquid_2d()))
     assert_bits(got, ref)
     assert_sampled_in_kernel(fused)
     assert fused.fast.fallbacks == 0

@@ -14,7 +14,8 @@ from wallbatch.engine import pair_compiled
 from wallbatch.engine.engine import Engine
 from wallbatch.engine.pair_compiled import PairChunks
 
-from tests.engine.test_pair_chunks import assert_bits, cases_of, flow_fluid, slit, sphere_cavity
+from tests.engine.test_pair_chunks import (THERMOSTATS, assert_bits, cases_of, flow_fluid, liquid_2d, slit,
+                                           sphere_cavity)
 
 pytestmark = pytest.mark.skipif(pair_compiled.njit is None, reason="numba not importable")
 
@@ -166,6 +167,53 @@ def test_one_case_on_threads_same_bits_as_one_thread(monkeypatch, scene):
             np.testing.assert_array_equal(getattr(eng.state, name), getattr(one.state, name), err_msg=name)
         np.testing.assert_array_equal(eng.pair.case_builds, one.pair.case_builds)
     assert one.pair.case_builds.min() >= 2  # lists rebuilt inside the chunks
+
+
+@pytest.mark.parametrize("scene", sorted(THERMOSTATS) + ["langevin+enforce2d"])
+def test_thermostats_on_threads_same_bits_as_one_thread(monkeypatch, scene):
+    """A case with a thermostat cut over threads: each thread runs the Langevin forces and the
+    final kick on its atoms, the fixes' sums over all atoms (nvt's chain, berendsen's and rescale's
+    temperature, the Langevin draws atom after atom and its tally) run between the threads'
+    calls (`fix_phase`), so 2 and 3 threads give one thread's samples (ecouple, econserve
+    included), final state and Langevin forces bit for bit, every chunk threaded; and the
+    thermostat did act."""
+    kind, _, extra = scene.partition("+")
+    config = liquid_2d() if extra == "enforce2d" else slit(steps=60, thermo=20)  # (2-D: enforce2d as a fix)
+    config["fixes"] = dict(THERMOSTATS[kind])
+    config["run"]["thermo"] = 20
+    config["output"] = {"thermo": ["step", "temp", "pe", "etot", "press", "ecouple", "econserve"]}
+    ref, one = run_threads(monkeypatch, config, 1)
+    assert one.fast.threaded_chunks == 0 and one.fast.compiled_chunks >= 3 and one.fast.fallbacks == 0
+    assert np.ptp(ref[0].data["ecouple"]) > 1e-3  # the thermostat exchanged energy
+    for n in (2, 3):
+        got, eng = run_threads(monkeypatch, config, n)
+        assert_bits(got, ref)
+        assert eng.fast.threaded_chunks == eng.fast.compiled_chunks == one.fast.compiled_chunks
+        assert eng.fast.fallbacks == 0
+        for name in ("x", "v", "f"):
+            np.testing.assert_array_equal(getattr(eng.state, name), getattr(one.state, name), err_msg=name)
+        for a, b in zip(eng.ensemble.fixes, one.ensemble.fixes):
+            if a.style == "langevin":
+                assert np.abs(b.force).max() > 0
+                np.testing.assert_array_equal(a.force, b.force)
+    if extra == "enforce2d":
+        assert [f.style for f in one.ensemble.fixes].count("enforce2d") == 1
+        assert not one.state.v[..., 2].any() and not one.state.x[..., 2].any()
+
+
+def test_a_zero_temperature_on_threads_is_reported_as_on_one_thread(monkeypatch):
+    """temp/berendsen meets a group at zero temperature (every atom at rest) in a threaded chunk:
+    `fix_phase`'s status 6 hands the chunk back, and the NumPy loop reports what one thread does."""
+    config = slit(steps=30, thermo=10)
+    grid = [[a, b, c] for a in (1.5, 4.5, 7.5) for b in (1.5, 4.5, 7.5) for c in (3.0, 6.0, 9.0)]
+    config["box"] = {"lo": [0, 0, 0], "hi": [9.0, 9.0, 12.0], "boundary": ["p", "p", "f"]}
+    config["atoms"] = [{"group": "still", "create": {"positions": grid}, "mass": 1.0}]  # 3 apart: no forces
+    config["fixes"] = dict(THERMOSTATS["berendsen"])
+    ref, _ = run_threads(monkeypatch, config, 1)
+    got, eng = run_threads(monkeypatch, config, 2)
+    assert_bits(got, ref)
+    assert ref[0].status == "failed" and "temperature of group atoms is 0" in ref[0].error
+    assert eng.fast.fallbacks >= 1 and eng.fast.threaded_chunks >= 1
 
 
 def test_trouble_on_threads_hands_the_chunk_back(monkeypatch):

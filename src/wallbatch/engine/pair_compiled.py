@@ -20,18 +20,21 @@ flat soft faces (wall/table faces too) and wall/region fixes with compiled.py's 
 atoms, kick, wall/flow with compiled.py's `_flow_step`), so no Python runs between steps. It
 calls the very kernels of the per-step compiled path, so both give the same bits; trouble hands
 the chunk back to NumPy. The samples of a chunk are recorded in it (`PairChunks.advance_sampled`:
-the outputs of Engine.sample, with compiled.py's sample functions). For a case on one thread it
-also runs, with compiled.py's functions, the `fixes:` its kernels run (thermostats, enforce2d),
-wall/reflect and wall/reflect/stochastic faces on fixed dimensions and fix dt/reset. A run to a
+the outputs of Engine.sample, with compiled.py's sample functions). It also runs, with
+compiled.py's functions, the `fixes:` its kernels run (thermostats, enforce2d), and, for a case on
+one thread, wall/reflect and wall/reflect/stochastic faces on fixed dimensions and fix dt/reset. A run to a
 simulated time fuses the steps before each landing step (`PairChunks.advance_to_time`). Not
 fused: other fixes, wall/lepton faces, the landing steps of time-based runs, dt/reset and
 thermostats in them.
 
 One large case over threads (`_chunk_threaded`, THREAD_MIN_ATOMS atoms per thread at least):
 the same step in pieces, with the list build (runs of cells, `build_threaded`) and the force pass
-(runs of rows, `forces_threaded`) split over threads, and the rest of the step over runs of atoms.
-Each atom gets its force additions in the one-thread order (an addition to an atom an earlier part
-touches waits in a log), so the results are those of one thread, bit for bit.
+(runs of rows, `forces_threaded`) split over threads, and the rest of the step over runs of atoms;
+the thermostats' sums over all atoms and the Langevin draws (atom after atom from the case's
+stream) run between those parts, in the calling thread (`fix_phase`). Each atom gets its force
+additions in the one-thread order (an addition to an atom an earlier part touches waits in a
+log), so the results are those of one thread, bit for bit. The parts' kernel calls, one per part
+and step, skip numba's typing of their arguments (`backend.resolved`: ~2 ms a call otherwise).
 
 All kernels are `@njit(cache=True)` without fastmath (results are reproducible) and take
 C-contiguous arrays (float64 positions, int32/int64 lists, bool flags: one compiled signature each).
@@ -774,13 +777,15 @@ if njit is not None:
             case's row of rg_val). fl = (fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev,
             fl_cross, fl_rng): the case's wall/flow fix (compiled.py's `_flow_step`; fl_int[0] = 0: none).
 
-            fix = (fx, fx_rng, step0): the case's `fixes:` (compiled.py's `_fix_arrays` of this case
+            fix = (fx, fx_rng, step0, fb): the case's `fixes:` (compiled.py's `_fix_arrays` of this case
             alone, row 0; its Langevin generator), run as compiled.py's kernels run them: `_fix_pre` before the
             drift (fix nvt's first half step, the Langevin random forces), `_fix_post_force` after
             the walls (Langevin forces, enforce2d), `_fix_end` after the final kick (fix nvt's
             second half step, temp/berendsen, temp/rescale, the tally; status 6: a zero
             temperature). step0: the case's step count before the chunk (ramps, temp/rescale's
-            every). Not with `post` (a case with fixes is not cut over threads).
+            every). fb: the per-atom buffers of the fixes (`fix_buffers`, N rows; none without
+            fixes). With `post` only `_fix_post_force`, on the part's rows of fb: `_chunk_threaded`
+            runs the rest on the whole case (`fix_phase`).
 
             rfl = (rf_meta, rf_val, rf_prev, rf_stat, stats): the case's wall/reflect faces (compiled.py's
             `_reflect_arrays`; rf_val (S or 1, K): each face's coord per step), reflected after the
@@ -822,7 +827,7 @@ if njit is not None:
             RB = np.empty((6, 5, BLOCK))
             CI = np.empty(N if fl_int[0] != 0 else 0, np.int64)
             DIR = np.empty(N if fl_int[0] != 0 else 0)
-            fx, fx_rng, step0 = fix
+            fx, fx_rng, step0, fb = fix
             rf_meta, rf_val, rf_prev, rf_stat, stats = rfl
             st_meta, st_val, st_stat, st_flag, st_rng, mvv2e = sto
             dtr_every, dtr_group, dtr_par, clk = dtr
@@ -841,8 +846,8 @@ if njit is not None:
             fx_meta = fx[0]
             nfx = N if fx_meta.shape[0] else 0
             thermo = False  # a fix that couples the atoms (not enforce2d alone)
-            SQM, G1, FR, FL = np.empty(nfx), np.empty(nfx), np.zeros((3, nfx)), np.zeros((3, nfx))
-            KB = np.empty(nfx)  # per-atom terms of a sum over atoms
+            SQM, G1, FRa, FLa, KB = fb  # `fix_buffers(nfx)`: sqrt(m), drag, Langevin random and whole forces, scratch
+            FR, FL = FRa.T, FLa.T  # (3, nfx) views, as V and F
             if _K_FIXES:  # (an `if` on the flag: numba prunes the branch, a scene without fixes compiles none of it)
                 for k in range(fx_meta.shape[0]):
                     thermo = thermo or fx_meta[k, 0] != _compiled.FIX_ENFORCE2D
@@ -855,7 +860,7 @@ if njit is not None:
                 si = step if vary else 0
                 due = ism < nsm and step + 1 == sm_at[ism]  # a sample recorded here
                 if _K_FIXES:
-                    if thermo:  # fix nvt's first half step, the Langevin random forces
+                    if thermo and not post:  # fix nvt's first half step, the Langevin random forces
                         _fix_pre(0, step0 + step + 1, dt, V, mass, groups, fx, fx_rng, SQM, FR, KB)
                 if not post:  # post: the pair forces of this step are in f (`_chunk_threaded`)
                     _drift(x, v, f, dtfm, dt, lo, hi, box_per)
@@ -918,7 +923,7 @@ if njit is not None:
                     for d in range(3):
                         v[a, d] = v[a, d] + dtfm[a] * f[a, d]
                 if _K_FIXES:
-                    if thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
+                    if thermo and not post:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
                         if _fix_end(0, step0 + step + 1, dt, V, mass, groups, fx, KB, FL) != 0:
                             return 6, builds, neigh
                 if fl_int[0] != 0:  # fix wall/flow (end_of_step)
@@ -961,7 +966,7 @@ if njit is not None:
                 for d in range(3):
                     if not (math.isfinite(x[a, d]) and math.isfinite(v[a, d])):
                         return 3, builds, neigh
-            if _K_FIXES:
+            if _K_FIXES and not post:
                 for a in range(nfx):  # the last step's Langevin forces (the fix's `force`)
                     for d in range(3):
                         fx[13][0, a, d] = FL[d, a]
@@ -969,6 +974,43 @@ if njit is not None:
             return 0, builds, neigh
 
         return pair_chunk
+
+    def _fix_phase(phase: int, stepn: int, dt: float, ftm2v: float, mass: np.ndarray, v: np.ndarray,
+                   groups: np.ndarray, fix: tuple) -> int:
+        """The parts of `pair_chunk`'s fixes that read every atom of the case, for
+        `_chunk_threaded` (the rest, `_fix_post_force`, runs on each thread's atoms): phase 0 the
+        Langevin factors (`_langevin_setup`), 1 `_fix_pre` of step stepn (fix nvt's first half
+        step, the Langevin random forces drawn atom after atom), 2 `_fix_end` of step stepn (fix
+        nvt's second half step, temp/berendsen, temp/rescale, the tally: group sums over all the
+        atoms), 3 as 2 and then the Langevin forces into the fix's `force` (the chunk's last
+        step). The same calls on the same arrays as `pair_chunk`'s own: the same bits. Returns
+        `_fix_end`'s status (6: a zero temperature), else 0."""
+        fx, fx_rng, _step0, fb = fix
+        SQM, G1, FRa, FLa, KB = fb
+        V = v.T
+        if phase == 0:
+            for k in range(fx[0].shape[0]):
+                if fx[0][k, 0] == _compiled.FIX_LANGEVIN:
+                    _langevin_setup(0, k, mass, fx, ftm2v, SQM, G1)
+            return 0
+        if phase == 1:
+            return _fix_pre(0, stepn, dt, V, mass, groups, fx, fx_rng, SQM, FRa.T, KB)
+        status = _fix_end(0, stepn, dt, V, mass, groups, fx, KB, FLa.T)
+        if phase == 3 and status == 0:
+            for a in range(FLa.shape[0]):  # the last step's Langevin forces (the fix's `force`)
+                for d in range(3):
+                    fx[13][0, a, d] = FLa[a, d]
+        return status
+
+    @functools.lru_cache(maxsize=1)
+    def fix_phase() -> Any:
+        """`_fix_phase` compiled, its on-disk cache named by a digest of compiled.py (the fix
+        kernels it calls) and thermostats.py (their arithmetic): numba keys a cached function by
+        its own file only."""
+        from wallbatch.engine import thermostats  # noqa: PLC0415 - only to key the cache
+
+        h = hashlib.sha256((inspect.getsource(_compiled) + inspect.getsource(thermostats)).encode())
+        return jit(_compiled._relink(_fix_phase, name=f"fix_phase_{h.hexdigest()[:12]}"))
 
     def pair_chunk_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (),
                        flow: bool = False, tables: bool = False, stochastic: bool = False, fixes: bool = False,
@@ -1041,6 +1083,15 @@ Buffer = Callable[[str, tuple, Any], np.ndarray]
 def _fresh(name: str, shape: tuple, dtype: Any) -> np.ndarray:
     """A new array (the default `Buffer`: nothing kept)."""
     return np.empty(shape, dtype)
+
+
+def fix_buffers(n: int, buffer: Buffer = _fresh) -> tuple[np.ndarray, ...]:
+    """`pair_chunk`'s per-atom buffers of the fixes for n atoms (0: a case without fixes), from
+    `buffer` (content undefined: the kernel writes each before it reads it): sqrt(m), the Langevin
+    drag, the step's Langevin random forces (n, 3), the Langevin forces (n, 3) and a scratch for
+    sums over atoms. A thread's part of a case takes its rows."""
+    return (buffer("fix_sqm", (n,), float), buffer("fix_drag", (n,), float), buffer("fix_random", (n, 3), float),
+            buffer("fix_force", (n, 3), float), buffer("fix_sums", (n,), float))
 
 
 def bin_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
@@ -1344,12 +1395,17 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
     sf_val, sample, fpair = a["sf_val"], a["sample"], a["fpair"]
     vary = sf_val.shape[0] > 1
     runs = [slice(N * p // parts, N * (p + 1) // parts) for p in range(parts)]
+    fix = a["fix"]  # `fixes:`: those that read every atom (`fix_phase`) between the parts' calls
+    fb = fix[3]
+    coupled = fb[0].shape[0] > 0 and bool(np.any(fix[0][0][:, 0] != _compiled.FIX_ENFORCE2D))
+    step0, mass, groups, ftm2v = fix[2], a["mass"], a["groups"], a["ftm2v"]
     a.update(nsteps=1, post=True, sample=False)
     if int(a["fl"][0][0]) != 0:  # wall/flow: the rest of the step on all atoms
         tails = [a]
     else:
-        tails = [dict(a, x=x[r], v=v[r], f=f[r], mass=a["mass"][r], radius=a["radius"][r],
-                      groups=np.ascontiguousarray(a["groups"][:, r])) for r in runs]
+        tails = [dict(a, x=x[r], v=v[r], f=f[r], mass=mass[r], radius=a["radius"][r],
+                      groups=np.ascontiguousarray(groups[:, r]),
+                      fix=(*fix[:3], tuple(b[r] for b in fb) if fb[0].shape[0] else fb)) for r in runs]
 
     def pre(r: slice) -> int:
         return _pre_step(x[r], v[r], f[r], dtfm[r], dt, lo, hi, box_per, xref[r], length, per, limit2)
@@ -1365,13 +1421,17 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
                 fpair[r] = f[r]
         if t is not None:
             t.update(neigh=neigh, sf_val=sf_val[step:step + 1] if vary else sf_val)
-            st = backend.call_kernel(kernel, *t.values())[0]  # (a Ctrl-C: KeyboardInterrupt)
+            st = backend.call_kernel(tail_kernel, *t.values())[0]  # (a Ctrl-C: KeyboardInterrupt)
             if st != 0:
                 return st, 0
-        return 0, (pre(runs[p]) if step + 1 < nsteps and len(tails) == parts else 0)
+        return 0, (pre(runs[p]) if step + 1 < nsteps and len(tails) == parts and not coupled else 0)
 
     def pres() -> int:
         return max(crew([lambda r=r: pre(r) for r in runs]))  # 3: a non-finite position
+
+    # every part's call, at every step, has arguments of the same types: typed once (`backend.resolved`)
+    tail_kernel = backend.resolved(kernel, tuple(dict(tails[0], neigh=neigh).values()))
+    phase = backend.resolved(fix_phase(), (0, 0, dt, ftm2v, mass, v, groups, fix)) if coupled else None
 
     pending = old = None
     split = held.get("split")  # the starting list's, if the caller kept it
@@ -1383,6 +1443,9 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
     if shares is None or len(shares) != parts + 1:
         shares = np.arange(parts + 1) / parts
     held["split"] = None  # (a chunk with trouble keeps nothing)
+    if coupled:  # the Langevin factors, then the first step's start (`pair_chunk`'s `_fix_pre`)
+        phase(0, 0, dt, ftm2v, mass, v, groups, fix)
+        phase(1, step0 + 1, dt, ftm2v, mass, v, groups, fix)
     st = pres()
     for step in range(nsteps):
         if st == 3:
@@ -1414,11 +1477,20 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
         if built and rows[0] >= 0 and cpu.min() > 0:  # next build: parts of about equal force time, from
             fast = cpu if fast is None else np.minimum(fast, cpu)  # each part's quickest pass on this list
             shares = _rebalance(shares, rows / N, fast)  # (a pass slowed by other work would skew it)
-        if len(tails) == parts:  # the rest of this step and the start of the next, atoms in parts
+        if len(tails) == parts and not coupled:  # the rest of this step and the start of the next, atoms in parts
             got = crew([lambda p=p: tail_pre(p, step) for p in range(parts)])
-        else:  # wall/flow: the rest of the step on all atoms, then the next start in parts
-            got = [tail_pre(0, step)]
-            if got[0][0] == 0 and step + 1 < nsteps:
+        else:  # the rest of the step on each part (wall/flow: on all atoms), the fixes' sums over all
+            # atoms (the end of this step, the start of the next), then the next start in parts
+            got = crew([lambda p=p: tail_pre(p, step) for p in range(parts)]) if len(tails) == parts \
+                else [tail_pre(0, step)]
+            ok = all(g[0] == 0 for g in got)
+            if ok and coupled:
+                fs = phase(3 if step == nsteps - 1 else 2, step0 + step + 1, dt, ftm2v, mass, v, groups, fix)
+                if fs != 0:  # (6: a zero temperature; the NumPy loop reports it)
+                    return fs, builds, neigh
+                if step + 1 < nsteps:
+                    phase(1, step0 + step + 2, dt, ftm2v, mass, v, groups, fix)
+            if ok and step + 1 < nsteps:
                 got.append((0, pres()))
         pending = None
         bad = next((g[0] for g in got if g[0] != 0), 0)
@@ -1446,15 +1518,15 @@ def _signature_names(kernel: Any) -> tuple[str, ...]:
 def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     """Whether `PairChunks` runs this plan: pair lj/cut on its compiled path with what the chunk
     kernels of compiled.py run: flat soft walls of the registry's compiled styles and wall/table
-    faces, wall/region, one wall/flow; and, for a case on one thread (`case_parts`), the `fixes:`
-    of `compiled.fixes_eligible` (thermostats, enforce2d), wall/reflect and wall/reflect/stochastic
-    (`compiled._stochastic_eligible`) on fixed dimensions, and fix dt/reset (not with wall/flow or
-    wall values that vary with time). Not wall/lepton faces or anything else."""
+    faces, wall/region, one wall/flow, the `fixes:` of `compiled.fixes_eligible` (thermostats,
+    enforce2d; a case over threads too, `_chunk_threaded`); and, for a case on one thread
+    (`case_parts`), wall/reflect and wall/reflect/stochastic (`compiled._stochastic_eligible`) on
+    fixed dimensions, and fix dt/reset (not with wall/flow or wall values that vary with time).
+    Not wall/lepton faces or anything else."""
     if njit is None or plan.others != ("pair",):
         return False
     ens = plan.ensemble
-    fixes = ens is not None and any(f.style in _compiled.FIX_KINDS for f in ens.fixes)
-    if (fixes or plan.reflect or plan.dt_reset is not None) and case_parts(plan.state.x.shape[1]) >= 2:
+    if (plan.reflect or plan.dt_reset is not None) and case_parts(plan.state.x.shape[1]) >= 2:
         return False  # a case over threads: its per-step path keeps them
     if ens is not None and not _compiled.fixes_eligible(plan):
         return False
@@ -1681,14 +1753,14 @@ class PairChunks(_compiled.KernelPath):
                      float(rc2[c]), float(offset[c])), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
                     sf_meta, sf_val[c], groups_arr, (rg_meta, rg_geo, rg_val[c:c + 1]), fl,
                     (_compiled._fix_slice(fx, slice(c, c + 1)), fx_rngs[c] if fx_rngs else _compiled._NO_FLOW[-1],
-                     int(s.step[c])),
+                     int(s.step[c]), fix_buffers(N if fx[0].shape[0] else 0, self._buffer)),
                     (rf_meta, rf_val[c], rf_prev[c], rf_stat[c], bool(stats)), tb,
                     (sto[0], sto[1][c:c + 1], sto[2][c:c + 1], sto[3],
                      sk.rngs[c] if sk is not None else _compiled._NO_FLOW[-1], float(s.units.mvv2e)),
                     (int(dtr.every) if dtr is not None else 0, dtr_group, dtr_par[c], clk[c]),
                     (sm[0], *(a[c] for a in sm[1:])))
-            # one thread for samples in the kernel (`samples_in_kernel`), fixes and wall/reflect (`chunk_eligible`)
-            parts = case_parts(N) if at is None and not fx[0].shape[0] and not plan.reflect and dtr is None else 1
+            # one thread for samples in the kernel (`samples_in_kernel`), wall/reflect and dt/reset (`chunk_eligible`)
+            parts = case_parts(N) if at is None and not plan.reflect and dtr is None else 1
             if parts >= 2 and self.busy_skip > 0:  # the cores were busy with other work: one thread
                 self.busy_skip -= 1
                 parts = 1
