@@ -92,6 +92,7 @@ def cold_then_warm(tmp_path_factory) -> tuple[dict, dict]:
     return probe("wallbatch", "dot", cache), probe("wallbatch", "dot", cache, "then-harmonic")
 
 
+@pytest.mark.slow  # a compile on an empty numba cache (~20 s)
 def test_a_compile_loads_the_registries_without_scipy_linalg(cold_then_warm):
     cold, _ = cold_then_warm
     assert cold["registries"] is True
@@ -101,6 +102,7 @@ def test_a_compile_loads_the_registries_without_scipy_linalg(cold_then_warm):
     assert cold["dot"] is True and cold["scipy_linalg_after_dot"] is True  # np.dot found scipy's BLAS
 
 
+@pytest.mark.slow  # a compile on an empty numba cache (~20 s)
 def test_a_run_of_cached_kernels_loads_no_registries_and_a_later_blas_use_still_works(cold_then_warm):
     cold, warm = cold_then_warm
     assert warm["registries"] is False  # only numba's runtime was set up to load them
@@ -109,6 +111,7 @@ def test_a_run_of_cached_kernels_loads_no_registries_and_a_later_blas_use_still_
     assert warm["data"] == cold["data"]
 
 
+@pytest.mark.slow  # a compile on an empty numba cache (~20 s)
 def test_a_compile_after_cached_loads_loads_the_registries_without_scipy_linalg(cold_then_warm):
     _, warm = cold_then_warm
     assert warm["registries"] is False  # before the harmonic scene: loads only

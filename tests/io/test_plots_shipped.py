@@ -24,7 +24,11 @@ EXTRA = {"lj-slit-profiles-epsilon.yaml": ["output.profiles.across.freq=100", "o
                                            "output.averages.start=100"]}
 
 
-@pytest.fixture(scope="module", params=[p.name for p in SWEEPS])
+FAST = "lj93-epsilon-sigma-cutoff.yaml"  # the fast subset plots this one; the others are marked slow
+
+
+@pytest.fixture(scope="module", params=[p.name if p.name == FAST else pytest.param(p.name, marks=pytest.mark.slow)
+                                        for p in SWEEPS])
 def shipped(request) -> tuple[str, xr.Dataset]:
     plan = load_plan(ROOT / "sweeps" / request.param, SHORT + EXTRA.get(request.param, []))
     return request.param, run_plan(plan, jobs=1, progress=False)
