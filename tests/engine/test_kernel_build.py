@@ -67,3 +67,22 @@ def test_compile_message_once(monkeypatch, capsys):
     monkeypatch.setattr(fast, "_cached_on_disk", lambda k: True)
     fast.announce_compile(kernel)
     assert "compiling" not in capsys.readouterr().err
+
+
+@pytest.mark.skipif(fast.njit is None, reason="numba not importable")
+@pytest.mark.parametrize("fixes", [False, True])
+def test_pair_compile_message_counts_the_shared_pair_kernels_until_they_are_built(monkeypatch, fixes):
+    """A pair scene's message: its chunk kernel's estimate (longer with thermostats), plus the
+    list build and force pass every pair scene shares while neither compiled nor cached."""
+    from types import SimpleNamespace
+
+    from wallbatch.engine import pair_compiled as pc
+
+    own = pc.PAIR_FIXES_SECONDS if fixes else pc.PAIR_COMPILE_SECONDS
+    fresh = SimpleNamespace(signatures=[])
+    monkeypatch.setattr(pc, "build_case", fresh)
+    monkeypatch.setattr(pc, "forces_case", SimpleNamespace(signatures=["built"]))
+    monkeypatch.setattr(fast, "_cached_on_disk", lambda k: False)
+    assert pc.compile_estimate(fixes) == own + pc.PAIR_SHARED_SECONDS == (35 if fixes else 30)
+    monkeypatch.setattr(fast, "_cached_on_disk", lambda k: k is fresh)  # on disk: loads, no compile
+    assert pc.compile_estimate(fixes) == own

@@ -720,6 +720,14 @@ if njit is not None:
                     x[a, d] = xa + L if xa < lod else xa
 
     @njit(nogil=True, error_model="numpy", inline="always")
+    def _copy_atoms(dst: np.ndarray, src: np.ndarray) -> None:
+        """dst[:] = src for (N, 3) arrays, as a plain loop: numba compiles an array-to-array slice
+        assignment with its shape-mismatch message (str, repr, join: ~5 s of a first compile)."""
+        for a in range(src.shape[0]):
+            for d in range(3):
+                dst[a, d] = src[a, d]
+
+    @njit(nogil=True, error_model="numpy", inline="always")
     def _finite(x: np.ndarray) -> bool:
         for a in range(x.shape[0]):
             for d in range(3):
@@ -886,7 +894,7 @@ if njit is not None:
                             target = np.empty(2 * len(target) + 4 * N, np.int32)
                             m = build_case(x, lo, length, pair_per, reach, owner, first, target)
                         neigh = target
-                        xref[:] = x
+                        _copy_atoms(xref, x)
                         builds += 1
                     f[:] = 0.0  # force clear, pair forces
                     last = sample and step == nsteps - 1
@@ -894,7 +902,7 @@ if njit is not None:
                                        last or due)
                     if last:
                         ew[0], ew[1] = e, w
-                        fpair[:] = f
+                        _copy_atoms(fpair, f)
                 nbad = 0
                 for k in range(sf_meta.shape[0]):  # soft flat walls, fix order
                     if sf_meta[k, 0] == TABLE_STYLE:  # wall/table: the face's table from tb (data, not code)
@@ -1041,6 +1049,23 @@ if njit is not None:
                                _stochastic_faces=_compiled._stochastic_faces if stochastic
                                else _compiled._no_stochastic_faces, **flags)
         return njit(cache=True, nogil=True, error_model="numpy")(fn)
+
+
+# the compile message's estimates [s] (measured on a 2-core AVX2 host, first runs, one thread: the
+# chunk kernel of an LJ slit ~13-15 s, and ~12-15 s more for the pair kernels every pair scene
+# shares, the list build and force pass, when they are not cached yet; errs long)
+PAIR_COMPILE_SECONDS, PAIR_FIXES_SECONDS, PAIR_SHARED_SECONDS = 15, 20, 15
+
+
+def compile_estimate(fixes: bool) -> float:
+    """The compile message's estimate for a pair scene's chunk kernel [s]: PAIR_COMPILE_SECONDS
+    (PAIR_FIXES_SECONDS with thermostats), plus PAIR_SHARED_SECONDS when the shared list build
+    and force pass are not compiled or in numba's disk cache yet."""
+    own = PAIR_FIXES_SECONDS if fixes else PAIR_COMPILE_SECONDS
+    shared = [build_case, forces_case] if njit is not None else []
+    if all(k.signatures or _compiled._cached_on_disk(k) for k in shared):
+        return own
+    return own + PAIR_SHARED_SECONDS
 
 
 THREAD_MIN_ATOMS = 8_192  # atoms per thread below which one case's chunk runs in one call (`_chunk_threaded`)
@@ -1731,7 +1756,7 @@ class PairChunks(_compiled.KernelPath):
                                 sk is not None, fixes=bool(fx[0].shape[0]), reflect=bool(rf_meta.shape[0]),
                                 dtr=dtr is not None)
         if not kernel.signatures:
-            _compiled.announce_compile(kernel)
+            _compiled.announce_compile(kernel, compile_estimate(bool(fx[0].shape[0])))
         done = []
         for c in range(C):
             x, v, f, xref, owner, first = (b[c] for b in bufs)  # copies of the case's state (kept arrays)
