@@ -1390,7 +1390,9 @@ def _chunk_threaded(kernel: Any, args: tuple, parts: int, held: dict | None = No
     atoms the kernel with `post` for the rest of the step (walls, lost atoms, final_integrate) and
     `_pre_step` for the start of the next (drift, wrap, list check): two meetings of the threads a
     step. With wall/flow the rest of the step runs on all atoms in one call (its random stream is
-    drawn atom after atom). A sampled chunk's last pair pass gives the energy and virial too (each
+    drawn atom after atom). With thermostats, what reads every atom (`fix_phase`: the end of the
+    step, then the start of the next) runs between the `post` parts and the `_pre_step` parts:
+    three meetings a step. A sampled chunk's last pair pass gives the energy and virial too (each
     row's sums by the parts, then the rows in order, as `forces_case`). Every value is that of the one call, bit
     for bit; returns what it returns (a chunk with trouble may stop at another step of it: the
     caller discards it and the NumPy loop re-runs it). `held` carries what the next chunk of the
