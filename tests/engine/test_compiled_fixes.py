@@ -112,6 +112,32 @@ def test_langevin_same_stream_bit_for_bit(monkeypatch):
     assert not np.array_equal(got[0].data["temp"], got[1].data["temp"])
 
 
+def test_cases_with_generators_after_the_first_skip_numbas_typing(monkeypatch):
+    """Three Langevin cases, one kernel call per case (each its own generator): the first goes
+    through numba's dispatcher, the other two to the entry point it resolved (`backend.resolved`:
+    no typing of ~60 arguments per call), with the NumPy path's bits."""
+    from wallbatch.engine import backend, threads
+
+    calls = {"dispatcher": 0, "entry": 0}
+    run_kernel, call_kernel = threads.run_kernel, backend.call_kernel
+
+    def counted_run(kernel, args, *a, **k):
+        calls["dispatcher"] += 1
+        return run_kernel(kernel, args, *a, **k)
+
+    def counted_call(kernel, *args):
+        calls["entry"] += not hasattr(kernel, "py_func")
+        return call_kernel(kernel, *args)
+
+    monkeypatch.setattr(threads, "run_kernel", counted_run)
+    monkeypatch.setattr(backend, "call_kernel", counted_call)
+    monkeypatch.setenv("WALLBATCH_THREADS", "1")
+    fixes = {"a": "fix a all nve", "b": "fix b all langevin 1.0 2.0 0.5 48279"}
+    ref, got, eng = check(monkeypatch, [gas(fixes, seed=seed, steps=200, thermo=50) for seed in (5, 6, 7)])
+    assert calls["dispatcher"] >= 1 and calls["entry"] == 2 * calls["dispatcher"]
+    assert not np.array_equal(got[0].data["temp"], got[2].data["temp"])
+
+
 def test_langevin_zero_tally_on_a_group(monkeypatch):
     d = gas({"a": "fix a all nve", "b": "fix b hot langevin 2.0 2.0 0.2 9 zero yes tally yes"})
     d["atoms"].append({**d["atoms"][0], "group": "hot", "create": {"random": {"count": 100, "region": "mid"}}})

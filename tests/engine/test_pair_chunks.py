@@ -206,6 +206,26 @@ def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
     assert eng.run()[0].status == "ok"
 
 
+def test_later_cases_of_a_chunk_skip_numbas_typing(monkeypatch):
+    """Three cases of a batch, one kernel call each per chunk: the first through numba's
+    dispatcher, the others through the entry point it resolved (`backend.resolved`), with the
+    per-step path's bits."""
+    from wallbatch.engine import backend
+
+    calls = {"dispatcher": 0, "entry": 0}
+    call_kernel = backend.call_kernel
+
+    def counted(kernel, *args):
+        calls["dispatcher" if hasattr(kernel, "py_func") else "entry"] += 1
+        return call_kernel(kernel, *args)
+
+    monkeypatch.setattr(backend, "call_kernel", counted)
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(slit(1.0), slit(1.2), slit(1.4)))
+    assert_bits(got, ref)
+    assert isinstance(fused.fast, PairChunks) and fused.fast.fallbacks == 0
+    assert calls["dispatcher"] >= 1 and calls["entry"] == 2 * calls["dispatcher"]
+
+
 def test_sample_takes_the_chunk_outputs(monkeypatch):
     """A chunk ending at a sample (samples not recorded in the kernel, as for a case over
     threads) gives the pair energy and virial in its last force pass: the sample's pair.compute

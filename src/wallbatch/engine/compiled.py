@@ -1911,9 +1911,21 @@ if njit is not None:
             self._keep = tuple(name not in dropped for name in inspect.signature(dispatcher.py_func).parameters)
 
         def __call__(self, *args: Any) -> int:
+            return self.dispatcher(*self._trim(args))
+
+        def _trim(self, args: tuple) -> list:
             if len(args) != len(self._keep):
                 raise TypeError(f"the chunk kernel takes {len(self._keep)} arguments, {len(args)} given")
-            return self.dispatcher(*[a if keep else None for keep, a in zip(self._keep, args)])
+            return [a if keep else None for keep, a in zip(self._keep, args)]
+
+        def resolved(self, args: tuple) -> Callable[..., int]:
+            """For many calls with arguments of the types of `args` (the full list): the compiled
+            entry point of their overload (`backend.resolved`: numba types ~60 arguments per call
+            otherwise, ~1.5 ms), called as this kernel is; this kernel itself if it has none yet."""
+            entry = backend.resolved(self.dispatcher, tuple(self._trim(args)))
+            if entry is self.dispatcher:
+                return self
+            return lambda *a: entry(*self._trim(a))
 
         def __getattr__(self, name: str) -> Any:
             if name in ("dispatcher", "dropped", "_keep"):  # not set yet (copy, pickle)
@@ -2726,15 +2738,14 @@ class FastPath(KernelPath):
         units = (float(s.units.ftm2v), float(s.units.mvv2e))
         sm = _sample_arrays(at, C, sf_meta.shape[0], rf_meta.shape[0] + sto[0].shape[0], fx, rg[0].shape[0])
 
-        def run(c: slice, fl: tuple, fx_rng: Any = _NO_FLOW[-1], st_rng: Any = _NO_FLOW[-1]) -> int:
-            """The kernel on cases c (a slice: views, so the kernel writes through)."""
-            return threads.run_kernel(kernel, (  # in threads over cases or atoms where they do not interact
-                *args, s.x[c], s.v[c], s.f[c], s.mass[c], s.radius[c], s.dt[c], s.atime[c],
-                s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
-                rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
-                rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng, *tb, sto[0], sto[1][c],
-                sto[2][c], sto[3], st_rng, lp_val[c],
-                (sm[0],) + tuple(a[c] for a in sm[1:])))
+        def case_args(c: slice, fl: tuple, fx_rng: Any = _NO_FLOW[-1], st_rng: Any = _NO_FLOW[-1]) -> tuple:
+            """The kernel's arguments for cases c (a slice: views, so the kernel writes through)."""
+            return (*args, s.x[c], s.v[c], s.f[c], s.mass[c], s.radius[c], s.dt[c], s.atime[c],
+                    s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
+                    rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
+                    rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng, *tb, sto[0], sto[1][c],
+                    sto[2][c], sto[3], st_rng, lp_val[c],
+                    (sm[0],) + tuple(a[c] for a in sm[1:]))
 
         # generators drawn from in the kernel (fix langevin, wall/flow, wall/reflect/stochastic):
         # then one case per call, each with its own generators
@@ -2749,8 +2760,9 @@ class FastPath(KernelPath):
         def run_cases(c0: int, c1: int) -> int:
             """Cases c0 .. c1 - 1: in one call, or, with generators, one call per case (in order,
             up to the first trouble)."""
-            if not generators:
-                return run(slice(c0, c1), _NO_FLOW)
+            if not generators:  # in threads over cases or atoms where they do not interact
+                return threads.run_kernel(kernel, case_args(slice(c0, c1), _NO_FLOW))
+            entry = None  # every case's call has arguments of the same types: typed once (`backend.resolved`)
             for c in range(c0, c1):
                 fl = _NO_FLOW
                 if fk is not None:
@@ -2759,8 +2771,14 @@ class FastPath(KernelPath):
                     walls = np.ascontiguousarray(fk.walls[c][np.isfinite(fk.walls[c])])
                     fl = (fl_int, fl_f, walls, fk.group[c].astype(np.uint8), phys[c], pend[c], prev[c], cross[c],
                           fk.rngs[c])
-                status = run(slice(c, c + 1), fl, fx_rngs[c] if fx_rngs else _NO_FLOW[-1],
-                             sk.rngs[c] if sk is not None else _NO_FLOW[-1])
+                one = case_args(slice(c, c + 1), fl, fx_rngs[c] if fx_rngs else _NO_FLOW[-1],
+                                sk.rngs[c] if sk is not None else _NO_FLOW[-1])
+                if entry is None:  # (its first call compiles the kernel if it is new)
+                    status = threads.run_kernel(kernel, one)
+                    how_to = getattr(kernel, "resolved", None)  # (a SceneKernel's own: its None arguments)
+                    entry = how_to(one) if how_to is not None else backend.resolved(kernel, one)
+                else:
+                    status = backend.call_kernel(entry, *one)
                 if status != 0:
                     return status
             return 0

@@ -1760,6 +1760,7 @@ class PairChunks(_compiled.KernelPath):
         if not kernel.signatures:
             _compiled.announce_compile(kernel, compile_estimate(bool(fx[0].shape[0])))
         done = []
+        entry = None  # the kernel's entry point for one-thread calls, after the first (`backend.resolved`)
         for c in range(C):
             x, v, f, xref, owner, first = (b[c] for b in bufs)  # copies of the case's state (kept arrays)
             for b, a in zip((x, v, f, xref, owner, first), (s.x, s.v, s.f, pair._xref, pair._owner, pair._first)):
@@ -1801,8 +1802,10 @@ class PairChunks(_compiled.KernelPath):
                 self.threaded_chunks += 1
                 if wall > BUSY_MIN_WALL and cpu < THREAD_MIN_USE * parts * wall:
                     self.busy_skip = BUSY_SKIP
-            else:
-                status, builds, neigh = backend.call_kernel(kernel, *args)  # (a Ctrl-C: KeyboardInterrupt)
+            else:  # (a Ctrl-C: KeyboardInterrupt)
+                status, builds, neigh = backend.call_kernel(kernel if entry is None else entry, *args)
+                if entry is None:  # the next cases' arguments have the same types: typed once (`backend.resolved`)
+                    entry = backend.resolved(kernel, args)
             if status != 0:
                 self._held = None
                 for r, st in zip(generators, rng_states):  # the NumPy loop re-runs the chunk with the same draws
