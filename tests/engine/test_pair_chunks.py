@@ -181,17 +181,18 @@ def test_list_grows_inside_the_chunk(monkeypatch):
 
 
 @pytest.mark.parametrize("what", ["lepton", "dt_reset with a moving wall", "dt_reset over threads",
-                                  "reflect over threads"])
+                                  "reflect statistics over threads"])
 def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
-    """What the fused chunk does not run (wall/lepton faces, dt/reset with per-step wall values, a
-    reflect wall or dt/reset on a case cut over threads) keeps the per-step path."""
+    """What the fused chunk does not run (wall/lepton faces, dt/reset with per-step wall values,
+    reflect statistics or dt/reset on a case cut over threads) keeps the per-step path."""
     d = slit()
     if what == "lepton":
         d["walls"] = {"w": {"style": "lepton", "units": "box", "zlo": {
             "coord": "EDGE", "cutoff": 2.5, "expression": "eps*(2/15*(sig/r)^9-(sig/r)^3)",
             "params": {"eps": 1.0, "sig": 1.0}}}}
-    elif what == "reflect over threads":
+    elif what == "reflect statistics over threads":
         d["walls"] = {"r": {"style": "reflect", "units": "box", "zlo": "EDGE", "zhi": "EDGE"}}
+        d["output"] = {"thermo": ["step", "temp", "reflect_count"]}
         monkeypatch.setattr(pair_compiled, "case_parts", lambda n: 2)
     elif what == "dt_reset with a moving wall":
         d["dt_reset"] = {"every": 1, "xmax": 0.05, "tmax": 0.005, "units": "box"}

@@ -201,6 +201,30 @@ def test_thermostats_on_threads_same_bits_as_one_thread(monkeypatch, scene):
         assert not one.state.v[..., 2].any() and not one.state.x[..., 2].any()
 
 
+def test_reflect_walls_on_threads_same_bits_as_one_thread(monkeypatch):
+    """wall/reflect faces without statistics, one moving (a variable; frame wall: reflected
+    relative to the wall's velocity), on a case cut over threads: each thread reflects its atoms
+    after the drift (`_pre_step`), the faces' last coords advance once all threads read them, so
+    2 and 3 threads give one thread's samples and final state bit for bit, every chunk threaded;
+    and the atoms stayed between the walls."""
+    d = slit(steps=60, thermo=20)
+    d["variables"] = {"top": "vdisplace(7.0, -1.0)"}
+    d["walls"] = {"r": {"style": "reflect", "units": "box", "frame": "wall", "zlo": 1.6, "zhi": "v_top"}}
+    ref, one = run_threads(monkeypatch, d, 1)
+    assert one.fast.threaded_chunks == 0 and one.fast.compiled_chunks >= 3 and one.fast.fallbacks == 0
+    for n in (2, 3):
+        got, eng = run_threads(monkeypatch, d, n)
+        assert_bits(got, ref)
+        assert eng.fast.threaded_chunks == eng.fast.compiled_chunks == one.fast.compiled_chunks
+        assert eng.fast.fallbacks == 0
+        for name in ("x", "v", "f"):
+            np.testing.assert_array_equal(getattr(eng.state, name), getattr(one.state, name), err_msg=name)
+    z = one.state.x[0, :, 2]
+    top = 7.0 - 1.0 * 60 * 0.005
+    assert z.min() >= 1.6 and z.max() <= top + 1e-12
+    assert np.count_nonzero(z > top - 0.2) > 0  # atoms met the moving wall
+
+
 def test_a_zero_temperature_on_threads_is_reported_as_on_one_thread(monkeypatch):
     """temp/berendsen meets a group at zero temperature (every atom at rest) in a threaded chunk:
     `fix_phase`'s status 6 hands the chunk back, and the NumPy loop reports what one thread does."""

@@ -21,8 +21,9 @@ atoms, kick, wall/flow with compiled.py's `_flow_step`), so no Python runs betwe
 calls the very kernels of the per-step compiled path, so both give the same bits; trouble hands
 the chunk back to NumPy. The samples of a chunk are recorded in it (`PairChunks.advance_sampled`:
 the outputs of Engine.sample, with compiled.py's sample functions). It also runs, with
-compiled.py's functions, the `fixes:` its kernels run (thermostats, enforce2d), and, for a case on
-one thread, wall/reflect and wall/reflect/stochastic faces on fixed dimensions and fix dt/reset. A run to a
+compiled.py's functions, the `fixes:` its kernels run (thermostats, enforce2d), wall/reflect faces
+on fixed dimensions, and, for a case on one thread, reflect statistics, wall/reflect/stochastic
+faces and fix dt/reset. A run to a
 simulated time fuses the steps before each landing step (`PairChunks.advance_to_time`). Not
 fused: other fixes, wall/lepton faces, the landing steps of time-based runs, dt/reset and
 thermostats in them.
@@ -744,13 +745,22 @@ if njit is not None:
             out[a] = hdt / mass[a]
         return out
 
-    @jit
     def _pre_step(x: np.ndarray, v: np.ndarray, f: np.ndarray, dtfm: np.ndarray, dt: float, lo: np.ndarray,
                   hi: np.ndarray, box_per: np.ndarray, xref: np.ndarray, length: np.ndarray, pair_per: np.ndarray,
-                  limit2: float) -> int:
-        """The first half of `pair_chunk`'s step for `_chunk_threaded`: drift and wrap, then 0 (the
-        list holds), 1 (rebuild it) or 3 (a non-finite position); f is cleared (after the drift)."""
+                  limit2: float, rf_meta: np.ndarray, rf_row: np.ndarray, rf_prev: np.ndarray, mass: np.ndarray,
+                  groups: np.ndarray, ftm2v: float) -> int:
+        """The first half of `pair_chunk`'s step for `_chunk_threaded` on a run of atoms: drift and
+        wrap, the wall/reflect faces (rf_meta rows, this step's coords rf_row, the last step's
+        rf_prev: `pair_chunk`'s calls of `_reflect_face`, without statistics; none: 0 rows), then 0
+        (the list holds), 1 (rebuild it) or 3 (a non-finite position); f is cleared (after the drift)."""
         _drift(x, v, f, dtfm, dt, lo, hi, box_per)
+        X, V = x.T, v.T
+        RS = np.zeros((1, rf_meta.shape[0], 2))  # (no statistics: untouched)
+        for k in range(rf_meta.shape[0]):  # wall/reflect (post_integrate)
+            coord = rf_row[k]
+            vwall = (coord - rf_prev[k]) / dt if dt > 0 else 0.0
+            _reflect_face(rf_meta[k, 0], rf_meta[k, 1], rf_meta[k, 2] == 1, rf_meta[k, 3], coord, vwall, False, 0, k,
+                          X, V, mass, groups, RS, ftm2v, 0, x.shape[0])
         status = 0
         if _moved(x, xref, length, pair_per, limit2):
             status = 1 if _finite(x) else 3
@@ -1011,14 +1021,24 @@ if njit is not None:
         return status
 
     @functools.lru_cache(maxsize=1)
-    def fix_phase() -> Any:
-        """`_fix_phase` compiled, its on-disk cache named by a digest of compiled.py (the fix
-        kernels it calls) and thermostats.py (their arithmetic): numba keys a cached function by
-        its own file only."""
+    def _compiled_key() -> str:
+        """A digest of compiled.py (the fix and reflect kernels `fix_phase` and `pre_step` call) and
+        thermostats.py (their arithmetic), in those functions' names: numba keys a cached function
+        by its own file only."""
         from wallbatch.engine import thermostats  # noqa: PLC0415 - only to key the cache
 
         h = hashlib.sha256((inspect.getsource(_compiled) + inspect.getsource(thermostats)).encode())
-        return jit(_compiled._relink(_fix_phase, name=f"fix_phase_{h.hexdigest()[:12]}"))
+        return h.hexdigest()[:12]
+
+    @functools.lru_cache(maxsize=1)
+    def fix_phase() -> Any:
+        """`_fix_phase` compiled (its on-disk cache keyed by `_compiled_key`)."""
+        return jit(_compiled._relink(_fix_phase, name=f"fix_phase_{_compiled_key()}"))
+
+    @functools.lru_cache(maxsize=1)
+    def pre_step() -> Any:
+        """`_pre_step` compiled (its on-disk cache keyed by `_compiled_key`)."""
+        return jit(_compiled._relink(_pre_step, name=f"pre_step_{_compiled_key()}"))
 
     def pair_chunk_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (),
                        flow: bool = False, tables: bool = False, stochastic: bool = False, fixes: bool = False,
@@ -1433,9 +1453,16 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
         tails = [dict(a, x=x[r], v=v[r], f=f[r], mass=mass[r], radius=a["radius"][r],
                       groups=np.ascontiguousarray(groups[:, r]),
                       fix=(*fix[:3], tuple(b[r] for b in fb) if fb[0].shape[0] else fb)) for r in runs]
+    rf_meta, rf_val, rf_prev = a["rfl"][:3]  # wall/reflect without statistics (`chunk_eligible`)
+    part_groups = [np.ascontiguousarray(groups[:, r]) for r in runs]
+    pre_kernel = pre_step()
+    at_step = [0]  # the step whose start `pre` runs (its faces' coords)
 
-    def pre(r: slice) -> int:
-        return _pre_step(x[r], v[r], f[r], dtfm[r], dt, lo, hi, box_per, xref[r], length, per, limit2)
+    def pre(p: int) -> int:
+        r = runs[p]
+        row = rf_val[at_step[0] if rf_val.shape[0] > 1 else 0]
+        return pre_kernel(x[r], v[r], f[r], dtfm[r], dt, lo, hi, box_per, xref[r], length, per, limit2, rf_meta, row,
+                          rf_prev, mass[r], part_groups[p], ftm2v)
 
     def tail_pre(p: int, step: int) -> tuple[int, int]:
         """The rest of step `step` on part p's atoms (all atoms with wall/flow: tails[0]), then,
@@ -1451,10 +1478,16 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
             st = backend.call_kernel(tail_kernel, *t.values())[0]  # (a Ctrl-C: KeyboardInterrupt)
             if st != 0:
                 return st, 0
-        return 0, (pre(runs[p]) if step + 1 < nsteps and len(tails) == parts and not coupled else 0)
+        return 0, (pre(p) if step + 1 < nsteps and len(tails) == parts and not coupled else 0)
 
     def pres() -> int:
-        return max(crew([lambda r=r: pre(r) for r in runs]))  # 3: a non-finite position
+        return max(crew([lambda p=p: pre(p) for p in range(parts)]))  # 3: a non-finite position
+
+    def faces_moved() -> None:
+        """After every part's `pre` of step at_step: the faces' coords of that step become the
+        last ones (`pair_chunk`'s rf_prev[k] = coord, once all parts read the old ones)."""
+        if rf_meta.shape[0]:
+            rf_prev[:] = rf_val[at_step[0] if rf_val.shape[0] > 1 else 0]
 
     # every part's call, at every step, has arguments of the same types: typed once (`backend.resolved`)
     tail_kernel = backend.resolved(kernel, tuple(dict(tails[0], neigh=neigh).values()))
@@ -1474,6 +1507,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
         phase(0, 0, dt, ftm2v, mass, v, groups, fix)
         phase(1, step0 + 1, dt, ftm2v, mass, v, groups, fix)
     st = pres()
+    faces_moved()
     for step in range(nsteps):
         if st == 3:
             return 3, builds, neigh
@@ -1504,6 +1538,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
         if built and rows[0] >= 0 and cpu.min() > 0:  # next build: parts of about equal force time, from
             fast = cpu if fast is None else np.minimum(fast, cpu)  # each part's quickest pass on this list
             shares = _rebalance(shares, rows / N, fast)  # (a pass slowed by other work would skew it)
+        at_step[0] = step + 1  # (the next step's start, in `tail_pre` or `pres`)
         if len(tails) == parts and not coupled:  # the rest of this step and the start of the next, atoms in parts
             got = crew([lambda p=p: tail_pre(p, step) for p in range(parts)])
         else:  # the rest of the step on each part (wall/flow: on all atoms), the fixes' sums over all
@@ -1523,6 +1558,8 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
         bad = next((g[0] for g in got if g[0] != 0), 0)
         if bad != 0:
             return bad, builds, neigh
+        if step + 1 < nsteps:
+            faces_moved()
         st = max(g[1] for g in got)
     held["split"], held["shares"] = split, shares
     return 0, builds, neigh
@@ -1542,18 +1579,27 @@ def _signature_names(kernel: Any) -> tuple[str, ...]:
     return threads._signature_names(getattr(kernel, "py_func", kernel))
 
 
+def reflect_on_threads(plan: "_compiled.ChunkPlan") -> bool:
+    """Whether a case cut over threads runs its wall/reflect faces in `_chunk_threaded` (each
+    thread its atoms, `_pre_step`): not with reflect statistics (reflect_count, reflect_impulse:
+    the impulse would be summed in another order) nor wall/reflect/stochastic (its stream is
+    drawn atom after atom). True without reflect faces."""
+    return _compiled._stochastic_kernel(plan) is None and not any(w.stats for w in _compiled._plain_reflect(plan))
+
+
 def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     """Whether `PairChunks` runs this plan: pair lj/cut on its compiled path with what the chunk
     kernels of compiled.py run: flat soft walls of the registry's compiled styles and wall/table
     faces, wall/region, one wall/flow, the `fixes:` of `compiled.fixes_eligible` (thermostats,
-    enforce2d; a case over threads too, `_chunk_threaded`); and, for a case on one thread
-    (`case_parts`), wall/reflect and wall/reflect/stochastic (`compiled._stochastic_eligible`) on
-    fixed dimensions, and fix dt/reset (not with wall/flow or wall values that vary with time).
-    Not wall/lepton faces or anything else."""
+    enforce2d), wall/reflect on fixed dimensions (a case over threads too, `_chunk_threaded`);
+    and, for a case on one thread (`case_parts`), wall/reflect with statistics and
+    wall/reflect/stochastic (`compiled._stochastic_eligible`) on fixed dimensions
+    (`reflect_on_threads`), and fix dt/reset (not with wall/flow or wall values that vary with
+    time). Not wall/lepton faces or anything else."""
     if njit is None or plan.others != ("pair",):
         return False
     ens = plan.ensemble
-    if (plan.reflect or plan.dt_reset is not None) and case_parts(plan.state.x.shape[1]) >= 2:
+    if (not reflect_on_threads(plan) or plan.dt_reset is not None) and case_parts(plan.state.x.shape[1]) >= 2:
         return False  # a case over threads: its per-step path keeps them
     if ens is not None and not _compiled.fixes_eligible(plan):
         return False
@@ -1787,8 +1833,9 @@ class PairChunks(_compiled.KernelPath):
                      sk.rngs[c] if sk is not None else _compiled._NO_FLOW[-1], float(s.units.mvv2e)),
                     (int(dtr.every) if dtr is not None else 0, dtr_group, dtr_par[c], clk[c]),
                     (sm[0], *(a[c] for a in sm[1:])))
-            # one thread for samples in the kernel (`samples_in_kernel`), wall/reflect and dt/reset (`chunk_eligible`)
-            parts = case_parts(N) if at is None and not plan.reflect and dtr is None else 1
+            # one thread for samples in the kernel (`samples_in_kernel`), dt/reset and reflect
+            # statistics (`chunk_eligible`)
+            parts = case_parts(N) if at is None and reflect_on_threads(plan) and dtr is None else 1
             if parts >= 2 and self.busy_skip > 0:  # the cores were busy with other work: one thread
                 self.busy_skip -= 1
                 parts = 1
