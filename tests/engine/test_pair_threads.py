@@ -150,22 +150,32 @@ def run_threads(monkeypatch, config: dict, n: int):
     return eng.run(), eng
 
 
+def threads_match_one(monkeypatch, config: dict) -> tuple[list, Engine, list[Engine]]:
+    """(results, engine) of one thread and the engines of 2 and 3 threads, after checking that
+    these give every sample, the final state and the neighbor builds of one thread bit for bit,
+    every chunk threaded (one thread: none), no chunk handed back."""
+    ref, one = run_threads(monkeypatch, config, 1)
+    assert one.fast.threaded_chunks == 0 and one.fast.compiled_chunks >= 3 and one.fast.fallbacks == 0
+    engines = []
+    for n in (2, 3):
+        got, eng = run_threads(monkeypatch, config, n)
+        assert_bits(got, ref)
+        assert eng.fast.threaded_chunks == eng.fast.compiled_chunks == one.fast.compiled_chunks
+        assert eng.fast.fallbacks == 0
+        for name in ("x", "v", "f"):
+            np.testing.assert_array_equal(getattr(eng.state, name), getattr(one.state, name), err_msg=name)
+        np.testing.assert_array_equal(eng.pair.case_builds, one.pair.case_builds)
+        engines.append(eng)
+    return ref, one, engines
+
+
 @pytest.mark.parametrize("scene", ["slit", "flow", "cavity"])
 def test_one_case_on_threads_same_bits_as_one_thread(monkeypatch, scene):
     """lj93 slit (energy, virial, pressure sampled), wall/flow walls (random streams in the
     step), a wall/region sphere and a flat floor: 2 and 3 threads give every sample, the final
     state and the neighbor builds of one thread, bit for bit, and the chunks ran threaded."""
     config = {"slit": slit, "flow": flow_fluid, "cavity": sphere_cavity}[scene]()
-    ref, one = run_threads(monkeypatch, config, 1)
-    assert one.fast.threaded_chunks == 0 and one.fast.compiled_chunks >= 3
-    for n in (2, 3):
-        got, eng = run_threads(monkeypatch, config, n)
-        assert_bits(got, ref)
-        assert eng.fast.threaded_chunks == eng.fast.compiled_chunks == one.fast.compiled_chunks
-        assert eng.fast.fallbacks == one.fast.fallbacks == 0
-        for name in ("x", "v", "f"):
-            np.testing.assert_array_equal(getattr(eng.state, name), getattr(one.state, name), err_msg=name)
-        np.testing.assert_array_equal(eng.pair.case_builds, one.pair.case_builds)
+    _, one, _ = threads_match_one(monkeypatch, config)
     assert one.pair.case_builds.min() >= 2  # lists rebuilt inside the chunks
 
 
@@ -182,16 +192,9 @@ def test_thermostats_on_threads_same_bits_as_one_thread(monkeypatch, scene):
     config["fixes"] = dict(THERMOSTATS[kind])
     config["run"]["thermo"] = 20
     config["output"] = {"thermo": ["step", "temp", "pe", "etot", "press", "ecouple", "econserve"]}
-    ref, one = run_threads(monkeypatch, config, 1)
-    assert one.fast.threaded_chunks == 0 and one.fast.compiled_chunks >= 3 and one.fast.fallbacks == 0
+    ref, one, engines = threads_match_one(monkeypatch, config)
     assert np.ptp(ref[0].data["ecouple"]) > 1e-3  # the thermostat exchanged energy
-    for n in (2, 3):
-        got, eng = run_threads(monkeypatch, config, n)
-        assert_bits(got, ref)
-        assert eng.fast.threaded_chunks == eng.fast.compiled_chunks == one.fast.compiled_chunks
-        assert eng.fast.fallbacks == 0
-        for name in ("x", "v", "f"):
-            np.testing.assert_array_equal(getattr(eng.state, name), getattr(one.state, name), err_msg=name)
+    for eng in engines:
         for a, b in zip(eng.ensemble.fixes, one.ensemble.fixes):
             if a.style == "langevin":
                 assert np.abs(b.force).max() > 0
@@ -210,15 +213,7 @@ def test_reflect_walls_on_threads_same_bits_as_one_thread(monkeypatch):
     d = slit(steps=60, thermo=20)
     d["variables"] = {"top": "vdisplace(7.0, -1.0)"}
     d["walls"] = {"r": {"style": "reflect", "units": "box", "frame": "wall", "zlo": 1.6, "zhi": "v_top"}}
-    ref, one = run_threads(monkeypatch, d, 1)
-    assert one.fast.threaded_chunks == 0 and one.fast.compiled_chunks >= 3 and one.fast.fallbacks == 0
-    for n in (2, 3):
-        got, eng = run_threads(monkeypatch, d, n)
-        assert_bits(got, ref)
-        assert eng.fast.threaded_chunks == eng.fast.compiled_chunks == one.fast.compiled_chunks
-        assert eng.fast.fallbacks == 0
-        for name in ("x", "v", "f"):
-            np.testing.assert_array_equal(getattr(eng.state, name), getattr(one.state, name), err_msg=name)
+    _, one, _ = threads_match_one(monkeypatch, d)
     z = one.state.x[0, :, 2]
     top = 7.0 - 1.0 * 60 * 0.005
     assert z.min() >= 1.6 and z.max() <= top + 1e-12
