@@ -1446,15 +1446,14 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
     fb = fix[3]
     coupled = fb[0].shape[0] > 0 and bool(np.any(fix[0][0][:, 0] != _compiled.FIX_ENFORCE2D))
     step0, mass, groups, ftm2v = fix[2], a["mass"], a["groups"], a["ftm2v"]
+    part_groups = [np.ascontiguousarray(groups[:, r]) for r in runs]  # (G, N) rows: each part's copy
     a.update(nsteps=1, post=True, sample=False)
     if int(a["fl"][0][0]) != 0:  # wall/flow: the rest of the step on all atoms
         tails = [a]
     else:
-        tails = [dict(a, x=x[r], v=v[r], f=f[r], mass=mass[r], radius=a["radius"][r],
-                      groups=np.ascontiguousarray(groups[:, r]),
-                      fix=(*fix[:3], tuple(b[r] for b in fb) if fb[0].shape[0] else fb)) for r in runs]
+        tails = [dict(a, x=x[r], v=v[r], f=f[r], mass=mass[r], radius=a["radius"][r], groups=part_groups[p],
+                      fix=(*fix[:3], tuple(b[r] for b in fb) if fb[0].shape[0] else fb)) for p, r in enumerate(runs)]
     rf_meta, rf_val, rf_prev = a["rfl"][:3]  # wall/reflect without statistics (`chunk_eligible`)
-    part_groups = [np.ascontiguousarray(groups[:, r]) for r in runs]
     pre_kernel = pre_step()
     at_step = [0]  # the step whose start `pre` runs (its faces' coords)
 
