@@ -86,3 +86,51 @@ def test_kernel_forces_twins_give_the_same_numbers() -> None:
             want = np.array([public(float(x), 1.5, 1.1, 0.0, 2.5, 0.0, 2.0) for x in r])
             assert np.array_equal(call(r), want), (i, m)
             assert np.count_nonzero(want) > 20  # inside the cut-off: real numbers compared
+
+
+KERNEL_MODULES = ("compiled", "pair_compiled", "asphere_compiled", "flow_compiled")
+
+
+def _array_slice_copies(source: str, module: str) -> list[str]:
+    """The statements `a[...] = <not a number>` (a slice or Ellipsis in the index) under the
+    `if njit is not None:` blocks of a module's source, where its numba kernels live."""
+    import ast
+
+    tree = ast.parse(source)
+    blocks = [n for n in tree.body if isinstance(n, ast.If) and "njit" in ast.unparse(n.test)]
+    found = []
+    for block in blocks:
+        for node in ast.walk(block):
+            if not isinstance(node, (ast.Assign, ast.AugAssign)):
+                continue
+            number = isinstance(node.value, ast.Constant) or (
+                isinstance(node.value, ast.UnaryOp) and isinstance(node.value.operand, ast.Constant))
+            for target in node.targets if isinstance(node, ast.Assign) else [node.target]:
+                index = target.slice if isinstance(target, ast.Subscript) else None
+                parts = index.elts if isinstance(index, ast.Tuple) else [index]
+                if index is not None and not number and any(
+                        isinstance(p, ast.Slice) or (isinstance(p, ast.Constant) and p.value is Ellipsis)
+                        for p in parts):
+                    found.append(f"{module}.py:{node.lineno}: {ast.unparse(node)}")
+    return found
+
+
+@pytest.mark.parametrize("module", KERNEL_MODULES)
+def test_kernels_copy_arrays_in_loops_not_slice_assignments(module):
+    """numba compiles an array-to-array slice assignment (`a[:] = b`) with its shape-mismatch
+    message (str, repr, join: ~6 s of a pair scene's first compile before `pair_compiled._copy_atoms`);
+    the kernels copy arrays in plain loops (`_copy_atoms`, `compiled._copy3`) and fill with numbers."""
+    from pathlib import Path
+
+    import wallbatch.engine as engine
+
+    assert _array_slice_copies((Path(engine.__file__).parent / f"{module}.py").read_text(), module) == []
+
+
+def test_the_slice_copy_scan_finds_them():
+    """The scan sees array slice assignments under the block, not fills with numbers, element
+    assignments or code outside it (so the test above can fail)."""
+    src = ("if njit is not None:\n    def k(a, b):\n        a[:] = b\n        a[:] = 0.0\n        a[:] = -1.0\n"
+           "        a[..., 0] = b[0]\n        a[1, 0] = b[0]\n        a[:, 1] += b\n\n"
+           "def python_side(a, b):\n    a[:] = b\n")
+    assert _array_slice_copies(src, "m") == ["m.py:3: a[:] = b", "m.py:6: a[..., 0] = b[0]", "m.py:8: a[:, 1] += b"]
