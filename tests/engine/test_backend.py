@@ -191,3 +191,24 @@ def test_resolved_entry_point_gives_the_dispatchers_bits_for_tuples_of_arrays():
         return k
 
     assert backend.resolved(plain, (1,)) is plain
+
+
+def test_repeated_calls_type_the_arguments_once():
+    """`backend.Repeated`: the first call goes to `first` (or the dispatcher), the later ones to the
+    entry point resolved for the first call's argument types, each with the dispatcher's result."""
+    numba = pytest.importorskip("numba")
+
+    @numba.njit(nogil=True)
+    def scale(x, k):
+        for i in range(x.shape[0]):
+            x[i] *= k
+        return x.sum()
+
+    firsts = []
+    call = backend.Repeated(scale, lambda *a: firsts.append(1) or scale(*a))
+    assert call.entry is None
+    x = np.arange(5.0)
+    assert call(x, 2.0) == 20.0 and firsts == [1]
+    assert call.entry is not None and call.entry is not scale  # compiled by the first call: its entry point
+    assert call(x, 0.5) == 10.0 and firsts == [1]
+    np.testing.assert_array_equal(x, np.arange(5.0))

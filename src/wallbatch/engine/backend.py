@@ -108,7 +108,11 @@ def resolved(kernel: Callable[..., Any], args: tuple) -> Callable[..., Any]:
     for tuples (~2 ms for the ~40 arrays in the pair chunk kernel's tuples; its CPython entry
     point unboxes them in ~0.01 ms). The dispatcher itself if that overload is not compiled yet
     (its first call compiles it) or `kernel` is no dispatcher. The entry point releases the GIL as
-    the dispatcher's call does (nogil) and computes the same bits (the same machine code)."""
+    the dispatcher's call does (nogil) and computes the same bits (the same machine code). A
+    wrapper whose class has a `resolved(args)` method (compiled.SceneKernel) resolves its own way."""
+    own = getattr(type(kernel), "resolved", None)
+    if own is not None:
+        return own(kernel, args)
     overloads = getattr(kernel, "overloads", None)
     if not overloads:
         return kernel
@@ -118,6 +122,26 @@ def resolved(kernel: Callable[..., Any], args: tuple) -> Callable[..., Any]:
         return overloads[tuple(typeof(a) for a in args)].entry_point
     except Exception:  # noqa: BLE001 - an argument numba cannot type here, or no such overload: the dispatcher
         return kernel
+
+
+class Repeated:
+    """Calls of one compiled kernel with arguments of the same types, one after another (a chunk's
+    call per case, per thread's part and step): the first through `first` (default: the kernel,
+    by `call_kernel`), the others to the entry point `resolved` finds for that first call's
+    arguments (numba's typing once, not per call). Threads may share one: a race only makes two
+    first calls."""
+
+    def __init__(self, kernel: Callable[..., Any], first: Callable[..., Any] | None = None):
+        self.kernel = kernel
+        self.first = first
+        self.entry: Callable[..., Any] | None = None
+
+    def __call__(self, *args: Any) -> Any:
+        if self.entry is not None:
+            return call_kernel(self.entry, *args)
+        out = self.first(*args) if self.first is not None else call_kernel(self.kernel, *args)
+        self.entry = resolved(self.kernel, args)  # (compiled by the first call if it was new)
+        return out
 
 
 def numba_prepared() -> bool:

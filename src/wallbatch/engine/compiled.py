@@ -1919,9 +1919,10 @@ if njit is not None:
             return [a if keep else None for keep, a in zip(self._keep, args)]
 
         def resolved(self, args: tuple) -> Callable[..., int]:
-            """For many calls with arguments of the types of `args` (the full list): the compiled
-            entry point of their overload (`backend.resolved`: numba types ~60 arguments per call
-            otherwise, ~1.5 ms), called as this kernel is; this kernel itself if it has none yet."""
+            """`backend.resolved` of this kernel (which asks this method): for many calls with
+            arguments of the types of `args` (the full list), the compiled entry point of their
+            overload (numba types ~60 arguments per call otherwise, ~1.5 ms), called as this kernel
+            is; this kernel itself if it has none yet."""
             entry = backend.resolved(self.dispatcher, tuple(self._trim(args)))
             if entry is self.dispatcher:
                 return self
@@ -2762,7 +2763,8 @@ class FastPath(KernelPath):
             up to the first trouble)."""
             if not generators:  # in threads over cases or atoms where they do not interact
                 return threads.run_kernel(kernel, case_args(slice(c0, c1), _NO_FLOW))
-            entry = None  # every case's call has arguments of the same types: typed once (`backend.resolved`)
+            # every case's call has arguments of the same types: typed once (`backend.Repeated`)
+            call = backend.Repeated(kernel, lambda *one: threads.run_kernel(kernel, one))
             for c in range(c0, c1):
                 fl = _NO_FLOW
                 if fk is not None:
@@ -2771,14 +2773,8 @@ class FastPath(KernelPath):
                     walls = np.ascontiguousarray(fk.walls[c][np.isfinite(fk.walls[c])])
                     fl = (fl_int, fl_f, walls, fk.group[c].astype(np.uint8), phys[c], pend[c], prev[c], cross[c],
                           fk.rngs[c])
-                one = case_args(slice(c, c + 1), fl, fx_rngs[c] if fx_rngs else _NO_FLOW[-1],
-                                sk.rngs[c] if sk is not None else _NO_FLOW[-1])
-                if entry is None:  # (its first call compiles the kernel if it is new)
-                    status = threads.run_kernel(kernel, one)
-                    how_to = getattr(kernel, "resolved", None)  # (a SceneKernel's own: its None arguments)
-                    entry = how_to(one) if how_to is not None else backend.resolved(kernel, one)
-                else:
-                    status = backend.call_kernel(entry, *one)
+                status = call(*case_args(slice(c, c + 1), fl, fx_rngs[c] if fx_rngs else _NO_FLOW[-1],
+                                         sk.rngs[c] if sk is not None else _NO_FLOW[-1]))
                 if status != 0:
                     return status
             return 0

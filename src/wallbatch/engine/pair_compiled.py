@@ -35,7 +35,8 @@ the thermostats' sums over all atoms and the Langevin draws (atom after atom fro
 stream) run between those parts, in the calling thread (`fix_phase`). Each atom gets its force
 additions in the one-thread order (an addition to an atom an earlier part touches waits in a
 log), so the results are those of one thread, bit for bit. The parts' kernel calls, one per part
-and step, skip numba's typing of their arguments (`backend.resolved`: ~2 ms a call otherwise).
+and step, skip numba's typing of their arguments after the first (`backend.Repeated`: ~2 ms a call
+otherwise).
 
 All kernels are `@njit(cache=True)` without fastmath (results are reproducible) and take
 C-contiguous arrays (float64 positions, int32/int64 lists, bool flags: one compiled signature each).
@@ -1474,7 +1475,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
                 fpair[r] = f[r]
         if t is not None:
             t.update(neigh=neigh, sf_val=sf_val[step:step + 1] if vary else sf_val)
-            st = backend.call_kernel(tail_kernel, *t.values())[0]  # (a Ctrl-C: KeyboardInterrupt)
+            st = tail_kernel(*t.values())[0]  # (`call_kernel`: a Ctrl-C is a KeyboardInterrupt)
             if st != 0:
                 return st, 0
         return 0, (pre(p) if step + 1 < nsteps and len(tails) == parts and not coupled else 0)
@@ -1488,9 +1489,9 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
         if rf_meta.shape[0]:
             rf_prev[:] = rf_val[at_step[0] if rf_val.shape[0] > 1 else 0]
 
-    # every part's call, at every step, has arguments of the same types: typed once (`backend.resolved`)
-    tail_kernel = backend.resolved(kernel, tuple(dict(tails[0], neigh=neigh).values()))
-    phase = backend.resolved(fix_phase(), (0, 0, dt, ftm2v, mass, v, groups, fix)) if coupled else None
+    # every part's call, at every step, has arguments of the same types: typed once (`backend.Repeated`)
+    tail_kernel = backend.Repeated(kernel)
+    phase = backend.Repeated(fix_phase()) if coupled else None
 
     pending = old = None
     split = held.get("split")  # the starting list's, if the caller kept it
@@ -1805,7 +1806,9 @@ class PairChunks(_compiled.KernelPath):
         if not kernel.signatures:
             _compiled.announce_compile(kernel, compile_estimate(bool(fx[0].shape[0])))
         done = []
-        entry = None  # the kernel's entry point for one-thread calls, after the first (`backend.resolved`)
+        call = backend.Repeated(kernel)  # the cases' one-thread calls: numba's typing once (same types)
+        # one thread for samples in the kernel (`samples_in_kernel`), dt/reset and reflect statistics (`chunk_eligible`)
+        threadable = at is None and dtr is None and reflect_on_threads(plan)
         for c in range(C):
             x, v, f, xref, owner, first = (b[c] for b in bufs)  # copies of the case's state (kept arrays)
             for b, a in zip((x, v, f, xref, owner, first), (s.x, s.v, s.f, pair._xref, pair._owner, pair._first)):
@@ -1832,9 +1835,7 @@ class PairChunks(_compiled.KernelPath):
                      sk.rngs[c] if sk is not None else _compiled._NO_FLOW[-1], float(s.units.mvv2e)),
                     (int(dtr.every) if dtr is not None else 0, dtr_group, dtr_par[c], clk[c]),
                     (sm[0], *(a[c] for a in sm[1:])))
-            # one thread for samples in the kernel (`samples_in_kernel`), dt/reset and reflect
-            # statistics (`chunk_eligible`)
-            parts = case_parts(N) if at is None and reflect_on_threads(plan) and dtr is None else 1
+            parts = case_parts(N) if threadable else 1
             if parts >= 2 and self.busy_skip > 0:  # the cores were busy with other work: one thread
                 self.busy_skip -= 1
                 parts = 1
@@ -1848,10 +1849,8 @@ class PairChunks(_compiled.KernelPath):
                 self.threaded_chunks += 1
                 if wall > BUSY_MIN_WALL and cpu < THREAD_MIN_USE * parts * wall:
                     self.busy_skip = BUSY_SKIP
-            else:  # (a Ctrl-C: KeyboardInterrupt)
-                status, builds, neigh = backend.call_kernel(kernel if entry is None else entry, *args)
-                if entry is None:  # the next cases' arguments have the same types: typed once (`backend.resolved`)
-                    entry = backend.resolved(kernel, args)
+            else:  # (`call_kernel`: a Ctrl-C is a KeyboardInterrupt)
+                status, builds, neigh = call(*args)
             if status != 0:
                 self._held = None
                 for r, st in zip(generators, rng_states):  # the NumPy loop re-runs the chunk with the same draws
