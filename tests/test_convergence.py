@@ -39,6 +39,7 @@ def harmonic():
     return convergence(HARMONIC)
 
 
+@pytest.mark.slow
 def test_force_continuous_walls_converge_with_order_two(harmonic):
     assert harmonic.dim == "dt"
     assert [p.h for p in harmonic.points] == pytest.approx([0.01, 0.005, 0.0025, 0.00125, 0.000625])
@@ -50,12 +51,14 @@ def test_force_continuous_walls_converge_with_order_two(harmonic):
     assert harmonic.points[-1].errors["wall_force"] == 0.0
 
 
+@pytest.mark.slow
 def test_reflection_under_a_force_is_first_order():
     report = convergence(reflect_scene())
     for name in ("ke", "wall_force"):
         assert 0.8 < report.orders[name] < 1.5, report.orders
 
 
+@pytest.mark.slow
 def test_the_recommended_dt_meets_the_tolerance_against_a_finer_run(harmonic):
     rtol = 2e-4
     best = harmonic.recommend(rtol)
@@ -85,6 +88,7 @@ def test_bad_ladders_are_refused():
         convergence({**reflect_scene(), "dt_reset": {"every": 1, "xmax": 0.05, "units": "box"}})
 
 
+@pytest.mark.slow
 def test_cli_prints_orders_and_the_choice(tmp_path):
     out = tmp_path / "conv.nc"
     res = CliRunner().invoke(app, ["convergence", str(HARMONIC), "--dt", "0.01,0.005,0.0025,0.000625",

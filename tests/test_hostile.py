@@ -60,6 +60,7 @@ def config_error(path: Path, sets=()) -> list[str]:
 # YAML that is not plain data, or not text
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("text, where, words", [
     ("a: !!python/object/apply:os.system ['echo pwned']\n", "f.yaml:1:4: a:",
      "YAML tag !!python/object/apply:os.system is not allowed"),
@@ -208,6 +209,7 @@ def test_set_on_a_swept_path_is_refused(tmp_path):
     assert "is also swept by sweep.product.eps" in msg  # a parent of the swept path
 
 
+@pytest.mark.slow
 def test_long_user_text_is_cut(scene):
     (msg,) = config_error(scene, ["walls.zwalls.zlo.epsilon=" + "x" * 2_000_000])
     assert len(msg) < 600 and msg.endswith("...: walls.zwalls.zlo.epsilon: expected a number or a variable "
@@ -259,6 +261,7 @@ def test_dt_reset_bounds_nan_refused_inf_word_allowed(scene):
 # a case failing during setup fails alone
 
 
+@pytest.mark.slow
 def test_variable_dividing_by_zero_fails_that_case_only(tmp_path):
     p = sweep_file(tmp_path, """\
         set:
@@ -520,6 +523,7 @@ def test_disk_full_while_writing_the_results_keeps_every_part(sweep_parts, monke
 # the top-level guard
 
 
+@pytest.mark.slow
 def test_unexpected_error_is_one_line_and_debug_shows_the_traceback(scene):
     code = ("import sys; import wallbatch.api as api\n"
             "def boom(*a, **k): raise RuntimeError('kaboom ' + 'x' * 500)\n"

@@ -73,6 +73,7 @@ def test_every_module_belongs_to_a_layer():
     assert not unknown, f"modules outside the layer list (add them to LAYERS in {__file__}): {unknown}"
 
 
+@pytest.mark.slow
 def test_no_import_cycle():
     graph = _graph()
     state: dict[str, int] = {}
@@ -97,6 +98,7 @@ def test_no_import_cycle():
             visit(m)
 
 
+@pytest.mark.slow
 def test_imports_only_go_down_the_layers():
     bad = []
     for m, deps in _graph().items():

@@ -63,12 +63,14 @@ def _run_probe(tmp_path: Path, numba: str | None) -> list[str]:
     return res.stdout.strip().splitlines()
 
 
+@pytest.mark.slow
 def test_small_run_imports_neither_numba_nor_xarray_nor_scipy_spatial(tmp_path):
     """A small run (30 atoms x 40 steps, far below backend.SMALL_RUN) runs NumPy, writes its file
     with netCDF4 directly and places atoms without scipy: none of the heavy modules is imported."""
     assert _run_probe(tmp_path, None) == ["1 of 1 case(s) ok -> o.nc", "heavy:"]
 
 
+@pytest.mark.slow
 def test_small_run_with_numba_forced_imports_numba_only(tmp_path):
     """WALLBATCH_NUMBA=1 forces the compiled path whatever the size (and the probe sees it)."""
     assert _run_probe(tmp_path, "1") == ["1 of 1 case(s) ok -> o.nc", "heavy:numba"]
@@ -167,6 +169,7 @@ print(at["paused"], at["during"], at.get("code"), gc.isenabled(), gc.get_freeze_
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args, code", [(["run", "scene.yaml", "-o", "o.nc", "--force"], 0),
                                         (["run", "missing.yaml"], 2), (["check", "scene.yaml"], 0)])
 def test_start_up_runs_without_garbage_collection_then_resumes_it(tmp_path, args, code):
@@ -180,6 +183,7 @@ def test_start_up_runs_without_garbage_collection_then_resumes_it(tmp_path, args
     assert res.stdout.split()[-5:] == ["True", "0", str(code), "True", "True"]
 
 
+@pytest.mark.slow
 def test_only_the_wall_styles_a_config_uses_get_their_models_built(tmp_path):
     """Start-up builds the Pydantic model of a registered wall style when a config first uses it
     (`wallbatch run` of an lj93 slit builds lj93's only; the other non-registry wall models, the

@@ -108,6 +108,7 @@ def test_sweep_changing_the_layout_fails_and_leaves_no_parts(tmp_path):
     assert not (tmp_path / "o.nc.parts").exists() and not out.exists()
 
 
+@pytest.mark.slow
 def test_a_run_leaves_no_cyclic_garbage_per_case(tmp_path):
     """Nothing a case goes through (building it, its variables, running it, saving its part and
     reading it back for the file) leaves reference cycles: garbage that only the collector's full

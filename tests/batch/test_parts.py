@@ -67,6 +67,7 @@ def test_a_truncated_array_is_an_error(tmp_path):
         read_npz(path)
 
 
+@pytest.mark.slow
 def test_reading_parts_leaves_no_cyclic_garbage(tmp_path):
     res = CaseResult("ok", "", 0.25, {k: v for k, v in ARRAYS.items() if k not in ("status", "seconds")})
     save_part(tmp_path, "key", res)
@@ -80,6 +81,7 @@ def test_reading_parts_leaves_no_cyclic_garbage(tmp_path):
     assert (back.status, back.error, back.seconds) == ("ok", "", 0.25)
 
 
+@pytest.mark.slow
 def test_np_load_would_leave_cyclic_garbage(tmp_path):
     """What the test above guards against, shown on np.load itself (if a NumPy stops making these
     cycles, read_npz is no longer needed)."""

@@ -58,6 +58,7 @@ def test_one_process_builds_every_case_once(tmp_path, monkeypatch, output):
     assert ds["seconds"].values.min() > 0  # the first case's build time is still counted
 
 
+@pytest.mark.slow
 def test_a_first_case_that_cannot_be_built_is_skipped_once(tmp_path, monkeypatch):
     """Case 0 fails to build (more atoms than fit at the overlap distance): tried once, its message
     kept; the layout comes from case 1, built once."""
@@ -102,6 +103,7 @@ print(os.environ.get("OPENBLAS_NUM_THREADS"), len(os.listdir("/proc/self/task"))
 """
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc")
 @pytest.mark.parametrize("given", [None, "2"])
 def test_the_command_line_starts_no_blas_threads_unless_asked(given):
@@ -126,6 +128,7 @@ def _console(args: list[str], cwd: Path, **env: str) -> subprocess.CompletedProc
                           env=full, timeout=600)
 
 
+@pytest.mark.slow
 def test_the_console_script_exits_at_once_with_the_commands_code_and_its_output(tmp_path):
     """cli.main ends the process without Python's teardown: the exit code is the command's (0 ok, 2
     bad input), everything printed reaches the pipes, and the results file is complete (readable,
@@ -147,6 +150,7 @@ def test_the_console_script_exits_at_once_with_the_commands_code_and_its_output(
     assert (version.returncode, version.stdout.startswith("wallbatch ")) == (0, True)
 
 
+@pytest.mark.slow
 def test_a_bad_config_fails_before_the_runner_and_engine_are_imported(tmp_path):
     """`wallbatch run` with a config that cannot be read or validated says so without importing the
     runner, the engine or netCDF4 (the error comes in a fraction of the run's start-up)."""

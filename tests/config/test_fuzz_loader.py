@@ -78,6 +78,7 @@ def _check(tree: Path, seed: Path, text: str) -> None:
             assert len(problem) < 3000, f"message of {len(problem)} characters"
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
                                                                    HealthCheck.too_slow], derandomize=True)
 @given(case=mutated())
@@ -100,6 +101,7 @@ PATHS = ["run.steps", "run.thermo", "walls.zwalls.zlo.epsilon", "walls.zwalls.zl
          "variables.v", "atoms.-1.mass", "regions.slab.lo"]
 
 
+@pytest.mark.slow
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture],
           derandomize=True)
 @given(path=st.sampled_from(PATHS), value=st.one_of(st.sampled_from(TOKENS), st.text(max_size=12)),

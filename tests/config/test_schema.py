@@ -36,6 +36,7 @@ def test_shipped_files_exist():
     assert len(SHIPPED) >= 20
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: str(p.relative_to(ROOT)))
 def test_every_shipped_file_is_valid(path, validator):
     load_plan(path)  # the loader accepts it ...

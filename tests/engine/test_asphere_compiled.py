@@ -57,6 +57,7 @@ def check(monkeypatch, configs, *, compiled=True):
     return ref, got, eng
 
 
+@pytest.mark.slow
 def test_ellipsoid_slit_matches_numpy_over_a_batch(monkeypatch):
     """Three cases of one batch with different epsilon, sigma and seeds; both faces act on every
     atom (the cut-off spans the slit), the energy exchange with the walls is real."""
@@ -117,6 +118,7 @@ def rod_into_a_weak_wall() -> list[dict]:
     return configs
 
 
+@pytest.mark.slow
 def test_an_ellipsoid_inside_a_wall_falls_back_and_fails_as_numpy(monkeypatch):
     """A fast rod driven into a weak wall: the chunk falls back, NumPy fails the case with its
     message; the other case of the batch runs on (compiled again after the failure)."""
@@ -174,6 +176,7 @@ def test_compiled_richardson_is_the_numpy_one_bit_for_bit():
 
 # numba's pedantic SSA note on the inlined Horner loop when `_series` compiles (benign; the engine
 # hides it the same way around its chunk call)
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore::numba.core.errors.NumbaIRAssumptionWarning")
 def test_compiled_ees_pieces_are_the_numpy_ones():
     """r from just above sigma_n (closed forms) to far (series): E, F, T_w and the torque and
@@ -333,6 +336,7 @@ def test_region_ees_sampled_in_the_kernel(monkeypatch, name):
         assert np.count_nonzero(r.data["region_force"]) > 60 and np.ptp(r.data["pe"]) > 1e-5
 
 
+@pytest.mark.slow
 def test_trouble_in_a_sampled_call_falls_back_and_fails_as_numpy(monkeypatch):
     """A rod driven into a weak wall while every 5th step is sampled in the kernel: the call with
     the trouble is handed back (its instants one at a time, NumPy reporting the failure with its
@@ -368,6 +372,7 @@ def test_threads_over_cases_give_the_bits_of_one_thread(monkeypatch):
     assert np.ptp(two[0].data["erot"]) > 1e-5 and two[0].data["pe"][-1] != two[1].data["pe"][-1]
 
 
+@pytest.mark.slow
 def test_threads_over_the_atoms_of_one_case_give_the_bits_of_one_thread(monkeypatch):
     """One case of 600 ellipsoids with enough steps between samples for two threads: its chunks
     are split into runs of atoms, and its samples come from NumPy at each chunk's end, on one
@@ -421,6 +426,7 @@ def test_long_chunks_take_several_kernel_calls_with_the_same_bits(monkeypatch, i
     assert np.ptp(got_whole[0].data["erot"]) > 1e-4 and got_whole[0].data["pe"][-1] != got_whole[1].data["pe"][-1]
 
 
+@pytest.mark.slow
 def test_trouble_in_a_later_call_of_a_chunk_fails_as_numpy(monkeypatch):
     """The rod driven into a weak wall with calls of 7 steps: the calls before the trouble stay,
     the rest of the chunk runs in NumPy, which fails the case with its message, as the NumPy

@@ -115,6 +115,7 @@ def test_a_lattice_counts_the_box_over_the_cell():
 
 
 
+@pytest.mark.slow
 def test_a_ctrl_c_during_a_kernel_that_returns_an_array_is_an_interrupt():
     """A SIGINT while a compiled function that returns a tuple holding an array runs: numba's
     boxing of the array runs Python code, which raises the pending KeyboardInterrupt, and the call
@@ -159,6 +160,7 @@ def test_a_ctrl_c_during_a_kernel_that_returns_an_array_is_an_interrupt():
         signal.signal(signal.SIGINT, old)
 
 
+@pytest.mark.slow
 def test_resolved_entry_point_gives_the_dispatchers_bits_for_tuples_of_arrays():
     """`backend.resolved`: for arguments of a compiled signature (nested tuples of arrays, as the
     pair chunk kernel takes), the overload's own entry point, which writes and returns what the

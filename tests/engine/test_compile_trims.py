@@ -46,6 +46,7 @@ def test_rejected_overload_messages_plain(monkeypatch: pytest.MonkeyPatch) -> No
     assert n_own >= 5 and all("\x1b[" in t for t in texts_own)
 
 
+@pytest.mark.slow
 def test_user_colour_scheme_left_alone() -> None:
     """NUMBA_COLOR_SCHEME set: wallbatch keeps numba's scheme as it is."""
     code = ("import numba.core.errors as e; from wallbatch.engine import backend;"
@@ -55,6 +56,7 @@ def test_user_colour_scheme_left_alone() -> None:
     assert out.stdout.split() == ["False", "True"]
 
 
+@pytest.mark.slow
 def test_kernel_forces_twins_give_the_same_numbers() -> None:
     """The kernels' force and energy functions (no CPython entry point, names ending in _k) are
     the same closures of styles.cutoff around the same registry functions as the Python-callable
@@ -115,6 +117,7 @@ def _array_slice_copies(source: str, module: str) -> list[str]:
     return found
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("module", KERNEL_MODULES)
 def test_kernels_copy_arrays_in_loops_not_slice_assignments(module):
     """numba compiles an array-to-array slice assignment (`a[:] = b`) with its shape-mismatch

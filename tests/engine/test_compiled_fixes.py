@@ -190,6 +190,7 @@ def test_sampling_every_step_with_langevin(monkeypatch):
     assert eng.fast.compiled_chunks == 30
 
 
+@pytest.mark.slow
 def test_fallback_restores_the_langevin_stream(monkeypatch):
     """An atom pushed behind the wall: the chunk is handed back and the NumPy loop, re-running it
     with the restored generator, reports exactly what the NumPy path reports."""
@@ -275,6 +276,7 @@ def test_thermostat_batches_over_threads_give_the_bits_of_one_thread(monkeypatch
     assert not np.array_equal(two[0].data["temp"], two[3].data["temp"]) and two[3].data["temp"][-1] > 1.6  # heated
 
 
+@pytest.mark.slow
 def test_trouble_in_one_thread_falls_back_and_fails_as_numpy(monkeypatch):
     """Four Langevin cases over two threads, the last driven behind a wall: the chunk is handed back
     (every generator restored) and the NumPy loop reports what the NumPy path reports; the others

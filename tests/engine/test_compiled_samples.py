@@ -292,6 +292,7 @@ def test_dt_reset_sampled_every_step(monkeypatch):
     assert len(np.unique(got[0].data["dt"])) > 2
 
 
+@pytest.mark.slow
 def test_flow_crossings_per_sample(monkeypatch):
     """wall/flow in the kernel, sampled every 2 steps with a dump every 3 (the redraws of a chunk up
     to a dump count in the next sample): redraws per sample equal NumPy's; ke to 1e-12 (the flux

@@ -52,6 +52,7 @@ def ideal_gas(walls, *, dt, total_time, seed=3, n=20, hi_z=6.0, thermo=1, output
 # ----------------------------------------------------------------------------- energy conservation
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("style", ["lj93", "harmonic"])
 def test_soft_walls_conserve_energy_to_second_order(style):
     # Both faces' cut-offs span the whole box, so every atom always feels a smooth force (no

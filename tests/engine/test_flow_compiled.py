@@ -61,6 +61,7 @@ def test_velocities_match_numpy(monkeypatch, vflow):
     np.testing.assert_allclose(ga * gamma, ra * gamma, rtol=1e-12, atol=2e-13)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rule", ["exact", "lammps"])
 def test_flow_scene_compiled_matches_numpy(monkeypatch, rule):
     """A batch of two ideal gases (400 atoms, different seeds and vflow) between three flow walls,
@@ -138,6 +139,7 @@ def test_kernel_end_of_step_compiled_matches_numpy(monkeypatch):
     np.testing.assert_allclose(v_got, v_ref, rtol=1e-11, atol=1e-11)
 
 
+@pytest.mark.slow
 def test_flow_chunk_handed_back_keeps_the_random_streams(monkeypatch):
     """Flow walls with a weak harmonic z wall that a fast atom gets through: the compiled chunk
     hands back to NumPy, which re-runs it from the same generator states, so both paths report

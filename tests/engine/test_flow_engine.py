@@ -403,6 +403,7 @@ def test_flow_crossings_zero_with_all_atoms_at_rest():
     np.testing.assert_array_equal(res.frames["x"][-1], x)
 
 
+@pytest.mark.slow
 def test_flow_crossings_in_the_netcdf_from_run_config(tmp_path):
     """run_config writes flow_crossings with dims (sample,), units "1", the same numbers as
     run_cases on the same config (same seed, no sweep: seed_key ())."""

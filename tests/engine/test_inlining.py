@@ -74,6 +74,7 @@ def _compile_and_count(monkeypatch: pytest.MonkeyPatch) -> tuple[int, int, float
     return len(copies), blocks, value, _Lines.copies
 
 
+@pytest.mark.slow
 def test_inlining_copies_the_scope_once_per_copy_and_compiles_the_same_function(monkeypatch):
     """Two inlines, each copying the callee's IR twice: with the shared-scope inliner each copy
     copies each Scope object of the IR once (at most two: numba's passes may leave an equal second

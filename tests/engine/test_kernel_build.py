@@ -15,6 +15,7 @@ SRC = str(Path(__file__).resolve().parents[2] / "src")
 HEAVY = ("dask", "distributed", "scipy.spatial", "scipy.special", "matplotlib")
 
 
+@pytest.mark.slow
 def test_import_pulls_in_no_heavy_optional_module():
     """`import wallbatch` and the engine load none of dask, distributed, scipy.spatial,
     scipy.special, matplotlib (each costs 0.2-0.5 s of start-up; they are imported where used)."""

@@ -198,6 +198,7 @@ def test_cluster_cg_descends_and_converges_fire_agrees():
     assert np.abs(np.sort(fire.x[0, :, 2]) - np.sort(cg.x[0, :, 2])).max() < 1e-6
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("style", STYLES)
 def test_batch_equals_single_runs(style):
     x = np.stack([cluster(13, seed=s) for s in (4, 5, 6)])
@@ -322,6 +323,7 @@ def test_search_direction_is_not_downhill():
     assert (res.iterations[0], res.evaluations[0]) == (1, 0)
 
 
+@pytest.mark.slow
 def test_fire_max_iterations_with_vf_negative():
     # zero forces keep v.f = 0 (not > 0): velocity reset in every iteration, 2000 allowed
     res = run(one_atom(1.9), zero_energy(np.zeros_like), ftol=0.0, maxiter=10000, **FIRE)

@@ -118,6 +118,7 @@ def test_a_compile_after_cached_loads_loads_the_registries_without_scipy_linalg(
     assert warm["then"] == {"registries": True, "scipy_linalg": False, "same_bits_as_numpy": True}
 
 
+@pytest.mark.slow
 def test_the_results_are_the_bits_of_numbas_own_set_up():
     procs = start("wallbatch"), start("numba-own")  # two processes at once (two cores)
     ours, own = (answer(p) for p in procs)

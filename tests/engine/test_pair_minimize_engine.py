@@ -446,6 +446,7 @@ STOP_CASES = [  # (wall style, z0, params, energy, minimize) -> stop reason, (it
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("wall, z0, params, energy, minimize, reason, counts", STOP_CASES,
                          ids=[c[5].replace(" ", "-") for c in STOP_CASES])
 def test_stop_reasons_reachable_from_config(wall, z0, params, energy, minimize, reason, counts):
@@ -491,6 +492,7 @@ def test_wall_without_energy_warns_and_is_left_out_of_the_objective():
     assert abs(wall_e) > 0.1  # the wall's energy is a real part of the total
 
 
+@pytest.mark.slow
 def test_batched_cases_equal_single_runs():
     """A sweep-like list of 3 cases with different pair epsilon shares one batch and gives
     bit-identical minimization results and trajectories to each case run alone."""
@@ -514,6 +516,7 @@ def test_batched_cases_equal_single_runs():
     assert energies[0] > energies[1] > energies[2]  # deeper wells with larger epsilon: not one case thrice
 
 
+@pytest.mark.slow
 def test_netcdf_min_outputs_through_cli(tmp_path, monkeypatch):
     """`wallbatch run` on a config with a sweep over pair epsilon, in real units: the NetCDF
     holds min_* per case with CF units (kcal/mol, kcal/mol/Angstrom, "1") and the values of

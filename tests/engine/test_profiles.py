@@ -184,6 +184,7 @@ def test_boltzmann_profile_between_harmonic_walls_chi_square():
         assert sps.chi2.sf(float((((mean[ok] - wrong[ok]) / err[ok]) ** 2).sum()), dof) < 1e-6
 
 
+@pytest.mark.slow
 def test_wall_pressure_soft_equals_mid_density_times_t():
     """Ideal gas between harmonic walls: the mean force per area on each wall is rho_mid k T
     (hydrostatic balance, P = rho kT in the flat middle), and lo/hi have the same sign."""

@@ -55,6 +55,7 @@ def _boxes_fit(fig) -> None:
             assert not lb.overlaps(ax.get_window_extent(renderer)), "legend covers a panel"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("var", ["temp", "pe", "wall_force"])
 def test_default_time_series_of_every_shipped_sweep(shipped, var, tmp_path):
     name, ds = shipped
@@ -84,6 +85,7 @@ def test_default_time_series_of_every_shipped_sweep(shipped, var, tmp_path):
     _boxes_fit(fig)
 
 
+@pytest.mark.slow
 def test_time_mean_against_each_sweep_dimension(shipped, tmp_path):
     name, ds = shipped
     for dim in [d for d in report.sweep_dims(ds) if ds.sizes[d] > 1 and d != "replica"]:
@@ -115,6 +117,7 @@ def _synthetic(failed=((0, 1), (2, 0))) -> xr.Dataset:
     return ds
 
 
+@pytest.mark.slow
 def test_failed_cases_are_marked(tmp_path):
     ds = _synthetic()
     _, fig = report.plot(ds, "pe", tmp_path / "x.png", x="a", hue="b", return_figure=True)
@@ -166,6 +169,7 @@ def test_cli_plot_without_matplotlib_is_one_line(tmp_path):
     assert res.stderr.strip() == "error: plot needs matplotlib: pip install 'wallbatch[plot]'"
 
 
+@pytest.mark.slow
 def test_profile_plot_of_the_shipped_profile_sweep(tmp_path):
     plan = load_plan(ROOT / "sweeps" / "lj-slit-profiles-epsilon.yaml",
                      SHORT + EXTRA["lj-slit-profiles-epsilon.yaml"])

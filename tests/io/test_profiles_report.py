@@ -85,6 +85,7 @@ def test_accessor_profile_and_mean(results):
         ds.wallbatch.mean("status")
 
 
+@pytest.mark.slow
 def test_profile_plot_has_error_bars_per_hue(results, tmp_path):
     ds, path = results
     out, fig = plot(ds, "profile_across_density_number", tmp_path / "p.png", hue="k", return_figure=True)

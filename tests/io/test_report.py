@@ -119,6 +119,7 @@ def test_summary_failed_cases_and_ranges():
     assert "a=1.5, b=0" in slow[1] and "(failed)" in slow[1]
 
 
+@pytest.mark.slow
 def test_summary_single_case_and_netcdf_round_trip(sweep_ds, tmp_path):
     single = sweep_ds.isel(epsilon=0, sigma=0, replica=0, drop=True)
     text = report.summary(single)
@@ -148,6 +149,7 @@ def test_accessor(sweep_ds):
 # ----------------------------------------------------------------------------- plots
 
 
+@pytest.mark.slow
 def test_time_series_colour_style_and_replica_mean(sweep_ds, tmp_path):
     """3 epsilons (colour) x 2 sigmas (line style), the 2 replicas averaged with a +-1 s.e. band."""
     fig = _plot(sweep_ds, "temp", tmp_path, hue="epsilon")
@@ -171,6 +173,7 @@ def test_time_series_colour_style_and_replica_mean(sweep_ds, tmp_path):
     assert np.isclose(band.min(), (temp.mean("replica").values - se).min())
 
 
+@pytest.mark.slow
 def test_time_series_faces_and_selection(sweep_ds, tmp_path):
     sel = {"epsilon": "1.0", "sigma": "1.2", "replica": "1"}
     fig = _plot(sweep_ds, "wall_force", tmp_path, sel=sel)
@@ -184,6 +187,7 @@ def test_time_series_faces_and_selection(sweep_ds, tmp_path):
     assert len(ax.get_lines()) == 1
 
 
+@pytest.mark.slow
 def test_time_series_time_axis(tmp_path):
     ds = synthetic(time_based=True)
     ax = _plot(ds, "pe", tmp_path).axes[0]
@@ -194,6 +198,7 @@ def test_time_series_time_axis(tmp_path):
     assert len(ax.get_lines()) == 2 and ax.get_xlabel() == "step"
 
 
+@pytest.mark.slow
 def test_summary_plot_against_sweep_dim(sweep_ds, tmp_path):
     ax = _plot(sweep_ds, "pe", tmp_path, x="epsilon", hue="sigma", sel={"replica": "0"}).axes[0]
     lines = ax.get_lines()
@@ -218,6 +223,7 @@ def test_failed_cases_are_gaps(tmp_path):
     assert np.isnan(y[0]) and np.isfinite(y[1:]).all()
 
 
+@pytest.mark.slow
 def test_heatmap(sweep_ds, tmp_path):
     fig = _plot(sweep_ds, "pe", tmp_path, x="epsilon", hue="sigma", kind="heatmap")
     ax = fig.axes[0]
@@ -229,6 +235,7 @@ def test_heatmap(sweep_ds, tmp_path):
     assert fig.axes[1].get_ylabel() == "pe"  # dimensionless (lj): no unit shown
 
 
+@pytest.mark.slow
 def test_auto_heatmap_for_many_hue_values(tmp_path):
     ds = synthetic(failed=(), n_a=3, n_b=12)
     fig = _plot(ds, "temp", tmp_path, x="a", hue="b")

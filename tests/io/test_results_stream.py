@@ -55,6 +55,7 @@ def _content(path: Path) -> dict:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["zip-strings-ints", "reflect-stats", "time-based", "profiles-minimize",
                                   "none-in-coordinate"])
 def test_streamed_file_is_the_file_of_the_whole_results(runs, name, tmp_path):
@@ -122,6 +123,7 @@ def test_final_pass_holds_about_one_block(runs, tmp_path):
         assert (back["min_stop_reason"].values == back["min_stop_reason"].values[0]).all()
 
 
+@pytest.mark.slow
 def test_interrupt_while_writing_keeps_every_part_and_resume_finishes(runs, tmp_path, monkeypatch):
     plan, _, _ = runs["reflect-stats"]
     out = tmp_path / "r.nc"

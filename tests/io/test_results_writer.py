@@ -71,6 +71,7 @@ def results():
     return {name: run_plan(plan, None, progress=False, as_xarray=False) for name, plan in results_file_plans().items()}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["zip-strings-ints", "reflect-stats", "time-based", "profiles-minimize",
                                   "none-in-coordinate"])
 def test_results_file_is_the_file_xarray_writes(results, name, tmp_path):

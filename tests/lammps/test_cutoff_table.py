@@ -54,6 +54,7 @@ def small_gas(mode: str, on: float | None) -> dict:
     return d
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode,on", MODES)
 def test_export_writes_the_treated_wall_as_a_table(tmp_path, mode, on):
     exp = export_selected(plan_of(tmp_path, small_gas(mode, on)))

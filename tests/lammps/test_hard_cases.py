@@ -313,6 +313,7 @@ def test_fast_piston_frame_wall_does_work():
 COLLOID_WALL = "fix zwalls all wall/colloid zlo EDGE 2.0 1.0 3.0 zhi EDGE 2.0 1.0 3.0 units box"
 
 
+@pytest.mark.slow
 def test_colloids_turn_round_at_the_predicted_gap():
     """Energy bound: velocity Verlet, O(dt^2): |etot - etot0| / etot0 <= 2e-3 at dt = 0.002
     (measured 7.8e-4, from the fastest colloid's turn at a gap of 0.21 where the repulsion's length

@@ -63,6 +63,7 @@ def _same(a, b) -> bool:
 # ----------------------------------------------------------------------------- round trip
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", CONFIGS, ids=[p.stem for p in CONFIGS])
 def test_round_trip_every_shipped_config(path: Path, tmp_path: Path) -> None:
     """export-lammps then import-lammps: same atoms, same walls, bit-identical results."""

@@ -83,6 +83,7 @@ def test_data_file_wrong_count(tmp_path):
     assert "scene.yaml:6:" in msg and f"{tmp_path / 'count.data'}:" in msg and "header says" in msg
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("arrays, words", [
     ({"x": np.array([[1.0, 1, 1], [2, np.nan, 2]])}, "array x has a non-finite value (inf or nan) at row 1 (atom 2"),
     ({"x": np.ones((3, 3)), "v": np.array([[0.0, 0, 0], [np.inf, 0, 0], [0, 0, 0]])},

@@ -143,6 +143,7 @@ def _source_with_helpers(fn) -> str:
     return "".join(out)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(n for n in WRAPPED if STYLES[n].compiled))
 @pytest.mark.parametrize("mode", CUTOFF_MODES)
 def test_compiled_force_is_the_numpy_force(name, mode):

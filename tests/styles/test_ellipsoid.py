@@ -412,6 +412,7 @@ def test_ees_broadcasting_shapes():
 # nve/asphere
 
 
+@pytest.mark.slow
 def test_free_rotation_richardson_is_second_order():
     """A free asymmetric top (no torque), 16 random ellipsoids, t = 4: the orientation error
     against an accurate ODE solution (DOP853, rtol 1e-12) drops 4x when dt halves (order 2);
@@ -501,6 +502,7 @@ def test_two_ees_walls_conserve_energy_second_order():
     assert errs[1] < 2e-3  # |E_total| ~ 4
 
 
+@pytest.mark.slow
 def test_sphere_shaped_ellipsoid_moves_like_a_point_particle():
     """Semi-axes (0.7, 0.7, 0.7): the trajectory does not depend on q, L stays constant (zero
     torque), and x, v equal a translational-only velocity-Verlet with σn = 0.7."""

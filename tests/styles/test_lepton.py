@@ -164,6 +164,7 @@ EXPRESSIONS = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("text,params", EXPRESSIONS)
 def test_force_is_minus_derivative(text, params):
     """F from the symbolic derivative equals -dE/dr from a 40-digit numerical derivative."""
@@ -214,6 +215,7 @@ def test_spelled_out_equals_builtin(style, text, p):
 # ------------------------------------------------------------------------------ compiled kernel
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("text,params", EXPRESSIONS)
 def test_compiled_kernel_bit_identical(text, params):
     expr = compile_expression(text, params)
@@ -312,6 +314,7 @@ def test_lammps_aborts_on_an_expression_whose_derivative_lacks_r():
     np.testing.assert_array_equal(f, [-3.0, -3.0])  # a constant force, one value per atom
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("text,params", [e for e in EXPRESSIONS if len(e[1]) <= 3])
 def test_positional_kernels_bit_identical(text, params):
     """The compiled-wall-style signature force(r, p0, p1, p2, rc, radius) and energy(...)."""
@@ -326,6 +329,7 @@ def test_positional_kernels_bit_identical(text, params):
     np.testing.assert_array_equal([energy(x, *args, 2.5, 0.0) for x in rs], e)
 
 
+@pytest.mark.slow
 def test_generated_module_is_a_file_numba_caches_across_processes(tmp_path, monkeypatch):
     """styles.lepton.generated_module writes generated source once to a file keyed by its hash
     (WALLBATCH_CACHE_DIR/kernels), so a function jitted from it with cache=True is cached on disk:

@@ -157,6 +157,7 @@ def _uses_libm(style: WallStyle) -> bool:
     return bool(re.search(r"np\.(exp|expm1|log|log1p|sqrt|arctanh|sin|cos|power)\b", inspect.getsource(style.force)))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(n for n, s in STYLES.items() if s.compiled))
 def test_compiled_force_is_the_numpy_force(name):
     fast = pytest.importorskip("wallbatch.engine.compiled")
