@@ -737,6 +737,24 @@ if njit is not None:
                     return False
         return True
 
+    @njit(nogil=True, error_model="numpy", inline="always")
+    def _dt_candidates(v: np.ndarray, f: np.ndarray, mass: np.ndarray, ftm2v: float, mvv2e: float, xmax: float,
+                       emax: float, VF: np.ndarray, CAND: np.ndarray) -> None:
+        """fix dt/reset: each atom's largest dt (`_dt_candidate`, compiled.py's) into CAND, block by
+        block: a block's v and f are copied to the (6, BLOCK) scratch VF first, so the candidate
+        loop reads rows and vectorises (~4x faster than reading the (N, 3) arrays; the same bits)."""
+        N = v.shape[0]
+        for u0 in range(0, N, BLOCK):
+            n = min(BLOCK, N - u0)
+            for i in range(n):
+                for d in range(3):
+                    VF[d, i] = v[u0 + i, d]
+                    VF[3 + d, i] = f[u0 + i, d]
+            cb, mb = CAND[u0:u0 + n], mass[u0:u0 + n]  # (views: indices from 0 vectorise, `u0 + i` does not)
+            for i in range(n):
+                cb[i] = _dt_candidate(VF[0, i], VF[1, i], VF[2, i], VF[3, i], VF[4, i], VF[5, i], mb[i], ftm2v,
+                                      mvv2e, xmax, emax)
+
     @jit
     def _dtfm(mass: np.ndarray, dt: float, ftm2v: float) -> np.ndarray:
         """dt/2 ftm2v / m per atom: `pair_chunk`'s, the same bits."""
@@ -852,6 +870,7 @@ if njit is not None:
             dtr_every, dtr_group, dtr_par, clk = dtr
             sm_at, sm_mv2, sm_clock, sm_face, sm_rstat, sm_fx, sm_chain, sm_cross, sm_reg, sm_ew = sm
             CAND = np.empty(N if dtr_every > 0 else 0)  # fix dt/reset: each atom's largest dt
+            VF = np.empty((6, BLOCK if dtr_every > 0 else 0))  # and a block's v, f (`_dt_candidates`)
             nrf, nst = rf_meta.shape[0], st_meta.shape[0]
             ST = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(N if nst else 0, np.int64),
                   np.empty((4, N if nst else 0)))  # `_stochastic_faces`' arguments and scratch
@@ -951,9 +970,7 @@ if njit is not None:
                 now = step0 + step + 1  # the case's step count after this step
                 if _K_DTR:
                     if dtr_every > 0 and now % dtr_every == 0:  # fix dt/reset (end_of_step)
-                        for a in range(N):
-                            CAND[a] = _dt_candidate(v[a, 0], v[a, 1], v[a, 2], f[a, 0], f[a, 1], f[a, 2], mass[a],
-                                                    ftm2v, mvv2e, dtr_par[0], dtr_par[1])
+                        _dt_candidates(v, f, mass, ftm2v, mvv2e, dtr_par[0], dtr_par[1], VF, CAND)
                         new = _clamp(_group_low(CAND, groups, dtr_group, 0, N), N, dtr_par)
                         if new != dt:  # BatchState.set_dt
                             clk[1] = clk[1] + (now - clk[2]) * dt
