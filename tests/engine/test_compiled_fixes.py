@@ -354,3 +354,49 @@ def test_a_call_runs_call_work_atom_steps_but_never_fewer_than_its_least_steps()
         assert fast.KernelPath.call_steps(p) == max(least, fast.CALL_WORK // (cost * 10**6))
         p.plan_source = lambda: plan(1, 100)
         assert fast.KernelPath.call_steps(p) == fast.CALL_WORK // (cost * 100)
+
+
+# ----------------------------------------------------------------------------- runs to a simulated time
+
+
+@pytest.mark.parametrize("fix", ["fix b all langevin 1.0 2.0 0.5 48279 tally yes", "fix b all nvt temp 1.0 2.0 0.1",
+                                 "fix b all temp/berendsen 1.0 2.0 0.2"])
+def test_thermostats_in_a_run_to_a_time_bit_for_bit(monkeypatch, fix):
+    """A run to a simulated time (`run: {time: ...}`, samples at times) with a thermostat whose
+    target ramps 1 -> 2: the ramp follows the time (time / run time, as the NumPy path's
+    ramp_fraction), the landing steps clip dt; two cases at timesteps that do not divide the
+    sample interval (0.005 and 0.0045: they land on different steps). The compiled chunks give the
+    NumPy path's bits on every output, and the gas heats towards the ramp's end."""
+    fixes = {"a": "fix a all nve", "b": fix} if "langevin" in fix or "berendsen" in fix else {"b": fix}
+    configs = []
+    for dt in (0.005, 0.0045):
+        d = gas(fixes, steps=10)
+        d["timestep"] = dt
+        d["run"] = {"time": 1.0, "thermo": {"time": 0.1}}
+        configs.append(d)
+    ref, got, eng = check(monkeypatch, configs)
+    assert [len(r.data["step"]) for r in got] == [11, 11]
+    assert got[0].data["step"][-1] == 200 and got[1].data["step"][-1] == 230  # 23 steps per 0.1, the last clipped
+    assert got[0].data["temp"][-1] > 1.5
+
+
+@pytest.mark.parametrize("numba", ["0", "1"])
+def test_langevin_in_a_run_to_a_time_does_not_depend_on_the_batch(monkeypatch, numba):
+    """Batched with a case at another timestep, a Langevin case waits idle while the other reaches
+    each sample time: its next step must start from the forces it had (walls and its last
+    Langevin force), as when it runs alone. On both paths the case's outputs are the same bits
+    alone and batched (the NumPy path used to zero an idle case's Langevin force: heavier later)."""
+    monkeypatch.setenv("WALLBATCH_NUMBA", numba)
+    fixes = {"a": "fix a all nve", "b": "fix b all langevin 1.0 2.0 0.5 48279 tally yes"}
+
+    def config(dt):
+        d = gas(fixes, steps=10)
+        d["timestep"] = dt
+        d["run"] = {"time": 0.5, "thermo": {"time": 0.1}}
+        return build_case(config_from_dict(d))
+
+    alone = Engine([config(0.005)]).run()[0]
+    batched = Engine([config(0.005), config(0.0045)]).run()[0]
+    for name in ("temp", "ke", "etot", "ecouple"):
+        np.testing.assert_array_equal(batched.data[name], alone.data[name], err_msg=name)
+    assert np.ptp(alone.data["ecouple"]) > 0

@@ -581,17 +581,16 @@ def test_steps_before_counts_the_unclipped_steps_exactly():
                                       0.1) == 0  # dt 0 never lands: nothing fused (no endless count)
 
 
-def test_time_based_run_with_a_ramped_thermostat_stays_stepwise(monkeypatch):
-    """In a run to a simulated time a thermostat's target ramps with the time (time / run time),
-    which the fused chunk's fix kernels (ramped by steps) do not have: such a run stays on the
-    per-step path and gives its bits (without the thermostat the same scene is fused:
-    test_time_based_run_fuses_the_steps_before_each_landing)."""
+def test_time_based_run_with_a_ramped_berendsen_is_fused(monkeypatch):
+    """In a run to a simulated time a thermostat's target ramps with the time (time / run time):
+    the fused chunks take it from the case's clock and give the per-step path's bits; the gas
+    cools along the ramp (from 2 towards 1.5 .. 1.0)."""
     d = timed_slit(0.005)
     d["fixes"] = dict(THERMOSTATS["berendsen"])
     got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(d))
     assert_bits(got, ref)
-    assert fused.fast.compiled_chunks == 0
-    assert got[0].data["temp"][-1] < 1.7  # cooled along the ramp (from 2 towards 1.5 .. 1.0)
+    assert fused.fast.compiled_chunks == 3 and fused.fast.fallbacks == 0
+    assert got[0].data["temp"][-1] < 1.7
 
 
 @pytest.mark.parametrize("in_kernel", [True, False])
@@ -634,3 +633,20 @@ def test_long_chunks_take_several_kernel_calls_with_the_same_bits(monkeypatch, s
     assert_bits(got_split, got_whole)
     np.testing.assert_array_equal(split.pair.case_builds, whole.pair.case_builds)
     assert whole.pair.case_builds.min() >= 2 and split.fast.fallbacks == 0
+
+
+@pytest.mark.parametrize("fix", ["fix t all langevin 2.0 3.0 0.5 6211 tally yes", "fix t all nvt temp 2.0 3.0 0.1"])
+def test_thermostat_in_a_run_to_a_time_fuses_the_steps_before_each_landing(monkeypatch, fix):
+    """`timed_slit`'s two cases with a thermostat whose target ramps 2 -> 3: the ramp follows the
+    time (time / run time), which the fused steps take from the case's clock; every output is the
+    per-step path's, bit for bit, with one fused chunk per interval."""
+    cases = []
+    for dt in (0.0045, 0.007):
+        d = timed_slit(dt)
+        d["fixes"] = {"i": "fix i all nve", "t": fix} if "langevin" in fix else {"t": fix}
+        d["output"]["thermo"] += ["ecouple", "econserve"]
+        cases.append(d)
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(*cases))
+    assert_bits(got, ref)
+    assert fused.fast.compiled_chunks == 3 and fused.fast.fallbacks == 0
+    assert np.ptp(got[0].data["ecouple"]) > 0

@@ -1046,14 +1046,24 @@ if njit is not None:
             for i in range(row.shape[0]):
                 row[i] = row[i] * (factor if mask[i] != 0 else 1.0)
 
+    @inline
+    def _ramp_frac(stepn, dtc, at, ats, fx_int, fx_f):
+        """The fraction of the run done at the case's step stepn (BatchState.context's
+        ramp_fraction, the thermostats' ramp): its time / the run time in a run to a time (fx_f[3];
+        NaN in a run of steps), the time atime + (stepn - atimestep) dt from the case's clock (at,
+        ats; the same arithmetic), else stepn / the run's end step (fx_int[1])."""
+        if fx_f[3] == fx_f[3]:
+            return (at + (stepn - ats) * dtc) / fx_f[3]
+        return float(stepn) / fx_int[1] if fx_int[1] > 0 else 0.0
+
     @jit_inner
-    def _fix_pre(c, stepn, dtc, V, M, groups, fx, rng, SQM, FR, KB):
+    def _fix_pre(c, stepn, dtc, at, ats, V, M, groups, fx, rng, SQM, FR, KB):
         """Before the step's atoms move: fix nvt's first chain half step and velocity scaling
         (Ensemble.initial_integrate), and fix langevin's random forces of the step (the case's
         generator, drawn as rng.random((n_group, 3)) in Ensemble.post_force)."""
         fx_meta, fx_val, fx_acc, eta, ed, edd, Q, tc, tt, tf, drag, fx_int, fx_f, _fo = fx
         n = V.shape[1]
-        frac = float(stepn) / fx_int[1] if fx_int[1] > 0 else 0.0
+        frac = _ramp_frac(stepn, dtc, at, ats, fx_int, fx_f)
         boltz = fx_f[0]
         for k in range(fx_meta.shape[0]):
             kind = fx_meta[k, 0]
@@ -1132,13 +1142,13 @@ if njit is not None:
             chain[j] = fx[8][c]
 
     @jit_inner
-    def _fix_end(c, stepn, dtc, V, M, groups, fx, KB, FL):
+    def _fix_end(c, stepn, dtc, at, ats, V, M, groups, fx, KB, FL):
         """After the step's final kick: fix nvt's second half step (Ensemble.final_integrate), then
         Ensemble.end_of_step: temp/berendsen, temp/rescale (every N), the Langevin tally. Returns 6
         when a rescaling fix meets a zero temperature (the NumPy loop reports it)."""
         fx_meta, fx_val, fx_acc, eta, ed, edd, Q, tc, tt, tf, drag, fx_int, fx_f, _fo = fx
         n = V.shape[1]
-        frac = float(stepn) / fx_int[1] if fx_int[1] > 0 else 0.0
+        frac = _ramp_frac(stepn, dtc, at, ats, fx_int, fx_f)
         boltz, mvv2e = fx_f[0], fx_f[2]
         for k in range(fx_meta.shape[0]):
             if fx_meta[k, 0] == FIX_NVT:
@@ -1567,7 +1577,7 @@ if njit is not None:
                                 rstat[s, k, 0] = 0.0
                                 rstat[s, k, 1] = 0.0
                     if _K_FIXES and thermo:  # fix nvt's first half step, the Langevin random forces
-                        _fix_pre(c, step[c] + 1, dtc, V, M, groups, fx, fx_rng, SQM, FR, KB)
+                        _fix_pre(c, step[c] + 1, dtc, atime[c], atimestep[c], V, M, groups, fx, fx_rng, SQM, FR, KB)
                     for b in range(nblock):
                         u0 = np.uint64(b * blk)  # unsigned: no negative-index wraparound, loops vectorise
                         u1 = np.uint64(b * blk + blk if b * blk + blk < natom else natom)
@@ -1581,7 +1591,7 @@ if njit is not None:
                             if _K_DTR and due:
                                 low[s] = _nmin(low[s], m)
                     if _K_FIXES and thermo:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
-                        st = _fix_end(c, step[c] + nwin, dtc, V, M, groups, fx, KB, FL)
+                        st = _fix_end(c, step[c] + nwin, dtc, atime[c], atimestep[c], V, M, groups, fx, KB, FL)
                         if st != 0:
                             return st
                     if _K_FLOW and fl_int[0] != 0:  # fix wall/flow (end_of_step)
@@ -1682,12 +1692,12 @@ if njit is not None:
     # the chunk never calls them then (no fix rows; dtr_every == 0), and leaving the thermostat and
     # dt/reset code out makes the first compile of such a scene's kernel several seconds shorter
     @jit
-    def _no_fix_pre(c, stepn, dtc, V, M, groups, fx, rng, SQM, FR, KB):
+    def _no_fix_pre(c, stepn, dtc, at, ats, V, M, groups, fx, rng, SQM, FR, KB):
         """`_fix_pre` of a scene without fixes: nothing."""
         return 0
 
     @jit
-    def _no_fix_end(c, stepn, dtc, V, M, groups, fx, KB, FL):
+    def _no_fix_end(c, stepn, dtc, at, ats, V, M, groups, fx, KB, FL):
         """`_fix_end` of a scene without fixes: nothing."""
         return 0
 
@@ -2341,8 +2351,9 @@ def _fix_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]) -> tu
         per_case = tuple(np.zeros(C) for _ in range(4))
         tloop = 1
     u = s.units
+    run_time = np.nan if s.run_time is None else float(s.run_time)  # (a run to a time: the ramp follows the time)
     fx = (meta, val, acc, *chain, *per_case, np.array([tloop, s.end_step], np.int64),
-          np.array([float(u.boltz), float(u.ftm2v), float(u.mvv2e)]), np.zeros((C, N, 3)))
+          np.array([float(u.boltz), float(u.ftm2v), float(u.mvv2e), run_time]), np.zeros((C, N, 3)))
     return fx, fixes, rngs
 
 
@@ -2643,8 +2654,6 @@ class FastPath(KernelPath):
         time_mode = target is not None
         if time_mode and plan.flow:
             return False
-        if time_mode and _thermostats(plan.ensemble):
-            return False  # the thermostats' ramp follows the time, which the kernel does not give them
         if not time_mode and nsteps <= 0:
             return False
         if not time_mode and at is None and nsteps > self.call_steps():  # within CALL_WORK per call

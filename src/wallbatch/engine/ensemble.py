@@ -138,8 +138,10 @@ class Ensemble:
 
     def post_force(self, s: BatchState, active: np.ndarray | None = None) -> None:
         """Langevin forces, then enforce2d. `active` (C,) marks the cases that advance this step
-        (a run to a time): the others draw no random numbers and get no force, so a case's
-        random stream does not depend on the batch it runs in."""
+        (a run to a time): the others draw no random numbers and keep the Langevin force of their
+        last step (their other forces are recomputed at the same positions), so that their next
+        step starts from the forces it would have had alone: neither a case's random stream nor its
+        trajectory depends on the batch it runs in."""
         self.live = None if active is None or np.all(active > 0) else active > 0  # for this step's later hooks
         for f in self.langevin:
             if not f.rngs:
@@ -150,10 +152,11 @@ class Ensemble:
             for c in np.nonzero(live)[0]:
                 u[c, idx] = f.rngs[c].random((len(idx), 3))
             dt = np.where(s.dt > 0, s.dt, 1.0)  # an idle case has dt = 0
+            last = f.force
             f.force = langevin_force(s.v, s.mass, f.mask(), f.target(s), f.damp, dt, u, s.units.ftm2v,
                                      s.units.mvv2e, s.units.boltz, zero=f.zero)
-            if not live.all():
-                f.force[~live] = 0.0
+            if not live.all() and last is not None:
+                f.force[~live] = last[~live]
             s.f += f.force
         for f in self.enforce2d:
             if f.all:

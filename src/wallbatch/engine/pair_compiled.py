@@ -899,7 +899,7 @@ if njit is not None:
                 due = ism < nsm and step + 1 == sm_at[ism]  # a sample recorded here
                 if _K_FIXES:
                     if thermo and not post:  # fix nvt's first half step, the Langevin random forces
-                        _fix_pre(0, step0 + step + 1, dt, V, mass, groups, fx, fx_rng, SQM, FR, KB)
+                        _fix_pre(0, step0 + step + 1, dt, clk[1], clk[2], V, mass, groups, fx, fx_rng, SQM, FR, KB)
                 if not post:  # post: the pair forces of this step are in f (`_chunk_threaded`)
                     _drift(x, v, f, dtfm, dt, lo, hi, box_per)
                     if _K_REFLECT:
@@ -962,7 +962,7 @@ if njit is not None:
                         v[a, d] = v[a, d] + dtfm[a] * f[a, d]
                 if _K_FIXES:
                     if thermo and not post:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
-                        if _fix_end(0, step0 + step + 1, dt, V, mass, groups, fx, KB, FL) != 0:
+                        if _fix_end(0, step0 + step + 1, dt, clk[1], clk[2], V, mass, groups, fx, KB, FL) != 0:
                             return 6, builds, neigh
                 if fl_int[0] != 0:  # fix wall/flow (end_of_step)
                     _flow_step(X, V, mass, fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross,
@@ -1020,7 +1020,9 @@ if njit is not None:
         nvt's second half step, temp/berendsen, temp/rescale, the tally: group sums over all the
         atoms), 3 as 2 and then the Langevin forces into the fix's `force` (the chunk's last
         step). The same calls on the same arrays as `pair_chunk`'s own: the same bits. Returns
-        `_fix_end`'s status (6: a zero temperature), else 0."""
+        `_fix_end`'s status (6: a zero temperature), else 0. Runs of steps only: a thermostat's
+        ramp in a run to a time needs the case's clock, which a threaded chunk does not take
+        (`PairChunks.advance_to_time`); NaN for it here would hand the chunk back."""
         fx, fx_rng, _step0, fb = fix
         SQM, G1, FRa, FLa, KB = fb
         V = v.T
@@ -1030,8 +1032,8 @@ if njit is not None:
                     _langevin_setup(0, k, mass, fx, ftm2v, SQM, G1)
             return 0
         if phase == 1:
-            return _fix_pre(0, stepn, dt, V, mass, groups, fx, fx_rng, SQM, FRa.T, KB)
-        status = _fix_end(0, stepn, dt, V, mass, groups, fx, KB, FLa.T)
+            return _fix_pre(0, stepn, dt, np.nan, np.nan, V, mass, groups, fx, fx_rng, SQM, FRa.T, KB)
+        status = _fix_end(0, stepn, dt, np.nan, np.nan, V, mass, groups, fx, KB, FLa.T)
         if phase == 3 and status == 0:
             for a in range(FLa.shape[0]):  # the last step's Langevin forces (the fix's `force`)
                 for d in range(3):
@@ -1690,12 +1692,15 @@ class PairChunks(_compiled.KernelPath):
         before the one that lands on `target` (`steps_before`) in one chunk (`advance`'s, no
         sample), then False: the NumPy loop takes the last step(s), clipping dt to land, and
         samples. Those steps are the ones of a step-based run (the loop's dt stays, its time
-        accumulator stays closed), so the bits are the NumPy loop's alone. Not with fix dt/reset
-        (dt may change at any step), nor with a thermostat (its target ramps with time / run time
-        in such a run, the chunk's fix kernels with the steps, as compiled.py's refuse it too)."""
+        accumulator stays closed), so the bits are the NumPy loop's alone. A thermostat's target
+        ramps with time / run time in such a run: the kernel's fixes take it from the case's clock
+        (`clk`), which a case over threads does not pass (`_fix_phase`), so a thermostat keeps
+        such a case on the loop. Not with fix dt/reset (dt may change at any step)."""
         plan = self.plan_source()
         s = plan.state
-        if s.ncases == 0 or plan.dt_reset is not None or _compiled._thermostats(plan.ensemble):
+        if s.ncases == 0 or plan.dt_reset is not None:
+            return False
+        if _compiled._thermostats(plan.ensemble) and case_parts(s.x.shape[1]) >= 2:
             return False
         k = steps_before(s.atime, s.step, s.atimestep, s.dt, target)
         if _compiled.FastPath._uses_time(plan):  # per-step wall values: at most the steps `_chunk` takes
