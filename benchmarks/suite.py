@@ -340,6 +340,13 @@ def _kind(scene: str, make: Callable[..., dict], n: int, atom_steps: float, note
     return fn
 
 
+def timed(cfg: dict) -> dict:
+    """The scene run to the simulated time of its steps, sampled at tenths of it (`run: {time: T,
+    thermo: {time: T/10}}`; LAMMPS runs the exported `run` of the same steps)."""
+    span = cfg["run"]["steps"] * float(cfg["timestep"])
+    return dict(cfg, run={"time": span, "thermo": {"time": span / 10}})
+
+
 KINDS: list[tuple[str, str, Callable[..., dict], float]] = [  # (row prefix, scene, builder, atom-steps)
     ("ellipsoids-ees", "ellipsoids between wall/ees (nve/asphere)", ellipsoid_slit, 2e6),
     ("region-sphere", "wall/region lj93 sphere cavity", lambda n, **k: region_gas(n, "sphere", **k), 1e7),
@@ -347,6 +354,8 @@ KINDS: list[tuple[str, str, Callable[..., dict], float]] = [  # (row prefix, sce
     ("region-ees", "ellipsoids in a wall/region/ees sphere", region_ees, 2e6),
     ("flow-gas", "wall/flow ideal gas (4 walls)", flow_gas, 1e7),
     ("thermostat-langevin", "gas slit lj93 + fix langevin", lambda n, **k: thermostat_slit(n, "langevin", **k), 1e7),
+    ("thermostat-langevin-time", "gas slit lj93 + fix langevin, run to a simulated time",
+     lambda n, **k: timed(thermostat_slit(n, "langevin", **k)), 1e7),
     ("thermostat-nvt", "gas slit lj93 + fix nvt", lambda n, **k: thermostat_slit(n, "nvt", **k), 1e7),
     ("thermostat-berendsen", "gas slit lj93 + fix temp/berendsen",
      lambda n, **k: thermostat_slit(n, "berendsen", **k), 1e7),
@@ -436,9 +445,7 @@ def ljcut_time() -> dict:
     {time: T/10}}`; LAMMPS: the exported `run` of the same steps)."""
     n = 4000
     steps = scaled(4e6, n)
-    cfg = lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10))
-    span = steps * float(cfg["timestep"])
-    cfg["run"] = {"time": span, "thermo": {"time": span / 10}}
+    cfg = timed(lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10)))
     return speed("LJ liquid slit, pair lj/cut, run to a simulated time", cfg)
 register("ljcut-32000", _ljcut(32000, 6.4e6), at_least(1.5))
 register("ljcut-100000", _ljcut(100000, 5e6), at_least(1.5), "issue 15 (its 1.5x, extended to N = 1e5)")
