@@ -206,10 +206,44 @@ def test_fallback_restores_the_langevin_stream(monkeypatch):
 
 
 def test_refused_fix_combinations_run_in_numpy(monkeypatch):
-    d = gas({"a": "fix a all nve", "b": "fix b all langevin 1.0 1.0 0.5 5"}, steps=40, thermo=20)
-    d["dt_reset"] = {"every": 1, "xmax": 0.05, "units": "box"}
+    d = gas({"a": "fix a all nve", "b": "fix b all langevin 1.0 1.0 0.5 5", "c": "fix c all langevin 1.0 1.0 0.5 6"},
+            steps=40, thermo=20)
     _, got, eng = run_both(monkeypatch, [d])
     assert eng.fast is None
+
+
+@pytest.mark.parametrize("fix", ["fix b all langevin 1.0 2.0 0.5 48279 tally yes", "fix b all nvt temp 1.0 2.0 0.1",
+                                 "fix b all temp/berendsen 1.0 2.0 0.2", "fix b all temp/rescale 5 1.0 2.0 0.05 0.5"])
+def test_thermostats_with_dt_reset_bit_for_bit(monkeypatch, fix):
+    """fix dt/reset every step (xmax small enough that dt changes) with a thermostat: Engine.step
+    resets dt after the thermostats' end_of_step, so the candidates come from the scaled
+    velocities (`_late_dt_low`); two cases of different xmax. Every output, dt and time included,
+    is the NumPy path's, bit for bit, and dt did change."""
+    fixes = {"a": "fix a all nve", "b": fix} if "nvt" not in fix else {"b": fix}
+    configs = []
+    for xmax in (0.004, 0.006):
+        d = gas(fixes, steps=200, thermo=20)
+        d["dt_reset"] = {"every": 1, "xmax": xmax, "tmax": 0.005, "units": "box"}
+        d["output"] = {"thermo": OUT + ["dt", "time"]}
+        configs.append(d)
+    ref, got, eng = check(monkeypatch, configs)
+    dt = got[0].data["dt"]
+    assert np.unique(dt).size >= 3 and dt.max() <= 0.005
+
+
+@pytest.mark.parametrize("fix", ["fix b all langevin 1.5 1.5 0.5 48279 tally yes", "fix b all nvt temp 1.5 1.5 0.1",
+                                 "fix b all temp/berendsen 1.5 1.5 0.2"])
+def test_thermostats_with_flow_walls_bit_for_bit(monkeypatch, fix):
+    """A gas between flow walls (wall/flow along x) with a thermostat: the thermostats' end_of_step,
+    then the flow walls' redraws (Engine.step's order); every output is the NumPy path's, bit for
+    bit, and atoms crossed the flow walls."""
+    fixes = {"a": "fix a all nve", "b": fix} if "nvt" not in fix else {"b": fix}
+    d = gas(fixes, steps=200, thermo=20)
+    d["walls"]["f"] = {"style": "flow", "axis": "x", "vflow": 0.5, "temperature": 1.5, "seed": 11,
+                       "coords": [1.5, 4.5], "units": "box"}
+    d["output"] = {"thermo": OUT + ["flow_crossings"]}
+    ref, got, eng = check(monkeypatch, [d])
+    assert got[0].data["flow_crossings"][1:].sum() > 10
 
 
 # ----------------------------------------------------------------------------- 2-D

@@ -650,3 +650,31 @@ def test_thermostat_in_a_run_to_a_time_fuses_the_steps_before_each_landing(monke
     assert_bits(got, ref)
     assert fused.fast.compiled_chunks == 3 and fused.fast.fallbacks == 0
     assert np.ptp(got[0].data["ecouple"]) > 0
+
+
+@pytest.mark.parametrize("kind", ["langevin", "nvt", "berendsen", "rescale"])
+def test_thermostat_with_dt_reset_in_the_fused_chunk(monkeypatch, kind):
+    """fix dt/reset every step with each thermostat on the LJ liquid: the fused chunk resets dt
+    from the velocities the thermostats left (Engine.step's order); the per-step path's bits on
+    every output, dt and time included, and dt did change."""
+    d = every(slit(steps=30, temperature=3.0), thermo=3)
+    d["fixes"] = dict(THERMOSTATS[kind])
+    d["dt_reset"] = {"every": 1, "xmax": 0.02, "tmin": 0.0005, "tmax": 0.006, "units": "box"}
+    d["output"] = {"thermo": ["step", "time", "dt", "temp", "pe", "etot", "ecouple"]}
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(d))
+    assert_bits(got, ref)
+    assert fused.fast.compiled_chunks > 0 and fused.fast.fallbacks == 0
+    assert np.unique(got[0].data["dt"]).size >= 3
+
+
+@pytest.mark.parametrize("kind", ["langevin", "nvt", "berendsen"])
+def test_thermostat_with_flow_walls_in_the_fused_chunk(monkeypatch, kind):
+    """The LJ fluid between wall/flow walls with each thermostat: the thermostats' end of step,
+    then the flow walls' redraws, in the kernel; the per-step path's bits."""
+    d = flow_fluid("exact")
+    d["fixes"] = dict(THERMOSTATS[kind])
+    d["output"] = {"thermo": ["step", "temp", "pe", "etot", "ecouple", "flow_crossings"]}
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(d))
+    assert_bits(got, ref)
+    assert fused.fast.compiled_chunks > 0 and fused.fast.fallbacks == 0
+    assert got[0].data["flow_crossings"][1:].sum() > 5

@@ -1353,6 +1353,16 @@ if njit is not None:
         return 0, _group_low(CAND, groups, dtr_group, u0, u1)
 
     @inline
+    def _late_dt_low(natom, V, F, M, CAND, groups, g, ftm2v, mvv2e, par):
+        """fix dt/reset at the end of a step whose thermostats scaled v after the block pass: the
+        smallest candidate (`_dt_candidate`) of the group g's atoms from their final v and f
+        (engine.Engine.reset_dt after Ensemble.end_of_step); par: xmax, emax, tmin, tmax."""
+        for i in range(natom):
+            CAND[i] = _dt_candidate(V[0, i], V[1, i], V[2, i], F[0, i], F[1, i], F[2, i], M[i], ftm2v, mvv2e,
+                                    par[0], par[1])
+        return _group_low(CAND, groups, g, 0, natom)
+
+    @inline
     def _clamp(low, natom, par):
         """engine.Engine.reset_dt after the per-atom minimum: BIG, tmin, tmax (par[2], par[3])."""
         new = _nmin(low, BIG) if natom > 0 else BIG
@@ -1467,6 +1477,7 @@ if njit is not None:
             # fixes (fx: see _fix_pre; fx[0] = fx_meta): thermostats couple the atoms every step, so
             # a chunk with one goes step by step over all blocks; enforce2d alone keeps the windows
             thermo = False
+            late = False
             langevin = -1
             rescale_only = True  # temp/rescale alone: windows up to its next due step
             if _K_FIXES:
@@ -1478,6 +1489,9 @@ if njit is not None:
                     if fx_meta[k, 0] != FIX_ENFORCE2D and fx_meta[k, 0] != FIX_RESCALE:
                         rescale_only = False
                 nfx = natom if fx_meta.shape[0] else 0
+                # with fix dt/reset, the atoms' candidates once the thermostats have scaled v at the
+                # step's end (Engine.step's order), step by step over all atoms (`_late_dt_low`)
+                late = _K_DTR and thermo and dtr_every != 0
                 SQM = np.empty(nfx)  # sqrt(m): the Langevin random force's per-atom factor
                 G1 = np.empty(nfx)  # the Langevin drag per atom
                 FR = np.empty((3, nfx))  # this step's Langevin random forces
@@ -1536,7 +1550,7 @@ if njit is not None:
                     # a window of nwin steps at one dt, block by block; or one step (time-based runs, and
                     # dt/reset while dt changes), which is a window of one step followed by its dt update
                     window = (not time_mode and (dtr_every == 0 or stepwise == 0) and not flowing
-                              and (rescale_only or not thermo))
+                              and (rescale_only or not thermo) and not late)
                     nwin = 1
                     if window:
                         nwin = nsteps - done
@@ -1582,7 +1596,7 @@ if njit is not None:
                         u0 = np.uint64(b * blk)  # unsigned: no negative-index wraparound, loops vectorise
                         u1 = np.uint64(b * blk + blk if b * blk + blk < natom else natom)
                         for s in range(nwin):
-                            due = _K_DTR and dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0
+                            due = _K_DTR and dtr_every > 0 and (step[c] + s + 1) % dtr_every == 0 and not late
                             st, m = _block_step(c, u0, u1, (done + s) * vary, s, dtc, due, X, V, F, M, RAD, DTFM,
                                                 CAND, groups, box, sf_meta, sf_val, rf_meta, rf_val,
                                                 vw, rstat, stats, ftm2v, mvv2e, dtr_group, dtr_par, rg, fxp, tbst)
@@ -1622,6 +1636,8 @@ if njit is not None:
                     done += nwin
                     if not window:
                         if _K_DTR and dtr_every > 0 and step[c] % dtr_every == 0:  # fix dt/reset (end_of_step)
+                            if late:
+                                low[0] = _late_dt_low(natom, V, F, M, CAND, groups, dtr_group, ftm2v, mvv2e, dtr_par[c])
                             new = _clamp(low[0], natom, dtr_par[c])
                             if new != dt[c]:
                                 atime[c] = atime[c] + (step[c] - atimestep[c]) * dt[c]
@@ -2301,8 +2317,8 @@ def two_d_eligible(plan: ChunkPlan) -> bool:
 
 def fixes_eligible(plan: ChunkPlan) -> bool:
     """The batch's `fixes:` the kernel runs: every atom integrated (nve or nvt), at most one nvt
-    and one langevin, temp/berendsen, temp/rescale, enforce2d; thermostats not with dt/reset or
-    wall/flow (their end_of_step order is not the kernel's)."""
+    and one langevin, temp/berendsen, temp/rescale, enforce2d; with dt/reset or wall/flow too
+    (Engine.step's end_of_step order: the thermostats, the flow walls, dt/reset)."""
     ens = plan.ensemble
     if ens is None:
         return True
@@ -2312,8 +2328,6 @@ def fixes_eligible(plan: ChunkPlan) -> bool:
     if any(st not in FIX_KINDS and st != "nve" for st in styles):
         return False
     if styles.count("nvt") > 1 or styles.count("langevin") > 1:
-        return False
-    if _thermostats(ens) and (plan.dt_reset is not None or plan.flow):
         return False
     return True
 

@@ -1613,13 +1613,17 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     enforce2d), wall/reflect on fixed dimensions (a case over threads too, `_chunk_threaded`);
     and, for a case on one thread (`case_parts`), wall/reflect with statistics and
     wall/reflect/stochastic (`compiled._stochastic_eligible`) on fixed dimensions
-    (`reflect_on_threads`), and fix dt/reset (not with wall/flow or wall values that vary with
-    time). Not wall/lepton faces or anything else."""
+    (`reflect_on_threads`), fix dt/reset (not with wall/flow or wall values that vary with
+    time) and a thermostat with wall/flow. Not wall/lepton faces or anything else."""
     if njit is None or plan.others != ("pair",):
         return False
     ens = plan.ensemble
-    if (not reflect_on_threads(plan) or plan.dt_reset is not None) and case_parts(plan.state.x.shape[1]) >= 2:
-        return False  # a case over threads: its per-step path keeps them
+    # a case over threads keeps on its per-step path: reflect statistics and stochastic walls,
+    # dt/reset, and a thermostat with wall/flow (`_chunk_threaded` runs the flow walls in the step's
+    # tail, before the fixes' end of step: not Engine.step's order)
+    on_threads = reflect_on_threads(plan) and plan.dt_reset is None and not (plan.flow and _compiled._thermostats(ens))
+    if not on_threads and case_parts(plan.state.x.shape[1]) >= 2:
+        return False
     if ens is not None and not _compiled.fixes_eligible(plan):
         return False
     if plan.dt_reset is not None and (plan.flow or _compiled.FastPath._uses_time(plan)):
