@@ -266,6 +266,22 @@ def lj_fcc_slit(n: int, *, steps: int = 1000, thermo: int = 100, seed: int = 7) 
     return cfg
 
 
+def frozen_slab_slit(n: int, *, steps: int = 1000, thermo: int = 100) -> dict:
+    """`lj_fcc_slit`'s liquid with its atoms in the lowest 1.5 sigma frozen (a group no integrator
+    moves: an atomistic floor; fix nve on the rest), about n atoms."""
+    cfg = lj_fcc_slit(n, steps=steps, thermo=thermo)
+    atoms = cfg["atoms"][0]
+    x, v = np.asarray(atoms["create"]["positions"]), np.asarray(atoms["velocity"]["values"])
+    low = x[:, 2] < x[:, 2].min() + 1.5
+    cfg["atoms"] = [{"group": "floor", "create": {"positions": x[low].tolist()}, "mass": 1.0,
+                     "velocity": {"values": [0.0, 0.0, 0.0]}},
+                    {"group": "liquid", "create": {"positions": x[~low].tolist()}, "mass": 1.0,
+                     "velocity": {"values": v[~low].tolist()}}]
+    cfg["fixes"] = {"move": "fix move liquid nve"}
+    cfg["name"] += "-frozen-floor"
+    return cfg
+
+
 def flow_lj(n: int, *, steps: int = 1000, thermo: int = 100) -> dict:
     """The LJ fluid with four wall/flow walls of benchmarks/flow_scene.py (rule exact, wallbatch's default)."""
     from flow_scene import flow_config  # noqa: PLC0415 - the script's own scene
@@ -466,6 +482,6 @@ def fmt(x: float | None, spec: str) -> str:
 
 
 __all__ = ["set_clock", "gas_slit", "region_gas", "flow_gas", "thermostat_slit", "gas_2d", "ellipsoid_slit",
-           "region_ees", "table_slit", "lepton_slit", "stochastic_slit", "lj_fcc_slit", "flow_lj", "lammps_script",
+           "region_ees", "table_slit", "lepton_slit", "stochastic_slit", "lj_fcc_slit", "frozen_slab_slit", "flow_lj", "lammps_script",
            "lammps_export_run", "with_dt_reset", "lj_slit", "build", "time_wallbatch", "lammps_module", "lammps_run",
            "lammps_commands", "numba_state", "fmt", "Engine"]

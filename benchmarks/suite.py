@@ -64,9 +64,9 @@ ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 
 import common  # noqa: E402
-from common import (build, ellipsoid_slit, flow_gas, flow_lj, gas_2d, gas_slit, lammps_export_run,  # noqa: E402
-                    lammps_module, lammps_script, lepton_slit, lj_fcc_slit, region_ees, region_gas, stochastic_slit,
-                    table_slit, thermostat_slit, THERMOSTATS, with_dt_reset, with_fixes)
+from common import (build, ellipsoid_slit, flow_gas, flow_lj, frozen_slab_slit, gas_2d, gas_slit,  # noqa: E402
+                    lammps_export_run, lammps_module, lammps_script, lepton_slit, lj_fcc_slit, region_ees, region_gas,
+                    stochastic_slit, table_slit, thermostat_slit, THERMOSTATS, with_dt_reset, with_fixes)
 
 from wallbatch.engine.engine import Engine  # noqa: E402
 
@@ -441,6 +441,15 @@ def ljcut_wall_kinds() -> dict:
 
 
 register("ljcut-4000", _ljcut(4000, 4e6), at_least(1.5))
+
+
+@row("ljcut-frozen-floor-4000", at_least(1.5), "issue 15 (pair lj/cut: >= 1.5x; frozen groups)")
+def ljcut_frozen() -> dict:
+    """ljcut-4000's liquid with its lowest 1.5 sigma of atoms frozen (fix nve on the rest)."""
+    n = 4000
+    steps = scaled(4e6, n)
+    return speed("LJ liquid slit on a frozen atomistic floor (fix nve on the liquid)",
+                 frozen_slab_slit(n, steps=steps, thermo=max(1, steps // 10)))
 
 
 @row("ljcut-time-4000", at_least(1.5), "issue 15 (pair lj/cut: >= 1.5x; a run to a simulated time)")

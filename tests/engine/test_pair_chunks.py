@@ -678,3 +678,37 @@ def test_thermostat_with_flow_walls_in_the_fused_chunk(monkeypatch, kind):
     assert_bits(got, ref)
     assert fused.fast.compiled_chunks > 0 and fused.fast.fallbacks == 0
     assert got[0].data["flow_crossings"][1:].sum() > 5
+
+
+def frozen_post(fixes: dict) -> dict:
+    """An LJ fluid (~150 atoms, periodic) around a frozen post: a column of 12 atoms that no
+    integrator moves (fix nve on the fluid only), sampled every 10 steps."""
+    post = [[5.0 + 0.9 * i, 3.0 + 0.9 * j, 0.5 + 1.0 * k] for i in range(2) for j in range(2) for k in range(3)]
+    d = flow_fluid("exact")
+    del d["walls"]
+    d["atoms"] = [{"group": "post", "mass": 1.0, "create": {"positions": post}, "velocity": {"values": [0.2, 0, 0]}},
+                  *d["atoms"]]
+    d["fixes"] = fixes
+    d["run"] = {"steps": 120, "thermo": 10}
+    d["output"] = {"thermo": ["step", "temp", "ke", "pe", "etot", "ecouple"],
+                   "dump": {"every": 60, "fields": ["x", "v"]}}
+    return d
+
+
+@pytest.mark.parametrize("fixes", [{"i": "fix i fluid nve"},
+                                   {"i": "fix i fluid nve", "t": "fix t fluid langevin 1.5 1.5 0.5 77 tally yes"},
+                                   {"t": "fix t fluid nvt temp 1.5 1.0 0.1"}])
+def test_frozen_atoms_in_the_fused_chunk(monkeypatch, fixes):
+    """Atoms outside every integrator's group (a frozen post in the fluid): the fused chunk
+    integrates the others only; the per-step path's bits on every output and frame, and the post
+    keeps its positions and velocities to the bit while the fluid moves."""
+    case = cases_of(frozen_post(fixes))
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, case)
+    assert_bits(got, ref)
+    for name in ("x", "v"):
+        np.testing.assert_array_equal(got[0].frames[name], ref[0].frames[name], err_msg=name)
+    assert fused.fast.compiled_chunks > 0 and fused.fast.fallbacks == 0
+    x, v = got[0].frames["x"], got[0].frames["v"]
+    assert np.array_equal(x[:, :12], np.broadcast_to(case[0].x[:12], x[:, :12].shape))
+    assert np.array_equal(v[:, :12], np.broadcast_to(case[0].v[:12], v[:, :12].shape))
+    assert np.abs(x[-1, 12:] - x[0, 12:]).max() > 0.05

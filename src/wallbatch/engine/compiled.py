@@ -2261,10 +2261,10 @@ def _compiled_face(w: SoftWallKernel, style: WallStyle) -> bool:
     return _generated_force(style) is not None and w.cutoff.mode_id == SHIFT
 
 
-def eligible(plan: ChunkPlan) -> bool:
+def eligible(plan: ChunkPlan, partial: bool = False) -> bool:
     """Whitelist: flat soft walls of compiled styles, wall/reflect (lab or wall frame), wall/region
     with compiled styles and constant parameters, one wall/flow (not with dt/reset), dt/reset,
-    variables; nothing else in the scene."""
+    variables; nothing else in the scene (`partial`: see `fixes_eligible`)."""
     if plan.others:
         return False
     if any(type(w) not in (SoftWallKernel, CustomWallKernel) or
@@ -2277,7 +2277,7 @@ def eligible(plan: ChunkPlan) -> bool:
         return False
     if len(plan.flow) > 1 or (plan.flow and plan.dt_reset is not None):
         return False
-    if not fixes_eligible(plan):
+    if not fixes_eligible(plan, partial):
         return False
     if not _stochastic_eligible(plan):
         return False
@@ -2315,14 +2315,15 @@ def two_d_eligible(plan: ChunkPlan) -> bool:
     return True
 
 
-def fixes_eligible(plan: ChunkPlan) -> bool:
-    """The batch's `fixes:` the kernel runs: every atom integrated (nve or nvt), at most one nvt
-    and one langevin, temp/berendsen, temp/rescale, enforce2d; with dt/reset or wall/flow too
+def fixes_eligible(plan: ChunkPlan, partial: bool = False) -> bool:
+    """The batch's `fixes:` the kernel runs: every atom integrated (nve or nvt; with `partial`,
+    the pair chunks', some atoms may be left out: frozen atoms, fx_int[2]), at most one nvt and one
+    langevin, temp/berendsen, temp/rescale, enforce2d; with dt/reset or wall/flow too
     (Engine.step's end_of_step order: the thermostats, the flow walls, dt/reset)."""
     ens = plan.ensemble
     if ens is None:
         return True
-    if ens.moving is not None:
+    if ens.moving is not None and not partial:
         return False
     styles = [f.style for f in ens.fixes]
     if any(st not in FIX_KINDS and st != "nve" for st in styles):
@@ -2366,7 +2367,9 @@ def _fix_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]) -> tu
         tloop = 1
     u = s.units
     run_time = np.nan if s.run_time is None else float(s.run_time)  # (a run to a time: the ramp follows the time)
-    fx = (meta, val, acc, *chain, *per_case, np.array([tloop, s.end_step], np.int64),
+    # the integrated atoms' group row (Ensemble.moving; -1: every atom), for the pair chunks
+    moving = -1 if ens is None or ens.moving is None else group(ens.moving, False)
+    fx = (meta, val, acc, *chain, *per_case, np.array([tloop, s.end_step, moving], np.int64),
           np.array([float(u.boltz), float(u.ftm2v), float(u.mvv2e), run_time]), np.zeros((C, N, 3)))
     return fx, fixes, rngs
 

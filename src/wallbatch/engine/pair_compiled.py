@@ -704,14 +704,23 @@ if njit is not None:
 
     @njit(nogil=True, error_model="numpy", inline="always")
     def _drift(x: np.ndarray, v: np.ndarray, f: np.ndarray, dtfm: np.ndarray, dt: float, lo: np.ndarray,
-               hi: np.ndarray, box_per: np.ndarray) -> None:
-        """initial_integrate (v += dtfm f, x += dt v) and the periodic wrap of one case."""
+               hi: np.ndarray, box_per: np.ndarray, moving: np.ndarray) -> None:
+        """initial_integrate (v += dtfm f, x += dt v) of the integrated atoms (moving[a] != 0;
+        an empty `moving`: every atom) and the periodic wrap of one case."""
         N = x.shape[0]
-        for a in range(N):
-            for d in range(3):
-                va = v[a, d] + dtfm[a] * f[a, d]
-                v[a, d] = va
-                x[a, d] = x[a, d] + dt * va
+        if moving.shape[0] == 0:
+            for a in range(N):
+                for d in range(3):
+                    va = v[a, d] + dtfm[a] * f[a, d]
+                    v[a, d] = va
+                    x[a, d] = x[a, d] + dt * va
+        else:
+            for a in range(N):
+                if moving[a] != 0:
+                    for d in range(3):
+                        va = v[a, d] + dtfm[a] * f[a, d]
+                        v[a, d] = va
+                        x[a, d] = x[a, d] + dt * va
         for d in range(3):
             if box_per[d]:
                 lod, hid = lo[d], hi[d]
@@ -772,7 +781,7 @@ if njit is not None:
         wrap, the wall/reflect faces (rf_meta rows, this step's coords rf_row, the last step's
         rf_prev: `pair_chunk`'s calls of `_reflect_face`, without statistics; none: 0 rows), then 0
         (the list holds), 1 (rebuild it) or 3 (a non-finite position); f is cleared (after the drift)."""
-        _drift(x, v, f, dtfm, dt, lo, hi, box_per)
+        _drift(x, v, f, dtfm, dt, lo, hi, box_per, groups[0, :0])  # (a case over threads: every atom integrated)
         X, V = x.T, v.T
         RS = np.zeros((1, rf_meta.shape[0], 2))  # (no statistics: untouched)
         for k in range(rf_meta.shape[0]):  # wall/reflect (post_integrate)
@@ -865,6 +874,9 @@ if njit is not None:
             CI = np.empty(N if fl_int[0] != 0 else 0, np.int64)
             DIR = np.empty(N if fl_int[0] != 0 else 0)
             fx, fx_rng, step0, fb = fix
+            mrow = fx[11][2]  # the integrated atoms' group row (-1: every atom)
+            moving = groups[mrow] if mrow >= 0 else groups[0, :0]
+            nmov = moving.shape[0]
             rf_meta, rf_val, rf_prev, rf_stat, stats = rfl
             st_meta, st_val, st_stat, st_flag, st_rng, mvv2e = sto
             dtr_every, dtr_group, dtr_par, clk = dtr
@@ -901,7 +913,7 @@ if njit is not None:
                     if thermo and not post:  # fix nvt's first half step, the Langevin random forces
                         _fix_pre(0, step0 + step + 1, dt, clk[1], clk[2], V, mass, groups, fx, fx_rng, SQM, FR, KB)
                 if not post:  # post: the pair forces of this step are in f (`_chunk_threaded`)
-                    _drift(x, v, f, dtfm, dt, lo, hi, box_per)
+                    _drift(x, v, f, dtfm, dt, lo, hi, box_per, moving)
                     if _K_REFLECT:
                         for k in range(nrf):  # wall/reflect (post_integrate)
                             coord = rf_val[step if rvary else 0, k]
@@ -957,9 +969,10 @@ if njit is not None:
                         for a in range(N):
                             if (x[a, d] < lo[d]) | (x[a, d] > hi[d]):
                                 return 2, builds, neigh
-                for a in range(N):  # final_integrate
-                    for d in range(3):
-                        v[a, d] = v[a, d] + dtfm[a] * f[a, d]
+                for a in range(N):  # final_integrate (of the integrated atoms)
+                    if nmov == 0 or moving[a] != 0:
+                        for d in range(3):
+                            v[a, d] = v[a, d] + dtfm[a] * f[a, d]
                 if _K_FIXES:
                     if thermo and not post:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
                         if _fix_end(0, step0 + step + 1, dt, clk[1], clk[2], V, mass, groups, fx, KB, FL) != 0:
@@ -1624,8 +1637,10 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     on_threads = reflect_on_threads(plan) and plan.dt_reset is None and not (plan.flow and _compiled._thermostats(ens))
     if not on_threads and case_parts(plan.state.x.shape[1]) >= 2:
         return False
-    if ens is not None and not _compiled.fixes_eligible(plan):
+    if ens is not None and not _compiled.fixes_eligible(plan, partial=True):
         return False
+    if ens is not None and ens.moving is not None and case_parts(plan.state.x.shape[1]) >= 2:
+        return False  # frozen atoms: a case over threads keeps its per-step path
     if plan.dt_reset is not None and (plan.flow or _compiled.FastPath._uses_time(plan)):
         return False  # compiled.py's order with wall/flow; per-step wall values depend on dt
     if not _compiled._stochastic_eligible(plan) or any(face.dim in plan.state.periodic
@@ -1633,7 +1648,7 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
         return False  # reflect faces on fixed dims only (the kernel reflects after the wrap)
     if not pair.compiled or pair.ncases != plan.state.ncases:
         return False
-    if not _compiled.eligible(dataclasses.replace(plan, others=())):
+    if not _compiled.eligible(dataclasses.replace(plan, others=()), partial=True):
         return False
     for w in plan.soft:  # the registry's compiled styles, or wall/table
         for st in _compiled._face_styles(w):
