@@ -1627,7 +1627,8 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     and, for a case on one thread (`case_parts`), wall/reflect with statistics and
     wall/reflect/stochastic (`compiled._stochastic_eligible`) on fixed dimensions
     (`reflect_on_threads`), fix dt/reset (not with wall/flow or wall values that vary with
-    time) and a thermostat with wall/flow. Not wall/lepton faces or anything else."""
+    time), a thermostat with wall/flow, and atoms outside every integrator's group (frozen).
+    Not wall/lepton faces or anything else."""
     if njit is None or plan.others != ("pair",):
         return False
     ens = plan.ensemble
