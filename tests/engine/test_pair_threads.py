@@ -14,8 +14,8 @@ from wallbatch.engine import pair_compiled
 from wallbatch.engine.engine import Engine
 from wallbatch.engine.pair_compiled import PairChunks
 
-from tests.engine.test_pair_chunks import (THERMOSTATS, assert_bits, cases_of, flow_fluid, liquid_2d, slit,
-                                           sphere_cavity)
+from tests.engine.test_pair_chunks import (THERMOSTATS, assert_bits, cases_of, flow_fluid, frozen_post, liquid_2d,
+                                           slit, sphere_cavity, timed_slit)
 
 pytestmark = pytest.mark.skipif(pair_compiled.njit is None, reason="numba not importable")
 
@@ -396,3 +396,28 @@ def test_row_splits_of_one_workspace_share_its_log_arrays():
         assert (e2, w2) == (e1, w1)
         assert split.row_outputs() is ws.buffer("rowew", (len(owner), 2), np.float64)
     assert len(seen) == 1 and split.lj is ws.buffer("log_j", split.lj.shape, np.int32)
+
+
+@pytest.mark.parametrize("fixes", [{"i": "fix i fluid nve"},
+                                   {"i": "fix i fluid nve", "t": "fix t fluid langevin 1.5 1.5 0.5 77 tally yes"}])
+def test_frozen_atoms_on_threads_same_bits_as_one_thread(monkeypatch, fixes):
+    """Atoms outside every integrator's group (`frozen_post`) in a case cut over threads: each
+    thread drifts and kicks only its integrated atoms; 2 and 3 threads give one thread's bits,
+    and the post keeps its positions and velocities to the bit."""
+    ref, one, engines = threads_match_one(monkeypatch, frozen_post(fixes))
+    start = cases_of(frozen_post(fixes))[0]
+    for eng in (one, *engines):
+        np.testing.assert_array_equal(eng.state.x[0, :12], start.x[:12])
+        np.testing.assert_array_equal(eng.state.v[0, :12], start.v[:12])
+
+
+@pytest.mark.parametrize("kind", ["langevin", "berendsen", "nvt"])
+def test_thermostat_in_a_run_to_a_time_on_threads(monkeypatch, kind):
+    """A run to a simulated time with a thermostat whose target ramps, on threads: `fix_phase`
+    takes the case's clock for the ramp (time / run time); 2 and 3 threads give one thread's
+    bits, one threaded chunk per sample interval."""
+    config = timed_slit(0.0045)
+    config["fixes"] = dict(THERMOSTATS[kind])
+    config["output"]["thermo"] += ["ecouple", "econserve"]
+    ref, one, engines = threads_match_one(monkeypatch, config)
+    assert one.fast.compiled_chunks == 3

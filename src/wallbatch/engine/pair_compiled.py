@@ -776,12 +776,13 @@ if njit is not None:
     def _pre_step(x: np.ndarray, v: np.ndarray, f: np.ndarray, dtfm: np.ndarray, dt: float, lo: np.ndarray,
                   hi: np.ndarray, box_per: np.ndarray, xref: np.ndarray, length: np.ndarray, pair_per: np.ndarray,
                   limit2: float, rf_meta: np.ndarray, rf_row: np.ndarray, rf_prev: np.ndarray, mass: np.ndarray,
-                  groups: np.ndarray, ftm2v: float) -> int:
+                  groups: np.ndarray, ftm2v: float, mrow: int) -> int:
         """The first half of `pair_chunk`'s step for `_chunk_threaded` on a run of atoms: drift and
-        wrap, the wall/reflect faces (rf_meta rows, this step's coords rf_row, the last step's
-        rf_prev: `pair_chunk`'s calls of `_reflect_face`, without statistics; none: 0 rows), then 0
-        (the list holds), 1 (rebuild it) or 3 (a non-finite position); f is cleared (after the drift)."""
-        _drift(x, v, f, dtfm, dt, lo, hi, box_per, groups[0, :0])  # (a case over threads: every atom integrated)
+        wrap (of the integrated atoms: group row mrow, -1 every atom), the wall/reflect faces
+        (rf_meta rows, this step's coords rf_row, the last step's rf_prev: `pair_chunk`'s calls of
+        `_reflect_face`, without statistics; none: 0 rows), then 0 (the list holds), 1 (rebuild it)
+        or 3 (a non-finite position); f is cleared (after the drift)."""
+        _drift(x, v, f, dtfm, dt, lo, hi, box_per, groups[mrow] if mrow >= 0 else groups[0, :0])
         X, V = x.T, v.T
         RS = np.zeros((1, rf_meta.shape[0], 2))  # (no statistics: untouched)
         for k in range(rf_meta.shape[0]):  # wall/reflect (post_integrate)
@@ -1025,7 +1026,7 @@ if njit is not None:
         return pair_chunk
 
     def _fix_phase(phase: int, stepn: int, dt: float, ftm2v: float, mass: np.ndarray, v: np.ndarray,
-                   groups: np.ndarray, fix: tuple) -> int:
+                   groups: np.ndarray, fix: tuple, clk: np.ndarray) -> int:
         """The parts of `pair_chunk`'s fixes that read every atom of the case, for
         `_chunk_threaded` (the rest, `_fix_post_force`, runs on each thread's atoms): phase 0 the
         Langevin factors (`_langevin_setup`), 1 `_fix_pre` of step stepn (fix nvt's first half
@@ -1033,9 +1034,8 @@ if njit is not None:
         nvt's second half step, temp/berendsen, temp/rescale, the tally: group sums over all the
         atoms), 3 as 2 and then the Langevin forces into the fix's `force` (the chunk's last
         step). The same calls on the same arrays as `pair_chunk`'s own: the same bits. Returns
-        `_fix_end`'s status (6: a zero temperature), else 0. Runs of steps only: a thermostat's
-        ramp in a run to a time needs the case's clock, which a threaded chunk does not take
-        (`PairChunks.advance_to_time`); NaN for it here would hand the chunk back."""
+        `_fix_end`'s status (6: a zero temperature), else 0. clk: the case's clock (dt, atime,
+        atimestep), for a thermostat's ramp in a run to a time."""
         fx, fx_rng, _step0, fb = fix
         SQM, G1, FRa, FLa, KB = fb
         V = v.T
@@ -1045,8 +1045,8 @@ if njit is not None:
                     _langevin_setup(0, k, mass, fx, ftm2v, SQM, G1)
             return 0
         if phase == 1:
-            return _fix_pre(0, stepn, dt, np.nan, np.nan, V, mass, groups, fx, fx_rng, SQM, FRa.T, KB)
-        status = _fix_end(0, stepn, dt, np.nan, np.nan, V, mass, groups, fx, KB, FLa.T)
+            return _fix_pre(0, stepn, dt, clk[1], clk[2], V, mass, groups, fx, fx_rng, SQM, FRa.T, KB)
+        status = _fix_end(0, stepn, dt, clk[1], clk[2], V, mass, groups, fx, KB, FLa.T)
         if phase == 3 and status == 0:
             for a in range(FLa.shape[0]):  # the last step's Langevin forces (the fix's `force`)
                 for d in range(3):
@@ -1479,6 +1479,8 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
     fb = fix[3]
     coupled = fb[0].shape[0] > 0 and bool(np.any(fix[0][0][:, 0] != _compiled.FIX_ENFORCE2D))
     step0, mass, groups, ftm2v = fix[2], a["mass"], a["groups"], a["ftm2v"]
+    mrow = int(fix[0][11][2])  # the integrated atoms' group row (-1: every atom; frozen atoms stay)
+    clk = a["dtr"][3]  # the case's clock (dt, atime, atimestep): a thermostat's ramp in a run to a time
     part_groups = [np.ascontiguousarray(groups[:, r]) for r in runs]  # (G, N) rows: each part's copy
     a.update(nsteps=1, post=True, sample=False)
     if int(a["fl"][0][0]) != 0:  # wall/flow: the rest of the step on all atoms
@@ -1494,7 +1496,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
         r = runs[p]
         row = rf_val[at_step[0] if rf_val.shape[0] > 1 else 0]
         return pre_kernel(x[r], v[r], f[r], dtfm[r], dt, lo, hi, box_per, xref[r], length, per, limit2, rf_meta, row,
-                          rf_prev, mass[r], part_groups[p], ftm2v)
+                          rf_prev, mass[r], part_groups[p], ftm2v, mrow)
 
     def tail_pre(p: int, step: int) -> tuple[int, int]:
         """The rest of step `step` on part p's atoms (all atoms with wall/flow: tails[0]), then,
@@ -1536,8 +1538,8 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
         shares = np.arange(parts + 1) / parts
     held["split"] = None  # (a chunk with trouble keeps nothing)
     if coupled:  # the Langevin factors, then the first step's start (`pair_chunk`'s `_fix_pre`)
-        phase(0, 0, dt, ftm2v, mass, v, groups, fix)
-        phase(1, step0 + 1, dt, ftm2v, mass, v, groups, fix)
+        phase(0, 0, dt, ftm2v, mass, v, groups, fix, clk)
+        phase(1, step0 + 1, dt, ftm2v, mass, v, groups, fix, clk)
     st = pres()
     faces_moved()
     for step in range(nsteps):
@@ -1579,11 +1581,11 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
                 else [tail_pre(0, step)]
             ok = all(g[0] == 0 for g in got)
             if ok and coupled:
-                fs = phase(3 if step == nsteps - 1 else 2, step0 + step + 1, dt, ftm2v, mass, v, groups, fix)
+                fs = phase(3 if step == nsteps - 1 else 2, step0 + step + 1, dt, ftm2v, mass, v, groups, fix, clk)
                 if fs != 0:  # (6: a zero temperature; the NumPy loop reports it)
                     return fs, builds, neigh
                 if step + 1 < nsteps:
-                    phase(1, step0 + step + 2, dt, ftm2v, mass, v, groups, fix)
+                    phase(1, step0 + step + 2, dt, ftm2v, mass, v, groups, fix, clk)
             if ok and step + 1 < nsteps:
                 got.append((0, pres()))
         pending = None
@@ -1623,12 +1625,12 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     """Whether `PairChunks` runs this plan: pair lj/cut on its compiled path with what the chunk
     kernels of compiled.py run: flat soft walls of the registry's compiled styles and wall/table
     faces, wall/region, one wall/flow, the `fixes:` of `compiled.fixes_eligible` (thermostats,
-    enforce2d), wall/reflect on fixed dimensions (a case over threads too, `_chunk_threaded`);
-    and, for a case on one thread (`case_parts`), wall/reflect with statistics and
-    wall/reflect/stochastic (`compiled._stochastic_eligible`) on fixed dimensions
-    (`reflect_on_threads`), fix dt/reset (not with wall/flow or wall values that vary with
-    time), a thermostat with wall/flow, and atoms outside every integrator's group (frozen).
-    Not wall/lepton faces or anything else."""
+    enforce2d), wall/reflect on fixed dimensions, atoms outside every integrator's group (frozen),
+    all of them for a case over threads too (`_chunk_threaded`); and, for a case on one thread
+    (`case_parts`), wall/reflect with statistics and wall/reflect/stochastic
+    (`compiled._stochastic_eligible`) on fixed dimensions (`reflect_on_threads`), fix dt/reset
+    (not with wall/flow or wall values that vary with time), a thermostat with wall/flow. Not
+    wall/lepton faces or anything else."""
     if njit is None or plan.others != ("pair",):
         return False
     ens = plan.ensemble
@@ -1640,8 +1642,6 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
         return False
     if ens is not None and not _compiled.fixes_eligible(plan, partial=True):
         return False
-    if ens is not None and ens.moving is not None and case_parts(plan.state.x.shape[1]) >= 2:
-        return False  # frozen atoms: a case over threads keeps its per-step path
     if plan.dt_reset is not None and (plan.flow or _compiled.FastPath._uses_time(plan)):
         return False  # compiled.py's order with wall/flow; per-step wall values depend on dt
     if not _compiled._stochastic_eligible(plan) or any(face.dim in plan.state.periodic
@@ -1714,13 +1714,10 @@ class PairChunks(_compiled.KernelPath):
         samples. Those steps are the ones of a step-based run (the loop's dt stays, its time
         accumulator stays closed), so the bits are the NumPy loop's alone. A thermostat's target
         ramps with time / run time in such a run: the kernel's fixes take it from the case's clock
-        (`clk`), which a case over threads does not pass (`_fix_phase`), so a thermostat keeps
-        such a case on the loop. Not with fix dt/reset (dt may change at any step)."""
+        (`clk`, `_fix_phase`'s too on threads). Not with fix dt/reset (dt may change at any step)."""
         plan = self.plan_source()
         s = plan.state
         if s.ncases == 0 or plan.dt_reset is not None:
-            return False
-        if _compiled._thermostats(plan.ensemble) and case_parts(s.x.shape[1]) >= 2:
             return False
         k = steps_before(s.atime, s.step, s.atimestep, s.dt, target)
         if _compiled.FastPath._uses_time(plan):  # per-step wall values: at most the steps `_chunk` takes
