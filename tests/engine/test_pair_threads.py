@@ -421,3 +421,15 @@ def test_thermostat_in_a_run_to_a_time_on_threads(monkeypatch, kind):
     config["output"]["thermo"] += ["ecouple", "econserve"]
     ref, one, engines = threads_match_one(monkeypatch, config)
     assert one.fast.compiled_chunks == 3
+
+
+@pytest.mark.parametrize("kind", ["langevin", "nvt", "berendsen"])
+def test_thermostat_with_flow_walls_on_threads(monkeypatch, kind):
+    """A thermostat with wall/flow walls in a case cut over threads: the step's tail (all atoms)
+    runs the fixes' end of step before the flow walls, as Engine.step does; 2 and 3 threads give
+    one thread's bits, every chunk threaded."""
+    config = flow_fluid("exact")
+    config["fixes"] = dict(THERMOSTATS[kind])
+    config["output"] = {"thermo": ["step", "temp", "pe", "etot", "ecouple", "econserve", "flow_crossings"]}
+    ref, one, engines = threads_match_one(monkeypatch, config)
+    assert ref[0].data["flow_crossings"][1:].sum() > 5 and np.ptp(ref[0].data["ecouple"]) > 0

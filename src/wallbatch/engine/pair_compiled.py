@@ -975,7 +975,9 @@ if njit is not None:
                         for d in range(3):
                             v[a, d] = v[a, d] + dtfm[a] * f[a, d]
                 if _K_FIXES:
-                    if thermo and not post:  # fix nvt's second half step, temp/berendsen, temp/rescale, the tally
+                    # fix nvt's second half step, temp/berendsen, temp/rescale, the tally; also in the
+                    # tail of a case over threads with wall/flow (post, all atoms): before the flow walls
+                    if thermo and (not post or fl_int[0] != 0):
                         if _fix_end(0, step0 + step + 1, dt, clk[1], clk[2], V, mass, groups, fx, KB, FL) != 0:
                             return 6, builds, neigh
                 if fl_int[0] != 0:  # fix wall/flow (end_of_step)
@@ -1033,7 +1035,8 @@ if njit is not None:
         step, the Langevin random forces drawn atom after atom), 2 `_fix_end` of step stepn (fix
         nvt's second half step, temp/berendsen, temp/rescale, the tally: group sums over all the
         atoms), 3 as 2 and then the Langevin forces into the fix's `force` (the chunk's last
-        step). The same calls on the same arrays as `pair_chunk`'s own: the same bits. Returns
+        step), 4 those forces only (a case with wall/flow, whose tail ran `_fix_end` before the
+        flow walls). The same calls on the same arrays as `pair_chunk`'s own: the same bits. Returns
         `_fix_end`'s status (6: a zero temperature), else 0. clk: the case's clock (dt, atime,
         atimestep), for a thermostat's ramp in a run to a time."""
         fx, fx_rng, _step0, fb = fix
@@ -1046,8 +1049,10 @@ if njit is not None:
             return 0
         if phase == 1:
             return _fix_pre(0, stepn, dt, clk[1], clk[2], V, mass, groups, fx, fx_rng, SQM, FRa.T, KB)
-        status = _fix_end(0, stepn, dt, clk[1], clk[2], V, mass, groups, fx, KB, FLa.T)
-        if phase == 3 and status == 0:
+        status = 0
+        if phase != 4:  # (4: the tail with wall/flow ran the step's end itself: the forces only)
+            status = _fix_end(0, stepn, dt, clk[1], clk[2], V, mass, groups, fx, KB, FLa.T)
+        if phase >= 3 and status == 0:
             for a in range(FLa.shape[0]):  # the last step's Langevin forces (the fix's `force`)
                 for d in range(3):
                     fx[13][0, a, d] = FLa[a, d]
@@ -1483,7 +1488,8 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
     clk = a["dtr"][3]  # the case's clock (dt, atime, atimestep): a thermostat's ramp in a run to a time
     part_groups = [np.ascontiguousarray(groups[:, r]) for r in runs]  # (G, N) rows: each part's copy
     a.update(nsteps=1, post=True, sample=False)
-    if int(a["fl"][0][0]) != 0:  # wall/flow: the rest of the step on all atoms
+    flow = int(a["fl"][0][0]) != 0
+    if flow:  # wall/flow: the rest of the step on all atoms
         tails = [a]
     else:
         tails = [dict(a, x=x[r], v=v[r], f=f[r], mass=mass[r], radius=a["radius"][r], groups=part_groups[p],
@@ -1509,6 +1515,8 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
                 fpair[r] = f[r]
         if t is not None:
             t.update(neigh=neigh, sf_val=sf_val[step:step + 1] if vary else sf_val)
+            if flow:  # (its `_fix_end` counts the case's steps from the fix tuple's step0)
+                t["fix"] = (fix[0], fix[1], step0 + step, fix[3])
             st = tail_kernel(*t.values())[0]  # (`call_kernel`: a Ctrl-C is a KeyboardInterrupt)
             if st != 0:
                 return st, 0
@@ -1581,7 +1589,12 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
                 else [tail_pre(0, step)]
             ok = all(g[0] == 0 for g in got)
             if ok and coupled:
-                fs = phase(3 if step == nsteps - 1 else 2, step0 + step + 1, dt, ftm2v, mass, v, groups, fix, clk)
+                last = step == nsteps - 1
+                fs = 0
+                if not flow:
+                    fs = phase(3 if last else 2, step0 + step + 1, dt, ftm2v, mass, v, groups, fix, clk)
+                elif last:  # (the tail ran the step's end on all atoms, before the flow walls: Engine.step's order)
+                    phase(4, step0 + step + 1, dt, ftm2v, mass, v, groups, fix, clk)
                 if fs != 0:  # (6: a zero temperature; the NumPy loop reports it)
                     return fs, builds, neigh
                 if step + 1 < nsteps:
@@ -1625,20 +1638,17 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     """Whether `PairChunks` runs this plan: pair lj/cut on its compiled path with what the chunk
     kernels of compiled.py run: flat soft walls of the registry's compiled styles and wall/table
     faces, wall/region, one wall/flow, the `fixes:` of `compiled.fixes_eligible` (thermostats,
-    enforce2d), wall/reflect on fixed dimensions, atoms outside every integrator's group (frozen),
-    all of them for a case over threads too (`_chunk_threaded`); and, for a case on one thread
-    (`case_parts`), wall/reflect with statistics and wall/reflect/stochastic
-    (`compiled._stochastic_eligible`) on fixed dimensions (`reflect_on_threads`), fix dt/reset
-    (not with wall/flow or wall values that vary with time), a thermostat with wall/flow. Not
-    wall/lepton faces or anything else."""
+    enforce2d; with wall/flow too), wall/reflect on fixed dimensions, atoms outside every
+    integrator's group (frozen), all of them for a case over threads too (`_chunk_threaded`); and,
+    for a case on one thread (`case_parts`), wall/reflect with statistics and
+    wall/reflect/stochastic (`compiled._stochastic_eligible`) on fixed dimensions
+    (`reflect_on_threads`), fix dt/reset (not with wall/flow or wall values that vary with time).
+    Not wall/lepton faces or anything else."""
     if njit is None or plan.others != ("pair",):
         return False
     ens = plan.ensemble
-    # a case over threads keeps on its per-step path: reflect statistics and stochastic walls,
-    # dt/reset, and a thermostat with wall/flow (`_chunk_threaded` runs the flow walls in the step's
-    # tail, before the fixes' end of step: not Engine.step's order)
-    on_threads = reflect_on_threads(plan) and plan.dt_reset is None and not (plan.flow and _compiled._thermostats(ens))
-    if not on_threads and case_parts(plan.state.x.shape[1]) >= 2:
+    # a case over threads keeps on its per-step path: reflect statistics and stochastic walls, dt/reset
+    if (not reflect_on_threads(plan) or plan.dt_reset is not None) and case_parts(plan.state.x.shape[1]) >= 2:
         return False
     if ens is not None and not _compiled.fixes_eligible(plan, partial=True):
         return False
