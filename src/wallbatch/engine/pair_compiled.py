@@ -708,19 +708,13 @@ if njit is not None:
         """initial_integrate (v += dtfm f, x += dt v) of the integrated atoms (moving[a] != 0;
         an empty `moving`: every atom) and the periodic wrap of one case."""
         N = x.shape[0]
-        if moving.shape[0] == 0:
-            for a in range(N):
+        every = moving.shape[0] == 0
+        for a in range(N):
+            if every or moving[a] != 0:
                 for d in range(3):
                     va = v[a, d] + dtfm[a] * f[a, d]
                     v[a, d] = va
                     x[a, d] = x[a, d] + dt * va
-        else:
-            for a in range(N):
-                if moving[a] != 0:
-                    for d in range(3):
-                        va = v[a, d] + dtfm[a] * f[a, d]
-                        v[a, d] = va
-                        x[a, d] = x[a, d] + dt * va
         for d in range(3):
             if box_per[d]:
                 lod, hid = lo[d], hi[d]
