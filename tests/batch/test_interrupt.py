@@ -68,7 +68,7 @@ def _alive(pids: set[int]) -> set[int]:
 
 
 def _finished(parts: Path) -> set[str]:
-    return {p.stem for p in parts.glob("*.npz") if not p.name.startswith(".")} if parts.is_dir() else set()
+    return {p.stem for p in parts.glob("*.part") if not p.name.startswith(".")} if parts.is_dir() else set()
 
 
 @pytest.fixture

@@ -1,22 +1,21 @@
-"""Reading the parts back (batch/runner.py read_npz, read_part): the arrays np.load would give, bit
-for bit, and no cyclic garbage, so the peak memory of a run reading thousands of parts does not
-follow the garbage collector's timing (np.load parses each array's header with
-ast.literal_eval, whose nested functions are reference cycles: ~11 objects per array)."""
+"""The parts (batch/runner.py save_part, read_part, part_bytes, parse_part): every array back bit
+for bit whatever its dtype, shape or byte order; a truncated, foreign or inconsistent file is
+an error (read_part: "damaged", recomputed); and no cyclic garbage, so the peak memory of a run
+reading thousands of parts back does not follow the garbage collector's timing."""
 
 from __future__ import annotations
 
-import zipfile
+import os
 
 import numpy as np
 import pytest
 from factories import cyclic_garbage
 
-from wallbatch.batch.runner import read_npz, read_part, save_part
+from wallbatch.batch import runner
+from wallbatch.batch.runner import PART_SUFFIX, parse_part, part_bytes, read_part, save_part
 from wallbatch.engine.engine import CaseResult
 
 ARRAYS = {
-    "status": np.str_("ok"),
-    "seconds": np.float64(0.125),
     "pe": np.linspace(-3.0, 1.0, 21),
     "wall_force": np.arange(24.0).reshape(4, 3, 2) * -0.5,
     "fortran": np.asfortranarray(np.arange(12.0).reshape(3, 4)),
@@ -25,51 +24,70 @@ ARRAYS = {
     "lost": np.array([True, False, True]),
     "names": np.array(["zlo", "zhi", "xlo_wall"]),
     "empty": np.zeros((0, 3)),
+    "scalar": np.float64(0.125),
     "big_endian": np.arange(4, dtype=">f8"),
+    "nan_inf": np.array([np.nan, -np.inf, -0.0]),
 }
 
 
-def test_read_npz_gives_np_loads_arrays_bit_for_bit(tmp_path):
-    path = tmp_path / "a.npz"
-    np.savez(path, **ARRAYS)
-    ours = read_npz(path)
-    with np.load(path, allow_pickle=False) as z:
-        ref = {k: z[k] for k in z.files}
-    assert sorted(ours) == sorted(ref) == sorted(ARRAYS)
-    for name, arr in ref.items():
-        got = ours[name]
-        assert got.dtype == arr.dtype and got.shape == arr.shape, name
-        assert got.tobytes(order="A") == arr.tobytes(order="A"), name
-        assert got.flags.f_contiguous == arr.flags.f_contiguous and got.flags.writeable, name
-    assert ours["fortran"].flags.f_contiguous and not ours["fortran"].flags.c_contiguous
+def test_a_part_gives_back_every_array_bit_for_bit(tmp_path):
+    res = CaseResult("failed", "walls.w zlo: atom ID 3 at distance -0.1 \u2264 0", 0.25, dict(ARRAYS))
+    save_part(tmp_path, "key", res)
+    assert sorted(os.listdir(tmp_path)) == [f"key{PART_SUFFIX}"]  # no temporary left
+    back, why = read_part(tmp_path, "key")
+    assert why == "" and back is not None
+    assert (back.status, back.error, back.seconds) == (res.status, res.error, 0.25)
+    assert sorted(back.data) == sorted(ARRAYS)
+    for name, arr in ARRAYS.items():
+        got = back.data[name]
+        ref = np.ascontiguousarray(arr)
+        assert got.dtype == ref.dtype and got.shape == ref.shape, name
+        assert got.tobytes() == ref.tobytes(), name
+        assert got.flags.writeable and got.flags.c_contiguous, name
 
 
-def test_a_header_in_another_form_is_read_by_np_load(tmp_path):
-    """An archive not written the way np.savez writes it here (keys in another order): np.load's
-    reading, same values."""
-    path = tmp_path / "b.npz"
-    arr = np.array([1.5, -2.0, 3.25])
-    header = "{'shape': (3,), 'fortran_order': False, 'descr': '<f8'}"
-    header += " " * (118 - len(header)) + "\n"
-    body = b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header.encode() + arr.tobytes()
-    with zipfile.ZipFile(path, "w") as zf:
-        zf.writestr("x.npy", body)
-    assert read_npz(path)["x"].tolist() == arr.tolist()
+def test_truncated_foreign_and_inconsistent_files_are_errors():
+    raw = part_bytes("key", CaseResult("ok", "", 0.5, {"pe": np.arange(10.0)}), "0" * 64)
+    head, data = parse_part(raw)
+    assert head["case_key"] == "key" and data["pe"].tolist() == list(range(10))
+    for bad in (raw[:-8], raw[:20], b"", b"PK\x03\x04" + raw[4:]):  # short data or header; empty; a zip
+        with pytest.raises(ValueError):
+            parse_part(bad)
+    with pytest.raises(TypeError, match="Python objects"):
+        part_bytes("key", CaseResult("ok", "", 0.0, {"o": np.array([None])}), "")
 
 
-def test_a_truncated_array_is_an_error(tmp_path):
-    path = tmp_path / "c.npz"
-    np.savez(path, x=np.arange(10.0))
-    raw = zipfile.ZipFile(path).read("x.npy")
-    with zipfile.ZipFile(path, "w") as zf:  # a valid archive whose array lacks its last 8 bytes
-        zf.writestr("x.npy", raw[:-8])
-    with pytest.raises(ValueError):
-        read_npz(path)
+def test_read_part_reports_what_is_wrong(tmp_path):
+    res = CaseResult("ok", "", 0.5, {"pe": np.arange(10.0)})
+    save_part(tmp_path, "a", res)
+    path = tmp_path / f"a{PART_SUFFIX}"
+    good = path.read_bytes()
+    assert read_part(tmp_path, "b") == (None, "")  # absent
+    path.write_bytes(good[:-1])
+    assert read_part(tmp_path, "a") == (None, "damaged (ValueError)")
+    flipped = bytearray(good)
+    flipped[-3] ^= 0x10  # a bit of the data: the file still parses
+    path.write_bytes(bytes(flipped))
+    assert read_part(tmp_path, "a") == (None, "damaged (content hash differs)")
+    os.replace(tmp_path / f"a{PART_SUFFIX}", tmp_path / f"c{PART_SUFFIX}")
+    save_part(tmp_path, "a", res)
+    os.replace(tmp_path / f"a{PART_SUFFIX}", tmp_path / f"d{PART_SUFFIX}")
+    assert read_part(tmp_path, "d") == (None, "belongs to another case")
+
+
+def test_a_part_of_the_previous_format_is_not_read(tmp_path):
+    """Parts of wallbatch versions before PART_FORMAT 3 were .npz archives: reported and
+    recomputed (and a run without --resume still refuses while they are there: test_resume)."""
+    np.savez(tmp_path / "a.npz", status=np.str_("ok"))
+    assert read_part(tmp_path, "a") == (None, "written by an older wallbatch")
+    (tmp_path / f"a{PART_SUFFIX}").write_bytes((tmp_path / "a.npz").read_bytes())
+    assert read_part(tmp_path, "a") == (None, "damaged (ValueError)")
+    assert runner.PART_FORMAT == 3
 
 
 @pytest.mark.slow
 def test_reading_parts_leaves_no_cyclic_garbage(tmp_path):
-    res = CaseResult("ok", "", 0.25, {k: v for k, v in ARRAYS.items() if k not in ("status", "seconds")})
+    res = CaseResult("ok", "", 0.25, dict(ARRAYS))
     save_part(tmp_path, "key", res)
     with cyclic_garbage() as left:
         for _ in range(20):
@@ -78,20 +96,3 @@ def test_reading_parts_leaves_no_cyclic_garbage(tmp_path):
     assert left["found"] == 0, f"{left['found']} cyclic objects left by 20 reads: {left['kinds']}"
     for name, arr in res.data.items():
         assert back.data[name].tobytes() == np.ascontiguousarray(arr).tobytes(), name
-    assert (back.status, back.error, back.seconds) == ("ok", "", 0.25)
-
-
-@pytest.mark.slow
-def test_np_load_would_leave_cyclic_garbage(tmp_path):
-    """What the test above guards against, shown on np.load itself (if a NumPy stops making these
-    cycles, read_npz is no longer needed)."""
-    path = tmp_path / "d.npz"
-    np.savez(path, x=np.arange(3.0), y=np.arange(2.0))
-    with cyclic_garbage(save=False) as left:
-        for _ in range(5):
-            with np.load(path) as z:
-                _ = z["x"], z["y"]
-    found = left["found"]
-    if found == 0:
-        pytest.skip("this NumPy's np.load leaves no cyclic garbage")
-    assert found >= 10

@@ -20,13 +20,11 @@ import json
 import math
 import multiprocessing
 import os
-import re
 import shutil
 import signal
 import sys
 import threading
 import time
-import zipfile
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
@@ -58,7 +56,7 @@ KEEP_BYTES = 64_000_000  # ... up to this many bytes of them: the final file doe
 WARM_ATOMS = 200_000  # warm the kernels before forking on the first case if it has at most this many atoms
 MAX_STEPS = 10**12  # steps of one case (10^12 steps of one atom take days)
 MAX_SAMPLES = 1_000_000  # samples of one case (each a row of every output)
-PART_FORMAT = 2  # layout of a part file (a part of another layout is recomputed)
+PART_FORMAT = 3  # layout of a part file (a part of another layout is recomputed)
 
 
 class RunError(Exception):
@@ -539,17 +537,64 @@ def _part_path(folder: Path, name: str) -> str:
     return os.path.join(folder, name)
 
 
+PART_SUFFIX = ".part"  # a finished case's file in OUT.nc.parts/ (format PART_FORMAT, `save_part`)
+_PART_MAGIC = b"WBPART\x00\x03"  # 8 bytes: the file kind and PART_FORMAT
+
+
+def part_bytes(key: str, res: CaseResult, digest: str) -> bytes:
+    """A part's bytes: PART_MAGIC, the length of a JSON header (8 bytes, little-endian), the header
+    (status, error, seconds, case key, content hash, and each array's name, dtype, shape, offset
+    and length), then the arrays' bytes in C order, one after the other. One write and one read a
+    part, where an .npz (a zip member per array) cost ~1.9 ms to write and ~1.4 ms to read."""
+    index, blobs, offset = [], [], 0
+    for name, value in res.data.items():
+        arr = np.ascontiguousarray(value)
+        if arr.dtype.hasobject:
+            raise TypeError(f"results array {name!r} holds Python objects; parts store plain dtypes only")
+        raw = arr.tobytes()
+        index.append([name, arr.dtype.str, list(arr.shape), offset, len(raw)])
+        blobs.append(raw)
+        offset += len(raw)
+    head = json.dumps({"status": res.status, "error": res.error, "seconds": float(res.seconds), "case_key": key,
+                       "digest": digest, "arrays": index}).encode()
+    return b"".join([_PART_MAGIC, len(head).to_bytes(8, "little"), head, *blobs])
+
+
+def parse_part(raw: bytes) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """The header and the arrays of a part's bytes (`part_bytes`); a file of another kind or
+    format, a truncated or inconsistent one: ValueError."""
+    if raw[:8] != _PART_MAGIC:
+        raise ValueError("not a wallbatch part of this format")
+    size = int.from_bytes(raw[8:16], "little")
+    if 16 + size > len(raw):
+        raise ValueError("truncated header")
+    head = json.loads(raw[16:16 + size].decode())
+    base = 16 + size
+    data: dict[str, np.ndarray] = {}
+    for name, dtype_str, shape, offset, length in head["arrays"]:
+        dtype = np.dtype(dtype_str)
+        count = math.prod(shape)
+        if dtype.hasobject or count * dtype.itemsize != length or base + offset + length > len(raw):
+            raise ValueError(f"array {name!r} does not fit the file")
+        data[name] = np.frombuffer(raw, dtype, count, base + offset).reshape(shape).copy()
+    return head, data
+
+
+def _write_bytes(path: str, blob: bytes) -> None:
+    """Write a new file (a part's temporary)."""
+    with open(path, "wb") as fh:
+        fh.write(blob)
+
+
 def save_part(folder: Path, key: str, res: CaseResult) -> None:
-    """One finished case as a small .npz carrying its case key and a content hash, written to a
-    temporary file and renamed (a part is complete or absent). Disk full: RunError."""
-    tmp = _part_path(folder, f".{key}.tmp.npz")
-    arrays = {f"data__{k}": v for k, v in res.data.items()}
-    digest = _digest(key, res.status, res.error, float(res.seconds), res.data)
+    """One finished case as a small file (`part_bytes`) carrying its case key and a content hash,
+    written to a temporary file and renamed (a part is complete or absent). Disk full: RunError."""
+    tmp = _part_path(folder, f".{key}.tmp{PART_SUFFIX}")
+    blob = part_bytes(key, res, _digest(key, res.status, res.error, float(res.seconds), res.data))
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        np.savez(tmp, status=np.str_(res.status), error=np.str_(res.error), seconds=np.float64(res.seconds),
-                 case_key=np.str_(key), digest=np.str_(digest), **arrays)
-        os.replace(tmp, _part_path(folder, f"{key}.npz"))
+        _write_bytes(tmp, blob)
+        os.replace(tmp, _part_path(folder, f"{key}{PART_SUFFIX}"))
     except OSError as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
@@ -558,49 +603,21 @@ def save_part(folder: Path, key: str, res: CaseResult) -> None:
                           if getattr(exc, "errno", None) == 28 else "")) from None
 
 
-_NPY_HEADER = re.compile(r"\{'descr': '([<>|=]?[A-Za-z]\d*)', 'fortran_order': (True|False), "
-                         r"'shape': \(((?:\d+, ?)*\d*)\), \} *\n")
-
-
-def read_npz(path: str | Path) -> dict[str, np.ndarray]:
-    """The arrays of an .npz archive as `np.savez` writes them (plain dtypes), read with NumPy's
-    header parsing skipped: `np.load` reads each array's header with `ast.literal_eval`, whose
-    nested functions are cyclic garbage (~11 objects per array), so a run reading back thousands
-    of parts left their memory to the collector's timing. An archive whose headers are in
-    another form (another NumPy's writer) is read by `np.load`. Damaged: an exception."""
-    out: dict[str, np.ndarray] = {}
-    with zipfile.ZipFile(path) as zf:
-        for name in zf.namelist():
-            raw = zf.read(name)
-            major = raw[6] if raw[:6] == b"\x93NUMPY" and len(raw) > 12 else 0
-            start = 10 if major == 1 else 12
-            size = int.from_bytes(raw[8:start], "little")
-            found = _NPY_HEADER.fullmatch(raw[start:start + size].decode("latin-1")) if major in (1, 2, 3) else None
-            dtype = np.dtype(found[1]) if found is not None and name.endswith(".npy") else None
-            if dtype is None or dtype.hasobject:
-                with np.load(path, allow_pickle=False) as z:  # not the layout np.savez writes here
-                    return {k: z[k] for k in z.files}
-            shape = tuple(int(n) for n in found[3].split(",") if n.strip())
-            flat = np.frombuffer(raw, dtype, math.prod(shape), start + size)  # too short: ValueError
-            out[name[:-4]] = flat.reshape(shape, order="F" if found[2] == "True" else "C").copy(order="K")
-    return out
-
-
 def read_part(folder: Path, key: str) -> tuple[CaseResult | None, str]:
     """The part of a case, checked: (result, "") or (None, why it is not usable) - "" when absent."""
-    path = _part_path(folder, f"{key}.npz")
+    path = _part_path(folder, f"{key}{PART_SUFFIX}")
     if not os.path.exists(path):
-        return None, ""
+        # (KEY.npz: the part of a wallbatch before PART_FORMAT 3, which recomputes it)
+        return None, "written by an older wallbatch" if os.path.exists(_part_path(folder, f"{key}.npz")) else ""
     try:
-        z = read_npz(path)
-        data = {k[6:]: v for k, v in z.items() if k.startswith("data__")}
-        status, error, seconds = str(z["status"]), str(z["error"]), float(z["seconds"])
-        stored_key = str(z["case_key"]) if "case_key" in z else ""
-        digest = str(z["digest"]) if "digest" in z else ""
+        with open(path, "rb") as fh:
+            head, data = parse_part(fh.read())
+        status, error, seconds = str(head["status"]), str(head["error"]), float(head["seconds"])
+        stored_key, digest = str(head["case_key"]), str(head["digest"])
     except Exception as exc:  # noqa: BLE001 - any unreadable file (truncated, bit flip, empty) is recomputed
         return None, f"damaged ({type(exc).__name__})"
     if stored_key != key:
-        return None, "belongs to another case" if stored_key else "has no case key (older format)"
+        return None, "belongs to another case"
     if digest != _digest(key, status, error, seconds, data):
         return None, "damaged (content hash differs)"
     return CaseResult(status, error, seconds, data), ""
@@ -759,7 +776,8 @@ def _run_plan(plan: SweepPlan, output: str | Path | None, jobs: int, executor: s
     with output_lock(output):
         parts = parts_dir(output)
         if parts.exists() and not resume:
-            found = sum(1 for p in parts.glob("*.npz") if not p.name.startswith("."))
+            # (*.npz: the parts of wallbatch versions before PART_FORMAT 3, which --resume recomputes)
+            found = sum(1 for p in parts.iterdir() if p.suffix in (PART_SUFFIX, ".npz") and not p.name.startswith("."))
             if not fresh:
                 raise RunError(f"{parts} holds {found} finished case(s) of an earlier run: add --resume to reuse "
                                f"them, or --fresh to discard them")

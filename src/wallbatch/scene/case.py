@@ -5,6 +5,7 @@ decides which cases may share a batch.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -289,36 +290,46 @@ class MinSettings:
 
 
 
+_PLAIN = (bool, int, float, str, np.generic, type(None))  # scalars join the key as they are
+
+
 def key_of(value: Any) -> Any:
     """The structure-key form of a value: arrays by dtype, shape and bytes; dataclasses field by
     field (see `_fields_key`); tuples, lists and dicts elementwise; plain scalars as they are."""
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return (type(value).__name__, _fields_key(value))
     if isinstance(value, np.ndarray):
         return (value.dtype.str, value.shape, value.tobytes())
+    if isinstance(value, _PLAIN):
+        return value
     if isinstance(value, (tuple, list)):
         return tuple(key_of(v) for v in value)
     if isinstance(value, dict):
         return tuple((k, key_of(v)) for k, v in value.items())
-    if value is None or isinstance(value, (bool, int, float, str, np.generic)):
-        return value
+    if _key_fields(type(value)) is not None:  # a dataclass instance
+        return (type(value).__name__, _fields_key(value))
     raise TypeError(f"structure_key: no rule for a {type(value).__name__}: declare its field per_case() or "
                     f"keyed(...) in wallbatch.scene.case")
+
+
+@functools.cache
+def _key_fields(cls: type) -> tuple[tuple[str, Callable[[Any], Any] | None, bool], ...] | None:
+    """The fields of a dataclass that join its key, as (name, keyed rule or None, rule takes the
+    whole object), once per class; None for a class that is not a dataclass."""
+    if not dataclasses.is_dataclass(cls):
+        return None
+    return tuple((f.name, f.metadata.get("key"), bool(f.metadata.get("owner")))
+                 for f in dataclasses.fields(cls) if not f.metadata.get("per_case"))
 
 
 def _fields_key(obj: Any) -> tuple:
     """(field name, key) for every field of a dataclass that is not declared per_case(); a field
     declared keyed(f) joins as f(value)."""
     out = []
-    for f in dataclasses.fields(obj):
-        if f.metadata.get("per_case"):
-            continue
-        value = getattr(obj, f.name)
-        rule = f.metadata.get("key")
+    for name, rule, owner in _key_fields(type(obj)):
+        value = getattr(obj, name)
         if rule is None:
-            out.append((f.name, key_of(value)))
+            out.append((name, key_of(value)))
         else:
-            out.append((f.name, rule(obj) if f.metadata.get("owner") else rule(value)))
+            out.append((name, rule(obj) if owner else rule(value)))
     return tuple(out)
 
 
