@@ -179,7 +179,8 @@ def speed(scene: str, cfg: dict, note: str = "") -> dict:
         case = build(cfg)
     except Exception as exc:  # noqa: BLE001 - a scene wallbatch refuses: the row says why
         return {"scene": scene, "N": None, "steps": cfg["run"]["steps"], "why": f"wallbatch refuses: {exc}"[:120]}
-    out: dict = {"scene": scene, "N": case.natoms, "steps": case.steps}
+    steps = case.steps if case.steps is not None else f"time {case.run_time:g}"  # (a run to a simulated time)
+    out: dict = {"scene": scene, "N": case.natoms, "steps": steps}
     if not USE_LAMMPS:
         out["why"] = "LAMMPS not run"
     for _ in range(REPEAT):  # wallbatch and LAMMPS in turns, the best of each kept
