@@ -538,11 +538,12 @@ def _part_path(folder: Path, name: str) -> str:
 
 
 PART_SUFFIX = ".part"  # a finished case's file in OUT.nc.parts/ (format PART_FORMAT, `save_part`)
-_PART_MAGIC = b"WBPART\x00\x03"  # 8 bytes: the file kind and PART_FORMAT
+OLD_PART_SUFFIX = ".npz"  # the parts of wallbatch versions before PART_FORMAT 3 (reported, recomputed)
+_PART_MAGIC = b"WBPART\x00" + bytes([PART_FORMAT])  # 8 bytes: the file kind and PART_FORMAT
 
 
 def part_bytes(key: str, res: CaseResult, digest: str) -> bytes:
-    """A part's bytes: PART_MAGIC, the length of a JSON header (8 bytes, little-endian), the header
+    """A part's bytes: _PART_MAGIC, the length of a JSON header (8 bytes, little-endian), the header
     (status, error, seconds, case key, content hash, and each array's name, dtype, shape, offset
     and length), then the arrays' bytes in C order, one after the other. One write and one read a
     part, where an .npz (a zip member per array) cost ~1.9 ms to write and ~1.4 ms to read."""
@@ -607,8 +608,8 @@ def read_part(folder: Path, key: str) -> tuple[CaseResult | None, str]:
     """The part of a case, checked: (result, "") or (None, why it is not usable) - "" when absent."""
     path = _part_path(folder, f"{key}{PART_SUFFIX}")
     if not os.path.exists(path):
-        # (KEY.npz: the part of a wallbatch before PART_FORMAT 3, which recomputes it)
-        return None, "written by an older wallbatch" if os.path.exists(_part_path(folder, f"{key}.npz")) else ""
+        old = os.path.exists(_part_path(folder, f"{key}{OLD_PART_SUFFIX}"))
+        return None, "written by an older wallbatch" if old else ""
     try:
         with open(path, "rb") as fh:
             head, data = parse_part(fh.read())
@@ -776,8 +777,8 @@ def _run_plan(plan: SweepPlan, output: str | Path | None, jobs: int, executor: s
     with output_lock(output):
         parts = parts_dir(output)
         if parts.exists() and not resume:
-            # (*.npz: the parts of wallbatch versions before PART_FORMAT 3, which --resume recomputes)
-            found = sum(1 for p in parts.iterdir() if p.suffix in (PART_SUFFIX, ".npz") and not p.name.startswith("."))
+            found = sum(1 for p in parts.iterdir()
+                        if p.suffix in (PART_SUFFIX, OLD_PART_SUFFIX) and not p.name.startswith("."))
             if not fresh:
                 raise RunError(f"{parts} holds {found} finished case(s) of an earlier run: add --resume to reuse "
                                f"them, or --fresh to discard them")
