@@ -100,3 +100,21 @@ def test_random_stream_depends_on_seed_and_seed_key_only():
         assert not np.any(np.all(other.x == a.x, axis=1))  # no atom at the same place
     assert not np.any(np.all(k0.x == k1.x, axis=1))
     # (key (0,) is key () again: NumPy's SeedSequence([seed, 0]) is SeedSequence([seed]))
+
+
+def test_point_atoms_beside_ellipsoids_are_unrotated_and_still():
+    """A group without a shape is point atoms: semi-axes 0, the identity quaternion, no angular
+    momentum, and it draws nothing from the stream (an ellipsoid group's random orientations are
+    the same whether a point group comes first or not)."""
+    ell = {"group": "e", "create": {"random": {"count": 5}}, "mass": 1.0, "shape": [0.5, 0.3, 0.2],
+           "orientation": "random"}
+    point = {"group": "p", "create": {"positions": [[1.0, 1.0, 1.0], [2.0, 2.0, 2.0], [3.0, 3.0, 3.0]]},
+             "mass": 1.0}
+    base = slab_gas(WALLS, n=4, hi=(6.0, 5.0, 8.0), margin=1.6, temperature=1.0, seed=3, dt=0.005, steps=1, thermo=1)
+    both = case_of({**base, "atoms": [point, ell]})
+    alone = case_of({**base, "atoms": [ell]})
+    assert np.array_equal(both.shape[:3], np.zeros((3, 3)))
+    assert np.array_equal(both.quat[:3], np.tile([1.0, 0.0, 0.0, 0.0], (3, 1)))
+    assert np.array_equal(both.angmom[:3], np.zeros((3, 3)))
+    assert np.array_equal(both.quat[3:], alone.quat) and not np.array_equal(alone.quat[0], [1.0, 0.0, 0.0, 0.0])
+    assert np.allclose(np.linalg.norm(alone.quat, axis=1), 1.0, rtol=0, atol=1e-15)

@@ -328,6 +328,29 @@ def test_structure_key_follows_the_declarations():
     assert structure_key(dataclasses.replace(a, box_hi=a.box_hi + 1.0)) != structure_key(a)
 
 
+def test_structure_key_is_taken_once_per_case_and_left_out_of_its_pickle(monkeypatch):
+    """A sweep's runner asks for a case's key three times: it is computed once per Case object;
+    a pickled or copied case (sent to a cluster worker) carries no key and takes the same one
+    again; a replaced case takes its own."""
+    import copy
+    import pickle
+
+    from wallbatch.scene import case as case_module
+
+    a = _case(w=_plain_wall())
+    calls = []
+    real = case_module._fields_key
+    monkeypatch.setattr(case_module, "_fields_key", lambda c: (isinstance(c, Case) and calls.append(c)) or real(c))
+    key = structure_key(a)
+    assert structure_key(a) is key and structure_key(a) is key and len(calls) == 1
+    for other in (pickle.loads(pickle.dumps(a)), copy.deepcopy(a)):
+        assert case_module._KEY_MEMO not in vars(other)
+        assert structure_key(other) == key
+    assert len(calls) == 3
+    assert case_module._KEY_MEMO.encode() not in pickle.dumps(a)  # the key stays home
+    assert structure_key(dataclasses.replace(a, steps=11)) != key and len(calls) == 4
+
+
 def test_structure_key_refuses_a_field_it_has_no_rule_for():
     """A new Case field of a type without a key rule fails loudly instead of dropping out of the key."""
 

@@ -237,6 +237,11 @@ class Case:
     def natoms(self) -> int:
         return self.x.shape[0]
 
+    def __getstate__(self) -> dict:
+        """Pickled (a case sent to a cluster worker) without its remembered structure key: the
+        receiver takes it again if it needs it."""
+        return {k: v for k, v in self.__dict__.items() if k != _KEY_MEMO}
+
 
 
 
@@ -338,11 +343,20 @@ def _variable_texts(case: Case) -> tuple:
     return tuple((k, "#" if case.variables.constant_value(k) is not None else text) for k, text in case.variable_text)
 
 
+_KEY_MEMO = "_structure_key"  # where a Case keeps its key once taken (not a field: not in its pickle)
+
+
 def structure_key(case: Case) -> tuple:
     """Cases with equal keys can share a batch: same atoms, groups, fixes, variables, schedule.
 
     Derived from the dataclass declarations: every field of the Case (and of its specs, field by
-    field) joins the key unless declared per_case(); keyed(f) fields join as f(value)."""
-    return _fields_key(case)
+    field) joins the key unless declared per_case(); keyed(f) fields join as f(value). Taken once
+    per Case object (a sweep's runner asks for it three times a case: the build check, the tasks,
+    the engine's batches); a Case is frozen and its arrays are not written after it is built."""
+    key = case.__dict__.get(_KEY_MEMO)
+    if key is None:
+        key = _fields_key(case)
+        object.__setattr__(case, _KEY_MEMO, key)
+    return key
 
 
