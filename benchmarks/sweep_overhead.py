@@ -2,8 +2,9 @@
 sweep of the lj93 gas slit (N = 100, 100 steps, thermo 1: 101 samples a case) end to end in a new
 process, and the per-case pieces in this process: saving a case's part and reading it back
 (batch/runner.py save_part, read_part), its structure key (scene/case.py structure_key: the
-runner asks three times a case, a Case computes it once), building it (the key included). For reference, the same part as the .npz
-archive that parts were before PART_FORMAT 3 (`np.savez`, one zip member per array).
+runner asks three times a case, a Case computes it once), building it (the key included). For
+reference, the same part as the .npz archive that parts were before PART_FORMAT 3 (`np.savez`,
+one zip member per array).
 
     python benchmarks/sweep_overhead.py [--cases 1000]
 
