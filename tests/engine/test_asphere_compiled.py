@@ -77,6 +77,40 @@ def test_ellipsoid_slit_matches_numpy_over_a_batch(monkeypatch):
         np.testing.assert_allclose(have, want, rtol=0, atol=RTOL * np.abs(want).max(), err_msg=name)
 
 
+def test_first_compile_is_announced_with_its_estimate(monkeypatch, capsys):
+    """The ellipsoid kernel's first compile (~40 s) says so on stderr, once, with its own
+    estimate; a kernel numba already built (or loads from disk) says nothing."""
+    from wallbatch.engine import compiled as fast
+
+    real = ac._run_chunk
+
+    class Fresh:
+        """The kernel as before its first compile: no signatures yet; everything else the kernel's."""
+
+        signatures: list = []
+
+        def __getattr__(self, name):
+            return getattr(real, name)
+
+        def __call__(self, *args):
+            return real(*args)
+
+    monkeypatch.setattr(ac, "_run_chunk", Fresh())
+    monkeypatch.setattr(fast, "_ANNOUNCED", set())
+    monkeypatch.setattr(fast, "_cached_on_disk", lambda k: False)
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    for _ in range(2):
+        eng = Engine([build_case(config_from_dict(slit(n=20, steps=20, thermo=10)))])
+        assert eng.run()[0].status == "ok" and isinstance(eng.fast, AspherePath) and eng.fast.compiled_chunks > 0
+    err = capsys.readouterr().err
+    assert err.count("compiling kernels for this scene, once") == 1
+    assert f"~{ac.COMPILE_SECONDS:g} s" in err
+    monkeypatch.setattr(ac, "_run_chunk", real)  # built in this process: nothing to say
+    monkeypatch.setattr(fast, "_ANNOUNCED", set())
+    Engine([build_case(config_from_dict(slit(n=20, steps=20, thermo=10)))]).run()
+    assert "compiling" not in capsys.readouterr().err
+
+
 def test_contacts_near_the_wall_take_the_closed_form(monkeypatch):
     """Rods started close to the walls (sigma_n / r >= 1/2: G and K from the closed forms with the
     logarithm) and far from them (series), sampled every step."""

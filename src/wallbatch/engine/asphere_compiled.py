@@ -90,6 +90,10 @@ def _fingerprint() -> int:
     return int(h.hexdigest()[:15], 16)
 
 
+# the compile message's estimate for the ellipsoid kernel: 36-43 s CPU alone on a 2-core AVX2 host
+# (numba inlines the quaternion and ees arithmetic into its loops, which run 1.5-2x faster so)
+COMPILE_SECONDS = 40
+
 if njit is not None:
     jit = njit(cache=True, nogil=True, error_model="numpy")
     inline = njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -644,6 +648,8 @@ class AspherePath(_compiled.KernelPath):
         periodic[s.periodic] = 1
         S = at.size if rec else 0
         sm_face, sm_reg, sm_kin = np.zeros((C, S, len(faces), 2)), np.zeros((C, S, KR, 4)), np.zeros((C, S, 2))
+        if not _run_chunk.signatures:  # a first compile is long: say so (not when it loads from the disk cache)
+            _compiled.announce_compile(_run_chunk, COMPILE_SECONDS)
         with warnings.catch_warnings():  # numba's pedantic SSA note on the inlined Horner loop, at compile
             warnings.simplefilter("ignore", NumbaIRAssumptionWarning)
             status = run_kernel(_run_chunk, (at, bool(rec), s.x, s.v, s.f, s.quat, s.angmom, s.torque, s.mass, s.shape,
