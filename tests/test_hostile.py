@@ -20,7 +20,7 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from wallbatch.batch import runner as runner_mod
-from wallbatch.batch.runner import RunError, case_key, parts_dir, read_part, run_plan, save_part
+from wallbatch.batch.runner import PART_SUFFIX, RunError, case_key, parts_dir, read_part, run_plan, save_part
 from wallbatch.cli import app
 from wallbatch.config.source import ConfigError, load_yaml
 from wallbatch.config.sweep import load_plan
@@ -432,20 +432,22 @@ def test_damaged_and_foreign_parts_are_reported_and_recomputed(sweep_parts):
     plan, out, ref = sweep_parts
     parts = parts_dir(out)
     keys = [case_key(c) for c in plan.cases]
-    data = (parts / f"{keys[0]}.part").read_bytes()
-    (parts / f"{keys[0]}.part").write_bytes(data[: len(data) // 2])  # truncated
-    flipped = bytearray((parts / f"{keys[1]}.part").read_bytes())
+    data = (parts / f"{keys[0]}{PART_SUFFIX}").read_bytes()
+    (parts / f"{keys[0]}{PART_SUFFIX}").write_bytes(data[: len(data) // 2])  # truncated
+    flipped = bytearray((parts / f"{keys[1]}{PART_SUFFIX}").read_bytes())
     flipped[len(flipped) // 2] ^= 0x10  # one bit
-    (parts / f"{keys[1]}.part").write_bytes(bytes(flipped))
-    (parts / f"{keys[2]}.part").write_bytes(b"")  # empty
-    (parts / f"{keys[3]}.part").write_bytes((parts / f"{keys[0]}.part").read_bytes())  # placeholder, replaced below
+    (parts / f"{keys[1]}{PART_SUFFIX}").write_bytes(bytes(flipped))
+    (parts / f"{keys[2]}{PART_SUFFIX}").write_bytes(b"")  # empty
+    # a placeholder, replaced below
+    (parts / f"{keys[3]}{PART_SUFFIX}").write_bytes((parts / f"{keys[0]}{PART_SUFFIX}").read_bytes())
     # a part copied from another case: valid file, wrong case
     other = read_part(parts, keys[0])[0]
     assert other is None
     good = {}
     run_plan(plan, None, progress=False, on_result=lambda i, r: good.setdefault(i, r))
     save_part(parts, keys[0], good[0])
-    os.replace(parts / f"{keys[0]}.part", parts / f"{keys[3]}.part")  # case 0's part under case 3's name
+    # case 0's part under case 3's name
+    os.replace(parts / f"{keys[0]}{PART_SUFFIX}", parts / f"{keys[3]}{PART_SUFFIX}")
     assert read_part(parts, keys[3]) == (None, "belongs to another case")
     assert read_part(parts, keys[2])[1].startswith("damaged")
     assert read_part(parts, keys[1])[1].startswith("damaged")
@@ -469,7 +471,7 @@ def test_bit_flip_in_data_is_caught_by_the_content_hash(sweep_parts):
     digest = runner_mod._digest(key, res.status, res.error, res.seconds, res.data)  # the part's hash as saved
     res.data["pe"] = res.data["pe"].copy()
     res.data["pe"][1] += 1e-12  # a silently wrong number in a well-formed file that keeps the old hash
-    (parts / f"{key}.part").write_bytes(runner_mod.part_bytes(key, res, digest))
+    (parts / f"{key}{PART_SUFFIX}").write_bytes(runner_mod.part_bytes(key, res, digest))
     assert read_part(parts, key) == (None, "damaged (content hash differs)")
 
 
@@ -496,7 +498,7 @@ def test_disk_full_while_saving_a_part_keeps_the_others(sweep_parts, monkeypatch
     with pytest.raises(RunError, match=r"cannot save a finished case in .*out\.nc\.parts: No space left on device; "
                                        r"free some space, then rerun with --resume"):
         run_plan(plan, out, jobs=1, progress=False)
-    assert len(list(parts_dir(out).glob("*.part"))) == 2  # the two saved before the disk filled
+    assert len(list(parts_dir(out).glob(f"*{PART_SUFFIX}"))) == 2  # the two saved before the disk filled
     assert not list(parts_dir(out).glob(".*"))  # no half-written temporary
     assert not out.with_name("out.nc.lock").exists()
 
@@ -514,7 +516,7 @@ def test_disk_full_while_writing_the_results_keeps_every_part(sweep_parts, monke
     assert str(info.value) == (f"cannot write {out}: No space left on device (disk full?); the 4 finished case(s) "
                                f"are kept in {parts_dir(out)}: free space or choose another -o, then rerun with "
                                f"--resume")
-    assert len(list(parts_dir(out).glob("*.part"))) == 4
+    assert len(list(parts_dir(out).glob(f"*{PART_SUFFIX}"))) == 4
     assert not Path(str(out) + ".tmp").exists() and not out.exists()
 
 

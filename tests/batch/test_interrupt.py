@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from wallbatch.batch.runner import case_key, parts_dir
+from wallbatch.batch.runner import PART_SUFFIX, case_key, parts_dir
 from wallbatch.config.sweep import load_plan
 
 from factories import slit_yaml
@@ -68,7 +68,7 @@ def _alive(pids: set[int]) -> set[int]:
 
 
 def _finished(parts: Path) -> set[str]:
-    return {p.stem for p in parts.glob("*.part") if not p.name.startswith(".")} if parts.is_dir() else set()
+    return {p.stem for p in parts.glob(f"*{PART_SUFFIX}") if not p.name.startswith(".")} if parts.is_dir() else set()
 
 
 @pytest.fixture

@@ -19,8 +19,8 @@ import xarray as xr
 from typer.testing import CliRunner
 
 from wallbatch.cli import app
-from wallbatch.batch.runner import (RunError, build_cases, case_key, load_part, make_tasks, parts_dir, run_plan,
-                                    save_part)
+from wallbatch.batch.runner import (PART_SUFFIX, RunError, build_cases, case_key, load_part, make_tasks, parts_dir,
+                                    run_plan, save_part)
 from wallbatch.config.sweep import load_plan
 
 from factories import slit_yaml
@@ -41,7 +41,7 @@ def finished_parts(parts: Path) -> set[str]:
     """Keys of the complete parts (a `.KEY.tmp.part` being written does not count)."""
     if not parts.exists():
         return set()
-    return {p.stem for p in parts.glob("*.part") if not p.name.startswith(".")}
+    return {p.stem for p in parts.glob(f"*{PART_SUFFIX}") if not p.name.startswith(".")}
 
 
 def same(a, b) -> bool:
@@ -270,8 +270,8 @@ def test_damaged_part_is_recomputed(tmp_path, first_run):
     restore(saved, out)
     plan = load_plan(make_sweep(tmp_path))
     victim = case_key(plan.cases[3])
-    (parts_dir(out) / f"{victim}.part").write_bytes(b"not a part file")
-    (parts_dir(out) / f".{case_key(plan.cases[0])}.tmp.part").write_bytes(b"half written")
+    (parts_dir(out) / f"{victim}{PART_SUFFIX}").write_bytes(b"not a part file")
+    (parts_dir(out) / f".{case_key(plan.cases[0])}.tmp{PART_SUFFIX}").write_bytes(b"half written")
     computed, ds = resume_counting(plan, out)
     assert computed == [3]
     assert_same_results(open_nc(out), ds_a)

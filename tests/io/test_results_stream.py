@@ -16,7 +16,7 @@ import pytest
 import xarray as xr
 from factories import results_file_plans
 
-from wallbatch.batch.runner import Interrupted, _first_case, parts_dir, run_plan
+from wallbatch.batch.runner import PART_SUFFIX, Interrupted, _first_case, parts_dir, run_plan
 from wallbatch.config.sweep import SweepDim
 from wallbatch.engine.engine import CaseResult
 from wallbatch.io import netcdf
@@ -141,7 +141,7 @@ def test_interrupt_while_writing_keeps_every_part_and_resume_finishes(runs, tmp_
                         {**netcdf.write_results_file.__kwdefaults__, "block_bytes": netcdf.BLOCK_BYTES})
     with pytest.raises(Interrupted, match="interrupted: 27/27 cases saved in"):
         run_plan(plan, out, progress=False, as_xarray=False, summary=True)
-    assert len(list(parts_dir(out).glob("*.part"))) == 27
+    assert len(list(parts_dir(out).glob(f"*{PART_SUFFIX}"))) == 27
     assert not out.exists() and not Path(str(out) + ".tmp").exists()
     monkeypatch.setattr(netcdf, "_file_data", real)
     summary = run_plan(plan, out, resume=True, progress=False, as_xarray=False, summary=True)
