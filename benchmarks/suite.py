@@ -64,7 +64,7 @@ ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 
 import common  # noqa: E402
-from common import (build, ellipsoid_slit, flow_gas, flow_lj, frozen_slab_slit, gas_2d, gas_slit,  # noqa: E402
+from common import (build, ellipsoid_slit, flow_gas, flow_lj, frozen_slab_slit, gas_2d, gas_slit, hot_cold_slit,  # noqa: E402
                     lammps_export_run, lammps_module, lammps_script, lepton_slit, lj_fcc_slit, region_ees, region_gas,
                     stochastic_slit, table_slit, thermostat_slit, THERMOSTATS, with_dt_reset, with_fixes)
 
@@ -357,6 +357,7 @@ KINDS: list[tuple[str, str, Callable[..., dict], float]] = [  # (row prefix, sce
     ("thermostat-langevin", "gas slit lj93 + fix langevin", lambda n, **k: thermostat_slit(n, "langevin", **k), 1e7),
     ("thermostat-langevin-time", "gas slit lj93 + fix langevin, run to a simulated time",
      lambda n, **k: timed(thermostat_slit(n, "langevin", **k)), 1e7),
+    ("thermostat-hot-cold", "gas slit lj93, hot and cold groups, two fix langevin", hot_cold_slit, 1e7),
     ("thermostat-nvt", "gas slit lj93 + fix nvt", lambda n, **k: thermostat_slit(n, "nvt", **k), 1e7),
     ("thermostat-nvt-dtreset", "gas slit lj93 + fix nvt + dt_reset every step",
      lambda n, **k: with_dt_reset(thermostat_slit(n, "nvt", **k)), 1e7),

@@ -205,9 +205,30 @@ def test_fallback_restores_the_langevin_stream(monkeypatch):
     assert_same(ref, got)
 
 
+def test_two_langevin_fixes_hot_and_cold_bit_for_bit(monkeypatch):
+    """A hot group (langevin at 2.5, zero yes, tally yes) and a cold one (langevin at 0.3, tally
+    yes), each with its own seed: the kernel draws each fix's stream from its own generator and
+    adds the forces in fix order, so two cases give the NumPy path's bits, the Langevin forces
+    each fix keeps included; the hot atoms end hotter than the cold ones."""
+    def scene(seed):
+        d = gas({"a": "fix a all nve", "h": f"fix h hot langevin 2.5 2.5 0.2 {seed} zero yes tally yes",
+                 "c": f"fix c gas langevin 0.3 0.3 0.2 {seed + 1} tally yes"}, steps=300, thermo=50, seed=seed)
+        d["atoms"].append({**d["atoms"][0], "group": "hot", "create": {"random": {"count": 150, "region": "mid"}}})
+        return d
+
+    ref, got, eng = check(monkeypatch, [scene(5), scene(8)])
+    hot, cold = (f for f in eng.ensemble.fixes if f.style == "langevin")
+    assert hot.force.shape == cold.force.shape == eng.state.x.shape and hot.force.flags.c_contiguous
+    assert np.all(hot.force[:, ~hot.group] == 0.0) and np.all(cold.force[:, hot.group] == 0.0)
+    assert np.abs(hot.force).max() > 0 and np.abs(cold.force).max() > 0
+    v2 = (eng.state.v ** 2).sum(axis=2)
+    assert np.all(v2[:, hot.group].mean(axis=1) > 3.0 * v2[:, cold.group].mean(axis=1))
+    assert not np.array_equal(got[0].data["ecouple"], got[1].data["ecouple"])
+
+
 def test_refused_fix_combinations_run_in_numpy(monkeypatch):
-    d = gas({"a": "fix a all nve", "b": "fix b all langevin 1.0 1.0 0.5 5", "c": "fix c all langevin 1.0 1.0 0.5 6"},
-            steps=40, thermo=20)
+    d = gas({"a": "fix a hot nvt temp 2.0 2.0 0.1", "b": "fix b gas nvt temp 1.0 1.0 0.2"}, steps=40, thermo=20)
+    d["atoms"].append({**d["atoms"][0], "group": "hot", "create": {"random": {"count": 100, "region": "mid"}}})
     _, got, eng = run_both(monkeypatch, [d])
     assert eng.fast is None
 

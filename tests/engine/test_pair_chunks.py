@@ -375,6 +375,9 @@ THERMOSTATS = {
     "nvt": {"a": "fix a all nvt temp 1.5 1.0 0.3"},
     "berendsen": {"a": "fix a all nve", "b": "fix b all temp/berendsen 1.5 1.0 0.2"},
     "rescale": {"a": "fix a all nve", "b": "fix b all temp/rescale 3 1.5 1.0 0.05 0.8"},
+    # two langevin fixes on the same atoms, each its own stream: the forces add in fix order
+    "two-langevin": {"a": "fix a all nve", "b": "fix b all langevin 1.5 1.0 0.5 48279 zero yes tally yes",
+                     "c": "fix c all langevin 0.5 0.5 2.0 977 tally yes"},
 }
 
 

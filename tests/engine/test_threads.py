@@ -142,8 +142,15 @@ def test_split_points():
     named = {k: None for k in threads.KNOWN}
     named.update(x=x, fx=(np.zeros((0, 4)),), time_mode=False, nsteps=10**6, fl_int=np.zeros(3, np.int64),
                  dtr_every=0, stats=False, st_meta=np.zeros((0, 4), np.int64), sm=(np.zeros(0, np.int64),))
-    kind, parts = threads.plan_split(named, 3)
-    assert kind == "atoms" and [(p.start, p.stop) for p in parts] == [(0, 256), (256, 512), (512, 1000)]
+    kind, parts = threads.plan_split(named, 3)  # more runs than threads (OVERSPLIT), here one per block
+    assert kind == "atoms" and [(p.start, p.stop) for p in parts] == [(0, 256), (256, 512), (512, 768), (768, 1000)]
+    big = {**named, "x": np.zeros((1, 100_000, 3)), "nsteps": 100}
+    kind, parts = threads.plan_split(big, 2)
+    assert len(parts) == 2 * threads.OVERSPLIT and all(p.start % threads.ALIGN == 0 for p in parts)
+    assert parts[0].start == 0 and parts[-1].stop == 100_000
+    assert all(a.stop == b.start for a, b in zip(parts, parts[1:]))
+    few = threads.plan_split({**big, "nsteps": 5}, 2)[1]  # 5e5 atom-steps: two runs of at least MIN_WORK
+    assert len(few) == 2
     named["x"] = np.zeros((7, 10, 3))
     kind, parts = threads.plan_split(named, 2)
     assert kind == "cases" and [(p.start, p.stop) for p in parts] == [(0, 3), (3, 7)]
@@ -159,6 +166,38 @@ def test_split_points():
     assert threads.plan_split(named, 2) is None  # 700 atom-steps: not worth a thread
     named.pop("stats")
     assert threads.plan_split({**named, "nsteps": 10**6}, 2) is None  # an argument list it does not know
+
+
+def test_runs_go_to_the_thread_that_is_free():
+    """More calls than threads: each thread takes the next call not yet taken, so while the first
+    call holds one thread the other runs the rest; results come back in call order and an
+    exception in one call is re-raised after all ran."""
+    import threading
+    import time
+
+    who = {}
+
+    def call(k):
+        def run():
+            who[k] = threading.current_thread().name
+            if k == 0:
+                time.sleep(0.3)  # this thread busy (a core slowed by other work)
+            return 10 + k
+        return run
+
+    calls = [call(k) for k in range(8)]
+    assert threads._in_threads(calls, 2) == [10 + k for k in range(8)]
+    slow = who[0]  # the thread that took the slow call took no other: the other thread ran them all
+    assert sum(name == slow for name in who.values()) == 1 and len(set(who.values())) == 2
+    assert threads._in_threads(calls[:3]) == [10, 11, 12]  # default: a thread per call
+
+    def bad():
+        raise RuntimeError("part 2")
+
+    ran = []
+    with pytest.raises(RuntimeError, match="part 2"):
+        threads._in_threads([lambda: ran.append(0), bad, lambda: ran.append(2), lambda: ran.append(3)], 2)
+    assert sorted(ran) == [0, 2, 3]
 
 
 def test_thread_count(monkeypatch):

@@ -40,7 +40,7 @@ with the case's own generator (`_flow_step`; numba's Generator draws NumPy's str
 step over all atoms. `fixes:` (nvt, langevin, temp/berendsen, temp/rescale, enforce2d;
 `fixes_eligible`) run in the kernel with engine/thermostats.py's functions (`_fix_pre`,
 `_fix_post_force`, `_fix_end`; step by step when a thermostat couples the atoms, one case per call
-with fix langevin's generator). wall/table faces run in every scene kernel with their tables as data
+with the case's generator of each langevin fix). wall/table faces run in every scene kernel with their tables as data
 (`_table_faces`: one concatenated array, styles.table's lookups jitted; no compile per table);
 wall/lepton faces with the force generated from each expression (`kernel_for`'s `extra`, compiled
 once per set of expressions and cached on disk). One wall/reflect/stochastic fix runs after the
@@ -959,9 +959,12 @@ if njit is not None:
         return nbad
 
     # -- thermostats and enforce2d (engine/ensemble.py; arithmetic of engine/thermostats.py) ---------
-    # fx_meta rows (K, 4): kind (FIX_KINDS), group row, every, flags (1: zero, 2: tally);
+    # fx_meta rows (K, 5): kind (FIX_KINDS), group row, every, flags (1: zero, 2: tally), and a
+    # langevin fix's number l among the batch's langevin fixes (0, 1, ...; -1 for the others);
     # fx_val (C, K, 6): t_start, t_stop, damp, window, fraction, dof; fx_acc (C, K, 4) (in and out):
-    # removed energy, tally work, last power, last dt. At most one nvt and one langevin (eligible).
+    # removed energy, tally work, last power, last dt. At most one nvt (eligible); any number of
+    # langevin fixes, each with its own generator (rngs[l]), drag row G1[l] and force rows
+    # FR[3 l .. 3 l + 2], FL[3 l .. 3 l + 2] (x, y, z).
     _th_mv2 = inline(_th.atom_mv2)
     _th_dot3 = inline(_th.dot3)
     _th_ramped = inline(_th.ramped)
@@ -1009,12 +1012,13 @@ if njit is not None:
         force G1 v + FR (kept in FL for the tally), then enforce2d (z force and velocity zeroed)."""
         fx_meta, G1, FR, FL = fxp
         for k in range(fx_meta.shape[0]):  # rows and selects (every atom written): the loops vectorise
-            if fx_meta[k, 0] == FIX_LANGEVIN:
-                mask = groups[fx_meta[k, 1]]
+            if fx_meta[k, 0] == FIX_LANGEVIN:  # each langevin fix adds its force, in fix order (s.f += force)
+                mask, l = groups[fx_meta[k, 1]], fx_meta[k, 4]
+                g1 = G1[l]
                 for d in range(3):
-                    vd, fd, rd, ld = V[d], F[d], FR[d], FL[d]
+                    vd, fd, rd, ld = V[d], F[d], FR[3 * l + d], FL[3 * l + d]
                     for i in range(u0, u1):
-                        fl = G1[i] * vd[i] + rd[i] if mask[i] != 0 else 0.0
+                        fl = g1[i] * vd[i] + rd[i] if mask[i] != 0 else 0.0
                         ld[i] = fl
                         fd[i] = fd[i] + fl
         for k in range(fx_meta.shape[0]):
@@ -1057,10 +1061,11 @@ if njit is not None:
         return float(stepn) / fx_int[1] if fx_int[1] > 0 else 0.0
 
     @jit_inner
-    def _fix_pre(c, stepn, dtc, at, ats, V, M, groups, fx, rng, SQM, FR, KB):
+    def _fix_pre(c, stepn, dtc, at, ats, V, M, groups, fx, rngs, SQM, FR, KB):
         """Before the step's atoms move: fix nvt's first chain half step and velocity scaling
-        (Ensemble.initial_integrate), and fix langevin's random forces of the step (the case's
-        generator, drawn as rng.random((n_group, 3)) in Ensemble.post_force)."""
+        (Ensemble.initial_integrate), and each langevin fix's random forces of the step (the
+        case's generator of that fix, rngs[l], drawn as rng.random((n_group, 3)) in
+        Ensemble.post_force)."""
         fx_meta, fx_val, fx_acc, eta, ed, edd, Q, tc, tt, tf, drag, fx_int, fx_f, _fo = fx
         n = V.shape[1]
         frac = _ramp_frac(stepn, dtc, at, ats, fx_int, fx_f)
@@ -1075,6 +1080,9 @@ if njit is not None:
                                       fx_int[0], drag[c], dtc)
                 _scale_group(V, groups, g, total)
             elif kind == FIX_LANGEVIN:
+                l = fx_meta[k, 4]
+                rng = rngs[l]
+                f0, f1, f2 = FR[3 * l], FR[3 * l + 1], FR[3 * l + 2]
                 amp = _th_amp(fx_val[c, k, 2], dtc, fx_f[1], fx_f[2], boltz)
                 st = np.sqrt(target)
                 m0 = 0.0
@@ -1091,9 +1099,9 @@ if njit is not None:
                         r0 = _th_random(SQM[i], amp, st, 0.5)
                         r1 = _th_random(SQM[i], amp, st, 0.5)
                         r2 = _th_random(SQM[i], amp, st, 0.5)
-                    FR[0, i] = r0
-                    FR[1, i] = r1
-                    FR[2, i] = r2
+                    f0[i] = r0
+                    f1[i] = r1
+                    f2[i] = r2
                     if groups[g, i] != 0:
                         m0 += r0
                         m1 += r1
@@ -1107,18 +1115,22 @@ if njit is not None:
                     m1 /= count
                     m2 /= count
                     for i in range(n):
-                        FR[0, i] = FR[0, i] - m0
-                        FR[1, i] = FR[1, i] - m1
-                        FR[2, i] = FR[2, i] - m2
+                        f0[i] = f0[i] - m0
+                        f1[i] = f1[i] - m1
+                        f2[i] = f2[i] - m2
         return 0
 
     @inline
-    def _langevin_setup(c, k, M, fx, ftm2v, SQM, G1):
-        """Case c's per-atom factors of fix langevin (row k of fx): sqrt(m) for the random force
-        and the drag G1 (thermostats.langevin_drag)."""
+    def _langevin_setup(c, M, fx, ftm2v, SQM, G1):
+        """Case c's per-atom factors of its langevin fixes: sqrt(m) for the random force and each
+        fix's drag row G1[l] (thermostats.langevin_drag of its damp)."""
         for a in range(M.shape[0]):
             SQM[a] = np.sqrt(M[a])
-            G1[a] = _th_drag(M[a], fx[1][c, k, 2], ftm2v)
+        for k in range(fx[0].shape[0]):
+            if fx[0][k, 0] == FIX_LANGEVIN:
+                g1, damp = G1[fx[0][k, 4]], fx[1][c, k, 2]
+                for a in range(M.shape[0]):
+                    g1[a] = _th_drag(M[a], damp, ftm2v)
 
     @inline
     def _sample_fixes(c, fx, acc, chain):
@@ -1181,8 +1193,9 @@ if njit is not None:
             fx_acc[c, k, 0] = fx_acc[c, k, 0] + removed
         for k in range(fx_meta.shape[0]):
             if fx_meta[k, 0] == FIX_LANGEVIN and fx_meta[k, 3] & 2:
+                l = fx_meta[k, 4]
                 for i in range(n):
-                    KB[i] = _th_dot3(FL[0, i], FL[1, i], FL[2, i], V[0, i], V[1, i], V[2, i])
+                    KB[i] = _th_dot3(FL[3 * l, i], FL[3 * l + 1, i], FL[3 * l + 2, i], V[0, i], V[1, i], V[2, i])
                 power = 0.0 + _th_pairwise(KB, 0, n)
                 fx_acc[c, k, 3] = dtc
                 fx_acc[c, k, 2] = power
@@ -1478,14 +1491,14 @@ if njit is not None:
             # a chunk with one goes step by step over all blocks; enforce2d alone keeps the windows
             thermo = False
             late = False
-            langevin = -1
+            nlang = 0  # langevin fixes
             rescale_only = True  # temp/rescale alone: windows up to its next due step
             if _K_FIXES:
                 fx_meta = fx[0]
                 for k in range(fx_meta.shape[0]):
                     thermo = thermo or fx_meta[k, 0] != FIX_ENFORCE2D
                     if fx_meta[k, 0] == FIX_LANGEVIN:
-                        langevin = k
+                        nlang += 1
                     if fx_meta[k, 0] != FIX_ENFORCE2D and fx_meta[k, 0] != FIX_RESCALE:
                         rescale_only = False
                 nfx = natom if fx_meta.shape[0] else 0
@@ -1493,10 +1506,10 @@ if njit is not None:
                 # step's end (Engine.step's order), step by step over all atoms (`_late_dt_low`)
                 late = _K_DTR and thermo and dtr_every != 0
                 SQM = np.empty(nfx)  # sqrt(m): the Langevin random force's per-atom factor
-                G1 = np.empty(nfx)  # the Langevin drag per atom
-                FR = np.empty((3, nfx))  # this step's Langevin random forces
-                FL = np.empty((3, nfx))  # this step's Langevin forces (the tally's)
-                for d in range(3):
+                G1 = np.empty((nlang, nfx))  # each langevin fix's drag per atom
+                FR = np.empty((3 * nlang, nfx))  # this step's Langevin random forces (x, y, z of each fix)
+                FL = np.empty((3 * nlang, nfx))  # this step's Langevin forces (the tally's)
+                for d in range(3 * nlang):
                     for a in range(nfx):
                         FR[d, a] = 0.0
                         FL[d, a] = 0.0
@@ -1529,8 +1542,8 @@ if njit is not None:
                         F[d, a] = f[c, a, d]
                     M[a] = mass[c, a]
                     RAD[a] = radius[c, a]
-                if _K_FIXES and langevin >= 0:
-                    _langevin_setup(c, langevin, M, fx, ftm2v, SQM, G1)
+                if _K_FIXES and nlang:
+                    _langevin_setup(c, M, fx, ftm2v, SQM, G1)
                 done = 0  # steps done for this case
                 ism = 0  # the case's next sample
                 stepwise = 0  # steps to run one at a time before the next window
@@ -1682,9 +1695,9 @@ if njit is not None:
                         fo[c, a, d] = F[d, a]
                 if not finite:
                     return 3
-                if _K_FIXES and langevin >= 0:
+                if _K_FIXES and nlang:
                     for a in range(natom):
-                        for d in range(3):
+                        for d in range(3 * nlang):
                             fx[13][c, a, d] = FL[d, a]
             return 5 if nsteps == -fingerprint else 0  # never 5: ties the on-disk cache to the styles (_fingerprint)
         return _run_chunk
@@ -1983,6 +1996,8 @@ def _chunk_module_source(soft: tuple[tuple[int, int], ...], extra: tuple[str, ..
 # the wall/flow arguments of a chunk without flow walls (same types: one compiled signature)
 _NO_FLOW = (np.zeros(3, np.int64), np.zeros(4), np.zeros(0), np.zeros(0, np.uint8), np.zeros(0, np.int64),
             np.zeros(0, np.int64), np.zeros(0), np.zeros(1), np.random.default_rng(0))
+# fix langevin's generators (one per fix) of a chunk without one (the type of a chunk with one)
+_NO_RNGS = (_NO_FLOW[-1],)
 
 
 @dataclass
@@ -1999,7 +2014,7 @@ class ChunkPlan:
     * ``others``: what else the scene has (pair, ellipsoids): the compiled path runs only
       plans where this is empty;
     * ``ensemble``: the `fixes:` of the batch (engine.ensemble.Ensemble) or None; `fixes_eligible`
-      says which the kernel runs (nve on every atom, one nvt, one langevin, temp/berendsen,
+      says which the kernel runs (nve on every atom, one nvt, langevin fixes, temp/berendsen,
       temp/rescale, enforce2d; thermostats not with dt/reset, wall/flow or runs to a time);
     * ``compute_outputs()``: the NumPy forces and outputs at the current positions,
       ``finish_step(out, sample)``: drop failed cases and sample, ``advance_numpy(n, sample)``: the
@@ -2317,8 +2332,8 @@ def two_d_eligible(plan: ChunkPlan) -> bool:
 
 def fixes_eligible(plan: ChunkPlan, partial: bool = False) -> bool:
     """The batch's `fixes:` the kernel runs: every atom integrated (nve or nvt; with `partial`,
-    the pair chunks', some atoms may be left out: frozen atoms, fx_int[2]), at most one nvt and one
-    langevin, temp/berendsen, temp/rescale, enforce2d; with dt/reset or wall/flow too
+    the pair chunks', some atoms may be left out: frozen atoms, fx_int[2]), at most one nvt, any
+    number of langevin fixes, temp/berendsen, temp/rescale, enforce2d; with dt/reset or wall/flow too
     (Engine.step's end_of_step order: the thermostats, the flow walls, dt/reset)."""
     ens = plan.ensemble
     if ens is None:
@@ -2328,32 +2343,32 @@ def fixes_eligible(plan: ChunkPlan, partial: bool = False) -> bool:
     styles = [f.style for f in ens.fixes]
     if any(st not in FIX_KINDS and st != "nve" for st in styles):
         return False
-    if styles.count("nvt") > 1 or styles.count("langevin") > 1:
+    if styles.count("nvt") > 1:
         return False
     return True
 
 
 def _fix_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]) -> tuple[tuple, list[Any], list[Any]]:
-    """The kernel's `fx` tuple for the batch's fixes (see _fix_pre), the fixes in its rows, and the
-    Langevin fix's generators per case ([] without one). The chain arrays are copies: the caller
-    keeps them only when the chunk succeeds."""
+    """The kernel's `fx` tuple for the batch's fixes (see _fix_pre), the fixes in its rows, and
+    each case's tuple of generators, one per langevin fix in fix order ([] without one). The chain
+    arrays are copies: the caller keeps them only when the chunk succeeds."""
     s = plan.state
     C, N = s.ncases, s.x.shape[1]
     ens = plan.ensemble
     fixes = [f for f in ens.fixes if f.style in FIX_KINDS] if ens is not None else []
     K = len(fixes)
-    meta = np.zeros((K, 4), np.int64)
+    meta = np.zeros((K, 5), np.int64)
     val = np.zeros((C, K, 6))
     acc = np.zeros((C, K, 4))
-    rngs: list[Any] = []
+    langevin = [f for f in fixes if f.style == "langevin"]
     for k, f in enumerate(fixes):
-        meta[k] = (FIX_KINDS[f.style], group(f.group, f.all), f.every, (1 if f.zero else 0) | (2 if f.tally else 0))
+        meta[k] = (FIX_KINDS[f.style], group(f.group, f.all), f.every, (1 if f.zero else 0) | (2 if f.tally else 0),
+                   langevin.index(f) if f.style == "langevin" else -1)
         for j, name in enumerate(("t_start", "t_stop", "damp", "window", "fraction")):
             val[:, k, j] = getattr(f, name)
         val[:, k, 5] = float(f.dof)
         acc[:, k, 0], acc[:, k, 1], acc[:, k, 2], acc[:, k, 3] = f.removed, f.work, f.power, f.last_dt
-        if f.style == "langevin":
-            rngs = list(f.rngs)
+    rngs = [tuple(f.rngs[c] for f in langevin) for c in range(C)] if langevin else []
     nvt = [f for f in fixes if f.style == "nvt"]
     if nvt:
         ch = nvt[0].chain
@@ -2370,7 +2385,7 @@ def _fix_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]) -> tu
     # the integrated atoms' group row (Ensemble.moving; -1: every atom), for the pair chunks
     moving = -1 if ens is None or ens.moving is None else group(ens.moving, False)
     fx = (meta, val, acc, *chain, *per_case, np.array([tloop, s.end_step, moving], np.int64),
-          np.array([float(u.boltz), float(u.ftm2v), float(u.mvv2e), run_time]), np.zeros((C, N, 3)))
+          np.array([float(u.boltz), float(u.ftm2v), float(u.mvv2e), run_time]), np.zeros((C, N, 3 * len(langevin))))
     return fx, fixes, rngs
 
 
@@ -2388,8 +2403,9 @@ def _fix_store(fx: tuple, fixes: list[Any], plan: ChunkPlan) -> None:
             ch = f.chain
             ch.eta, ch.eta_dot, ch.eta_dotdot, ch.eta_mass = fx[3:7]
             ch.t_current, ch.t_target = fx[7].copy(), fx[8].copy()
-        if f.style == "langevin":
-            f.force = fx[13]
+        if f.style == "langevin":  # its columns of the last step's Langevin forces (C, N, 3 L)
+            l = int(fx[0][k, 4])
+            f.force = np.ascontiguousarray(fx[13][:, :, 3 * l:3 * l + 3])
 
 
 def region_eligible(w: Any) -> bool:
@@ -2765,7 +2781,7 @@ class FastPath(KernelPath):
         units = (float(s.units.ftm2v), float(s.units.mvv2e))
         sm = _sample_arrays(at, C, sf_meta.shape[0], rf_meta.shape[0] + sto[0].shape[0], fx, rg[0].shape[0])
 
-        def case_args(c: slice, fl: tuple, fx_rng: Any = _NO_FLOW[-1], st_rng: Any = _NO_FLOW[-1]) -> tuple:
+        def case_args(c: slice, fl: tuple, fx_rng: tuple = _NO_RNGS, st_rng: Any = _NO_FLOW[-1]) -> tuple:
             """The kernel's arguments for cases c (a slice: views, so the kernel writes through)."""
             return (*args, s.x[c], s.v[c], s.f[c], s.mass[c], s.radius[c], s.dt[c], s.atime[c],
                     s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
@@ -2776,7 +2792,8 @@ class FastPath(KernelPath):
 
         # generators drawn from in the kernel (fix langevin, wall/flow, wall/reflect/stochastic):
         # then one case per call, each with its own generators
-        generators = list(fx_rngs) + (list(fk.rngs) if fk is not None else []) + (list(sk.rngs) if sk else [])
+        generators = [r for rs in fx_rngs for r in rs] + (list(fk.rngs) if fk is not None else []) + \
+            (list(sk.rngs) if sk else [])
         rng_states = [r.bit_generator.state for r in generators]
         if fk is not None:
             phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
@@ -2799,7 +2816,7 @@ class FastPath(KernelPath):
                     walls = np.ascontiguousarray(fk.walls[c][np.isfinite(fk.walls[c])])
                     fl = (fl_int, fl_f, walls, fk.group[c].astype(np.uint8), phys[c], pend[c], prev[c], cross[c],
                           fk.rngs[c])
-                status = call(*case_args(slice(c, c + 1), fl, fx_rngs[c] if fx_rngs else _NO_FLOW[-1],
+                status = call(*case_args(slice(c, c + 1), fl, fx_rngs[c] if fx_rngs else _NO_RNGS,
                                          sk.rngs[c] if sk is not None else _NO_FLOW[-1]))
                 if status != 0:
                     return status

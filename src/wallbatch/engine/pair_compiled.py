@@ -891,13 +891,14 @@ if njit is not None:
             fx_meta = fx[0]
             nfx = N if fx_meta.shape[0] else 0
             thermo = False  # a fix that couples the atoms (not enforce2d alone)
-            SQM, G1, FRa, FLa, KB = fb  # `fix_buffers(nfx)`: sqrt(m), drag, Langevin random and whole forces, scratch
-            FR, FL = FRa.T, FLa.T  # (3, nfx) views, as V and F
+            # `fix_buffers(nfx, L)`: sqrt(m), each langevin fix's drag, random and whole forces, scratch
+            SQM, G1a, FRa, FLa, KB = fb
+            G1, FR, FL = G1a.T, FRa.T, FLa.T  # (L, nfx) and (3 L, nfx) views, as V and F
             if _K_FIXES:  # (an `if` on the flag: numba prunes the branch, a scene without fixes compiles none of it)
                 for k in range(fx_meta.shape[0]):
                     thermo = thermo or fx_meta[k, 0] != _compiled.FIX_ENFORCE2D
-                    if fx_meta[k, 0] == _compiled.FIX_LANGEVIN:
-                        _langevin_setup(0, k, mass, fx, ftm2v, SQM, G1)
+                if G1.shape[0]:
+                    _langevin_setup(0, mass, fx, ftm2v, SQM, G1)
             fxp = (fx_meta, G1, FR, FL)
             builds = 0
             e, w = 0.0, 0.0
@@ -1013,8 +1014,8 @@ if njit is not None:
                     if not (math.isfinite(x[a, d]) and math.isfinite(v[a, d])):
                         return 3, builds, neigh
             if _K_FIXES and not post:
-                for a in range(nfx):  # the last step's Langevin forces (the fix's `force`)
-                    for d in range(3):
+                for a in range(nfx):  # the last step's Langevin forces (each langevin fix's `force`)
+                    for d in range(FL.shape[0]):
                         fx[13][0, a, d] = FL[d, a]
             clk[0] = dt
             return 0, builds, neigh
@@ -1034,12 +1035,11 @@ if njit is not None:
         `_fix_end`'s status (6: a zero temperature), else 0. clk: the case's clock (dt, atime,
         atimestep), for a thermostat's ramp in a run to a time."""
         fx, fx_rng, _step0, fb = fix
-        SQM, G1, FRa, FLa, KB = fb
+        SQM, G1a, FRa, FLa, KB = fb
         V = v.T
         if phase == 0:
-            for k in range(fx[0].shape[0]):
-                if fx[0][k, 0] == _compiled.FIX_LANGEVIN:
-                    _langevin_setup(0, k, mass, fx, ftm2v, SQM, G1)
+            if G1a.shape[1]:
+                _langevin_setup(0, mass, fx, ftm2v, SQM, G1a.T)
             return 0
         if phase == 1:
             return _fix_pre(0, stepn, dt, clk[1], clk[2], V, mass, groups, fx, fx_rng, SQM, FRa.T, KB)
@@ -1047,8 +1047,8 @@ if njit is not None:
         if phase != 4:  # (4: the tail with wall/flow ran the step's end itself: the forces only)
             status = _fix_end(0, stepn, dt, clk[1], clk[2], V, mass, groups, fx, KB, FLa.T)
         if phase >= 3 and status == 0:
-            for a in range(FLa.shape[0]):  # the last step's Langevin forces (the fix's `force`)
-                for d in range(3):
+            for a in range(FLa.shape[0]):  # the last step's Langevin forces (each langevin fix's `force`)
+                for d in range(FLa.shape[1]):
                     fx[13][0, a, d] = FLa[a, d]
         return status
 
@@ -1162,13 +1162,15 @@ def _fresh(name: str, shape: tuple, dtype: Any) -> np.ndarray:
     return np.empty(shape, dtype)
 
 
-def fix_buffers(n: int, buffer: Buffer = _fresh) -> tuple[np.ndarray, ...]:
-    """`pair_chunk`'s per-atom buffers of the fixes for n atoms (0: a case without fixes), from
-    `buffer` (content undefined: the kernel writes each before it reads it): sqrt(m), the Langevin
-    drag, the step's Langevin random forces (n, 3), the Langevin forces (n, 3) and a scratch for
-    sums over atoms. A thread's part of a case takes its rows."""
-    return (buffer("fix_sqm", (n,), float), buffer("fix_drag", (n,), float), buffer("fix_random", (n, 3), float),
-            buffer("fix_force", (n, 3), float), buffer("fix_sums", (n,), float))
+def fix_buffers(n: int, nlang: int, buffer: Buffer = _fresh) -> tuple[np.ndarray, ...]:
+    """`pair_chunk`'s per-atom buffers of the fixes for n atoms (0: a case without fixes) and
+    nlang langevin fixes, from `buffer` (content undefined: the kernel writes each before it reads
+    it): sqrt(m), each langevin fix's drag (n, nlang), the step's random forces (n, 3 nlang: x, y,
+    z of each fix), the Langevin forces (n, 3 nlang) and a scratch for sums over atoms. A thread's
+    part of a case takes its rows."""
+    return (buffer("fix_sqm", (n,), float), buffer("fix_drag", (n, nlang), float),
+            buffer("fix_random", (n, 3 * nlang), float), buffer("fix_force", (n, 3 * nlang), float),
+            buffer("fix_sums", (n,), float))
 
 
 def bin_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
@@ -1830,7 +1832,8 @@ class PairChunks(_compiled.KernelPath):
                                                             ("owner", pair._owner), ("first", pair._first))]
         ew = np.zeros((C, 2))
         fk = plan.flow[0] if plan.flow else None
-        generators = list(fx_rngs) + (list(fk.rngs) if fk is not None else []) + (list(sk.rngs) if sk else [])
+        generators = [r for rs in fx_rngs for r in rs] + (list(fk.rngs) if fk is not None else []) + \
+            (list(sk.rngs) if sk else [])
         rng_states = [r.bit_generator.state for r in generators]
         if fk is not None:
             phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
@@ -1871,8 +1874,8 @@ class PairChunks(_compiled.KernelPath):
                     (24.0 * float(pair.epsilon[c]), 4.0 * float(pair.epsilon[c]), float(pair.sigma[c] ** 2),
                      float(rc2[c]), float(offset[c])), bool(sample), fpair[c], ew[c], xref, owner, first, neigh, spare,
                     sf_meta, sf_val[c], groups_arr, (rg_meta, rg_geo, rg_val[c:c + 1]), fl,
-                    (_compiled._fix_slice(fx, slice(c, c + 1)), fx_rngs[c] if fx_rngs else _compiled._NO_FLOW[-1],
-                     int(s.step[c]), fix_buffers(N if fx[0].shape[0] else 0, self._buffer)),
+                    (_compiled._fix_slice(fx, slice(c, c + 1)), fx_rngs[c] if fx_rngs else _compiled._NO_RNGS,
+                     int(s.step[c]), fix_buffers(N if fx[0].shape[0] else 0, fx[13].shape[2] // 3, self._buffer)),
                     (rf_meta, rf_val[c], rf_prev[c], rf_stat[c], bool(stats)), tb,
                     (sto[0], sto[1][c:c + 1], sto[2][c:c + 1], sto[3],
                      sk.rngs[c] if sk is not None else _compiled._NO_FLOW[-1], float(s.units.mvv2e)),

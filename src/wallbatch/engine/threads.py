@@ -9,13 +9,15 @@ parallel. `run_kernel` calls it as the caller would, on parts that do not intera
   which run one case per call, their generators drawn from atom after atom: for these
   `compiled.FastPath._chunk` gives runs of cases to threads itself, with `split_edges` and
   `call_parts`);
-- one case: each thread takes a contiguous run of atoms, split at a multiple of ALIGN atoms (the
-  kernel's blocks stay the same blocks), when the atoms do not couple within a chunk: flat and
+- one case: contiguous runs of atoms, split at multiples of ALIGN atoms (the kernel's blocks
+  stay the same blocks), OVERSPLIT runs per thread, each thread taking the next run not yet
+  taken (a thread on a core slowed by other work takes fewer), when the atoms do not couple
+  within a chunk: flat and
   region soft walls (tables and wall/lepton too), wall/reflect without statistics (their sums
   would add in another order), variables; not fix dt/reset (the smallest dt over the atoms),
   wall/flow, wall/reflect/stochastic or `fixes:`. The
   per-case counters the kernel advances (step, dt, time, the reflect walls' previous positions)
-  are copies per thread; the first thread's are kept (the others' must agree).
+  are copies per run; the first run's are kept (the others' must agree).
 
 Per-atom arithmetic is the same operations in the same order either way, so results are bit for
 bit those of one thread. Anything this module does not recognise (an argument it does not know,
@@ -42,6 +44,7 @@ import numpy as np
 ENV = "WALLBATCH_THREADS"
 ALIGN = 256  # atom splits at multiples of this (a multiple of compiled.BLOCK: the blocks are unchanged)
 MIN_WORK = 200_000  # atom-steps per thread below which one call is faster than starting threads
+OVERSPLIT = 4  # runs of atoms per thread in an atom split: a thread takes the next run when done with one
 TIME_MODE_STEPS = 100  # steps assumed for a time-based chunk (its step count is not known before)
 
 # the chunk kernel's arguments (compiled._make_run_chunk), by name
@@ -144,9 +147,10 @@ def split_edges(ncase: int, natom: int, steps: int, threads: int, atoms: bool = 
     if not atoms:
         return None
     blocks = -(-natom // ALIGN)
-    n = min(n, blocks)
-    if n < 2:
+    if min(n, blocks) < 2:
         return None
+    # more runs than threads (each still MIN_WORK atom-steps): a thread slowed by other work takes fewer
+    n = min(n * OVERSPLIT, blocks, work // MIN_WORK)
     edges = [min(natom, ALIGN * (blocks * k // n)) for k in range(n + 1)]
     return "atoms", [slice(edges[k], edges[k + 1]) for k in range(n)]
 
@@ -177,29 +181,40 @@ def atom_part(named: dict[str, Any], a: slice, atom_axis: dict[str, int] = ATOM_
     return part
 
 
-def call_parts(kernel: Callable[..., int], names: tuple[str, ...], pieces: list[dict[str, Any]], kind: str) -> int:
-    """kernel(*piece) for every piece (arguments by name), the first here and the others in
-    threads; the first nonzero status (0 if none)."""
-    statuses = _in_threads([lambda p=p: kernel(*(p[k] for k in names)) for p in pieces])
+def call_parts(kernel: Callable[..., int], names: tuple[str, ...], pieces: list[dict[str, Any]], kind: str,
+               nthreads: int | None = None) -> int:
+    """kernel(*piece) for every piece (arguments by name) on `nthreads` threads (this one and
+    helpers; default one per piece), each taking the next piece not yet taken; the first nonzero
+    status in piece order (0 if none)."""
+    statuses = _in_threads([lambda p=p: kernel(*(p[k] for k in names)) for p in pieces], nthreads)
     splits[kind] += 1
     return next((st for st in statuses if st != 0), 0)
 
 
-def _in_threads(calls: list[Callable[[], int]]) -> list[int]:
-    """Run calls[0] here and the others in threads; their statuses (an exception is re-raised)."""
+def _in_threads(calls: list[Callable[[], int]], nthreads: int | None = None) -> list[int]:
+    """Run the calls on `nthreads` threads (default: one per call), this one among them, each
+    thread taking the next call not yet taken (in list order) until none is left; their results
+    in list order (an exception is re-raised)."""
     out: list[Any] = [None] * len(calls)
+    taken = iter(range(len(calls)))  # next() on a range iterator is atomic under the GIL
+    lock = threading.Lock()
 
-    def work(k: int) -> None:
-        try:
-            out[k] = calls[k]()
-        except BaseException as exc:  # noqa: BLE001 - handed to the calling thread
-            out[k] = exc
+    def work() -> None:
+        while True:
+            with lock:
+                k = next(taken, None)
+            if k is None:
+                return
+            try:
+                out[k] = calls[k]()
+            except BaseException as exc:  # noqa: BLE001 - handed to the calling thread
+                out[k] = exc
 
-    helpers = [threading.Thread(target=work, args=(k,), name=f"wallbatch-chunk-{k}", daemon=True)
-               for k in range(1, len(calls))]
+    n = len(calls) if nthreads is None else max(1, min(nthreads, len(calls)))
+    helpers = [threading.Thread(target=work, name=f"wallbatch-chunk-{k}", daemon=True) for k in range(1, n)]
     for t in helpers:
         t.start()
-    work(0)
+    work()
     for t in helpers:
         t.join()
     for r in out:
@@ -221,23 +236,25 @@ def run_kernel(kernel: Callable[..., int], args: tuple, threads: int | None = No
     if names is None or len(names) != len(args):
         return kernel(*args)
     named = dict(zip(names, args))
-    how = plan(named, count() if threads is None else threads)
+    nthreads = count() if threads is None else threads
+    how = plan(named, nthreads)
     if how is None:
         return kernel(*args)
-    return run_split(kernel, names, named, how, case_axis, atom_axis, counters)
+    return run_split(kernel, names, named, how, case_axis, atom_axis, counters, nthreads)
 
 
 def run_split(kernel: Callable[..., int], names: tuple[str, ...], named: dict[str, Any],
               how: tuple[str, list[slice]], case_axis: frozenset[str] = CASE_AXIS,
-              atom_axis: dict[str, int] = ATOM_AXIS, counters: tuple[str, ...] = COUNTERS) -> int:
+              atom_axis: dict[str, int] = ATOM_AXIS, counters: tuple[str, ...] = COUNTERS,
+              nthreads: int | None = None) -> int:
     """The kernel (arguments `named`, in the order `names`) on the parts `how` (`split_edges`)
-    in threads, its arguments cut by `case_part` / `atom_part` with the kernel's own axis tables;
-    the first nonzero status. After an atom split the per-case `counters` each part advanced must
-    agree: the first part's are kept."""
+    in `nthreads` threads (default one per part), its arguments cut by `case_part` / `atom_part`
+    with the kernel's own axis tables; the first nonzero status. After an atom split the
+    per-case `counters` each part advanced must agree: the first part's are kept."""
     kind, parts = how
     pieces = [case_part(named, p, case_axis) if kind == "cases" else atom_part(named, p, atom_axis, counters)
               for p in parts]
-    bad = call_parts(kernel, names, pieces, kind)
+    bad = call_parts(kernel, names, pieces, kind, nthreads)
     if kind == "atoms" and bad == 0:
         first = pieces[0]
         for k in counters:
