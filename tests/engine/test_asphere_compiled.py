@@ -408,15 +408,18 @@ def test_threads_over_cases_give_the_bits_of_one_thread(monkeypatch):
 
 @pytest.mark.slow
 def test_threads_over_the_atoms_of_one_case_give_the_bits_of_one_thread(monkeypatch):
-    """One case of 600 ellipsoids with enough steps between samples for two threads: its chunks
-    are split into runs of atoms, and its samples come from NumPy at each chunk's end, on one
-    thread as on two (the path does not depend on the thread count), so every output is the one
-    thread's bit for bit; they agree with the in-kernel samples of short chunks to 1e-14."""
+    """One case of 600 ellipsoids with enough steps between samples for two threads: each
+    interval's steps but the last are split into runs of atoms, and its last step runs in a call
+    that records the sample (its sums over all atoms), on one thread as on two (the path does not
+    depend on the thread count), so every output is the one thread's bit for bit; they agree with
+    the NumPy path to 1e-14."""
     d = slit(n=600, side=35.0, cutoff=3.0, steps=1400, thermo=700)
     one, eng1, split1 = run_with(monkeypatch, [d], 1)
     two, eng2, split2 = run_with(monkeypatch, [d], 2)
-    assert split1["atoms"] == 0 and split2["atoms"] == 2 and split2["cases"] == 0  # one split per chunk
-    assert eng1.fast.sampled_calls == 0 and eng2.fast.sampled_calls == 0 and eng2.fast.compiled_chunks == 2
+    assert split1["atoms"] == 0 and split2["atoms"] == 2 and split2["cases"] == 0  # one split per interval
+    assert eng1.fast.sampled_calls == eng2.fast.sampled_calls == 2  # each interval's last step
+    assert eng1.fast.compiled_chunks == eng2.fast.compiled_chunks == 4
+    assert len(eng2.samples) == 1  # step 0 only from NumPy
     for a, b in zip(one, two):
         for name in a.data:
             np.testing.assert_array_equal(a.data[name], b.data[name], err_msg=name)

@@ -35,7 +35,8 @@ slot, NumPy's pairwise sum), appended by `ChunkPlan.record_samples`; `advance` (
 outputs of its last step from the NumPy `Engine.compute_forces` at the final positions, as in
 engine/compiled.py) serves the rest. A chunk runs over threads (`run_kernel`, threads.py's rule):
 runs of cases, or one case's runs of atoms when its samples are not recorded in the kernel (a
-single case with work for two threads between samples samples one instant at a time).
+single case with work for two threads between samples samples one instant at a time: the steps
+but the last split over atoms, the last in a call that records the sample).
 `WALLBATCH_NUMBA=0` selects the NumPy path. The kernel is cached on disk (numba cache=True).
 """
 
@@ -526,6 +527,13 @@ def eligible(plan: ChunkPlan) -> bool:
     return True
 
 
+def _splits_atoms(plan: ChunkPlan, steps: int) -> bool:
+    """Whether chunks of `steps` steps of this plan are one case with work for two threads over
+    its atoms (threads.split_edges with two threads, whatever this process has)."""
+    s = plan.state
+    return s.ncases == 1 and threads.split_edges(1, s.x.shape[1], steps, 2) is not None
+
+
 def sampled_eligible(plan: ChunkPlan) -> bool:
     """Whether the kernel records this scene's samples itself (`AspherePath.advance_sampled`): an
     engine that takes the records, and no fix_modify virial on a wall/ees fix (ees has none)."""
@@ -560,18 +568,28 @@ class AspherePath(_compiled.KernelPath):
         if not (enabled() and eligible(plan) and sampled_eligible(plan)):
             return False
         # one case with enough work between two samples for two threads over its atoms: one instant
-        # at a time (`advance`, its sample's outputs by NumPy), so that its chunks can be split. The
-        # rule counts two threads whatever this process has, so the path (and the last bits of its
-        # samples: NumPy's log against libm's) does not depend on WALLBATCH_THREADS
-        s = plan.state
+        # at a time (`advance`: the steps but the last split over atoms, the last recording the
+        # sample), so that its chunks can be split. The rule counts two threads whatever this
+        # process has, so the path does not depend on WALLBATCH_THREADS
         steps = max(1, int(at[-1]) // at.size)
-        return s.ncases != 1 or threads.split_edges(1, s.x.shape[1], steps, 2) is None
+        return not _splits_atoms(plan, steps)
 
     def advance(self, nsteps: int, sample: bool) -> bool:
-        """Run nsteps steps (and the sample of the last one, by the NumPy outputs); False: let the
-        NumPy loop do it."""
+        """Run nsteps steps and the sample of the last one; False: let the NumPy loop do it. One
+        case with work for two threads over its atoms (`_splits_atoms`: whatever this process's
+        threads, so the path does not depend on them) runs its steps but the last in calls split
+        over atoms, then the last one in a call that records its sample (its sums over all atoms);
+        else the sample's outputs come from NumPy."""
         if nsteps <= 0:
             return False
+        plan = self.plan_source()
+        if sample and nsteps > 1 and enabled() and eligible(plan) and sampled_eligible(plan) and \
+                _splits_atoms(plan, nsteps - 1):
+            if not self.in_calls(self._steps, nsteps - 1, False):
+                return False
+            if not self._chunk(np.ones(1, np.int64), True, True):
+                self.plan_source().advance_numpy(1, True)  # that step in NumPy (trouble is reported there)
+            return True
         return self.in_calls(self._steps, nsteps, sample)  # (a Ctrl-C is seen between calls)
 
     def _steps(self, nsteps: int, sample: bool) -> bool:
