@@ -165,10 +165,11 @@ def thermostat_slit(n: int, kind: str, **kw: Any) -> dict:
     return with_fixes(gas_slit(n, "lj93", **kw), THERMOSTATS[kind], kind)
 
 
-def hot_cold_slit(n: int, **kw: Any) -> dict:
-    """The lj93 gas slit with its atoms in two groups, the lower half of the slab `hot` (fix
-    langevin at T = 1.5) and the upper half `cold` (fix langevin at T = 0.5), each fix its own
-    seed (damp 0.5): two wall thermostats at different temperatures."""
+def hot_cold_slit(n: int, kind: str = "langevin", **kw: Any) -> dict:
+    """The lj93 gas slit with its atoms in two groups, the lower half of the slab `hot` held at
+    T = 1.5 and the upper half `cold` at T = 0.5 (damp 0.5) by two fix langevin (each its own
+    seed; fix nve on all) or, `kind` "nvt", two fix nvt: two wall thermostats at different
+    temperatures."""
     cfg = gas_slit(n, "lj93", **kw)
     side, height = cfg["box"]["hi"][0], cfg["box"]["hi"][2]
     cfg["regions"] = {"low": {"style": "block", "lo": [0, 0, 1.5], "hi": [side, side, height / 2], "units": "box"},
@@ -177,8 +178,12 @@ def hot_cold_slit(n: int, **kw: Any) -> dict:
     base = cfg["atoms"][0]
     cfg["atoms"] = [{**base, "group": g, "create": {"random": {"count": k, "region": r}}}
                     for g, k, r in (("hot", n // 2, "low"), ("cold", n - n // 2, "high"))]
-    return with_fixes(cfg, {"nve": "fix nve all nve", "hot": "fix hot hot langevin 1.5 1.5 0.5 48279",
-                            "cold": "fix cold cold langevin 0.5 0.5 0.5 9127"}, "hot-cold")
+    if kind == "nvt":
+        fixes = {"hot": "fix hot hot nvt temp 1.5 1.5 0.5", "cold": "fix cold cold nvt temp 0.5 0.5 0.5"}
+    else:
+        fixes = {"nve": "fix nve all nve", "hot": "fix hot hot langevin 1.5 1.5 0.5 48279",
+                 "cold": "fix cold cold langevin 0.5 0.5 0.5 9127"}
+    return with_fixes(cfg, fixes, f"hot-cold-{kind}")
 
 
 def gas_2d(n: int, *, steps: int = 1000, thermo: int = 100, dt: float = 0.005, density: float = 0.1,

@@ -358,6 +358,8 @@ KINDS: list[tuple[str, str, Callable[..., dict], float]] = [  # (row prefix, sce
     ("thermostat-langevin-time", "gas slit lj93 + fix langevin, run to a simulated time",
      lambda n, **k: timed(thermostat_slit(n, "langevin", **k)), 1e7),
     ("thermostat-hot-cold", "gas slit lj93, hot and cold groups, two fix langevin", hot_cold_slit, 1e7),
+    ("thermostat-hot-cold-nvt", "gas slit lj93, hot and cold groups, two fix nvt",
+     lambda n, **k: hot_cold_slit(n, "nvt", **k), 1e7),
     ("thermostat-nvt", "gas slit lj93 + fix nvt", lambda n, **k: thermostat_slit(n, "nvt", **k), 1e7),
     ("thermostat-nvt-dtreset", "gas slit lj93 + fix nvt + dt_reset every step",
      lambda n, **k: with_dt_reset(thermostat_slit(n, "nvt", **k)), 1e7),

@@ -226,8 +226,31 @@ def test_two_langevin_fixes_hot_and_cold_bit_for_bit(monkeypatch):
     assert not np.array_equal(got[0].data["ecouple"], got[1].data["ecouple"])
 
 
+def test_two_nvt_fixes_hot_and_cold(monkeypatch):
+    """Two Nose-Hoover chains, a hot group (T 2.5, tchain 3, tloop 2) and a cold one (T 0.4 ramped to
+    0.6, tchain 2, drag): the kernel keeps the chains side by side, each with its own length and
+    tloop, and gives the NumPy path's bits (the chains' exp is the C library's on both paths), ecouple (both chains'
+    energies) included, sampled every 50 steps and every step; each group ends near its target."""
+    def scene(thermo, steps=400):
+        d = gas({"h": "fix h hot nvt temp 2.5 2.5 0.1 tchain 3 tloop 2",
+                 "c": "fix c gas nvt temp 0.4 0.6 0.2 tchain 2 drag 0.2"}, steps=steps, thermo=thermo)
+        d["atoms"].append({**d["atoms"][0], "group": "hot", "create": {"random": {"count": 150, "region": "mid"}}})
+        return d
+
+    ref, got, eng = check(monkeypatch, [scene(50)])
+    hot, cold = eng.ensemble.nvt
+    assert hot.chain.eta.shape[1] == 3 and cold.chain.eta.shape[1] == 2 and np.all(hot.chain.eta[:, 0] != 0.0)
+    v2 = (eng.state.v ** 2).sum(axis=2)
+    t_hot, t_cold = v2[0, hot.group].mean() / 3, v2[0, cold.group].mean() / 3
+    assert abs(t_hot - 2.5) < 0.5 and abs(t_cold - 0.6) < 0.2
+    assert np.ptp(got[0].data["ecouple"]) > 10.0  # the chains exchanged energy (~150 here)
+    _, _, every = check(monkeypatch, [scene(1, steps=30)])
+    assert every.fast.sampled_calls > 0
+
+
 def test_refused_fix_combinations_run_in_numpy(monkeypatch):
-    d = gas({"a": "fix a hot nvt temp 2.0 2.0 0.1", "b": "fix b gas nvt temp 1.0 1.0 0.2"}, steps=40, thermo=20)
+    """An integrator on part of the atoms in a scene without pair forces stays on the NumPy path."""
+    d = gas({"a": "fix a hot nve"}, steps=40, thermo=20)
     d["atoms"].append({**d["atoms"][0], "group": "hot", "create": {"random": {"count": 100, "region": "mid"}}})
     _, got, eng = run_both(monkeypatch, [d])
     assert eng.fast is None

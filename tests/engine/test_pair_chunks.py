@@ -698,6 +698,20 @@ def frozen_post(fixes: dict) -> dict:
     return d
 
 
+def test_two_nvt_fixes_in_the_fused_chunk(monkeypatch):
+    """Two Nose-Hoover chains on two groups of an LJ fluid (the fluid ramped from 1.5 to 1.0, the
+    post held at 0.5 with a chain of 2): the fused chunk keeps the chains side by side, each its
+    length, and gives the per-step path's outputs (ecouple included) to 1e-14 (the chains' exp)."""
+    case = cases_of(frozen_post({"t": "fix t fluid nvt temp 1.5 1.0 0.1",
+                                 "p": "fix p post nvt temp 0.5 0.5 0.2 tchain 2"}))
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, case)
+    assert isinstance(fused.fast, PairChunks) and fused.fast.compiled_chunks > 0 and fused.fast.fallbacks == 0
+    for name in got[0].data:
+        np.testing.assert_allclose(got[0].data[name], ref[0].data[name], rtol=1e-14, atol=1e-14, err_msg=name)
+    assert [f.chain.eta.shape[1] for f in fused.ensemble.nvt] == [3, 2]
+    assert np.ptp(got[0].data["ecouple"]) > 1e-3
+
+
 @pytest.mark.parametrize("fixes", [{"i": "fix i fluid nve"},
                                    {"i": "fix i fluid nve", "t": "fix t fluid langevin 1.5 1.5 0.5 77 tally yes"},
                                    {"t": "fix t fluid nvt temp 1.5 1.0 0.1"}])

@@ -959,12 +959,14 @@ if njit is not None:
         return nbad
 
     # -- thermostats and enforce2d (engine/ensemble.py; arithmetic of engine/thermostats.py) ---------
-    # fx_meta rows (K, 5): kind (FIX_KINDS), group row, every, flags (1: zero, 2: tally), and a
-    # langevin fix's number l among the batch's langevin fixes (0, 1, ...; -1 for the others);
-    # fx_val (C, K, 6): t_start, t_stop, damp, window, fraction, dof; fx_acc (C, K, 4) (in and out):
-    # removed energy, tally work, last power, last dt. At most one nvt (eligible); any number of
-    # langevin fixes, each with its own generator (rngs[l]), drag row G1[l] and force rows
-    # FR[3 l .. 3 l + 2], FL[3 l .. 3 l + 2] (x, y, z).
+    # fx_meta rows (K, 8): kind (FIX_KINDS), group row, every, flags (1: zero, 2: tally), the fix's
+    # number j among the batch's fixes of its kind (langevin, nvt; 0, 1, ...), and for fix nvt its
+    # chain's offset o, length m and tloop; fx_val (C, K, 6): t_start, t_stop, damp, window,
+    # fraction, dof; fx_acc (C, K, 4) (in and out): removed energy, tally work, last power, last dt.
+    # Any number of langevin fixes, each with its own generator (rngs[j]), drag row G1[j] and force
+    # rows FR[3 j .. 3 j + 2], FL[3 j .. 3 j + 2] (x, y, z); any number of nvt fixes, their chains
+    # side by side: eta, eta_dotdot, eta_mass columns o .. o + m - 1, eta_dot o + j .. o + j + m
+    # (one more member each), t_current, t_target, t_freq, drag column j.
     _th_mv2 = inline(_th.atom_mv2)
     _th_dot3 = inline(_th.dot3)
     _th_ramped = inline(_th.ramped)
@@ -1075,9 +1077,11 @@ if njit is not None:
             g = fx_meta[k, 1]
             target = _th_ramped(fx_val[c, k, 0], fx_val[c, k, 1], frac)
             if kind == FIX_NVT:
-                tt[c] = target
-                total, tc[c] = _th_nh(eta[c], ed[c], edd[c], Q[c], tc[c], target, tf[c], fx_val[c, k, 5], boltz,
-                                      fx_int[0], drag[c], dtc)
+                j, o, m = fx_meta[k, 4], fx_meta[k, 5], fx_meta[k, 6]
+                tt[c, j] = target
+                total, tc[c, j] = _th_nh(eta[c, o:o + m], ed[c, o + j:o + j + m + 1], edd[c, o:o + m], Q[c, o:o + m],
+                                         tc[c, j], target, tf[c, j], fx_val[c, k, 5], boltz, fx_meta[k, 7], drag[c, j],
+                                         dtc)
                 _scale_group(V, groups, g, total)
             elif kind == FIX_LANGEVIN:
                 l = fx_meta[k, 4]
@@ -1135,23 +1139,26 @@ if njit is not None:
     @inline
     def _sample_fixes(c, fx, acc, chain):
         """Case c's fix state at a sample (what Ensemble.ecouple reads): each fix's accumulators
-        into acc (K, 4) and, with fix nvt (chain not empty), its chain eta, eta_dot, eta_mass and
-        t_target into chain (3 M + 2)."""
-        for k in range(fx[0].shape[0]):
-            for j in range(4):
-                acc[k, j] = fx[2][c, k, j]
-        if chain.shape[0]:
-            j = 0
-            for m in range(fx[3].shape[1]):
-                chain[j] = fx[3][c, m]
-                j += 1
-            for m in range(fx[4].shape[1]):
-                chain[j] = fx[4][c, m]
-                j += 1
-            for m in range(fx[6].shape[1]):
-                chain[j] = fx[6][c, m]
-                j += 1
-            chain[j] = fx[8][c]
+        into acc (K, 4) and each fix nvt's chain, in fix order, eta, eta_dot, eta_mass and
+        t_target into chain (3 m + 2 each)."""
+        fx_meta = fx[0]
+        p = 0
+        for k in range(fx_meta.shape[0]):
+            for i in range(4):
+                acc[k, i] = fx[2][c, k, i]
+            if fx_meta[k, 0] == FIX_NVT:
+                j, o, m = fx_meta[k, 4], fx_meta[k, 5], fx_meta[k, 6]
+                for i in range(m):
+                    chain[p] = fx[3][c, o + i]
+                    p += 1
+                for i in range(m + 1):
+                    chain[p] = fx[4][c, o + j + i]
+                    p += 1
+                for i in range(m):
+                    chain[p] = fx[6][c, o + i]
+                    p += 1
+                chain[p] = fx[8][c, j]
+                p += 1
 
     @jit_inner
     def _fix_end(c, stepn, dtc, at, ats, V, M, groups, fx, KB, FL):
@@ -1164,12 +1171,13 @@ if njit is not None:
         boltz, mvv2e = fx_f[0], fx_f[2]
         for k in range(fx_meta.shape[0]):
             if fx_meta[k, 0] == FIX_NVT:
-                g = fx_meta[k, 1]
+                g, j, o, m = fx_meta[k, 1], fx_meta[k, 4], fx_meta[k, 5], fx_meta[k, 6]
                 target = _th_ramped(fx_val[c, k, 0], fx_val[c, k, 1], frac)
-                tc[c] = _group_temperature(V, M, groups, g, fx_val[c, k, 5], mvv2e, boltz, KB)
-                tt[c] = target
-                total, tc[c] = _th_nh(eta[c], ed[c], edd[c], Q[c], tc[c], target, tf[c], fx_val[c, k, 5], boltz,
-                                      fx_int[0], drag[c], dtc)
+                tc[c, j] = _group_temperature(V, M, groups, g, fx_val[c, k, 5], mvv2e, boltz, KB)
+                tt[c, j] = target
+                total, tc[c, j] = _th_nh(eta[c, o:o + m], ed[c, o + j:o + j + m + 1], edd[c, o:o + m], Q[c, o:o + m],
+                                         tc[c, j], target, tf[c, j], fx_val[c, k, 5], boltz, fx_meta[k, 7], drag[c, j],
+                                         dtc)
                 _scale_group(V, groups, g, total)
         for k in range(fx_meta.shape[0]):
             kind = fx_meta[k, 0]
@@ -2014,7 +2022,7 @@ class ChunkPlan:
     * ``others``: what else the scene has (pair, ellipsoids): the compiled path runs only
       plans where this is empty;
     * ``ensemble``: the `fixes:` of the batch (engine.ensemble.Ensemble) or None; `fixes_eligible`
-      says which the kernel runs (nve on every atom, one nvt, langevin fixes, temp/berendsen,
+      says which the kernel runs (nve on every atom, nvt and langevin fixes, temp/berendsen,
       temp/rescale, enforce2d; thermostats not with dt/reset, wall/flow or runs to a time);
     * ``compute_outputs()``: the NumPy forces and outputs at the current positions,
       ``finish_step(out, sample)``: drop failed cases and sample, ``advance_numpy(n, sample)``: the
@@ -2332,8 +2340,8 @@ def two_d_eligible(plan: ChunkPlan) -> bool:
 
 def fixes_eligible(plan: ChunkPlan, partial: bool = False) -> bool:
     """The batch's `fixes:` the kernel runs: every atom integrated (nve or nvt; with `partial`,
-    the pair chunks', some atoms may be left out: frozen atoms, fx_int[2]), at most one nvt, any
-    number of langevin fixes, temp/berendsen, temp/rescale, enforce2d; with dt/reset or wall/flow too
+    the pair chunks', some atoms may be left out: frozen atoms, fx_int[2]), any number of nvt and
+    langevin fixes, temp/berendsen, temp/rescale, enforce2d; with dt/reset or wall/flow too
     (Engine.step's end_of_step order: the thermostats, the flow walls, dt/reset)."""
     ens = plan.ensemble
     if ens is None:
@@ -2342,8 +2350,6 @@ def fixes_eligible(plan: ChunkPlan, partial: bool = False) -> bool:
         return False
     styles = [f.style for f in ens.fixes]
     if any(st not in FIX_KINDS and st != "nve" for st in styles):
-        return False
-    if styles.count("nvt") > 1:
         return False
     return True
 
@@ -2357,28 +2363,32 @@ def _fix_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]) -> tu
     ens = plan.ensemble
     fixes = [f for f in ens.fixes if f.style in FIX_KINDS] if ens is not None else []
     K = len(fixes)
-    meta = np.zeros((K, 5), np.int64)
+    meta = np.zeros((K, 8), np.int64)
     val = np.zeros((C, K, 6))
     acc = np.zeros((C, K, 4))
     langevin = [f for f in fixes if f.style == "langevin"]
+    nvt = [f for f in fixes if f.style == "nvt"]
+    offsets = np.cumsum([0] + [f.chain.eta.shape[1] for f in nvt])  # each chain's first column
     for k, f in enumerate(fixes):
+        j = langevin.index(f) if f.style == "langevin" else nvt.index(f) if f.style == "nvt" else -1
+        chain_at = (offsets[j], f.chain.eta.shape[1], f.chain.tloop) if f.style == "nvt" else (0, 0, 1)
         meta[k] = (FIX_KINDS[f.style], group(f.group, f.all), f.every, (1 if f.zero else 0) | (2 if f.tally else 0),
-                   langevin.index(f) if f.style == "langevin" else -1)
+                   j, *chain_at)
         for j, name in enumerate(("t_start", "t_stop", "damp", "window", "fraction")):
             val[:, k, j] = getattr(f, name)
         val[:, k, 5] = float(f.dof)
         acc[:, k, 0], acc[:, k, 1], acc[:, k, 2], acc[:, k, 3] = f.removed, f.work, f.power, f.last_dt
     rngs = [tuple(f.rngs[c] for f in langevin) for c in range(C)] if langevin else []
-    nvt = [f for f in fixes if f.style == "nvt"]
-    if nvt:
-        ch = nvt[0].chain
-        chain = tuple(np.array(a, float, order="C") for a in (ch.eta, ch.eta_dot, ch.eta_dotdot, ch.eta_mass))
-        per_case = tuple(np.array(np.broadcast_to(np.asarray(a, float), (C,)), order="C")
-                         for a in (ch.t_current, ch.t_target, ch.t_freq, ch.drag))
-        tloop = ch.tloop
+    if nvt:  # the chains side by side (copies), their per-case values a column each
+        chains = [f.chain for f in nvt]
+        chain = tuple(np.concatenate([np.asarray(getattr(ch, name), float) for ch in chains], axis=1)
+                      for name in ("eta", "eta_dot", "eta_dotdot", "eta_mass"))
+        per_case = tuple(np.stack([np.broadcast_to(np.asarray(getattr(ch, name), float), (C,)) for ch in chains],
+                                  axis=1) for name in ("t_current", "t_target", "t_freq", "drag"))
+        tloop = chains[0].tloop
     else:
         chain = (np.zeros((C, 1)), np.zeros((C, 2)), np.zeros((C, 1)), np.zeros((C, 1)))
-        per_case = tuple(np.zeros(C) for _ in range(4))
+        per_case = tuple(np.zeros((C, 1)) for _ in range(4))
         tloop = 1
     u = s.units
     run_time = np.nan if s.run_time is None else float(s.run_time)  # (a run to a time: the ramp follows the time)
@@ -2399,10 +2409,11 @@ def _fix_store(fx: tuple, fixes: list[Any], plan: ChunkPlan) -> None:
     acc = fx[2]
     for k, f in enumerate(fixes):
         f.removed, f.work, f.power, f.last_dt = (acc[:, k, j].copy() for j in range(4))
-        if f.style == "nvt":
-            ch = f.chain
-            ch.eta, ch.eta_dot, ch.eta_dotdot, ch.eta_mass = fx[3:7]
-            ch.t_current, ch.t_target = fx[7].copy(), fx[8].copy()
+        if f.style == "nvt":  # its columns of the chains (see _fix_arrays)
+            ch, (j, o, m) = f.chain, (int(v) for v in fx[0][k, 4:7])
+            ch.eta, ch.eta_dotdot, ch.eta_mass = (fx[i][:, o:o + m].copy() for i in (3, 5, 6))
+            ch.eta_dot = fx[4][:, o + j:o + j + m + 1].copy()
+            ch.t_current, ch.t_target = fx[7][:, j].copy(), fx[8][:, j].copy()
         if f.style == "langevin":  # its columns of the last step's Langevin forces (C, N, 3 L)
             l = int(fx[0][k, 4])
             f.force = np.ascontiguousarray(fx[13][:, :, 3 * l:3 * l + 3])
@@ -2874,13 +2885,13 @@ def _sample_arrays(at: np.ndarray | None, C: int, nface: int, nrf: int, fx: tupl
     """The kernel's `sm` tuple: sample steps (S,) (none: a chunk without samples inside), sum m v^2
     (C, S), clock (C, S, 4): step, dt, atime, atimestep; soft faces (C, S, faces, 3): energy,
     force on the wall, virial; reflect statistics (C, S, reflect faces, 2), wall/reflect/stochastic's faces last; the fixes'
-    accumulators (C, S, K, 4); fix nvt's chain (C, S, 3 M + 2) (none without nvt); flow redraws
+    accumulators (C, S, K, 4); the nvt fixes' chains (C, S, 3 M + 2 each); flow redraws
     (C, S); wall/region fixes (C, S, fixes, 5): energy, force on the wall x y z, virial."""
     at = np.zeros(0, np.int64) if at is None else np.ascontiguousarray(at, np.int64)
     S = at.size
     K = fx[0].shape[0]
-    nvt = bool(K) and bool(np.any(fx[0][:, 0] == FIX_NVT))
-    width = 3 * fx[3].shape[1] + 2 if nvt else 0
+    nvt = int(np.count_nonzero(fx[0][:, 0] == FIX_NVT)) if K else 0
+    width = 3 * fx[3].shape[1] + 2 * nvt if nvt else 0  # 3 m + 2 per nvt fix
     return (at, np.zeros((C, S)), np.zeros((C, S, 4)), np.zeros((C, S, nface, 3)), np.zeros((C, S, nrf, 2)),
             np.zeros((C, S, K, 4)), np.zeros((C, S, width)), np.zeros((C, S)), np.zeros((C, S, nreg, 5)))
 
@@ -2929,15 +2940,17 @@ def _ecouple_samples(ensemble: Any, fixes: list[Any], acc: np.ndarray, chain: np
     the samples' values flattened to C*S rows for the call, then put back."""
     C, S = acc.shape[:2]
     saved = []
+    p = 0
     try:
         for k, f in enumerate(fixes):
             saved.append((f, {name: getattr(f, name) for name in ("removed", "work", "power", "last_dt")}))
             f.removed, f.work, f.power, f.last_dt = (acc[:, :, k, j].reshape(-1) for j in range(4))
-            if f.style == "nvt":
+            if f.style == "nvt":  # its block of the chains' samples (3 M + 2 columns, fix order)
                 ch = f.chain
                 M = ch.eta.shape[1]
                 saved.append((ch, {name: getattr(ch, name) for name in ("eta", "eta_dot", "eta_mass", "t_target")}))
-                flat = chain.reshape(C * S, -1)
+                flat = chain.reshape(C * S, -1)[:, p:p + 3 * M + 2]
+                p += 3 * M + 2
                 ch.eta, ch.eta_dot, ch.eta_mass = flat[:, :M], flat[:, M:2 * M + 1], flat[:, 2 * M + 1:3 * M + 1]
                 ch.t_target = flat[:, 3 * M + 1]
         return ensemble.ecouple(C * S).reshape(C, S)
