@@ -963,10 +963,10 @@ if njit is not None:
     # number j among the batch's fixes of its kind (langevin, nvt; 0, 1, ...), and for fix nvt its
     # chain's offset o, length m and tloop; fx_val (C, K, 6): t_start, t_stop, damp, window,
     # fraction, dof; fx_acc (C, K, 4) (in and out): removed energy, tally work, last power, last dt.
-    # Any number of langevin fixes, each with its own generator (rngs[j]), drag row G1[j] and force
-    # rows FR[3 j .. 3 j + 2], FL[3 j .. 3 j + 2] (x, y, z); any number of nvt fixes, their chains
-    # side by side: eta, eta_dotdot, eta_mass columns o .. o + m - 1, eta_dot o + j .. o + j + m
-    # (one more member each), t_current, t_target, t_freq, drag column j.
+    # Any number of langevin fixes, fix l with its own generator (rngs[l]), drag row G1[l] and force
+    # rows FR[3 l .. 3 l + 2], FL[3 l .. 3 l + 2] (x, y, z); any number of nvt fixes, their chains
+    # side by side, fix j's in eta, eta_dotdot, eta_mass columns o .. o + m - 1, eta_dot columns
+    # o + j .. o + j + m (one member more each) and t_current, t_target, t_freq, drag column j.
     _th_mv2 = inline(_th.atom_mv2)
     _th_dot3 = inline(_th.dot3)
     _th_ramped = inline(_th.ramped)
@@ -2385,16 +2385,15 @@ def _fix_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]) -> tu
                       for name in ("eta", "eta_dot", "eta_dotdot", "eta_mass"))
         per_case = tuple(np.stack([np.broadcast_to(np.asarray(getattr(ch, name), float), (C,)) for ch in chains],
                                   axis=1) for name in ("t_current", "t_target", "t_freq", "drag"))
-        tloop = chains[0].tloop
     else:
         chain = (np.zeros((C, 1)), np.zeros((C, 2)), np.zeros((C, 1)), np.zeros((C, 1)))
         per_case = tuple(np.zeros((C, 1)) for _ in range(4))
-        tloop = 1
     u = s.units
     run_time = np.nan if s.run_time is None else float(s.run_time)  # (a run to a time: the ramp follows the time)
     # the integrated atoms' group row (Ensemble.moving; -1: every atom), for the pair chunks
     moving = -1 if ens is None or ens.moving is None else group(ens.moving, False)
-    fx = (meta, val, acc, *chain, *per_case, np.array([tloop, s.end_step, moving], np.int64),
+    # fx_int: (unused: each nvt fix's tloop is in its fx_meta row), the run's end step, the moving row
+    fx = (meta, val, acc, *chain, *per_case, np.array([0, s.end_step, moving], np.int64),
           np.array([float(u.boltz), float(u.ftm2v), float(u.mvv2e), run_time]), np.zeros((C, N, 3 * len(langevin))))
     return fx, fixes, rngs
 
