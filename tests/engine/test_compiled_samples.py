@@ -264,6 +264,30 @@ def test_stochastic_reflect_sampled_in_the_kernel(monkeypatch, rstyle, thermo):
     assert not np.array_equal(got[0].data["reflect_count"], got[1].data["reflect_count"])
 
 
+@pytest.mark.parametrize("thermo", [1, 25])
+def test_two_stochastic_fixes_in_the_kernel(monkeypatch, thermo):
+    """Two wall/reflect/stochastic fixes after a wall/reflect face: a diffusive floor at T 1.0 and
+    a Maxwell ceiling at T 0.5 moving along x, each its own seed. The kernel draws each fix's faces
+    from that fix's generator, fix after fix, and records their counts after the wall/reflect
+    face's; two cases give the NumPy engine's outputs and streams bit for bit."""
+    configs = []
+    for k, seed in enumerate((77, 91)):
+        soft = harmonic()
+        soft["w"]["zlo"].update(epsilon=0.5, cutoff=2.0)
+        walls = {**soft, "r": {"style": "reflect", "units": "box", "zhi": 6.6},
+                 "s": {"style": "reflect/stochastic", "seed": seed, "units": "box", **STOCHASTIC["diffusive"]},
+                 "t": {"style": "reflect/stochastic", "seed": seed + 1, "units": "box", "rstyle": "maxwell",
+                       "zhi": {"coord": 6.45, "temp": 0.5, "vel": [0.3, 0.0, 0.0], "accom": 0.4}}}
+        configs.append(gas(walls, steps=150, thermo=thermo, output=REFLECT_OUT, seed=5 + k, temperature=1.5))
+    ref, got, eng = check(monkeypatch, configs)
+    assert eng.fast.fallbacks == 0 and eng.fast.sampled_calls > 0
+    for r in got:
+        count = r.data["reflect_count"]
+        assert count.shape == (150 // thermo + 1, 3)
+        assert count[:, 1].sum() > 5 and count[:, 2].sum() > 5  # both stochastic faces reflected atoms
+    assert not np.array_equal(got[0].data["reflect_count"], got[1].data["reflect_count"])
+
+
 # ----------------------------------------------------------------------------- fixes, dt/reset, flow
 
 

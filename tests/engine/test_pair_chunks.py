@@ -444,15 +444,21 @@ def test_table_walls_in_the_fused_chunk(monkeypatch, tabstyle):
     assert np.ptp(energy) > 0 and np.abs(got[0].data["wall_force"][1:]).min(axis=0).max() > 0
 
 
-@pytest.mark.parametrize("rstyle", ["diffusive", "maxwell"])
+@pytest.mark.parametrize("rstyle", ["diffusive", "maxwell", "diffusive+maxwell"])
 def test_stochastic_walls_in_the_fused_chunk(monkeypatch, rstyle):
-    """An LJ liquid between wall/reflect/stochastic thermal walls (reflect counts and impulses):
-    the fused chunk draws from the fix's streams in NumPy's order (`_stochastic_faces`), the
+    """An LJ liquid between wall/reflect/stochastic thermal walls (reflect counts and impulses),
+    one fix with both faces, or two fixes (a diffusive floor, a Maxwell ceiling, each its seed):
+    the fused chunk draws from each fix's streams in NumPy's order (`_stochastic_faces`), the
     per-step path's bits, the statistics recorded per sample in the kernel."""
     d = every(slit(steps=60), thermo=3)
     extra = {"accom": 0.5} if rstyle == "maxwell" else {}
     d["walls"] = {"th": {"style": "reflect/stochastic", "rstyle": rstyle, "seed": 2024, "units": "box",
                          "zlo": {"coord": 1.65, "temp": 1.0, **extra}, "zhi": {"coord": 6.9, "temp": 3.0, **extra}}}
+    if rstyle == "diffusive+maxwell":
+        d["walls"] = {"lo": {"style": "reflect/stochastic", "rstyle": "diffusive", "seed": 2024, "units": "box",
+                             "zlo": {"coord": 1.65, "temp": 1.0}},
+                      "hi": {"style": "reflect/stochastic", "rstyle": "maxwell", "seed": 2025, "units": "box",
+                             "zhi": {"coord": 6.9, "temp": 3.0, "accom": 0.5}}}
     d["output"] = {"thermo": ["step", "temp", "pe", "etot", "reflect_count", "reflect_impulse"]}
     got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(d))
     assert_bits(got, ref)

@@ -43,10 +43,11 @@ step over all atoms. `fixes:` (nvt, langevin, temp/berendsen, temp/rescale, enfo
 with the case's generator of each langevin fix). wall/table faces run in every scene kernel with their tables as data
 (`_table_faces`: one concatenated array, styles.table's lookups jitted; no compile per table);
 wall/lepton faces with the force generated from each expression (`kernel_for`'s `extra`, compiled
-once per set of expressions and cached on disk). One wall/reflect/stochastic fix runs after the
-wall/reflect faces (`_stochastic_faces`: one case per call with the case's generator, one block of
-all atoms so the draws follow atom order, engine/stochastic.py's functions; in sampled chunks
-its counters are recorded at each sample after the wall/reflect ones). Anything else (pair forces, ees, wall/region/ees, ellipsoids,
+once per set of expressions and cached on disk). wall/reflect/stochastic fixes run after the
+wall/reflect faces (`_stochastic_faces`: one case per call with the case's generators, one block
+of all atoms so the draws follow atom order, each fix's faces from its own generator,
+engine/stochastic.py's functions; in sampled chunks their counters are recorded at each sample
+after the wall/reflect ones). Anything else (pair forces, ees, wall/region/ees, ellipsoids,
 several flow fixes) runs in NumPy. A chunk that
 meets trouble (an atom on/behind a wall, a lost atom, a non-finite value, a variable error or a
 negative variable parameter) leaves the state as it was at its start and is handed back to the
@@ -695,13 +696,16 @@ if njit is not None:
     def _stochastic_faces(c, u0, u1, X, V, M, groups, st, ftm2v, mvv2e):
         """fix wall/reflect/stochastic's faces on atoms u0..u1-1 (every atom of the case: the
         chunk runs one block, one case per call), after the wall/reflect faces. st = (st_meta (K, 4)
-        int: dim, side, group row, rule (RSTYLES index); st_val (C, K, 9): coord, temp, vx, vy,
-        vz, ax, ay, az, kB; st_stat (C, K, 2): reflections, impulse; stats flag (1,) int; the
-        case's generator; scratch: SI (N,) int, SD (4, N)). Per face: the atoms past it in atom order, then the
-        draws of StochasticKernel.apply in its order, then its arithmetic atom by atom."""
-        st_meta, st_val, st_stat, st_flag, rng, SI, SD = st
+        int: dim, side, group row, rule (RSTYLES index), the face's fix among the batch's
+        wall/reflect/stochastic fixes; st_val (C, K, 9): coord, temp, vx, vy, vz, ax, ay, az, kB;
+        st_stat (C, K, 2): reflections, impulse; stats flag (1,) int; the case's generators, one
+        per fix; scratch: SI (N,) int, SD (4, N)). Per face, fix after fix: the atoms past it in atom
+        order, then the draws of StochasticKernel.apply in its order from its fix's generator, then
+        its arithmetic atom by atom."""
+        st_meta, st_val, st_stat, st_flag, rngs, SI, SD = st
         for k in range(st_meta.shape[0]):
             d, side, g, rule = st_meta[k, 0], st_meta[k, 1], st_meta[k, 2], st_meta[k, 3]
+            rng = rngs[st_meta[k, 4]]
             coord = st_val[c, k, 0]
             n = 0
             for i in range(u0, u1):
@@ -2111,10 +2115,13 @@ def _reflect_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]
 def _reflect_store(plan: ChunkPlan, rf_prev: np.ndarray, rf_stat: np.ndarray, st_stat: np.ndarray) -> None:
     """Write a successful chunk's wall/reflect state back to the fixes (`_reflect_arrays`' rows),
     and wall/reflect/stochastic's counters (`_stochastic_arrays`' st_stat)."""
-    sk = _stochastic_kernel(plan)
-    if sk is not None and sk.stats:
-        sk.count[...] = st_stat[:, :, 0]
-        sk.impulse[...] = st_stat[:, :, 1]
+    k0 = 0
+    for sk in _stochastic_kernels(plan):  # each fix's faces, in fix order
+        K = len(sk.faces)
+        if sk.stats:
+            sk.count[...] = st_stat[:, k0:k0 + K, 0]
+            sk.impulse[...] = st_stat[:, k0:k0 + K, 1]
+        k0 += K
     reflect = _plain_reflect(plan)
     stats = bool(reflect) and reflect[0].stats
     k = 0
@@ -2129,43 +2136,61 @@ def _reflect_store(plan: ChunkPlan, rf_prev: np.ndarray, rf_stat: np.ndarray, st
 
 
 def _stochastic_kernel(plan: ChunkPlan) -> StochasticKernel | None:
-    """The plan's wall/reflect/stochastic fix (`eligible`: at most one, after the wall/reflect ones)."""
+    """The plan's first wall/reflect/stochastic fix, None without one (`eligible`: they come
+    after the wall/reflect ones)."""
     return next((w for w in plan.reflect if isinstance(w, StochasticKernel)), None)
 
 
+def _stochastic_kernels(plan: ChunkPlan) -> list[StochasticKernel]:
+    """The plan's wall/reflect/stochastic fixes, in fix order."""
+    return [w for w in plan.reflect if isinstance(w, StochasticKernel)]
+
+
+def _stochastic_rngs(plan: ChunkPlan, c: int) -> tuple:
+    """Case c's generators of the wall/reflect/stochastic fixes, in fix order (the kernel's
+    st_rng; a placeholder of the same type without one)."""
+    return tuple(w.rngs[c] for w in _stochastic_kernels(plan)) or _NO_RNGS
+
+
 def _stochastic_eligible(plan: ChunkPlan) -> bool:
-    """wall/reflect/stochastic in the kernel: one such fix, after every wall/reflect fix (the
-    kernel reflects in that order), constant face values, no dt/reset (its windows may be undone,
-    the draws cannot)."""
+    """wall/reflect/stochastic in the kernel: such fixes after every wall/reflect fix (the
+    kernel reflects in that order), constant face values, no dt/reset (its windows may be
+    undone, the draws cannot); their statistics on or off together (the batch's outputs set
+    them for every reflect fix: walls.build_kernels)."""
     kinds = [isinstance(w, StochasticKernel) for w in plan.reflect]
     if not any(kinds):
         return True
-    if kinds.count(True) > 1 or not kinds[-1] or plan.dt_reset is not None:
+    first = kinds.index(True)
+    if not all(kinds[first:]) or plan.dt_reset is not None:
         return False
-    w = plan.reflect[-1]
-    return w.rstyle in RSTYLES and all(isinstance(v, np.ndarray) for face in w.faces
-                                       for v in (face.coord, *face.params.values()))
+    fixes = _stochastic_kernels(plan)
+    if len({w.stats for w in fixes}) > 1:
+        return False
+    return all(w.rstyle in RSTYLES and all(isinstance(v, np.ndarray) for face in w.faces
+                                           for v in (face.coord, *face.params.values())) for w in fixes)
 
 
 def _stochastic_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]) -> tuple:
     """The kernel's wall/reflect/stochastic arguments (see `_stochastic_faces`): st_meta, st_val,
     st_stat (a copy of the counters), st_flag; empty without such a fix."""
     s = plan.state
-    w = _stochastic_kernel(plan)
-    if w is None:
-        return np.zeros((0, 4), np.int64), np.zeros((s.ncases, 0, 9)), np.zeros((s.ncases, 0, 2)), np.zeros(1, np.int64)
-    K = len(w.faces)
-    meta = np.array([[f.dim, f.side, group(w.group, w.all_atoms), RSTYLES.index(w.rstyle)] for f in w.faces],
-                    np.int64).reshape(K, 4)
+    fixes = _stochastic_kernels(plan)
+    if not fixes:
+        return np.zeros((0, 5), np.int64), np.zeros((s.ncases, 0, 9)), np.zeros((s.ncases, 0, 2)), np.zeros(1, np.int64)
+    faces = [(q, w, f) for q, w in enumerate(fixes) for f in w.faces]  # fix after fix
+    K = len(faces)
+    meta = np.array([[f.dim, f.side, group(w.group, w.all_atoms), RSTYLES.index(w.rstyle), q] for q, w, f in faces],
+                    np.int64).reshape(K, 5)
     val = np.zeros((s.ncases, K, 9))
-    for k, f in enumerate(w.faces):
+    for k, (_, _, f) in enumerate(faces):
         val[:, k, 0] = f.coord
         for j, key in enumerate(("temp", "vx", "vy", "vz", "ax", "ay", "az")):
             val[:, k, 1 + j] = f.params[key]
         val[:, k, 8] = s.units.boltz
-    stat = (np.stack([w.count, w.impulse], axis=2).astype(float) if w.stats
+    stats = fixes[0].stats  # (`_stochastic_eligible`: all or none)
+    stat = (np.concatenate([np.stack([w.count, w.impulse], axis=2) for w in fixes], axis=1).astype(float) if stats
             else np.zeros((s.ncases, K, 2)))
-    return meta, val, np.ascontiguousarray(stat), np.array([1 if w.stats else 0], np.int64)
+    return meta, val, np.ascontiguousarray(stat), np.array([1 if stats else 0], np.int64)
 
 
 def _is_table(style: WallStyle) -> bool:
@@ -2791,7 +2816,7 @@ class FastPath(KernelPath):
         units = (float(s.units.ftm2v), float(s.units.mvv2e))
         sm = _sample_arrays(at, C, sf_meta.shape[0], rf_meta.shape[0] + sto[0].shape[0], fx, rg[0].shape[0])
 
-        def case_args(c: slice, fl: tuple, fx_rng: tuple = _NO_RNGS, st_rng: Any = _NO_FLOW[-1]) -> tuple:
+        def case_args(c: slice, fl: tuple, fx_rng: tuple = _NO_RNGS, st_rng: tuple = _NO_RNGS) -> tuple:
             """The kernel's arguments for cases c (a slice: views, so the kernel writes through)."""
             return (*args, s.x[c], s.v[c], s.f[c], s.mass[c], s.radius[c], s.dt[c], s.atime[c],
                     s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
@@ -2803,7 +2828,7 @@ class FastPath(KernelPath):
         # generators drawn from in the kernel (fix langevin, wall/flow, wall/reflect/stochastic):
         # then one case per call, each with its own generators
         generators = [r for rs in fx_rngs for r in rs] + (list(fk.rngs) if fk is not None else []) + \
-            (list(sk.rngs) if sk else [])
+            [r for w in _stochastic_kernels(plan) for r in w.rngs]
         rng_states = [r.bit_generator.state for r in generators]
         if fk is not None:
             phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
@@ -2827,7 +2852,7 @@ class FastPath(KernelPath):
                     fl = (fl_int, fl_f, walls, fk.group[c].astype(np.uint8), phys[c], pend[c], prev[c], cross[c],
                           fk.rngs[c])
                 status = call(*case_args(slice(c, c + 1), fl, fx_rngs[c] if fx_rngs else _NO_RNGS,
-                                         sk.rngs[c] if sk is not None else _NO_FLOW[-1]))
+                                         _stochastic_rngs(plan, c)))
                 if status != 0:
                     return status
             return 0

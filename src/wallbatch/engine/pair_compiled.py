@@ -837,8 +837,8 @@ if njit is not None:
             tb: the wall/table faces' tables (compiled.py's `_tables` and a scratch of N bytes
             rounded up to 64: `_table_faces`, style TABLE_STYLE in sf_meta).
 
-            sto = (st_meta, st_val, st_stat, st_flag, st_rng, mvv2e): a wall/reflect/stochastic fix
-            (compiled.py's `_stochastic_arrays` of this case, row 0; its generator), after the
+            sto = (st_meta, st_val, st_stat, st_flag, st_rng, mvv2e): wall/reflect/stochastic fixes
+            (compiled.py's `_stochastic_arrays` of this case, row 0; their generators), after the
             wall/reflect faces (`_stochastic_faces`; faces on fixed dimensions); mvv2e: the units'
             m v^2 to energy.
 
@@ -1833,7 +1833,7 @@ class PairChunks(_compiled.KernelPath):
         ew = np.zeros((C, 2))
         fk = plan.flow[0] if plan.flow else None
         generators = [r for rs in fx_rngs for r in rs] + (list(fk.rngs) if fk is not None else []) + \
-            (list(sk.rngs) if sk else [])
+            [r for w in _compiled._stochastic_kernels(plan) for r in w.rngs]
         rng_states = [r.bit_generator.state for r in generators]
         if fk is not None:
             phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)
@@ -1878,7 +1878,7 @@ class PairChunks(_compiled.KernelPath):
                      int(s.step[c]), fix_buffers(N if fx[0].shape[0] else 0, fx[13].shape[2] // 3, self._buffer)),
                     (rf_meta, rf_val[c], rf_prev[c], rf_stat[c], bool(stats)), tb,
                     (sto[0], sto[1][c:c + 1], sto[2][c:c + 1], sto[3],
-                     sk.rngs[c] if sk is not None else _compiled._NO_FLOW[-1], float(s.units.mvv2e)),
+                     _compiled._stochastic_rngs(plan, c), float(s.units.mvv2e)),
                     (int(dtr.every) if dtr is not None else 0, dtr_group, dtr_par[c], clk[c]),
                     (sm[0], *(a[c] for a in sm[1:])))
             parts = case_parts(N) if threadable else 1
