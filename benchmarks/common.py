@@ -275,6 +275,18 @@ def stochastic_slit(n: int, **kw: Any) -> dict:
     return cfg
 
 
+def stochastic_two_slit(n: int, **kw: Any) -> dict:
+    """The gas slit between two wall/reflect/stochastic fixes: a diffusive floor (T = 1, seed
+    2024) and a Maxwell ceiling (T = 1, accommodation 0.5, seed 2025)."""
+    cfg = gas_slit(n, "lj93", **kw)
+    cfg["name"] += "-stochastic-two"
+    cfg["walls"] = {"lo": {"style": "reflect/stochastic", "rstyle": "diffusive", "seed": 2024, "units": "box",
+                           "zlo": {"coord": "EDGE", "temp": 1.0}},
+                    "hi": {"style": "reflect/stochastic", "rstyle": "maxwell", "seed": 2025, "units": "box",
+                           "zhi": {"coord": "EDGE", "temp": 1.0, "accom": 0.5}}}
+    return cfg
+
+
 def lj_fcc_slit(n: int, *, steps: int = 1000, thermo: int = 100, seed: int = 7) -> dict:
     """The LJ liquid slit of benchmarks/pair_lj.py (fcc at rho 0.8 melted at T = 2, lj/cut 2.5
     shifted, lj93 walls, dt 0.005) with about n atoms."""

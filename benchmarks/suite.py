@@ -66,7 +66,8 @@ sys.path.insert(0, str(HERE))
 import common  # noqa: E402
 from common import (build, ellipsoid_slit, flow_gas, flow_lj, frozen_slab_slit, gas_2d, gas_slit, hot_cold_slit,  # noqa: E402
                     lammps_export_run, lammps_module, lammps_script, lepton_slit, lj_fcc_slit, region_ees, region_gas,
-                    stochastic_slit, table_slit, thermostat_slit, THERMOSTATS, with_dt_reset, with_fixes)
+                    stochastic_slit, stochastic_two_slit, table_slit, thermostat_slit, THERMOSTATS, with_dt_reset,
+                    with_fixes)
 
 from wallbatch.engine.engine import Engine  # noqa: E402
 
@@ -370,6 +371,8 @@ KINDS: list[tuple[str, str, Callable[..., dict], float]] = [  # (row prefix, sce
     ("2d", "2-D gas channel lj93 (enforce2d)", gas_2d, 1e7),
     ("table", "gas slit wall/table (spline 2000)", table_slit, 1e7),
     ("stochastic", "gas slit wall/reflect/stochastic diffusive", stochastic_slit, 1e7),
+    ("stochastic-two-fixes", "gas slit, two wall/reflect/stochastic fixes (diffusive, maxwell)", stochastic_two_slit,
+     1e7),
 ]
 for _prefix, _scene, _make, _as in KINDS:
     for _n in (1000, 10000):

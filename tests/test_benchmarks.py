@@ -101,7 +101,8 @@ def test_readme_section_is_replaced_between_its_markers_only(suite, tmp_path):
 
 @pytest.mark.parametrize("make", ["ellipsoid_slit", "region_ees", "thermostat_langevin", "thermostat_nvt",
                                   "thermostat_berendsen", "gas_2d", "table_slit", "lepton_slit", "stochastic_slit",
-                                  "flow_gas", "region_sphere", "hot_cold_slit"])
+                                  "flow_gas", "region_sphere", "hot_cold_slit",
+                                  "stochastic_two_slit"])
 def test_scenes_build_and_export_for_lammps_with_its_default_neighbor_settings(suite, make, tmp_path):
     common = suite.common
     if make.startswith("thermostat_"):
