@@ -588,7 +588,7 @@ class AspherePath(_compiled.KernelPath):
             if not self.in_calls(self._steps, nsteps - 1, False):
                 return False
             if not self._chunk(np.ones(1, np.int64), True, True):
-                self.plan_source().advance_numpy(1, True)  # that step in NumPy (trouble is reported there)
+                plan.advance_numpy(1, True)  # that step in NumPy (trouble is reported there)
             return True
         return self.in_calls(self._steps, nsteps, sample)  # (a Ctrl-C is seen between calls)
 

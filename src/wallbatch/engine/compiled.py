@@ -2152,11 +2152,18 @@ def _stochastic_rngs(plan: ChunkPlan, c: int) -> tuple:
     return tuple(w.rngs[c] for w in _stochastic_kernels(plan)) or _NO_RNGS
 
 
+def _chunk_generators(plan: ChunkPlan, fx_rngs: list[tuple]) -> list[Any]:
+    """Every generator a chunk's kernel draws from (fix langevin's per case and fix, wall/flow's,
+    wall/reflect/stochastic's per case and fix), so that a chunk handed back to NumPy can rewind
+    them; empty: the kernel draws nothing."""
+    flow = list(plan.flow[0].rngs) if plan.flow else []
+    return [r for rs in fx_rngs for r in rs] + flow + [r for w in _stochastic_kernels(plan) for r in w.rngs]
+
+
 def _stochastic_eligible(plan: ChunkPlan) -> bool:
     """wall/reflect/stochastic in the kernel: such fixes after every wall/reflect fix (the
     kernel reflects in that order), constant face values, no dt/reset (its windows may be
-    undone, the draws cannot); their statistics on or off together (the batch's outputs set
-    them for every reflect fix: walls.build_kernels)."""
+    undone, the draws cannot)."""
     kinds = [isinstance(w, StochasticKernel) for w in plan.reflect]
     if not any(kinds):
         return True
@@ -2164,8 +2171,6 @@ def _stochastic_eligible(plan: ChunkPlan) -> bool:
     if not all(kinds[first:]) or plan.dt_reset is not None:
         return False
     fixes = _stochastic_kernels(plan)
-    if len({w.stats for w in fixes}) > 1:
-        return False
     return all(w.rstyle in RSTYLES and all(isinstance(v, np.ndarray) for face in w.faces
                                            for v in (face.coord, *face.params.values())) for w in fixes)
 
@@ -2187,7 +2192,7 @@ def _stochastic_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]
         for j, key in enumerate(("temp", "vx", "vy", "vz", "ax", "ay", "az")):
             val[:, k, 1 + j] = f.params[key]
         val[:, k, 8] = s.units.boltz
-    stats = fixes[0].stats  # (`_stochastic_eligible`: all or none)
+    stats = fixes[0].stats  # (the batch's outputs set it for every reflect fix: walls.build_kernels)
     stat = (np.concatenate([np.stack([w.count, w.impulse], axis=2) for w in fixes], axis=1).astype(float) if stats
             else np.zeros((s.ncases, K, 2)))
     return meta, val, np.ascontiguousarray(stat), np.array([1 if stats else 0], np.int64)
@@ -2827,8 +2832,7 @@ class FastPath(KernelPath):
 
         # generators drawn from in the kernel (fix langevin, wall/flow, wall/reflect/stochastic):
         # then one case per call, each with its own generators
-        generators = [r for rs in fx_rngs for r in rs] + (list(fk.rngs) if fk is not None else []) + \
-            [r for w in _stochastic_kernels(plan) for r in w.rngs]
+        generators = _chunk_generators(plan, fx_rngs)
         rng_states = [r.bit_generator.state for r in generators]
         if fk is not None:
             phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)

@@ -1832,8 +1832,7 @@ class PairChunks(_compiled.KernelPath):
                                                             ("owner", pair._owner), ("first", pair._first))]
         ew = np.zeros((C, 2))
         fk = plan.flow[0] if plan.flow else None
-        generators = [r for rs in fx_rngs for r in rs] + (list(fk.rngs) if fk is not None else []) + \
-            [r for w in _compiled._stochastic_kernels(plan) for r in w.rngs]
+        generators = _compiled._chunk_generators(plan, fx_rngs)
         rng_states = [r.bit_generator.state for r in generators]
         if fk is not None:
             phys, pend = fk.phys.astype(np.int64), fk.pend.astype(np.int64)

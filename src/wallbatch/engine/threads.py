@@ -196,7 +196,7 @@ def _in_threads(calls: list[Callable[[], int]], nthreads: int | None = None) -> 
     thread taking the next call not yet taken (in list order) until none is left; their results
     in list order (an exception is re-raised)."""
     out: list[Any] = [None] * len(calls)
-    taken = iter(range(len(calls)))  # next() on a range iterator is atomic under the GIL
+    taken = iter(range(len(calls)))  # the calls not yet taken, in order (a lock around next())
     lock = threading.Lock()
 
     def work() -> None:
