@@ -214,3 +214,49 @@ def test_repeated_calls_type_the_arguments_once():
     assert call.entry is not None and call.entry is not scale  # compiled by the first call: its entry point
     assert call(x, 0.5) == 10.0 and firsts == [1]
     np.testing.assert_array_equal(x, np.arange(5.0))
+
+
+def test_a_later_repeated_of_the_same_kernel_and_argument_kinds_skips_numbas_typing(monkeypatch):
+    """`backend.Repeated` without `first` keeps the resolved entry point for the process under the
+    arguments' kinds (`argument_kinds`): the next chunk's Repeated of the same kernel, with other
+    arrays of the same kinds, calls that entry point at once (no `resolved`, no dispatcher call),
+    with the same result; arguments of another kind (float32, a read-only array, an int beyond
+    int64) are typed and resolved anew, each to its own entry point."""
+    numba = pytest.importorskip("numba")
+
+    @numba.njit(nogil=True)
+    def shift(x, pair, k):
+        a, b = pair
+        for i in range(x.shape[0]):
+            x[i] += k * a[i] - b[i]
+        return x.sum()
+
+    rng = np.random.default_rng(3)
+    x, pair = rng.random(20), (rng.random(20), rng.random(20))
+    first = backend.Repeated(shift)
+    want = x.copy()
+    assert first(want, pair, 2) == pytest.approx(want.sum())
+    assert first.entry is not None and first.entry is not shift
+    resolves = []
+    real = backend.resolved
+    monkeypatch.setattr(backend, "resolved", lambda k, a: resolves.append(1) or real(k, a))
+    later = backend.Repeated(shift)
+    got = x.copy()
+    out = later(got, (pair[0].copy(), pair[1].copy()), 2)  # other arrays, the same kinds
+    assert resolves == [] and later.entry is first.entry
+    np.testing.assert_array_equal(got, want)
+    assert out == want.sum()
+    other = backend.Repeated(shift)
+    x32 = x.astype(np.float32)
+    other(x32, pair, 2)
+    assert resolves == [1] and other.entry is not first.entry
+    np.testing.assert_allclose(x32, want, rtol=1e-6)
+    kinds = backend.argument_kinds
+    ro = pair[0].copy()
+    ro.flags.writeable = False
+    assert kinds((x, (pair[0], pair[1]), 2)) == kinds((x.copy(), (pair[1], pair[0]), 7))
+    assert kinds((x, (ro, pair[1]), 2)) != kinds((x, pair, 2))  # read-only: another numba type
+    assert kinds((x[::2], pair, 2)) != kinds((x, pair, 2))  # strided: layout A
+    assert kinds((x, pair, 1 << 63)) != kinds((x, pair, 2))  # beyond int64: uint64
+    assert kinds((x, pair, 2.0)) != kinds((x, pair, 2))
+    assert kinds((x, [1, 2], 2)) is None  # a list (or any other object): no key, typed each time

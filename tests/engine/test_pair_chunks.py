@@ -208,9 +208,9 @@ def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
 
 
 def test_later_cases_of_a_chunk_skip_numbas_typing(monkeypatch):
-    """Three cases of a batch, one kernel call each per chunk: the first through numba's
-    dispatcher, the others through the entry point it resolved (`backend.resolved`), with the
-    per-step path's bits."""
+    """Three cases of a batch, one kernel call each per chunk: the first of the process through
+    numba's dispatcher, every other through the entry point it resolved (`backend.resolved`, kept
+    for the later chunks: `backend.Repeated`), with the per-step path's bits."""
     from wallbatch.engine import backend
 
     calls = {"dispatcher": 0, "entry": 0}
@@ -224,7 +224,8 @@ def test_later_cases_of_a_chunk_skip_numbas_typing(monkeypatch):
     got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(slit(1.0), slit(1.2), slit(1.4)))
     assert_bits(got, ref)
     assert isinstance(fused.fast, PairChunks) and fused.fast.fallbacks == 0
-    assert calls["dispatcher"] >= 1 and calls["entry"] == 2 * calls["dispatcher"]
+    total = calls["dispatcher"] + calls["entry"]
+    assert calls["dispatcher"] <= 1 and total >= 3 and total % 3 == 0  # (0: kept by an earlier test's chunks)
 
 
 def test_sample_takes_the_chunk_outputs(monkeypatch):

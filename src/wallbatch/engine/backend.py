@@ -46,6 +46,8 @@ import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
+import numpy as np
+
 from wallbatch.config.models import Config
 from wallbatch.config.sweep import SweepPlan
 from wallbatch.scene.build import atom_count
@@ -124,12 +126,47 @@ def resolved(kernel: Callable[..., Any], args: tuple) -> Callable[..., Any]:
         return kernel
 
 
+_ENTRIES: dict[tuple[int, Any], tuple[Any, Callable[..., Any]]] = {}  # (id(kernel), argument kinds): (kernel, entry)
+_INT64 = (-(1 << 63), 1 << 63)
+
+
+def argument_kinds(args: tuple) -> Any:
+    """What numba's typing reads from `args` (`Repeated`'s key of a resolved entry point): per
+    array its class, dtype, dimensions, layout (C, F or neither), whether it is writeable and
+    aligned; per tuple its items' kinds; per Python int whether it fits int64; per other scalar
+    or generator its class. None for anything else (no key: typed by numba each time)."""
+    out = []
+    for a in args:
+        t = type(a)
+        if t is np.ndarray:
+            fl = a.flags
+            out.append((a.dtype, a.ndim, fl.c_contiguous, fl.f_contiguous, fl.writeable, fl.aligned))
+        elif t is tuple:
+            k = argument_kinds(a)
+            if k is None:
+                return None
+            out.append(("t", k))
+        elif t is int:
+            out.append((int, _INT64[0] <= a < _INT64[1]))
+        elif t in _SCALARS or isinstance(a, np.generic) or isinstance(a, np.random.Generator):
+            out.append(t)
+        else:
+            return None
+    return tuple(out)
+
+
+_SCALARS = (float, bool, complex, type(None))
+
+
 class Repeated:
     """Calls of one compiled kernel with arguments of the same types, one after another (a chunk's
     call per case, per thread's part and step): the first through `first` (default: the kernel,
     by `call_kernel`), the others to the entry point `resolved` finds for that first call's
-    arguments (numba's typing once, not per call). Threads may share one: a race only makes two
-    first calls."""
+    arguments (numba's typing once, not per call). Without `first`, the entry point is also kept
+    for the process under the arguments' kinds (`argument_kinds`): a later Repeated of the same
+    kernel with arguments of the same kinds (the next chunk's) skips numba's typing altogether
+    (~1-2 ms per typing of the pair chunk kernel's ~50 arguments). Threads may share one: a race
+    only makes two first calls."""
 
     def __init__(self, kernel: Callable[..., Any], first: Callable[..., Any] | None = None):
         self.kernel = kernel
@@ -139,8 +176,16 @@ class Repeated:
     def __call__(self, *args: Any) -> Any:
         if self.entry is not None:
             return call_kernel(self.entry, *args)
+        kinds = argument_kinds(args) if self.first is None else None
+        key = None if kinds is None else (id(self.kernel), kinds)
+        kept = _ENTRIES.get(key) if key is not None else None
+        if kept is not None and kept[0] is self.kernel:
+            self.entry = kept[1]
+            return call_kernel(self.entry, *args)
         out = self.first(*args) if self.first is not None else call_kernel(self.kernel, *args)
         self.entry = resolved(self.kernel, args)  # (compiled by the first call if it was new)
+        if key is not None and self.entry is not self.kernel:
+            _ENTRIES[key] = (self.kernel, self.entry)
         return out
 
 
