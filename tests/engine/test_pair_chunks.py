@@ -357,18 +357,32 @@ def test_trouble_in_a_sampled_chunk(monkeypatch):
     assert fused.fast.fallbacks >= 1 and fused.fast.sampled_calls >= 1 and fused.sample_blocks
 
 
-def test_a_case_over_threads_samples_one_instant_at_a_time(monkeypatch):
-    """A case cut over threads (`case_parts` 2 here) keeps one chunk per sample, its outputs
-    taken from the chunk's last pass: the same bits as samples in the kernel and as stepwise."""
-    cases = cases_of(every(slit(), steps=12))
+@pytest.mark.parametrize("scene", ["slit", "flow", "berendsen"])
+def test_a_case_over_threads_records_its_samples_in_the_kernel(monkeypatch, scene):
+    """A case cut over threads (`case_parts` 2 here) records its samples in the kernel as on one
+    thread (`samples_on_threads`: each sample step's rest on all atoms in one call, the pair's
+    energy and virial from the threads' pass): one threaded call for the 12 samples, the same bits
+    as the one-thread kernel and as stepwise. With a thermostat (its end of step runs between the
+    threads' calls, after the rest of the step) one chunk per sample, its outputs taken from the
+    chunk's last pass, the same bits."""
+    config = every(flow_fluid("exact") if scene == "flow" else slit(), steps=12)
+    if scene == "berendsen":
+        config["fixes"] = dict(THERMOSTATS["berendsen"])
+    cases = cases_of(config)
     inkernel, _, ref, _ = run_fused_and_stepwise(monkeypatch, cases)
     monkeypatch.setattr(pair_compiled, "case_parts", lambda n: 2)
+    monkeypatch.setattr(pair_compiled, "THREAD_MIN_USE", 0.0)  # never judged busy (a loaded test machine)
     eng = Engine(cases)
     got = eng.run()
     assert_bits(got, ref)
     assert_bits(inkernel, ref)
-    assert eng.fast.sampled_calls == 0 and not eng.sample_blocks and eng.fast.compiled_chunks == 12
-    assert eng.fast.threaded_chunks >= 1  # (a chunk judged slowed by other work runs the next ones in one call)
+    assert eng.fast.compiled_chunks == 12 and eng.fast.fallbacks == 0
+    if scene == "berendsen":
+        assert eng.fast.sampled_calls == 0 and not eng.sample_blocks and eng.fast.threaded_chunks == 12
+    else:
+        assert_sampled_in_kernel(eng)
+        assert eng.fast.threaded_chunks == eng.fast.sampled_calls == 1
+
 
 
 THERMOSTATS = {

@@ -153,14 +153,16 @@ def run_threads(monkeypatch, config: dict, n: int):
 def threads_match_one(monkeypatch, config: dict) -> tuple[list, Engine, list[Engine]]:
     """(results, engine) of one thread and the engines of 2 and 3 threads, after checking that
     these give every sample, the final state and the neighbor builds of one thread bit for bit,
-    every chunk threaded (one thread: none), no chunk handed back."""
+    every kernel call threaded (one thread: none; a call records its samples in the kernel where
+    `samples_on_threads`, else one per sample), no chunk handed back."""
     ref, one = run_threads(monkeypatch, config, 1)
     assert one.fast.threaded_chunks == 0 and one.fast.compiled_chunks >= 3 and one.fast.fallbacks == 0
     engines = []
     for n in (2, 3):
         got, eng = run_threads(monkeypatch, config, n)
         assert_bits(got, ref)
-        assert eng.fast.threaded_chunks == eng.fast.compiled_chunks == one.fast.compiled_chunks
+        assert eng.fast.compiled_chunks == one.fast.compiled_chunks  # (samples recorded in the kernel: one each)
+        assert eng.fast.threaded_chunks == (eng.fast.sampled_calls or eng.fast.compiled_chunks)  # every call threaded
         assert eng.fast.fallbacks == 0
         for name in ("x", "v", "f"):
             np.testing.assert_array_equal(getattr(eng.state, name), getattr(one.state, name), err_msg=name)
@@ -265,6 +267,7 @@ def test_busy_cores_run_chunks_in_one_call_for_a_while(monkeypatch):
     monkeypatch.setattr(pair_compiled, "BUSY_SKIP", 3)
     monkeypatch.setenv("WALLBATCH_THREADS", "2")
     monkeypatch.setattr(pair_compiled, "THREAD_MIN_USE", 1e9)  # every threaded chunk looks starved
+    monkeypatch.setattr(PairChunks, "samples_in_kernel", lambda self, at: False)  # a chunk per sample
     eng = Engine(cases_of(config))
     got = eng.run()
     assert_bits(got, ref)
@@ -433,3 +436,67 @@ def test_thermostat_with_flow_walls_on_threads(monkeypatch, kind):
     config["output"] = {"thermo": ["step", "temp", "pe", "etot", "ecouple", "econserve", "flow_crossings"]}
     ref, one, engines = threads_match_one(monkeypatch, config)
     assert ref[0].data["flow_crossings"][1:].sum() > 5 and np.ptp(ref[0].data["ecouple"]) > 0
+
+
+LANGEVIN_SPLIT = {  # Langevin fixes whose draws the threads share (`SplitDraws`): no zero yes, no fix nvt
+    "fluid+post": {"i": "fix i all nve", "t": "fix t fluid langevin 1.5 1.5 0.5 77 tally yes",
+                   "p": "fix p post langevin 0.5 0.5 0.2 91"},
+    "all+berendsen": {"i": "fix i all nve", "t": "fix t all langevin 1.5 1.0 0.5 48279",
+                      "b": "fix b fluid temp/berendsen 1.5 1.0 0.2"},
+    "zero-yes": {"i": "fix i all nve", "t": "fix t all langevin 1.5 1.0 0.5 48279 zero yes"},  # (one thread draws)
+}
+
+
+@pytest.mark.parametrize("scene", sorted(LANGEVIN_SPLIT))
+def test_langevin_draws_split_over_threads_keep_the_one_thread_stream(monkeypatch, scene):
+    """Langevin random forces drawn by the threads at once, each its run of atoms from copies of
+    the fixes' generators advanced past the atoms before it (`SplitDraws`; a fix on the 12 post
+    atoms, which all sit in the first run, and one on the fluid): 2 and 3 threads give one
+    thread's samples, final state and Langevin forces bit for bit, over several chunks (each
+    continuing the streams where the last ended). With zero yes one thread draws them all."""
+    done = []
+    real = pair_compiled.SplitDraws.done
+    monkeypatch.setattr(pair_compiled.SplitDraws, "done", lambda self: done.append(1) or real(self))
+    ref, one, engines = threads_match_one(monkeypatch, frozen_post(dict(LANGEVIN_SPLIT[scene])))
+    assert (len(done) > 0) == (scene != "zero-yes")
+    assert one.fast.compiled_chunks >= 3
+    for eng in engines:
+        for a, b in zip(eng.ensemble.fixes, one.ensemble.fixes):
+            if a.style == "langevin":
+                assert np.abs(b.force).max() > 0
+                np.testing.assert_array_equal(a.force, b.force)
+        for a, b in zip(eng.ensemble.langevin, one.ensemble.langevin):
+            assert [r.bit_generator.state for r in a.rngs] == [r.bit_generator.state for r in b.rngs]
+
+
+def test_split_draws_generators_stand_where_the_one_stream_reaches_each_part():
+    """`SplitDraws`: part p's generators give the one stream's numbers from draw before[p] on, and
+    after `done` each fix's generator stands where the one stream ends (two steps, each 30 draws
+    per stream); a generator of another kind, or one holding half a 64-bit output, is refused, and
+    `of` counts three draws per group atom before each part."""
+    gens = (np.random.default_rng(11), np.random.default_rng(12))
+    streams = [np.random.default_rng(11).random(60), np.random.default_rng(12).random(60)]
+    before = np.array([[0, 0], [9, 0], [21, 6]])  # each part's first draw per fix (three parts)
+    ends = np.vstack([before[1:], [30, 30]])
+    split = pair_compiled.SplitDraws(gens, before)
+    for step in range(2):
+        parts = split.ready()
+        got = [np.concatenate([parts[p][f].random(int(ends[p, f] - before[p, f])) for p in range(3)]) for f in range(2)]
+        split.done()
+        for f in range(2):
+            np.testing.assert_array_equal(got[f], streams[f][30 * step:30 * step + 30])
+    for f in range(2):
+        ref = np.random.default_rng(11 + f)
+        ref.random(60)
+        assert gens[f].bit_generator.state == ref.bit_generator.state
+    meta = np.array([[pair_compiled._compiled.FIX_LANGEVIN, 0, 0, 0, 0]])
+    mask = np.array([[1, 0, 1, 1, 0, 1]], np.uint8)
+    assert pair_compiled.SplitDraws.of(((meta,), (np.random.Generator(np.random.MT19937(1)),)), mask, [0, 3]) is None
+    half = np.random.default_rng(1)
+    half.integers(0, 10, dtype=np.uint32)  # (a 32-bit draw keeps the other half of its output)
+    assert pair_compiled.SplitDraws.of(((meta,), (half,)), mask, [0, 3]) is None
+    zero = meta.copy()
+    zero[0, 3] = 1
+    assert pair_compiled.SplitDraws.of(((zero,), (np.random.default_rng(1),)), mask, [0, 3]) is None
+    ok = pair_compiled.SplitDraws.of(((meta,), (np.random.default_rng(1),)), mask, [0, 2, 5])
+    np.testing.assert_array_equal(ok.before[:, 0], [0, 3, 9])

@@ -1089,35 +1089,9 @@ if njit is not None:
                 _scale_group(V, groups, g, total)
             elif kind == FIX_LANGEVIN:
                 l = fx_meta[k, 4]
-                rng = rngs[l]
                 f0, f1, f2 = FR[3 * l], FR[3 * l + 1], FR[3 * l + 2]
                 amp = _th_amp(fx_val[c, k, 2], dtc, fx_f[1], fx_f[2], boltz)
-                st = np.sqrt(target)
-                m0 = 0.0
-                m1 = 0.0
-                m2 = 0.0
-                count = 0
-                for i in range(n):
-                    if groups[g, i] != 0:
-                        r0 = _th_random(SQM[i], amp, st, rng.random())
-                        r1 = _th_random(SQM[i], amp, st, rng.random())
-                        r2 = _th_random(SQM[i], amp, st, rng.random())
-                        count += 1
-                    else:
-                        r0 = _th_random(SQM[i], amp, st, 0.5)
-                        r1 = _th_random(SQM[i], amp, st, 0.5)
-                        r2 = _th_random(SQM[i], amp, st, 0.5)
-                    f0[i] = r0
-                    f1[i] = r1
-                    f2[i] = r2
-                    if groups[g, i] != 0:
-                        m0 += r0
-                        m1 += r1
-                        m2 += r2
-                    else:
-                        m0 += 0.0
-                        m1 += 0.0
-                        m2 += 0.0
+                m0, m1, m2, count = _langevin_draws(rngs[l], f0, f1, f2, SQM, amp, np.sqrt(target), groups, g, 0, n)
                 if fx_meta[k, 3] & 1 and count > 0:  # zero yes: the group's random forces sum to zero
                     m0 /= count
                     m1 /= count
@@ -1126,6 +1100,57 @@ if njit is not None:
                         f0[i] = f0[i] - m0
                         f1[i] = f1[i] - m1
                         f2[i] = f2[i] - m2
+        return 0
+
+    @inline
+    def _langevin_draws(rng, f0, f1, f2, SQM, amp, st, groups, g, a_lo, a_hi):
+        """One langevin fix's random forces of the atoms a_lo .. a_hi - 1 into f0, f1, f2: three
+        uniforms from rng per atom of group g, atom after atom (thermostats' langevin random force;
+        0.5, no draw, for the others). Returns their sums over the group's atoms, in atom order,
+        and the count of those atoms."""
+        m0 = 0.0
+        m1 = 0.0
+        m2 = 0.0
+        count = 0
+        for i in range(a_lo, a_hi):
+            if groups[g, i] != 0:
+                r0 = _th_random(SQM[i], amp, st, rng.random())
+                r1 = _th_random(SQM[i], amp, st, rng.random())
+                r2 = _th_random(SQM[i], amp, st, rng.random())
+                count += 1
+            else:
+                r0 = _th_random(SQM[i], amp, st, 0.5)
+                r1 = _th_random(SQM[i], amp, st, 0.5)
+                r2 = _th_random(SQM[i], amp, st, 0.5)
+            f0[i] = r0
+            f1[i] = r1
+            f2[i] = r2
+            if groups[g, i] != 0:
+                m0 += r0
+                m1 += r1
+                m2 += r2
+            else:
+                m0 += 0.0
+                m1 += 0.0
+                m2 += 0.0
+        return m0, m1, m2, count
+
+    @inline
+    def _fix_draws(c, stepn, dtc, at, ats, groups, fx, rngs, SQM, FR, a_lo, a_hi):
+        """The langevin fixes' random forces of step stepn for the atoms a_lo .. a_hi - 1 only, each
+        fix's from rngs[l] (`_fix_pre`'s draws, for one thread's run of atoms: its generators
+        stand where the one-thread stream reaches atom a_lo). For fixes without zero yes and no
+        fix nvt (`_fix_pre` does nothing else then)."""
+        fx_meta, fx_val, fx_acc, eta, ed, edd, Q, tc, tt, tf, drag, fx_int, fx_f, _fo = fx
+        frac = _ramp_frac(stepn, dtc, at, ats, fx_int, fx_f)
+        boltz = fx_f[0]
+        for k in range(fx_meta.shape[0]):
+            if fx_meta[k, 0] == FIX_LANGEVIN:
+                l = fx_meta[k, 4]
+                target = _th_ramped(fx_val[c, k, 0], fx_val[c, k, 1], frac)
+                amp = _th_amp(fx_val[c, k, 2], dtc, fx_f[1], fx_f[2], boltz)
+                _langevin_draws(rngs[l], FR[3 * l], FR[3 * l + 1], FR[3 * l + 2], SQM, amp, np.sqrt(target), groups,
+                                fx_meta[k, 1], a_lo, a_hi)
         return 0
 
     @inline

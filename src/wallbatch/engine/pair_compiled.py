@@ -1052,6 +1052,18 @@ if njit is not None:
                     fx[13][0, a, d] = FLa[a, d]
         return status
 
+    _fix_draws = _compiled._fix_draws
+
+    def _fix_draws_part(stepn: int, dt: float, groups: np.ndarray, fix: tuple, rngs: tuple, clk: np.ndarray,
+                        a_lo: int, a_hi: int) -> int:
+        """`_fix_phase`'s phase 1 for the atoms a_lo .. a_hi - 1 only, when it is only Langevin random
+        forces (no fix nvt, no zero yes: `_chunk_steps`' split draws): each langevin fix's from
+        rngs[l], a generator standing where the one-thread stream reaches atom a_lo. Threads draw
+        their runs at once; the forces and the stream's end are the one call's."""
+        fx, _rng, _step0, fb = fix
+        SQM, G1a, FRa, FLa, KB = fb
+        return _fix_draws(0, stepn, dt, clk[1], clk[2], groups, fx, rngs, SQM, FRa.T, a_lo, a_hi)
+
     @functools.lru_cache(maxsize=1)
     def _compiled_key() -> str:
         """A digest of compiled.py (the fix and reflect kernels `fix_phase` and `pre_step` call) and
@@ -1066,6 +1078,11 @@ if njit is not None:
     def fix_phase() -> Any:
         """`_fix_phase` compiled (its on-disk cache keyed by `_compiled_key`)."""
         return jit(_compiled._relink(_fix_phase, name=f"fix_phase_{_compiled_key()}"))
+
+    @functools.lru_cache(maxsize=1)
+    def fix_draws() -> Any:
+        """`_fix_draws_part` compiled (its on-disk cache keyed by `_compiled_key`)."""
+        return jit(_compiled._relink(_fix_draws_part, name=f"fix_draws_{_compiled_key()}"))
 
     @functools.lru_cache(maxsize=1)
     def pre_step() -> Any:
@@ -1530,6 +1547,18 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
     # every part's call, at every step, has arguments of the same types: typed once (`backend.Repeated`)
     tail_kernel = backend.Repeated(kernel)
     phase = backend.Repeated(fix_phase()) if coupled else None
+    sm = a["sm"]  # samples in the kernel (`samples_on_threads`): sm[0] their steps, from 1
+    due = {int(t) - 1: i for i, t in enumerate(sm[0])}  # step index: sample index
+    sample_kernel = backend.Repeated(kernel) if due else None
+    one = np.ones(1, np.int64)
+
+    def sample_tail(step: int, i: int) -> tuple[int, int]:
+        """The rest of sample step `step` (sample i) on all atoms in one call, which records the
+        sample as the one-thread kernel records it (sums over the atoms in their order): (status, 0)."""
+        pending.replay(f, 0, N)
+        t = dict(a, neigh=neigh, sf_val=sf_val[step:step + 1] if vary else sf_val,
+                 fix=(fix[0], fix[1], step0 + step, fix[3]), sm=(one, *(b[i:i + 1] for b in sm[1:])))
+        return sample_kernel(*t.values())[0], 0
 
     pending = old = None
     split = held.get("split")  # the starting list's, if the caller kept it
@@ -1541,10 +1570,30 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
     if shares is None or len(shares) != parts + 1:
         shares = np.arange(parts + 1) / parts
     held["split"] = None  # (a chunk with trouble keeps nothing)
+    draws = SplitDraws.of(fix, groups, [r.start for r in runs]) if coupled and len(tails) == parts else None
+    draw = backend.Repeated(fix_draws()) if draws is not None else None
+
+    def start(stepn: int) -> int:
+        """The start of step stepn: `_fix_pre` (phase 1), then `pre` in parts; with `draws`, each
+        part draws its own atoms' random forces first, in the same call as its `pre`."""
+        if draws is None:
+            phase(1, stepn, dt, ftm2v, mass, v, groups, fix, clk)
+            return pres()
+        gens = draws.ready()
+
+        def part(p: int) -> int:
+            draw(stepn, dt, groups, fix, gens[p], clk, runs[p].start, runs[p].stop)
+            return pre(p)
+
+        out = max(crew([lambda p=p: part(p) for p in range(parts)]))
+        draws.done()
+        return out
+
     if coupled:  # the Langevin factors, then the first step's start (`pair_chunk`'s `_fix_pre`)
         phase(0, 0, dt, ftm2v, mass, v, groups, fix, clk)
-        phase(1, step0 + 1, dt, ftm2v, mass, v, groups, fix, clk)
-    st = pres()
+        st = start(step0 + 1)
+    else:
+        st = pres()
     faces_moved()
     for step in range(nsteps):
         if st == 3:
@@ -1568,8 +1617,9 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
             split = RowSplit(owner, first, neigh, parts, crew, *((marks, rows) if built else (None, None)), reuse=old,
                              buffer=buffer)
         last = sample and step == nsteps - 1  # the sample's pair pass: also the energy and virial
+        isample = due.get(step)
         cpu, e, w = forces_threaded(x, f, owner, first, neigh, split, *lj, length, per, crew, replay=False,
-                                    outputs=last, cut=runs[1].start if parts == 2 else N)
+                                    outputs=last or isample is not None, cut=runs[1].start if parts == 2 else N)
         pending = split  # its logs are replayed by tail_pre, each part its own atoms
         if last:
             a["ew"][0], a["ew"][1] = e, w
@@ -1577,7 +1627,12 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
             fast = cpu if fast is None else np.minimum(fast, cpu)  # each part's quickest pass on this list
             shares = _rebalance(shares, rows / N, fast)  # (a pass slowed by other work would skew it)
         at_step[0] = step + 1  # (the next step's start, in `tail_pre` or `pres`)
-        if len(tails) == parts and not coupled:  # the rest of this step and the start of the next, atoms in parts
+        if isample is not None:  # a sample step's rest on all atoms, the sample recorded; the next start in parts
+            got = [sample_tail(step, isample)]
+            sm[-1][isample, 0], sm[-1][isample, 1] = e, w  # (the pair's energy and virial: this step's pass)
+            if got[0][0] == 0 and step + 1 < nsteps:
+                got.append((0, pres()))
+        elif len(tails) == parts and not coupled:  # the rest of this step and the start of the next, atoms in parts
             got = crew([lambda p=p: tail_pre(p, step) for p in range(parts)])
         else:  # the rest of the step on each part (wall/flow: on all atoms), the fixes' sums over all
             # atoms (the end of this step, the start of the next), then the next start in parts
@@ -1593,10 +1648,8 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
                     phase(4, step0 + step + 1, dt, ftm2v, mass, v, groups, fix, clk)
                 if fs != 0:  # (6: a zero temperature; the NumPy loop reports it)
                     return fs, builds, neigh
-                if step + 1 < nsteps:
-                    phase(1, step0 + step + 2, dt, ftm2v, mass, v, groups, fix, clk)
             if ok and step + 1 < nsteps:
-                got.append((0, pres()))
+                got.append((0, start(step0 + step + 2) if coupled else pres()))
         pending = None
         bad = next((g[0] for g in got if g[0] != 0), 0)
         if bad != 0:
@@ -1606,6 +1659,55 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
         st = max(g[1] for g in got)
     held["split"], held["shares"] = split, shares
     return 0, builds, neigh
+
+
+class SplitDraws:
+    """A step's Langevin random forces drawn by the threads at once, each its own run of atoms
+    (`fix_draws`), with the one thread's stream: part p draws from copies of the fixes'
+    generators (PCG64) advanced past the draws of the atoms before its run (three uniforms, one
+    64-bit output each, per atom of the fix's group); then each fix's own generator takes the last
+    part's end, where the one thread's stream ends. `of` gives None where the split would change
+    the stream or the forces: another bit generator, a generator holding half of a 64-bit output,
+    fix nvt in the scene (its chain's half step scales the velocities there), zero yes (the
+    group's sums in atom order)."""
+
+    def __init__(self, gens: tuple, before: np.ndarray):
+        self.gens = gens
+        self.before = before  # (parts, fixes): draws of each fix's stream before part p's atoms
+        self.copies = [gens] + [tuple(np.random.Generator(np.random.PCG64(0)) for _ in gens)
+                                for _ in range(1, len(before))]
+
+    @classmethod
+    def of(cls, fix: tuple, groups: np.ndarray, starts: list[int]) -> "SplitDraws | None":
+        """For `_chunk_steps`' fix tuple, its groups (G, N) and the parts' first atoms, or None."""
+        meta, gens = fix[0][0], fix[1]
+        kinds = meta[:, 0]
+        if len(starts) < 2 or not len(gens) or np.any(kinds == _compiled.FIX_NVT):
+            return None
+        lang = np.flatnonzero(kinds == _compiled.FIX_LANGEVIN)
+        if not len(lang) or np.any(meta[lang, 3] & 1):
+            return None
+        for g in gens:
+            if not isinstance(g.bit_generator, np.random.PCG64) or g.bit_generator.state["has_uint32"]:
+                return None
+        before = np.zeros((len(starts), len(gens)), np.int64)
+        for k in lang:
+            row = groups[int(meta[k, 1])]
+            before[:, int(meta[k, 4])] = [3 * int(np.count_nonzero(row[:a])) for a in starts]
+        return cls(gens, before)
+
+    def ready(self) -> list[tuple]:
+        """Each part's generators for this step's draws (part 0: the fixes' own)."""
+        for p in range(1, len(self.copies)):
+            for g, c, skip in zip(self.gens, self.copies[p], self.before[p]):
+                c.bit_generator.state = g.bit_generator.state
+                c.bit_generator.advance(int(skip))
+        return self.copies
+
+    def done(self) -> None:
+        """After every part drew: each fix's generator where its one-thread stream is."""
+        for g, c in zip(self.gens, self.copies[-1]):
+            g.bit_generator.state = c.bit_generator.state
 
 
 def _rebalance(shares: np.ndarray, bounds: np.ndarray, cpu: np.ndarray) -> np.ndarray:
@@ -1628,6 +1730,17 @@ def reflect_on_threads(plan: "_compiled.ChunkPlan") -> bool:
     the impulse would be summed in another order) nor wall/reflect/stochastic (its stream is
     drawn atom after atom). True without reflect faces."""
     return _compiled._stochastic_kernel(plan) is None and not any(w.stats for w in _compiled._plain_reflect(plan))
+
+
+def samples_on_threads(plan: "_compiled.ChunkPlan") -> bool:
+    """Whether a case cut over threads records its samples in the kernel (`_chunk_steps`: a
+    sample step's rest runs on all atoms in one call, which records the sample as the one-thread
+    kernel does): a scene `_chunk_threaded` takes (no fix dt/reset, `reflect_on_threads`) without
+    a thermostat (its end of step runs between the threads' calls, after that rest, and the
+    sample reads it). Decided by the scene alone."""
+    ens = plan.ensemble
+    coupled = ens is not None and any(f.style in _compiled.FIX_KINDS and f.style != "enforce2d" for f in ens.fixes)
+    return plan.dt_reset is None and reflect_on_threads(plan) and not coupled
 
 
 def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
@@ -1747,7 +1860,8 @@ class PairChunks(_compiled.KernelPath):
             return False
         plan = self.plan_source()
         s = plan.state
-        if s.ncases == 0 or not enabled() or not chunk_eligible(plan, self.pair) or case_parts(s.x.shape[1]) >= 2:
+        if s.ncases == 0 or not enabled() or not chunk_eligible(plan, self.pair) or (
+                case_parts(s.x.shape[1]) >= 2 and not samples_on_threads(plan)):
             self._sampled_refused = s.ncases > 0  # not asked again
             return False
         until, live = self._numpy_until  # not over steps a sampled chunk met trouble in
@@ -1852,8 +1966,8 @@ class PairChunks(_compiled.KernelPath):
             _compiled.announce_compile(kernel, compile_estimate(bool(fx[0].shape[0])))
         done = []
         call = backend.Repeated(kernel)  # the cases' one-thread calls: numba's typing once (same types)
-        # one thread for samples in the kernel (`samples_in_kernel`), dt/reset and reflect statistics (`chunk_eligible`)
-        threadable = at is None and dtr is None and reflect_on_threads(plan)
+        # one thread for dt/reset and reflect statistics (`chunk_eligible`); samples: `samples_on_threads`
+        threadable = dtr is None and reflect_on_threads(plan) and (at is None or samples_on_threads(plan))
         for c in range(C):
             x, v, f, xref, owner, first = (b[c] for b in bufs)  # copies of the case's state (kept arrays)
             for b, a in zip((x, v, f, xref, owner, first), (s.x, s.v, s.f, pair._xref, pair._owner, pair._first)):
