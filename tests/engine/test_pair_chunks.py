@@ -357,31 +357,32 @@ def test_trouble_in_a_sampled_chunk(monkeypatch):
     assert fused.fast.fallbacks >= 1 and fused.fast.sampled_calls >= 1 and fused.sample_blocks
 
 
-@pytest.mark.parametrize("scene", ["slit", "flow", "berendsen"])
+@pytest.mark.parametrize("scene", ["slit", "flow", "berendsen", "nvt+flow"])
 def test_a_case_over_threads_records_its_samples_in_the_kernel(monkeypatch, scene):
     """A case cut over threads (`case_parts` 2 here) records its samples in the kernel as on one
-    thread (`samples_on_threads`: each sample step's rest on all atoms in one call, the pair's
-    energy and virial from the threads' pass): one threaded call for the 12 samples, the same bits
-    as the one-thread kernel and as stepwise. With a thermostat (its end of step runs between the
-    threads' calls, after the rest of the step) one chunk per sample, its outputs taken from the
-    chunk's last pass, the same bits."""
-    config = every(flow_fluid("exact") if scene == "flow" else slit(), steps=12)
-    if scene == "berendsen":
-        config["fixes"] = dict(THERMOSTATS["berendsen"])
+    thread (`samples_on_threads`: each sample step's rest on all atoms in one call, with a
+    thermostat's end of step, the pair's energy and virial from the threads' pass): one threaded
+    call for the 12 samples, the same bits as the one-thread kernel and as stepwise."""
+    kind, _, walls = scene.partition("+")
+    config = every(flow_fluid("exact") if "flow" in scene else slit(), steps=12)
+    if kind in THERMOSTATS:
+        config["fixes"] = dict(THERMOSTATS[kind])
+        config["output"] = {"thermo": ["step", "temp", "pe", "etot", "press", "ecouple", "econserve"]}
     cases = cases_of(config)
     inkernel, _, ref, _ = run_fused_and_stepwise(monkeypatch, cases)
     monkeypatch.setattr(pair_compiled, "case_parts", lambda n: 2)
     monkeypatch.setattr(pair_compiled, "THREAD_MIN_USE", 0.0)  # never judged busy (a loaded test machine)
     eng = Engine(cases)
     got = eng.run()
-    assert_bits(got, ref)
-    assert_bits(inkernel, ref)
-    assert eng.fast.compiled_chunks == 12 and eng.fast.fallbacks == 0
-    if scene == "berendsen":
-        assert eng.fast.sampled_calls == 0 and not eng.sample_blocks and eng.fast.threaded_chunks == 12
+    if kind == "nvt":  # (its chain's exp: to 1e-14 against stepwise, as in one thread)
+        for name in got[0].data:
+            np.testing.assert_array_equal(got[0].data[name], inkernel[0].data[name], err_msg=name)
     else:
-        assert_sampled_in_kernel(eng)
-        assert eng.fast.threaded_chunks == eng.fast.sampled_calls == 1
+        assert_bits(got, ref)
+        assert_bits(inkernel, ref)
+    assert eng.fast.compiled_chunks == 12 and eng.fast.fallbacks == 0
+    assert_sampled_in_kernel(eng)
+    assert eng.fast.threaded_chunks == eng.fast.sampled_calls == 1
 
 
 

@@ -2447,7 +2447,8 @@ def _fix_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]) -> tu
     run_time = np.nan if s.run_time is None else float(s.run_time)  # (a run to a time: the ramp follows the time)
     # the integrated atoms' group row (Ensemble.moving; -1: every atom), for the pair chunks
     moving = -1 if ens is None or ens.moving is None else group(ens.moving, False)
-    # fx_int: (unused: each nvt fix's tloop is in its fx_meta row), the run's end step, the moving row
+    # fx_int: 0 (the pair chunks' sample step on threads sets 1 in its copy: its tail on all atoms ends the
+    # fixes' step too), the run's end step, the moving row
     fx = (meta, val, acc, *chain, *per_case, np.array([0, s.end_step, moving], np.int64),
           np.array([float(u.boltz), float(u.ftm2v), float(u.mvv2e), run_time]), np.zeros((C, N, 3 * len(langevin))))
     return fx, fixes, rngs

@@ -971,8 +971,9 @@ if njit is not None:
                             v[a, d] = v[a, d] + dtfm[a] * f[a, d]
                 if _K_FIXES:
                     # fix nvt's second half step, temp/berendsen, temp/rescale, the tally; also in the
-                    # tail of a case over threads with wall/flow (post, all atoms): before the flow walls
-                    if thermo and (not post or fl_int[0] != 0):
+                    # tail of a case over threads with wall/flow (post, all atoms): before the flow walls,
+                    # and in a sample step's tail on all atoms (fx_int[0] = 1, `_chunk_steps`)
+                    if thermo and (not post or fl_int[0] != 0 or fx[11][0] != 0):
                         if _fix_end(0, step0 + step + 1, dt, clk[1], clk[2], V, mass, groups, fx, KB, FL) != 0:
                             return 6, builds, neigh
                 if fl_int[0] != 0:  # fix wall/flow (end_of_step)
@@ -1552,12 +1553,18 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
     sample_kernel = backend.Repeated(kernel) if due else None
     one = np.ones(1, np.int64)
 
+    # a sample step's tail with a thermostat runs the fixes' end of step too (fx_int[0] = 1), before
+    # the sample reads them (with wall/flow the tail on all atoms runs it anyway)
+    fx_end = fix[0] if not coupled or flow else (*fix[0][:11], np.array([1, *fix[0][11][1:]], np.int64),
+                                                   *fix[0][12:])
+
     def sample_tail(step: int, i: int) -> tuple[int, int]:
-        """The rest of sample step `step` (sample i) on all atoms in one call, which records the
-        sample as the one-thread kernel records it (sums over the atoms in their order): (status, 0)."""
+        """The rest of sample step `step` (sample i) on all atoms in one call (with a thermostat its
+        end of step too), which records the sample as the one-thread kernel records it (sums over
+        the atoms in their order): (status, 0)."""
         pending.replay(f, 0, N)
         t = dict(a, neigh=neigh, sf_val=sf_val[step:step + 1] if vary else sf_val,
-                 fix=(fix[0], fix[1], step0 + step, fix[3]), sm=(one, *(b[i:i + 1] for b in sm[1:])))
+                 fix=(fx_end, fix[1], step0 + step, fix[3]), sm=(one, *(b[i:i + 1] for b in sm[1:])))
         return sample_kernel(*t.values())[0], 0
 
     pending = old = None
@@ -1630,8 +1637,11 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
         if isample is not None:  # a sample step's rest on all atoms, the sample recorded; the next start in parts
             got = [sample_tail(step, isample)]
             sm[-1][isample, 0], sm[-1][isample, 1] = e, w  # (the pair's energy and virial: this step's pass)
-            if got[0][0] == 0 and step + 1 < nsteps:
-                got.append((0, pres()))
+            if got[0][0] == 0:
+                if coupled and step == nsteps - 1:  # the last step's Langevin forces (each fix's `force`)
+                    phase(4, step0 + step + 1, dt, ftm2v, mass, v, groups, fix, clk)
+                if step + 1 < nsteps:
+                    got.append((0, start(step0 + step + 2) if coupled else pres()))
         elif len(tails) == parts and not coupled:  # the rest of this step and the start of the next, atoms in parts
             got = crew([lambda p=p: tail_pre(p, step) for p in range(parts)])
         else:  # the rest of the step on each part (wall/flow: on all atoms), the fixes' sums over all
@@ -1734,13 +1744,10 @@ def reflect_on_threads(plan: "_compiled.ChunkPlan") -> bool:
 
 def samples_on_threads(plan: "_compiled.ChunkPlan") -> bool:
     """Whether a case cut over threads records its samples in the kernel (`_chunk_steps`: a
-    sample step's rest runs on all atoms in one call, which records the sample as the one-thread
-    kernel does): a scene `_chunk_threaded` takes (no fix dt/reset, `reflect_on_threads`) without
-    a thermostat (its end of step runs between the threads' calls, after that rest, and the
-    sample reads it). Decided by the scene alone."""
-    ens = plan.ensemble
-    coupled = ens is not None and any(f.style in _compiled.FIX_KINDS and f.style != "enforce2d" for f in ens.fixes)
-    return plan.dt_reset is None and reflect_on_threads(plan) and not coupled
+    sample step's rest runs on all atoms in one call, with a thermostat's end of step, and
+    records the sample as the one-thread kernel does): a scene `_chunk_threaded` takes (no fix
+    dt/reset, `reflect_on_threads`). Decided by the scene alone."""
+    return plan.dt_reset is None and reflect_on_threads(plan)
 
 
 def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
