@@ -11,10 +11,11 @@ THERMOSTATS: its sums over all atoms run between the threads' parts of each step
 wallbatch run is a new process (WALLBATCH_THREADS=k, NUMBA_NUM_THREADS=k)
 that warms its kernels on a 10-step run, then times `Engine([case]).run()`; the one- and
 two-thread runs alternate (`--repeat` rounds, best of each), and the final kinetic and potential
-energy of both must be the same bits. Each run also reports its CPU seconds, its page faults and
-the CPU seconds the rest of the machine used meanwhile (from /proc/stat: another process on a
-core slows the threaded run most, and after a starved chunk the engine runs 4 chunks on one
-thread); `--show-runs` prints every run. LAMMPS runs the scene exported by wallbatch
+energy of both must be the same bits. Each run also reports its CPU seconds, its page faults, the
+CPU seconds the rest of the machine used meanwhile and the seconds the hypervisor stole from the
+machine's virtual cores (both from /proc/stat: another process on a core, or a core not run for a
+few milliseconds, slows the threaded run most, the other thread waiting at the next meeting;
+after a starved chunk the engine runs 4 chunks on one thread); `--show-runs` prints every run. LAMMPS runs the scene exported by wallbatch
 (`wallbatch export-lammps`, LAMMPS's default neighbor settings: every 1 delay 0 check yes), serial
 and with `mpiexec -np 2`, its "Loop time" timed. The machine may be shared: compare within one run.
 """
@@ -45,23 +46,25 @@ def scene(steps, thermo):
     return common.with_fixes(cfg, common.THERMOSTATS[fix], fix) if fix else cfg
 Engine([common.build(scene(10, 10))]).run()
 case = common.build(scene(steps, max(1, steps // 10)))
-def busy():
+def busy():  # (CPU seconds the machine's processes used, seconds the hypervisor stole) so far
     try:
         v = [int(t) for t in open("/proc/stat").readline().split()[1:]]
     except OSError:
-        return 0.0
-    return (sum(v) - v[3] - v[4] - (v[7] if len(v) > 7 else 0)) / os.sysconf("SC_CLK_TCK")
-b0, r0 = busy(), resource.getrusage(resource.RUSAGE_SELF)
+        return 0.0, 0.0
+    steal = v[7] if len(v) > 7 else 0
+    tck = os.sysconf("SC_CLK_TCK")
+    return (sum(v) - v[3] - v[4] - steal) / tck, steal / tck
+(b0, s0), r0 = busy(), resource.getrusage(resource.RUSAGE_SELF)
 t0 = time.perf_counter()
 eng = Engine([case])
 res = eng.run()[0]
 sec = time.perf_counter() - t0
-b1, r1 = busy(), resource.getrusage(resource.RUSAGE_SELF)
+(b1, s1), r1 = busy(), resource.getrusage(resource.RUSAGE_SELF)
 cpu = r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime
 fast = eng.fast
 print("RESULT", sec, res.status, case.natoms, getattr(fast, "threaded_chunks", 0),
       float(res.data["ke"][-1]).hex(), float(res.data["pe"][-1]).hex(), cpu, max(0.0, b1 - b0 - cpu),
-      r1.ru_minflt - r0.ru_minflt)
+      r1.ru_minflt - r0.ru_minflt, s1 - s0)
 """
 
 
@@ -74,16 +77,18 @@ def scene(n: int, steps: int, fix: str | None = None) -> dict:
 
 
 def wallbatch_run(n: int, steps: int, threads: int, fix: str | None = None
-                  ) -> tuple[float, int, int, str, float, float, int]:
+                  ) -> tuple[float, int, int, str, float, float, int, float]:
     """(seconds, atoms, chunks run over threads, final ke and pe as hex, CPU seconds, other
-    processes' CPU seconds meanwhile, page faults) of one child process (`fix`: a thermostat)."""
+    processes' CPU seconds meanwhile, page faults, seconds the hypervisor stole from the machine's
+    cores meanwhile: /proc/stat's steal, time a virtual core was ready but not run) of one child
+    process (`fix`: a thermostat)."""
     env = dict(os.environ, WALLBATCH_THREADS=str(threads), NUMBA_NUM_THREADS=str(threads))
     out = subprocess.run([sys.executable, "-c", CHILD.format(here=str(HERE), n=n, steps=steps, fix=fix)], env=env,
                          capture_output=True, text=True, check=True).stdout
     f = next(ln.split()[1:] for ln in out.splitlines() if ln.startswith("RESULT"))
     if f[1] != "ok":
         raise RuntimeError(f"wallbatch run: {f[1]}")
-    return float(f[0]), int(f[2]), int(f[3]), f"{f[4]} {f[5]}", float(f[6]), float(f[7]), int(f[8])
+    return float(f[0]), int(f[2]), int(f[3]), f"{f[4]} {f[5]}", float(f[6]), float(f[7]), int(f[8]), float(f[9])
 
 
 def lmp_binary() -> str | None:
@@ -141,12 +146,13 @@ def main() -> None:
         runs: list[str] = []
         for _ in range(args.repeat):
             for k in (1, 2):
-                sec, atoms, thr, b, cpu, others, faults = wallbatch_run(n, steps, k, args.fix)
+                sec, atoms, thr, b, cpu, others, faults, steal = wallbatch_run(n, steps, k, args.fix)
                 best[k] = min(best.get(k, sec), sec)
                 bits[k].add(b)
                 threaded = max(threaded, thr) if k == 2 else threaded
                 runs.append(f"  N {atoms}, {k} thread{'s' if k > 1 else ''}: {sec:.3f} s, CPU {cpu:.3f} s, "
-                            f"other processes' CPU {others:.2f} s, {faults} page faults"
+                            f"other processes' CPU {others:.2f} s, stolen by the hypervisor {steal:.2f} s, "
+                            f"{faults} page faults"
                             + (f", {thr} chunks over threads" if k > 1 else ""))
         same = "yes" if len(bits[1] | bits[2]) == 1 else "NO"
         lmp = {} if args.no_lammps else lammps_runs(n, steps, args.repeat, args.fix)
