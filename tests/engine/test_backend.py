@@ -260,3 +260,6 @@ def test_a_later_repeated_of_the_same_kernel_and_argument_kinds_skips_numbas_typ
     assert kinds((x, pair, 1 << 63)) != kinds((x, pair, 2))  # beyond int64: uint64
     assert kinds((x, pair, 2.0)) != kinds((x, pair, 2))
     assert kinds((x, [1, 2], 2)) is None  # a list (or any other object): no key, typed each time
+    assert kinds((np.float64(1.0),)) == kinds((np.float64(2.0),)) != kinds((np.float32(1.0),))
+    rec = np.zeros(1, [("a", "f8")])[0], np.zeros(1, [("b", "i4")])[0]
+    assert kinds((rec[0],)) != kinds((rec[1],))  # records: by their fields

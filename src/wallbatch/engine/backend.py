@@ -133,8 +133,9 @@ _INT64 = (-(1 << 63), 1 << 63)
 def argument_kinds(args: tuple) -> Any:
     """What numba's typing reads from `args` (`Repeated`'s key of a resolved entry point): per
     array its class, dtype, dimensions, layout (C, F or neither), whether it is writeable and
-    aligned; per tuple its items' kinds; per Python int whether it fits int64; per other scalar
-    or generator its class. None for anything else (no key: typed by numba each time)."""
+    aligned; per tuple its items' kinds; per Python int whether it fits int64; per NumPy scalar
+    its dtype; per other scalar or generator its class. None for anything else (no key: typed by
+    numba each time)."""
     out = []
     for a in args:
         t = type(a)
@@ -148,7 +149,9 @@ def argument_kinds(args: tuple) -> Any:
             out.append(("t", k))
         elif t is int:
             out.append((int, _INT64[0] <= a < _INT64[1]))
-        elif t in _SCALARS or isinstance(a, np.generic) or isinstance(a, np.random.Generator):
+        elif isinstance(a, np.generic):  # (numba types it by its dtype: a record's fields too)
+            out.append(("g", a.dtype))
+        elif t in _SCALARS or isinstance(a, np.random.Generator):
             out.append(t)
         else:
             return None
