@@ -360,7 +360,7 @@ def test_trouble_in_a_sampled_chunk(monkeypatch):
 @pytest.mark.parametrize("scene", ["slit", "flow", "berendsen", "nvt+flow"])
 def test_a_case_over_threads_records_its_samples_in_the_kernel(monkeypatch, scene):
     """A case cut over threads (`case_parts` 2 here) records its samples in the kernel as on one
-    thread (`samples_on_threads`: each sample step's rest on all atoms in one call, with a
+    thread (`threads_take`: each sample step's rest on all atoms in one call, with a
     thermostat's end of step, the pair's energy and virial from the threads' pass): one threaded
     call for the 12 samples, the same bits as the one-thread kernel and as stepwise."""
     kind, _, walls = scene.partition("+")

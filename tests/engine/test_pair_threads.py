@@ -153,8 +153,8 @@ def run_threads(monkeypatch, config: dict, n: int):
 def threads_match_one(monkeypatch, config: dict) -> tuple[list, Engine, list[Engine]]:
     """(results, engine) of one thread and the engines of 2 and 3 threads, after checking that
     these give every sample, the final state and the neighbor builds of one thread bit for bit,
-    every kernel call threaded (one thread: none; a call records its samples in the kernel where
-    `samples_on_threads`, else one per sample), no chunk handed back."""
+    every kernel call threaded (one thread: none; a call records a run of samples in the kernel,
+    or one chunk per sample where the engine asks so), no chunk handed back."""
     ref, one = run_threads(monkeypatch, config, 1)
     assert one.fast.threaded_chunks == 0 and one.fast.compiled_chunks >= 3 and one.fast.fallbacks == 0
     engines = []

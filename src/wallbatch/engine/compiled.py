@@ -1088,11 +1088,11 @@ if njit is not None:
                                          dtc)
                 _scale_group(V, groups, g, total)
             elif kind == FIX_LANGEVIN:
-                l = fx_meta[k, 4]
-                f0, f1, f2 = FR[3 * l], FR[3 * l + 1], FR[3 * l + 2]
-                amp = _th_amp(fx_val[c, k, 2], dtc, fx_f[1], fx_f[2], boltz)
-                m0, m1, m2, count = _langevin_draws(rngs[l], f0, f1, f2, SQM, amp, np.sqrt(target), groups, g, 0, n)
+                m0, m1, m2, count = _langevin_draws(c, k, target, dtc, boltz, fx_meta, fx_val, fx_f, rngs, SQM, FR,
+                                                    groups, 0, n)
                 if fx_meta[k, 3] & 1 and count > 0:  # zero yes: the group's random forces sum to zero
+                    l = fx_meta[k, 4]
+                    f0, f1, f2 = FR[3 * l], FR[3 * l + 1], FR[3 * l + 2]
                     m0 /= count
                     m1 /= count
                     m2 /= count
@@ -1103,11 +1103,16 @@ if njit is not None:
         return 0
 
     @inline
-    def _langevin_draws(rng, f0, f1, f2, SQM, amp, st, groups, g, a_lo, a_hi):
-        """One langevin fix's random forces of the atoms a_lo .. a_hi - 1 into f0, f1, f2: three
-        uniforms from rng per atom of group g, atom after atom (thermostats' langevin random force;
-        0.5, no draw, for the others). Returns their sums over the group's atoms, in atom order,
-        and the count of those atoms."""
+    def _langevin_draws(c, k, target, dtc, boltz, fx_meta, fx_val, fx_f, rngs, SQM, FR, groups, a_lo, a_hi):
+        """Langevin fix k's random forces of the atoms a_lo .. a_hi - 1 into its rows of FR: three
+        uniforms from its generator rngs[l] per atom of its group, atom after atom (thermostats'
+        langevin random force at temperature `target`; 0.5, no draw, for the others). Returns their
+        sums over the group's atoms, in atom order, and the count of those atoms."""
+        l, g = fx_meta[k, 4], fx_meta[k, 1]
+        rng = rngs[l]
+        f0, f1, f2 = FR[3 * l], FR[3 * l + 1], FR[3 * l + 2]
+        amp = _th_amp(fx_val[c, k, 2], dtc, fx_f[1], fx_f[2], boltz)
+        st = np.sqrt(target)
         m0 = 0.0
         m1 = 0.0
         m2 = 0.0
@@ -1146,11 +1151,8 @@ if njit is not None:
         boltz = fx_f[0]
         for k in range(fx_meta.shape[0]):
             if fx_meta[k, 0] == FIX_LANGEVIN:
-                l = fx_meta[k, 4]
                 target = _th_ramped(fx_val[c, k, 0], fx_val[c, k, 1], frac)
-                amp = _th_amp(fx_val[c, k, 2], dtc, fx_f[1], fx_f[2], boltz)
-                _langevin_draws(rngs[l], FR[3 * l], FR[3 * l + 1], FR[3 * l + 2], SQM, amp, np.sqrt(target), groups,
-                                fx_meta[k, 1], a_lo, a_hi)
+                _langevin_draws(c, k, target, dtc, boltz, fx_meta, fx_val, fx_f, rngs, SQM, FR, groups, a_lo, a_hi)
         return 0
 
     @inline

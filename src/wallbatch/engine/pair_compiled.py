@@ -1548,7 +1548,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
     # every part's call, at every step, has arguments of the same types: typed once (`backend.Repeated`)
     tail_kernel = backend.Repeated(kernel)
     phase = backend.Repeated(fix_phase()) if coupled else None
-    sm = a["sm"]  # samples in the kernel (`samples_on_threads`): sm[0] their steps, from 1
+    sm = a["sm"]  # samples in the kernel (`advance_sampled`): sm[0] their steps, from 1
     due = {int(t) - 1: i for i, t in enumerate(sm[0])}  # step index: sample index
     sample_kernel = backend.Repeated(kernel) if due else None
     one = np.ones(1, np.int64)
@@ -1742,11 +1742,12 @@ def reflect_on_threads(plan: "_compiled.ChunkPlan") -> bool:
     return _compiled._stochastic_kernel(plan) is None and not any(w.stats for w in _compiled._plain_reflect(plan))
 
 
-def samples_on_threads(plan: "_compiled.ChunkPlan") -> bool:
-    """Whether a case cut over threads records its samples in the kernel (`_chunk_steps`: a
-    sample step's rest runs on all atoms in one call, with a thermostat's end of step, and
-    records the sample as the one-thread kernel does): a scene `_chunk_threaded` takes (no fix
-    dt/reset, `reflect_on_threads`). Decided by the scene alone."""
+def threads_take(plan: "_compiled.ChunkPlan") -> bool:
+    """Whether a case large enough for threads (`case_parts`) runs its chunks over them
+    (`_chunk_threaded`, samples recorded in the kernel included: a sample step's rest runs on all
+    atoms in one call, with a thermostat's end of step, and records the sample as the one-thread
+    kernel does): not with fix dt/reset (dt may change at any step, one thread decides it), and
+    wall/reflect only as `reflect_on_threads`. Decided by the scene alone."""
     return plan.dt_reset is None and reflect_on_threads(plan)
 
 
@@ -1868,7 +1869,7 @@ class PairChunks(_compiled.KernelPath):
         plan = self.plan_source()
         s = plan.state
         if s.ncases == 0 or not enabled() or not chunk_eligible(plan, self.pair) or (
-                case_parts(s.x.shape[1]) >= 2 and not samples_on_threads(plan)):
+                case_parts(s.x.shape[1]) >= 2 and not threads_take(plan)):
             self._sampled_refused = s.ncases > 0  # not asked again
             return False
         until, live = self._numpy_until  # not over steps a sampled chunk met trouble in
@@ -1973,8 +1974,7 @@ class PairChunks(_compiled.KernelPath):
             _compiled.announce_compile(kernel, compile_estimate(bool(fx[0].shape[0])))
         done = []
         call = backend.Repeated(kernel)  # the cases' one-thread calls: numba's typing once (same types)
-        # one thread for dt/reset and reflect statistics (`chunk_eligible`); samples: `samples_on_threads`
-        threadable = dtr is None and reflect_on_threads(plan) and (at is None or samples_on_threads(plan))
+        threadable = threads_take(plan)  # (else one thread: dt/reset, reflect statistics)
         for c in range(C):
             x, v, f, xref, owner, first = (b[c] for b in bufs)  # copies of the case's state (kept arrays)
             for b, a in zip((x, v, f, xref, owner, first), (s.x, s.v, s.f, pair._xref, pair._owner, pair._first)):
