@@ -64,6 +64,7 @@ ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 
 import common  # noqa: E402
+import host_cores  # noqa: E402
 from common import (build, ellipsoid_slit, flow_gas, flow_lj, frozen_slab_slit, gas_2d, gas_slit, hot_cold_slit,  # noqa: E402
                     lammps_export_run, lammps_module, lammps_script, lepton_slit, lj_fcc_slit, region_ees, region_gas,
                     stochastic_slit, stochastic_two_slit, table_slit, thermostat_slit, THERMOSTATS, with_dt_reset,
@@ -72,6 +73,11 @@ from common import (build, ellipsoid_slit, flow_gas, flow_lj, frozen_slab_slit, 
 from wallbatch.engine.engine import Engine  # noqa: E402
 
 SWEEP = ROOT / "sweeps" / "lj93-epsilon-sigma-cutoff.yaml"
+# the rows that use both cores: each is preceded by a probe of what two threads get from them now
+TWO_CORE_ROWS = ("jobs2-64cases", "threads-1e6", "threads-ellipsoids-1e5", "threads-ljcut-1e5",
+                 "threads-ljcut-langevin-1e5")
+PROBE_ROUNDS = 3
+PROBES: list[dict[str, list[float]]] = []  # this run's probes (the header reports them)
 README_BEGIN = "<!-- speed table: written by benchmarks/suite.py --readme; do not edit by hand -->"
 README_END = "<!-- end of speed table -->"
 
@@ -930,7 +936,18 @@ def header(started: str, clock: str) -> str:
             f"rows), LAMMPS {lmp} serial (but threads-1e6); {clock} clock, "
             + ("one measurement per cell" if REPEAT == 1 else
                f"best of {REPEAT} measurements per cell of the in-process speed rows (in turns)")
-            + f", scale {SCALE:g}.")
+            + f", scale {SCALE:g}." + probe_text())
+
+
+def probe_text() -> str:
+    """The header's sentence on the two-core probes of this run (benchmarks/host_cores.py)."""
+    if not PROBES:
+        return ""
+    vec = [float(np.median(p["vector"])) for p in PROBES]
+    chain = [float(np.median(p["chain"])) for p in PROBES]
+    return (f" Two threads vs one on this host (`benchmarks/host_cores.py`, before each two-core row): an in-cache"
+            f" vector loop {min(vec):.2f}-{max(vec):.2f}x, a latency-bound chain {min(chain):.2f}-{max(chain):.2f}x"
+            f" (2.00: two free cores; the vector figure bounds the two-core rows).")
 
 
 def behind(results: dict[str, dict]) -> list[str]:
@@ -1007,10 +1024,15 @@ def main(argv: list[str] | None = None) -> None:
           f"{'target':>26} met", flush=True)
     results: dict[str, dict] = {}
     for k in names:
+        probed = host_cores.probe(PROBE_ROUNDS) if k in TWO_CORE_ROWS else None  # the host's two cores, now
         try:
             r = ROWS[k].fn()
         except Exception as exc:  # noqa: BLE001 - one failing row does not stop the suite
             r = {"scene": k, "error": f"{type(exc).__name__}: {exc}".replace("\n", " ")}
+        if probed is not None and probed["vector"]:
+            PROBES.append(probed)
+            r["note"] = (r.get("note", "") + "; " if r.get("note") else "") + \
+                f"host probe just before: vector {np.median(probed['vector']):.2f}x, chain {np.median(probed['chain']):.2f}x"
         results[k] = r
         print(text_line(k, r), flush=True)
     head = header(started, args.clock) + f" Suite time {time.perf_counter() - t_all:.0f} s."

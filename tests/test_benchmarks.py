@@ -148,3 +148,29 @@ def test_repeat_times_both_codes_in_turns_and_keeps_the_best_of_each(suite, monk
     assert "one measurement per cell" in suite.header("now", "cpu")
     monkeypatch.setattr(suite, "REPEAT", 2)
     assert "best of 2 measurements per cell" in suite.header("now", "cpu")
+
+
+def test_two_core_probe_measures_what_two_threads_get_and_the_suite_reports_it(suite, monkeypatch):
+    import threading
+    import time
+
+    import host_cores
+
+    assert set(suite.TWO_CORE_ROWS) <= set(suite.ROWS)
+    # two threads that never wait for each other do twice one thread's work; two that take turns, one's
+    assert host_cores._capacity(time.sleep, lambda k: (0.05,)) == pytest.approx(2.0, rel=0.25)
+    turn = threading.Lock()
+
+    def one_at_a_time(seconds: float) -> None:
+        with turn:
+            time.sleep(seconds)
+
+    assert host_cores._capacity(one_at_a_time, lambda k: (0.05,)) == pytest.approx(1.0, rel=0.25)
+    monkeypatch.setattr(host_cores, "VECTOR_PASSES", 10)
+    monkeypatch.setattr(host_cores, "CHAIN_STEPS", 1000)
+    got = host_cores.probe(2)
+    assert len(got["vector"]) == len(got["chain"]) == 2 and min(got["vector"] + got["chain"]) > 0
+    monkeypatch.setattr(suite, "PROBES", [{"vector": [1.1, 1.3, 1.2], "chain": [1.9, 2.0, 1.95]}])
+    assert "an in-cache vector loop 1.20-1.20x, a latency-bound chain 1.95-1.95x" in suite.header("now", "cpu")
+    monkeypatch.setattr(suite, "PROBES", [])
+    assert "vector loop" not in suite.header("now", "cpu")

@@ -1,0 +1,112 @@
+"""What two threads get from this machine's two cores, now: a probe for the two-core rows.
+
+    python benchmarks/host_cores.py [--rounds 5]
+
+A virtual machine's two "cores" may be two physical cores or the two hyperthreads of one core
+(the host decides, and may change it from minute to minute). The difference shows in code that
+keeps a core's vector units busy, as wallbatch's compiled kernels do: on two separate cores two
+threads do twice the work of one; on one core's two hyperthreads they share its vector units and
+do little more than one. Code that waits on the latency of each operation (a dependency chain)
+gets twice the work either way. Two loops, each in one thread and then in two threads at once,
+each thread on its own data:
+
+* vector: y[i] = y[i] * a + b over 2,048 doubles (16 KB, in the L1 cache) many times (vector
+  FMA throughput, no memory traffic);
+* chain: x = x * a + b, each step waiting for the last (latency-bound scalar work).
+
+Each capacity is the work of two threads per second over that of one (2.00: two free cores; about
+1.0-1.3 for the vector loop: two hyperthreads of one core, or a core shared with another guest).
+The two-core rows of suite.py (threads, --jobs 2) are bound by the vector figure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import threading
+import time
+
+import numpy as np
+
+try:
+    from numba import njit
+except ImportError:  # pragma: no cover - numba is a dependency of wallbatch
+    njit = None
+
+VECTOR_ATOMS = 2048  # doubles per thread (16 KB): in L1
+VECTOR_PASSES = 500_000  # ~0.1 s on one thread
+CHAIN_STEPS = 50_000_000  # ~0.1 s on one thread
+
+
+if njit is not None:
+    @njit(nogil=True, cache=True)
+    def _vector(y: np.ndarray, passes: int) -> float:
+        """`passes` passes of y = y * a + b (vectorised: the core's FMA throughput)."""
+        for _ in range(passes):
+            for i in range(y.shape[0]):
+                y[i] = y[i] * 0.999999 + 1e-7
+        return y[0]
+
+    @njit(nogil=True, cache=True)
+    def _chain(n: int) -> float:
+        """n steps of x = x * a + b, each waiting for the last (the FMA's latency)."""
+        x = 1.0
+        for _ in range(n):
+            x = x * 0.999999 + 1e-7
+        return x
+
+
+def _timed(fn, args: tuple, out: list[float], k: int) -> None:  # noqa: ANN001
+    t0 = time.perf_counter()
+    fn(*args)
+    out[k] = time.perf_counter() - t0
+
+
+def _capacity(fn, args_of) -> float:  # noqa: ANN001
+    """Work per second of two threads at once over one thread's (each thread its own data)."""
+    out = [0.0, 0.0]
+    _timed(fn, args_of(0), out, 0)
+    one = out[0]
+    threads = [threading.Thread(target=_timed, args=(fn, args_of(k), out, k)) for k in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return 2.0 * one / max(out)
+
+
+def probe(rounds: int = 3) -> dict[str, list[float]]:
+    """Each loop's two-thread capacity (`_capacity`), `rounds` times in turns: {"vector": [...],
+    "chain": [...]}; empty lists without numba."""
+    if njit is None:
+        return {"vector": [], "chain": []}
+    data = [np.ones(VECTOR_ATOMS), np.ones(VECTOR_ATOMS)]
+    _vector(data[0], 1)  # compile (or load from numba's cache) before timing
+    _chain(1)
+    got: dict[str, list[float]] = {"vector": [], "chain": []}
+    for _ in range(rounds):
+        got["vector"].append(_capacity(_vector, lambda k: (data[k], VECTOR_PASSES)))
+        got["chain"].append(_capacity(_chain, lambda k: (CHAIN_STEPS,)))
+    return got
+
+
+def summary(got: dict[str, list[float]]) -> str:
+    """One line: each loop's median capacity and its range over the rounds."""
+    if not got["vector"]:
+        return "two-core probe not run (no numba)"
+    parts = []
+    for name in ("vector", "chain"):
+        v = got[name]
+        parts.append(f"{name} {statistics.median(v):.2f}x ({min(v):.2f}-{max(v):.2f})")
+    return "two threads vs one on this host: " + ", ".join(parts) + " (2.00: two free cores)"
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rounds", type=int, default=5, help="measurements of each loop, in turns")
+    args = ap.parse_args(argv)
+    print(summary(probe(args.rounds)))
+
+
+if __name__ == "__main__":
+    main()
