@@ -30,6 +30,12 @@ shared: compare ratios within one run, and read the load average in the header. 
 times each in-process speed row N times, wallbatch and LAMMPS taken in turns, and keeps the best
 of each (a machine whose speed drifts over minutes moves a single measurement by 20-30%); the
 header says how many.
+
+Before each two-core row (TWO_CORE_ROWS) the suite probes what two threads get from the machine's
+two cores at that moment (`host_cores.py`: an in-cache vector loop and a latency-bound chain, two
+threads against one); the row's note and the header report it. A virtual machine's two cores may
+be two hyperthreads of one physical core for some minutes and two cores for others: the vector
+figure (2.00 on two free cores, about 1.2 on one core's two hyperthreads) bounds those rows.
 """
 
 from __future__ import annotations
@@ -1031,8 +1037,9 @@ def main(argv: list[str] | None = None) -> None:
             r = {"scene": k, "error": f"{type(exc).__name__}: {exc}".replace("\n", " ")}
         if probed is not None and probed["vector"]:
             PROBES.append(probed)
+            vec, chain = np.median(probed["vector"]), np.median(probed["chain"])
             r["note"] = (r.get("note", "") + "; " if r.get("note") else "") + \
-                f"host probe just before: vector {np.median(probed['vector']):.2f}x, chain {np.median(probed['chain']):.2f}x"
+                f"host probe just before: vector {vec:.2f}x, chain {chain:.2f}x"
         results[k] = r
         print(text_line(k, r), flush=True)
     head = header(started, args.clock) + f" Suite time {time.perf_counter() - t_all:.0f} s."
