@@ -16,7 +16,8 @@ each thread on its own data:
 
 Each capacity is the work of two threads per second over that of one (2.00: two free cores; about
 1.0-1.3 for the vector loop: two hyperthreads of one core, or a core shared with another guest).
-The two-core rows of suite.py (threads, --jobs 2) are bound by the vector figure.
+wallbatch's two-core rows in suite.py (threads, --jobs 2) need the vector kind of capacity; the
+figure is a snapshot (a few seconds) of a host that can change from one minute to the next.
 """
 
 from __future__ import annotations

@@ -35,7 +35,8 @@ Before each two-core row (TWO_CORE_ROWS) the suite probes what two threads get f
 two cores at that moment (`host_cores.py`: an in-cache vector loop and a latency-bound chain, two
 threads against one); the row's note and the header report it. A virtual machine's two cores may
 be two hyperthreads of one physical core for some minutes and two cores for others: the vector
-figure (2.00 on two free cores, about 1.2 on one core's two hyperthreads) bounds those rows.
+figure (2.00 on two free cores, about 1.2 when our two threads share one core's vector units) says
+how much of two cores there was a few seconds before the row; it can change within the row.
 """
 
 from __future__ import annotations
@@ -953,7 +954,7 @@ def probe_text() -> str:
     chain = [float(np.median(p["chain"])) for p in PROBES]
     return (f" Two threads vs one on this host (`benchmarks/host_cores.py`, before each two-core row): an in-cache"
             f" vector loop {min(vec):.2f}-{max(vec):.2f}x, a latency-bound chain {min(chain):.2f}-{max(chain):.2f}x"
-            f" (2.00: two free cores; the vector figure bounds the two-core rows).")
+            f" (2.00: two free cores; below it, the two threads shared one core's vector units part of the time).")
 
 
 def behind(results: dict[str, dict]) -> list[str]:
