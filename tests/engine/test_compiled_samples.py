@@ -416,6 +416,26 @@ def test_both_ways_of_sampling_share_one_kernel(monkeypatch):
     assert near.fast.kernel_names == far.fast.kernel_names and len(near.fast.kernel_names) == 1
 
 
+def test_samples_close_together_stay_in_the_kernel_on_one_thread(monkeypatch):
+    """A case that two threads could split between samples (enough atom-steps) but whose samples
+    are fewer than SPLIT_SAMPLE_STEPS steps apart records them in the kernel on one thread: each
+    sample of a split case is a NumPy pass over all atoms (two threads were 1.6-1.7x slower than
+    one at N = 1e6 sampled every 10 steps). At that spacing and beyond, the steps go to the
+    threads. The same bits either way."""
+    from wallbatch.engine import threads
+
+    monkeypatch.setenv("WALLBATCH_THREADS", "2")
+    monkeypatch.setattr(threads, "MIN_WORK", 1)  # any sample spacing has the atom-steps for a split
+    spacing = fast.SPLIT_SAMPLE_STEPS
+    before = threads.splits["atoms"]
+    ref, got, near = run_both(monkeypatch, [gas(lj93(), n=300, steps=4 * (spacing - 1), thermo=spacing - 1)])
+    assert_same_results(ref, got)
+    assert near.fast.sampled_calls > 0 and threads.splits["atoms"] == before
+    ref, got, far = run_both(monkeypatch, [gas(lj93(), n=300, steps=4 * spacing, thermo=spacing)])
+    assert_same_results(ref, got)
+    assert far.fast.sampled_calls == 0 and threads.splits["atoms"] > before
+
+
 def python_eface():
     """`_eface` as Python, with the contacts loop `_eloop` and the flat face's contact readers it
     calls as Python too (so it takes Python force and energy functions)."""

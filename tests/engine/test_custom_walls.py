@@ -512,6 +512,7 @@ def test_compiled_table_face_over_blocks_groups_and_threads(tmp_path, monkeypatc
     on one of two groups (the other held by a second table fix), dense near the walls: trajectories
     and outputs equal the NumPy engine's bit for bit, and the same with two threads splitting the
     atoms."""
+    from wallbatch.engine import compiled as compiled_mod  # noqa: PLC0415
     from wallbatch.engine import threads  # noqa: PLC0415
 
     lj93_tables(tmp_path, n=300)
@@ -544,6 +545,7 @@ def test_compiled_table_face_over_blocks_groups_and_threads(tmp_path, monkeypatc
     assert_same_results(numpy_res, compiled)
     monkeypatch.setenv("WALLBATCH_THREADS", "2")
     monkeypatch.setattr(threads, "MIN_WORK", 1)
+    monkeypatch.setattr(compiled_mod, "SPLIT_SAMPLE_STEPS", 1)  # thermo 30: split over atoms all the same
     before = threads.splits["atoms"]
     _, two, _ = run_numpy_and_compiled(monkeypatch, cases)
     assert threads.splits["atoms"] > before

@@ -2711,8 +2711,10 @@ class FastPath(KernelPath):
             self._sampled_refused = True  # not asked again
             return False
         # one case with enough work between two samples for threads over its atoms
-        # (threads.plan_split): one instant at a time
-        return not _splits_atoms(plan, max(1, int(at[-1]) // at.size))
+        # (threads.plan_split), and enough steps between them to earn each sample's NumPy pass:
+        # one instant at a time
+        per = max(1, int(at[-1]) // at.size)
+        return per < SPLIT_SAMPLE_STEPS or not _splits_atoms(plan, per)
 
     def advance_sampled(self, at: np.ndarray) -> int:
         """Run to the sample steps `at` (counted from now, increasing), recording every sample
@@ -3014,6 +3016,14 @@ def _ecouple_samples(ensemble: Any, fixes: list[Any], acc: np.ndarray, chain: np
         for obj, attrs in saved:
             for name, value in attrs.items():
                 setattr(obj, name, value)
+
+
+# A case split over atoms takes its samples one instant at a time, each sample's outputs from a
+# NumPy pass over all atoms after the threads' steps (~45 ns an atom: ~12 one-thread steps of a
+# flat-wall kernel; the split's calls cost a few steps' worth more). Below this many steps between
+# samples, two threads lost to one thread recording the samples in the kernel (N = 1e5 and 1e6,
+# 2 cores: sampled every 10 steps, 1.6-1.7x slower; every 25, even; every 50, 1.2-1.6x faster).
+SPLIT_SAMPLE_STEPS = 32
 
 
 def _splits_atoms(plan: ChunkPlan, nsteps: int) -> bool:
