@@ -91,6 +91,11 @@ def probe(rounds: int = 3) -> dict[str, list[float]]:
     return got
 
 
+def medians(got: dict[str, list[float]]) -> tuple[float, float]:
+    """(vector, chain): each loop's median capacity over the rounds of a `probe`."""
+    return statistics.median(got["vector"]), statistics.median(got["chain"])
+
+
 def summary(got: dict[str, list[float]]) -> str:
     """One line: each loop's median capacity and its range over the rounds."""
     if not got["vector"]:
@@ -106,6 +111,8 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=5, help="measurements of each loop, in turns")
     args = ap.parse_args(argv)
+    if args.rounds < 1:
+        ap.error(f"--rounds {args.rounds}: give a whole number of measurements, 1 or more")
     print(summary(probe(args.rounds)))
 
 

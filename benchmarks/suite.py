@@ -84,7 +84,7 @@ SWEEP = ROOT / "sweeps" / "lj93-epsilon-sigma-cutoff.yaml"
 TWO_CORE_ROWS = ("jobs2-64cases", "threads-1e6", "threads-ellipsoids-1e5", "threads-ljcut-1e5",
                  "threads-ljcut-langevin-1e5")
 PROBE_ROUNDS = 3
-PROBES: list[dict[str, list[float]]] = []  # this run's probes (the header reports them)
+PROBES: list[tuple[float, float]] = []  # this run's probes: medians (vector, chain) (the header reports them)
 README_BEGIN = "<!-- speed table: written by benchmarks/suite.py --readme; do not edit by hand -->"
 README_END = "<!-- end of speed table -->"
 
@@ -950,8 +950,7 @@ def probe_text() -> str:
     """The header's sentence on the two-core probes of this run (benchmarks/host_cores.py)."""
     if not PROBES:
         return ""
-    vec = [float(np.median(p["vector"])) for p in PROBES]
-    chain = [float(np.median(p["chain"])) for p in PROBES]
+    vec, chain = [p[0] for p in PROBES], [p[1] for p in PROBES]
     return (f" Two threads vs one on this host (`benchmarks/host_cores.py`, before each two-core row): an in-cache"
             f" vector loop {min(vec):.2f}-{max(vec):.2f}x, a latency-bound chain {min(chain):.2f}-{max(chain):.2f}x"
             f" (2.00: two free cores; below it, the two threads shared one core's vector units part of the time).")
@@ -1037,8 +1036,8 @@ def main(argv: list[str] | None = None) -> None:
         except Exception as exc:  # noqa: BLE001 - one failing row does not stop the suite
             r = {"scene": k, "error": f"{type(exc).__name__}: {exc}".replace("\n", " ")}
         if probed is not None and probed["vector"]:
-            PROBES.append(probed)
-            vec, chain = np.median(probed["vector"]), np.median(probed["chain"])
+            vec, chain = host_cores.medians(probed)
+            PROBES.append((vec, chain))
             r["note"] = (r.get("note", "") + "; " if r.get("note") else "") + \
                 f"host probe just before: vector {vec:.2f}x, chain {chain:.2f}x"
         results[k] = r
