@@ -112,6 +112,28 @@ def _start_and_kill(tmp_path: Path, sweep: Path, out: Path, deadline_s: float = 
         log.close()
 
 
+def test_one_process_saves_each_batch_before_the_next_runs(tmp_path, monkeypatch):
+    """With -j 1 a window of cases of several structures runs as several batches; each batch's
+    parts are on disk before the next batch starts, so a kill in the middle of a window loses no
+    finished batch (before: the window's parts were all written at its end)."""
+    from wallbatch.batch import runner  # noqa: PLC0415
+
+    out = tmp_path / "out.nc"
+    plan = load_plan(write_sweep(tmp_path, KILL_SWEEP.format(steps=40, thermo=20)))
+    seen: list[int] = []  # parts on disk as each batch starts
+    real = runner._run_task
+
+    def task(cases):  # noqa: ANN001, ANN202
+        seen.append(len(finished_parts(parts_dir(out))))
+        return real(cases)
+
+    monkeypatch.setattr(runner, "_run_task", task)
+    assert len(runner.make_windows(plan, list(range(16)), 1)) == 1  # one window ...
+    run_plan(plan, out, jobs=1, progress=False)
+    assert seen == [0, 2, 4, 6, 8, 10, 12, 14]  # ... of 8 batches of 2 replicas, each saved in turn
+    assert out.exists() and not parts_dir(out).exists()
+
+
 @pytest.mark.slow  # runs, kills and resumes `wallbatch run` in child processes: 1-8 s with the machine loaded
 def test_kill_then_resume_recomputes_only_the_missing_cases(tmp_path):
     out = tmp_path / "out.nc"

@@ -269,26 +269,36 @@ def _run_window(items: list, plan: SweepPlan | None = None, compiled: bool | Non
     cases as batches, and return one Outcome per item; the built cases are freed on return.
     `compiled`: the plan's engine path (engine/backend.py) for a worker that did not inherit it."""
     with backend.plan_path(compiled):
-        return _run_window_items(items, plan)
+        out: list[Outcome | None] = [None] * len(items)
+        for where, outcomes in _window_parts(items, plan):
+            for k, o in zip(where, outcomes):
+                out[k] = o
+        return out  # type: ignore[return-value]
 
 
-def _run_window_items(items: list, plan: SweepPlan | None) -> list[Outcome]:
+def _window_parts(items: list, plan: SweepPlan | None) -> Iterator[tuple[list[int], list[Outcome]]]:
+    """A window's outcomes as they come: (positions in `items`, their outcomes), first the cases
+    that cannot be built, then each same-structure batch as it finishes (`_run_window`; the
+    local one-process run saves each batch's parts at once, so a kill loses no finished batch)."""
     source = plan if plan is not None else _PLAN
     built = [build_one(source.cases[it]) if isinstance(it, int) else it for it in items]  # type: ignore[union-attr]
-    out: list[Outcome | None] = [None] * len(items)
     cases: dict[int, Case] = {}
-    for k, (case, error, sec) in enumerate(built):
+    failed: list[int] = []
+    for k, (case, _error, _sec) in enumerate(built):
         if case is None:
-            out[k] = Outcome(CaseResult("failed", error, sec, {}), False)
+            failed.append(k)
         else:
             cases[k] = case
+    if failed:
+        yield failed, [Outcome(CaseResult("failed", built[k][1], built[k][2], {}), False) for k in failed]
     for task in make_tasks(cases, 1):
+        outcomes = []
         for k, res in zip(task, _run_task([cases[k] for k in task])):
             c = cases[k]
             res.seconds += built[k][2]
-            out[k] = Outcome(res, True, _layout(c), (c.box_lo, c.box_hi, c.units.name, c.name) if c.dump_every > 0
-                             else None)
-    return out  # type: ignore[return-value]
+            outcomes.append(Outcome(res, True, _layout(c), (c.box_lo, c.box_hi, c.units.name, c.name)
+                                    if c.dump_every > 0 else None))
+        yield task, outcomes
 
 
 def _run_window_on_cluster(items: list, compiled: bool | None = None) -> list[Outcome]:
@@ -431,9 +441,10 @@ def _frozen_for_fork() -> Iterator[None]:
 
 
 def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
-            scheduler: str | None = None, plan: SweepPlan | None = None) -> Iterator[tuple[int, list[Outcome]]]:
-    """Run windows (see `_run_window`; in this process from `plan`); yield (window index, outcomes)
-    as each finishes. Local workers each get an equal share of the cores as threads, and inherit
+            scheduler: str | None = None, plan: SweepPlan | None = None
+            ) -> Iterator[tuple[int, list[int], list[Outcome]]]:
+    """Run windows (see `_run_window`; in this process from `plan`); yield (window index, positions
+    in it, their outcomes) as each finishes (in this process: as each of its batches finishes). Local workers each get an equal share of the cores as threads, and inherit
     the kernels loaded here on the run's first case (_FIRST, see _warm_compiler). Closing the
     generator early (an interrupt) cancels the pending tasks and stops the workers."""
     if executor == "dask":
@@ -445,14 +456,15 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
             futures = {client.submit(_run_window_on_cluster, t, path, pure=False): k for k, t in enumerate(tasks)}
             try:
                 for fut in dask_completed(futures):
-                    yield futures[fut], fut.result()
+                    yield futures[fut], list(range(len(tasks[futures[fut]]))), fut.result()
             except BaseException:
                 client.cancel(list(futures))
                 raise
     elif jobs <= 1 or len(tasks) <= 1:
         _set_up_numba()
         for k, t in enumerate(tasks):
-            yield k, _run_window(t, plan)
+            for where, outcomes in _window_parts(t, plan):
+                yield k, where, outcomes
     else:
         _warm_compiler(_FIRST)
         workers = min(jobs, len(tasks))
@@ -462,7 +474,7 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
             with _frozen_for_fork():  # the pool forks its workers at the first submit
                 futures = {pool.submit(_run_window, t, None, backend.numba_allowed()): k for k, t in enumerate(tasks)}
             for fut in as_completed(futures):
-                yield futures[fut], fut.result()
+                yield futures[fut], list(range(len(tasks[futures[fut]]))), fut.result()
         except BaseException:
             _stop_pool(pool)
             raise
@@ -849,8 +861,8 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
             _FIRST = first[1] if first is not None else None
             runs = execute(tasks, jobs, executor, scheduler, plan=plan)
             try:
-                for k, outcomes in _worker_deaths(runs, parts, saved):
-                    for i, out in zip(windows[k], outcomes):
+                for k, where, outcomes in _worker_deaths(runs, parts, saved):
+                    for i, out in zip([windows[k][p] for p in where], outcomes):
                         res = out.result
                         if not out.built:
                             unbuilt.add(i)
@@ -957,8 +969,8 @@ def _results(total: int, held: dict[int, CaseResult], parts: Path | None, keys: 
         yield res if res is not None else CaseResult("failed", "no result", 0.0, {})
 
 
-def _worker_deaths(runs: Iterator[tuple[int, list[Outcome]]], parts: Path | None,
-                   saved: set[int]) -> Iterator[tuple[int, list[Outcome]]]:
+def _worker_deaths(runs: Iterator[tuple[int, list[int], list[Outcome]]], parts: Path | None,
+                   saved: set[int]) -> Iterator[tuple[int, list[int], list[Outcome]]]:
     """Results as they come; a worker process that died (killed, out of memory) is a RunError
     that says what was kept."""
     try:
