@@ -433,6 +433,36 @@ def test_lepton_auto_policy_picks_the_faster_path_for_this_run(tmp_path, monkeyp
     assert wanted(1, 10, 10, 1)
 
 
+def test_lepton_auto_policy_with_pair_forces_has_its_own_kernel_and_model(tmp_path, monkeypatch):
+    """With pair lj/cut the fused pair chunk runs the wall/lepton faces (kind "pair"): its kernel
+    is another compile with its own marker, and the model counts only what differs between the
+    paths (both run the compiled pair forces): NumPy's walls and integration per step and
+    atom-step against nothing, plus the kernel's start."""
+    from types import SimpleNamespace  # noqa: PLC0415
+
+    fast = pytest.importorskip("wallbatch.engine.compiled")
+    from wallbatch.styles.lepton import compile_expression, force_source  # noqa: PLC0415
+
+    monkeypatch.setenv("WALLBATCH_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("WALLBATCH_LEPTON_COMPILED", raising=False)
+    monkeypatch.setattr(fast, "_LEPTON_RUN", set())
+    extra = (force_source(compile_expression("k*(r-rc)^2", ("k", "rc"))),)
+
+    def wanted(kind: str, atoms: int, steps: int) -> bool:
+        st = SimpleNamespace(end_step=steps, step=np.zeros(1, np.int64), x=np.zeros((1, atoms, 3)))
+        return fast.lepton_compiled_wanted(st, extra, lambda: 10, kind)
+
+    numpy_s, compiled_s = fast.lepton_seconds(5000, 4000, 0, "new", "pair")
+    assert numpy_s == pytest.approx(5000 * (fast.LEPTON_PAIR_NUMPY_STEP_S + 4000 * fast.LEPTON_PAIR_NUMPY_ATOM_STEP_S))
+    assert compiled_s == pytest.approx(fast.LEPTON_PAIR_COMPILE_S)
+    assert not wanted("pair", 4000, 20_000)  # ~4.5 s of NumPy walls: not worth a first compile
+    assert wanted("pair", 4000, 200_000)
+    fast._mark_compiled(extra)  # the flat chunk's kernel has run: not the pair chunk's
+    assert not fast._compiled_marker(extra, "pair").exists() and not wanted("pair", 4000, 20_000)
+    fast._mark_compiled(extra, "pair")
+    assert fast._compiled_marker(extra, "pair").exists() and wanted("pair", 4000, 20_000) and wanted("pair", 100, 10)
+
+
 @pytest.mark.slow
 def test_lepton_chunk_kernel_is_loaded_from_disk_by_a_second_process(tmp_path):
     """The chunk kernel generated for an expression wall is compiled by the first process and

@@ -180,16 +180,16 @@ def test_list_grows_inside_the_chunk(monkeypatch):
     np.testing.assert_array_equal(a.pair.case_builds, b.pair.case_builds)
 
 
-@pytest.mark.parametrize("what", ["lepton", "dt_reset with a moving wall", "dt_reset over threads",
+@pytest.mark.parametrize("what", ["lepton never", "dt_reset with a moving wall", "dt_reset over threads",
                                   "reflect statistics over threads"])
 def test_what_the_chunk_does_not_run_stays_stepwise(monkeypatch, what):
-    """What the fused chunk does not run (wall/lepton faces, dt/reset with per-step wall values,
-    reflect statistics or dt/reset on a case cut over threads) keeps the per-step path."""
+    """What the fused chunk does not run (wall/lepton faces the policy keeps in NumPy, dt/reset
+    with per-step wall values, reflect statistics or dt/reset on a case cut over threads) keeps
+    the per-step path."""
     d = slit()
-    if what == "lepton":
-        d["walls"] = {"w": {"style": "lepton", "units": "box", "zlo": {
-            "coord": "EDGE", "cutoff": 2.5, "expression": "eps*(2/15*(sig/r)^9-(sig/r)^3)",
-            "params": {"eps": 1.0, "sig": 1.0}}}}
+    if what == "lepton never":
+        d["walls"] = {"w": {"style": "lepton", "units": "box", "zlo": dict(LEPTON_LJ93)}}
+        monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", "never")
     elif what == "reflect statistics over threads":
         d["walls"] = {"r": {"style": "reflect", "units": "box", "zlo": "EDGE", "zhi": "EDGE"}}
         d["output"] = {"thermo": ["step", "temp", "reflect_count"]}
@@ -291,6 +291,14 @@ def test_trouble_in_a_one_case_batch_keeps_its_list(monkeypatch):
     got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(bad))
     assert_bits(got, ref)
     assert got[0].status == "failed" and fused.fast.fallbacks >= 1
+
+
+# wall/lepton faces: lj93 spelled out (3 parameters and fewer: arguments of the generated force),
+# and a 4-parameter expression (its parameters as an array: `_vector_faces`)
+LEPTON_LJ93 = {"coord": "EDGE", "cutoff": 2.5, "expression": "eps*(2/15*(sig/r)^9-(sig/r)^3)",
+               "params": {"eps": 1.0, "sig": 1.0}}
+LEPTON_FOUR = {"coord": 7.6, "cutoff": 2.0, "expression": "a*(r-rc)^2 + b*exp(-r/l)",
+               "params": {"a": 20.0, "rc": 2.0, "b": 3.0, "l": 0.4}}
 
 
 def every(d: dict, thermo: int = 1, steps: int | None = None) -> dict:
@@ -458,6 +466,46 @@ def test_table_walls_in_the_fused_chunk(monkeypatch, tabstyle):
     assert fused.fast.fallbacks == 0
     energy = got[0].data["wall_energy"][1:, 0]
     assert np.ptp(energy) > 0 and np.abs(got[0].data["wall_force"][1:]).min(axis=0).max() > 0
+
+
+def lepton_slit(thermo: int, b: float = 3.0) -> dict:
+    """The LJ slit between wall/lepton faces (LEPTON_LJ93 below, LEPTON_FOUR above with this b)."""
+    d = every(slit(steps=60), thermo=thermo)
+    four = dict(LEPTON_FOUR, params=dict(LEPTON_FOUR["params"], b=b))
+    d["walls"] = {"lep": {"style": "lepton", "units": "box", "energy": True, "virial": True,
+                          "zlo": dict(LEPTON_LJ93), "zhi": four}}
+    return d
+
+
+@pytest.mark.parametrize("thermo", [1, 20])
+def test_lepton_walls_in_the_fused_chunk(monkeypatch, thermo):
+    """An LJ liquid between wall/lepton faces, one with its parameters as arguments of the generated
+    force and one with them as an array, two cases (b differs): the fused chunk runs the scene's
+    generated forces (compiled.pieces_for with `extra`) and records their energies in the kernel,
+    the per-step path's bits (its walls are the NumPy expressions)."""
+    monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", "always")
+    got, fused, ref, _ = run_fused_and_stepwise(monkeypatch, cases_of(lepton_slit(thermo), lepton_slit(thermo, 5.0)))
+    assert_bits(got, ref)
+    assert_sampled_in_kernel(fused)
+    assert fused.fast.fallbacks == 0 and fused.fast.compiled_chunks == 60 // thermo
+    for res in got:  # both faces act on the liquid
+        assert np.all(res.data["wall_force"][1:] != 0.0) and np.ptp(res.data["wall_energy"][1:, 0]) > 0
+    assert not np.array_equal(got[0].data["wall_energy"], got[1].data["wall_energy"])
+
+
+def test_lepton_walls_over_threads(monkeypatch):
+    """The same scene with its case cut over threads (`case_parts` 2 here): every part's rest of
+    the step runs the generated faces on its atoms, the bits of the one-thread chunk."""
+    monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", "always")
+    cases = cases_of(lepton_slit(20))
+    one, _, ref, _ = run_fused_and_stepwise(monkeypatch, cases)
+    monkeypatch.setattr(pair_compiled, "case_parts", lambda n: 2)
+    monkeypatch.setattr(pair_compiled, "THREAD_MIN_USE", 0.0)  # never judged busy (a loaded test machine)
+    eng = Engine(cases)
+    got = eng.run()
+    assert_bits(got, one)
+    assert_bits(got, ref)
+    assert eng.fast.threaded_chunks >= 1 and eng.fast.fallbacks == 0
 
 
 @pytest.mark.parametrize("rstyle", ["diffusive", "maxwell", "diffusive+maxwell"])

@@ -1819,6 +1819,7 @@ if njit is not None:
         fingerprint: int
         sample_faces: Any = None  # the soft faces' outputs at a sample step (sampled chunks)
         sample_regions: Any = None  # and the wall/region fixes'
+        vector_faces: Any = None  # wall/lepton faces with their parameters as an array (`_vector_faces`)
 
     def _scene_args(soft: Any, region: Any, flow: Any, extra: Any, tables: Any = False, stochastic: Any = False
                     ) -> tuple:
@@ -1931,7 +1932,7 @@ if njit is not None:
             _relink(_block_step, _soft_face=soft_face, _region_walls=region_walls, _table_faces=table_faces,
                     _stochastic_faces=stochastic_faces, _vector_faces=vector_faces))
         return ScenePieces(soft_face, region_walls, flow_step, block_step, source, filename,
-                           _fingerprint(pairs, flow, False, source), sample_faces, sample_regions)
+                           _fingerprint(pairs, flow, False, source), sample_faces, sample_regions, vector_faces)
 
     def kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
                    extra: tuple[str, ...] = (), parallel: bool = False, fixes: bool = True, dtr: bool = True,
@@ -2098,6 +2099,20 @@ def _generated_force(style: WallStyle) -> str | None:
     if energy is not None:
         src += "\n\n" + energy
     return src
+
+
+def face_style_id(style: WallStyle, extra: tuple[str, ...]) -> int:
+    """A soft face's style number in a kernel's sf_meta: the registry's compiled style's, TABLE_STYLE
+    (wall/table), len(COMPILED_STYLES) + j for generated force j of `extra` (`_lepton_extra`), or
+    -2 - j for one that takes its parameters as an array."""
+    if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] == style:
+        return STYLE_IDS[style.name]
+    if _is_table(style):
+        return TABLE_STYLE
+    src = _generated_force(style)
+    if src.startswith(VECTOR_MARK):  # parameters as an array: style -2 - j
+        return -2 - extra.index(src)
+    return len(COMPILED_STYLES) + extra.index(src)
 
 
 def _lepton_rows(soft_faces: list, C: int) -> np.ndarray:
@@ -2271,7 +2286,17 @@ LEPTON_NUMPY_SAMPLE_ATOM_S = 3e-9
 LEPTON_COMPILED_ATOM_STEP_S = 6e-9
 LEPTON_LOAD_S = 0.5
 LEPTON_COMPILE_S = 30.0
-_LEPTON_RUN: set[tuple[str, ...]] = set()  # the generated kernels (their `extra`) this process has run
+# With pair lj/cut (the fused pair chunk of engine/pair_compiled.py, its own kernel: `kind` "pair")
+# both paths run the same compiled pair forces, so the model counts what differs: the per-step
+# path's NumPy walls and integration less the fused chunk's, LEPTON_PAIR_NUMPY_STEP_S per step plus
+# LEPTON_PAIR_NUMPY_ATOM_STEP_S per atom-step (`benchmarks/lepton_cost.py --pair`, AVX-512 host:
+# 0.134 ms + 24 ns; the fused chunk 2.2x faster a step at N = 1000, 1.2x at N = 16000); its first
+# compile took 8 s there (LEPTON_PAIR_COMPILE_S errs long, for slower hosts).
+LEPTON_PAIR_NUMPY_STEP_S = 0.13e-3
+LEPTON_PAIR_NUMPY_ATOM_STEP_S = 24e-9
+LEPTON_PAIR_COMPILED_ATOM_STEP_S = 0.0
+LEPTON_PAIR_COMPILE_S = 15.0
+_LEPTON_RUN: set[tuple[str, tuple[str, ...]]] = set()  # the generated kernels (kind, `extra`) this process has run
 
 
 def _lepton_extra(plan: ChunkPlan) -> tuple[str, ...]:
@@ -2287,50 +2312,61 @@ def _lepton_extra(plan: ChunkPlan) -> tuple[str, ...]:
     return tuple(out)
 
 
-def _compiled_marker(extra: tuple[str, ...]) -> Path:
-    """A file beside the generated module, written once its chunk kernel has been compiled (and so
-    cached on disk by numba)."""
+def _compiled_marker(extra: tuple[str, ...], kind: str = "chunk") -> Path:
+    """A file beside the generated module, written once its chunk kernel (`kind` "chunk"; "pair":
+    the fused pair chunk's) has been compiled (and so cached on disk by numba)."""
     forces = "".join(extra)
-    return generated_path(f"# compiled.py {_SOURCE_DIGEST}\n{forces}", "lepton_chunk").with_suffix(".compiled")
+    path = generated_path(f"# compiled.py {_SOURCE_DIGEST}\n{forces}", "lepton_chunk")
+    return path.with_suffix(".compiled" if kind == "chunk" else f".{kind}-compiled")
 
 
 @functools.lru_cache(maxsize=64)
-def _mark_compiled(extra: tuple[str, ...]) -> None:
-    _LEPTON_RUN.add(extra)
-    marker = _compiled_marker(extra)
+def _mark_compiled(extra: tuple[str, ...], kind: str = "chunk") -> None:
+    _LEPTON_RUN.add((kind, extra))
+    marker = _compiled_marker(extra, kind)
     if not marker.exists():
         marker.write_text("")
 
 
-def lepton_seconds(steps: float, atoms: float, samples: float, kernel: str) -> tuple[float, float]:
+def lepton_seconds(steps: float, atoms: float, samples: float, kernel: str, kind: str = "chunk"
+                   ) -> tuple[float, float]:
     """(NumPy, compiled) seconds expected for a batch of `atoms` atoms over all its cases run
     `steps` steps with `samples` samples, the compiled path's kernel being "run" (already run in
-    this process), "cached" (on disk) or "new" (compiled first): the cost model above."""
-    numpy_s = (steps * (LEPTON_NUMPY_STEP_S + LEPTON_NUMPY_ATOM_STEP_S * atoms)
+    this process), "cached" (on disk) or "new" (compiled first): the cost model above (`kind`
+    "pair": with pair lj/cut, what differs between the paths)."""
+    if kind == "pair":
+        step_s, atom_s, compiled_atom_s, compile_s = (LEPTON_PAIR_NUMPY_STEP_S, LEPTON_PAIR_NUMPY_ATOM_STEP_S,
+                                                      LEPTON_PAIR_COMPILED_ATOM_STEP_S, LEPTON_PAIR_COMPILE_S)
+    else:
+        step_s, atom_s, compiled_atom_s, compile_s = (LEPTON_NUMPY_STEP_S, LEPTON_NUMPY_ATOM_STEP_S,
+                                                      LEPTON_COMPILED_ATOM_STEP_S, LEPTON_COMPILE_S)
+    numpy_s = (steps * (step_s + atom_s * atoms)
                + samples * (LEPTON_NUMPY_SAMPLE_S + LEPTON_NUMPY_SAMPLE_ATOM_S * atoms))
-    start = {"run": 0.0, "cached": LEPTON_LOAD_S, "new": LEPTON_COMPILE_S}[kernel]
-    return numpy_s, start + steps * atoms * LEPTON_COMPILED_ATOM_STEP_S
+    start = {"run": 0.0, "cached": LEPTON_LOAD_S, "new": compile_s}[kernel]
+    return numpy_s, start + steps * atoms * compiled_atom_s
 
 
-def lepton_compiled_wanted(state: BatchState, extra: tuple[str, ...] = (), samples: Callable[[], int] | None = None
-                           ) -> bool:
+def lepton_compiled_wanted(state: BatchState, extra: tuple[str, ...] = (), samples: Callable[[], int] | None = None,
+                           kind: str = "chunk") -> bool:
     """Whether wall/lepton faces (generated forces `extra`) run on the compiled path for this batch
-    (see above): decided once per batch from its whole run (`samples()`: its samples after step 0;
-    None: counted as none) and kept on the state, so every chunk of the run gets the same answer."""
+    (see above; `kind` "pair": in the fused pair chunk): decided once per batch from its whole run
+    (`samples()`: its samples after step 0; None: counted as none) and kept on the state, so every
+    chunk of the run gets the same answer."""
     mode = os.environ.get("WALLBATCH_LEPTON_COMPILED", "auto").strip().lower()
     if mode in ("always", "1", "yes"):
         return True
     if mode in ("never", "0", "no"):
         return False
     chosen = state.__dict__.setdefault("_lepton_compiled", {})
-    if extra not in chosen:
+    if (kind, extra) not in chosen:
         # the batch's whole run, not what is left of it: the choice must not flip to NumPy halfway
         steps = float(np.max(np.maximum(state.end_step, 0)))
-        kernel = "run" if extra in _LEPTON_RUN else "cached" if _compiled_marker(extra).exists() else "new"
+        kernel = "run" if (kind, extra) in _LEPTON_RUN else "cached" if _compiled_marker(extra, kind).exists() \
+            else "new"
         numpy_s, compiled_s = lepton_seconds(steps, float(state.x.shape[0] * state.x.shape[1]),
-                                             float(samples()) if samples is not None else 0.0, kernel)
-        chosen[extra] = compiled_s < numpy_s
-    return chosen[extra]
+                                             float(samples()) if samples is not None else 0.0, kernel, kind)
+        chosen[(kind, extra)] = compiled_s < numpy_s
+    return chosen[(kind, extra)]
 
 
 def _compiled_face(w: SoftWallKernel, style: WallStyle) -> bool:
@@ -2341,17 +2377,18 @@ def _compiled_face(w: SoftWallKernel, style: WallStyle) -> bool:
     return _generated_force(style) is not None and w.cutoff.mode_id == SHIFT
 
 
-def eligible(plan: ChunkPlan, partial: bool = False) -> bool:
+def eligible(plan: ChunkPlan, partial: bool = False, kind: str = "chunk") -> bool:
     """Whitelist: flat soft walls of compiled styles, wall/reflect (lab or wall frame), wall/region
     with compiled styles and constant parameters, one wall/flow (not with dt/reset), dt/reset,
-    variables; nothing else in the scene (`partial`: see `fixes_eligible`)."""
+    variables; nothing else in the scene (`partial`: see `fixes_eligible`; `kind`: the kernel
+    whose wall/lepton policy applies, `lepton_compiled_wanted`)."""
     if plan.others:
         return False
     if any(type(w) not in (SoftWallKernel, CustomWallKernel) or
            not all(_compiled_face(w, st) for st in _face_styles(w)) for w in plan.soft):
         return False
     extra = _lepton_extra(plan)
-    if extra and not lepton_compiled_wanted(plan.state, extra, plan.samples):
+    if extra and not lepton_compiled_wanted(plan.state, extra, plan.samples, kind):
         return False
     if any(not region_eligible(w) for w in plan.region):
         return False
@@ -2785,17 +2822,6 @@ class FastPath(KernelPath):
 
         soft_faces = [(w, st, face) for w in plan.soft for st, face in zip(_face_styles(w), w.faces)]
         extra = _lepton_extra(plan)  # generated forces (wall/lepton), numbered after the registry's styles
-
-        def style_id(style: WallStyle) -> int:
-            if STYLE_IDS.get(style.name) is not None and COMPILED_STYLES[STYLE_IDS[style.name]] == style:
-                return STYLE_IDS[style.name]
-            if _is_table(style):
-                return TABLE_STYLE
-            src = _generated_force(style)
-            if src.startswith(VECTOR_MARK):  # parameters as an array: style -2 - j
-                return -2 - extra.index(src)
-            return len(COMPILED_STYLES) + extra.index(src)
-
         groups: list[np.ndarray] = [np.ones(s.x.shape[1], np.uint8)]
 
         def group(kernel_group: np.ndarray, all_atoms: bool) -> int:
@@ -2805,7 +2831,7 @@ class FastPath(KernelPath):
             groups.append(kernel_group.astype(np.uint8))
             return len(groups) - 1
 
-        sf_meta = np.array([[style_id(st), face.dim, face.side, group(w.group, w.all_atoms),
+        sf_meta = np.array([[face_style_id(st, extra), face.dim, face.side, group(w.group, w.all_atoms),
                              w.cutoff.mode_id] for w, st, face in soft_faces], np.int64).reshape(-1, 5)
         rf_meta, rf_prev, rf_stat, stats = _reflect_arrays(plan, group)
         C = s.ncases

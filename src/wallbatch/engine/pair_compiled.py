@@ -23,10 +23,10 @@ the chunk back to NumPy. The samples of a chunk are recorded in it (`PairChunks.
 the outputs of Engine.sample, with compiled.py's sample functions). It also runs, with
 compiled.py's functions, the `fixes:` its kernels run (thermostats, enforce2d), wall/reflect faces
 on fixed dimensions, and, for a case on one thread, reflect statistics, wall/reflect/stochastic
-faces and fix dt/reset. A run to a
+faces and fix dt/reset; wall/lepton faces with the scene's generated forces (compiled.pieces_for
+with `extra`) when compiled.lepton_compiled_wanted says the run pays for their kernel. A run to a
 simulated time fuses the steps before each landing step (`PairChunks.advance_to_time`). Not
-fused: other fixes, wall/lepton faces, the landing steps of time-based runs, dt/reset and
-thermostats in them.
+fused: other fixes, the landing steps of time-based runs, dt/reset and thermostats in them.
 
 One large case over threads (`_chunk_threaded`, THREAD_MIN_ATOMS atoms per thread at least):
 the same step in pieces, with the list build (runs of cells, `build_threaded`) and the force pass
@@ -53,6 +53,7 @@ import threading
 import time
 import weakref
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -678,8 +679,9 @@ if njit is not None:
         raise NotImplementedError
 
     _region_walls = _flow_step = _sample_faces = _sample_regions = _table_faces = _stochastic_faces = _soft_face
+    _vector_faces = _soft_face
     # what a scene's pair chunk compiles (`pair_chunk_for`: False leaves that code out, numba prunes it)
-    _K_FIXES = _K_REFLECT = _K_DTR = True
+    _K_FIXES = _K_REFLECT = _K_DTR = _K_VECTOR = True
     TABLE_STYLE = _compiled.TABLE_STYLE
     _mv2_sum, _take_stats = _compiled._mv2_sum, _compiled._take_stats  # a sample's sum m v^2, reflect statistics
     # the `fixes:` of compiled.py's chunks (thermostats, enforce2d) and their state at a sample
@@ -797,7 +799,7 @@ if njit is not None:
         @jit
         def pair_chunk(nsteps, post, x, v, f, mass, radius, dt, ftm2v, lo, hi, box_per, length, pair_per, reach,
                        limit2, lj, sample, fpair, ew, xref, owner, first, neigh, spare, sf_meta, sf_val, groups, rg,
-                       fl, fix, rfl, tb, sto, dtr, sm):
+                       fl, fix, rfl, tb, lp, sto, dtr, sm):
             """Advance one case (x, v, f: (N, 3), written in place) by nsteps velocity-Verlet steps
             of engine.Engine.step: v += dtfm f, x += dt v; periodic wrap; the pair list rebuilt
             (`build_case`) when an atom moved more than skin/2 since xref; f = 0, pair forces
@@ -836,6 +838,10 @@ if njit is not None:
 
             tb: the wall/table faces' tables (compiled.py's `_tables` and a scratch of N bytes
             rounded up to 64: `_table_faces`, style TABLE_STYLE in sf_meta).
+
+            lp (K, P): this case's parameters of the wall/lepton faces whose generated force takes
+            them as an array (compiled.py's `_lepton_rows`; style -2 - j in sf_meta: `_vector_faces`);
+            other wall/lepton faces are styles of `_soft_face` (the scene's generated dispatch).
 
             sto = (st_meta, st_val, st_stat, st_flag, st_rng, mvv2e): wall/reflect/stochastic fixes
             (compiled.py's `_stochastic_arrays` of this case, row 0; their generators), after the
@@ -887,7 +893,7 @@ if njit is not None:
             KS = np.empty(N if nsm else 0)  # m v^2 per atom at a sample
             RBS = np.empty((6, 5, N if nsm and rg_meta.shape[0] else 0))  # a case's region contacts at a sample
             SF = sf_val.reshape((1, sf_val.shape[0], sf_val.shape[1], sf_val.shape[2]))  # `_sample_faces`' (C, S, K, 6)
-            LP = np.zeros((1, sf_meta.shape[0], 1))  # no wall/lepton faces
+            LP = lp.reshape((1, lp.shape[0], lp.shape[1]))  # `_sample_faces`' (C, K, P)
             fx_meta = fx[0]
             nfx = N if fx_meta.shape[0] else 0
             thermo = False  # a fix that couples the atoms (not enforce2d alone)
@@ -946,6 +952,9 @@ if njit is not None:
                     if sf_meta[k, 0] == TABLE_STYLE:  # wall/table: the face's table from tb (data, not code)
                         nbad += _table_faces(tb, k, X, F, groups, sf_meta[k, 3], sf_meta[k, 1], sf_meta[k, 2],
                                              sf_val[si, k, 0], sf_val[si, k, 4], 0, N)
+                    elif _K_VECTOR and sf_meta[k, 0] < TABLE_STYLE:  # wall/lepton, parameters as an array
+                        nbad += _vector_faces(-2 - sf_meta[k, 0], X, F, radius, groups, sf_meta[k, 3], sf_meta[k, 1],
+                                              sf_meta[k, 2], sf_val[si, k, 0], lp[k], sf_val[si, k, 4], 0, N)
                     else:
                         nbad += _soft_face(sf_meta[k, 0], sf_meta[k, 4], X, F, radius, groups, sf_meta[k, 3],
                                            sf_meta[k, 1], sf_meta[k, 2], sf_val[si, k, 0], sf_val[si, k, 1],
@@ -1092,27 +1101,32 @@ if njit is not None:
 
     def pair_chunk_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (),
                        flow: bool = False, tables: bool = False, stochastic: bool = False, fixes: bool = False,
-                       reflect: bool = False, dtr: bool = False) -> Any:
+                       reflect: bool = False, dtr: bool = False, extra: tuple[str, ...] = ()) -> Any:
         """The fused chunk kernel of one kind of pair scene: `pair_chunk` linked to the scene's
         soft-face dispatch, region walls and flow step from compiled.pieces_for (the same
-        specialised pieces as the scene's chunk kernel), with the code of `fixes:`, wall/reflect
-        (and wall/reflect/stochastic) and fix dt/reset only if the scene has them, named by their
-        fingerprint so numba caches each on disk in its own index file."""
+        specialised pieces as the scene's chunk kernel, with the generated forces of its
+        wall/lepton faces, `extra`), with the code of `fixes:`, wall/reflect (and
+        wall/reflect/stochastic) and fix dt/reset only if the scene has them, named by their
+        fingerprint so numba caches each on disk in its own index file (with `extra`, beside the
+        generated module the scene's forces are written to)."""
         return _pair_chunk_for(tuple(sorted(set(soft))), tuple(sorted(set(region))), bool(flow), bool(tables),
-                               bool(stochastic), bool(fixes), bool(reflect), bool(dtr))
+                               bool(stochastic), bool(fixes), bool(reflect), bool(dtr), tuple(extra))
 
     @functools.lru_cache(maxsize=32)
     def _pair_chunk_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
                         tables: bool = False, stochastic: bool = False, fixes: bool = False, reflect: bool = False,
-                        dtr: bool = False) -> Any:
-        p = _compiled.pieces_for(soft, region, flow, tables=tables, stochastic=stochastic)
-        flags = {"_K_FIXES": fixes, "_K_REFLECT": reflect or stochastic, "_K_DTR": dtr}
+                        dtr: bool = False, extra: tuple[str, ...] = ()) -> Any:
+        p = _compiled.pieces_for(soft, region, flow, extra=extra, tables=tables, stochastic=stochastic)
+        vector = any(src.startswith(_compiled.VECTOR_MARK) for src in extra)
+        flags = {"_K_FIXES": fixes, "_K_REFLECT": reflect or stochastic, "_K_DTR": dtr, "_K_VECTOR": vector}
         h = hashlib.sha256()
         h.update(str(p.fingerprint).encode())
         h.update(repr(sorted(flags.items())).encode())
         h.update(inspect.getsource(_compiled).encode())
+        h.update(Path(__file__).read_bytes())  # (with `extra` numba keys the cache by the generated module's file)
         fp = int(h.hexdigest()[:15], 16)
-        fn = _compiled._relink(_make_pair_chunk(fp).py_func, name=f"pair_chunk_{fp:015x}", _soft_face=p.soft_face,
+        fn = _compiled._relink(_make_pair_chunk(fp).py_func, name=f"pair_chunk_{fp:015x}", filename=p.filename,
+                               _soft_face=p.soft_face, _vector_faces=p.vector_faces,
                                _region_walls=p.region_walls, _flow_step=p.flow_step, _sample_faces=p.sample_faces,
                                _sample_regions=p.sample_regions,
                                _table_faces=_compiled._table_faces if tables else _compiled._no_table_faces,
@@ -1127,11 +1141,12 @@ if njit is not None:
 PAIR_COMPILE_SECONDS, PAIR_FIXES_SECONDS, PAIR_SHARED_SECONDS = 15, 20, 15
 
 
-def compile_estimate(fixes: bool) -> float:
+def compile_estimate(fixes: bool, lepton: bool = False) -> float:
     """The compile message's estimate for a pair scene's chunk kernel [s]: PAIR_COMPILE_SECONDS
-    (PAIR_FIXES_SECONDS with thermostats), plus PAIR_SHARED_SECONDS when the shared list build
-    and force pass are not compiled or in numba's disk cache yet."""
-    own = PAIR_FIXES_SECONDS if fixes else PAIR_COMPILE_SECONDS
+    (PAIR_FIXES_SECONDS with thermostats; compiled.LEPTON_PAIR_COMPILE_S with wall/lepton faces),
+    plus PAIR_SHARED_SECONDS when the shared list build and force pass are not compiled or in
+    numba's disk cache yet."""
+    own = _compiled.LEPTON_PAIR_COMPILE_S if lepton else PAIR_FIXES_SECONDS if fixes else PAIR_COMPILE_SECONDS
     shared = [build_case, forces_case] if njit is not None else []
     if all(k.signatures or _compiled._cached_on_disk(k) for k in shared):
         return own
@@ -1759,8 +1774,9 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     integrator's group (frozen), all of them for a case over threads too (`_chunk_threaded`); and,
     for a case on one thread (`case_parts`), wall/reflect with statistics and
     wall/reflect/stochastic (`compiled._stochastic_eligible`) on fixed dimensions
-    (`reflect_on_threads`), fix dt/reset (not with wall/flow or wall values that vary with time).
-    Not wall/lepton faces or anything else."""
+    (`reflect_on_threads`), fix dt/reset (not with wall/flow or wall values that vary with time);
+    wall/lepton faces when `compiled.lepton_compiled_wanted` (kind "pair") says the run pays for
+    their kernel. Nothing else."""
     if njit is None or plan.others != ("pair",):
         return False
     ens = plan.ensemble
@@ -1776,11 +1792,11 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
         return False  # reflect faces on fixed dims only (the kernel reflects after the wrap)
     if not pair.compiled or pair.ncases != plan.state.ncases:
         return False
-    if not _compiled.eligible(dataclasses.replace(plan, others=()), partial=True):
+    if not _compiled.eligible(dataclasses.replace(plan, others=()), partial=True, kind="pair"):
         return False
-    for w in plan.soft:  # the registry's compiled styles, or wall/table
+    for w in plan.soft:  # the registry's compiled styles, wall/table, or wall/lepton (generated forces)
         for st in _compiled._face_styles(w):
-            if _compiled._is_table(st):
+            if _compiled._is_table(st) or _compiled._generated_force(st) is not None:
                 continue
             sid = _compiled.STYLE_IDS.get(st.name)
             if sid is None or _compiled.COMPILED_STYLES[sid] != st:
@@ -1923,9 +1939,10 @@ class PairChunks(_compiled.KernelPath):
             return len(groups) - 1
 
         soft_faces = [(w, st, face) for w in plan.soft for st, face in zip(_compiled._face_styles(w), w.faces)]
-        sf_meta = np.array([[_compiled.TABLE_STYLE if _compiled._is_table(st) else _compiled.STYLE_IDS[st.name],
-                             face.dim, face.side, group(w.group, w.all_atoms), w.cutoff.mode_id]
-                            for w, st, face in soft_faces], np.int64).reshape(-1, 5)
+        extra = _compiled._lepton_extra(plan)  # generated forces (wall/lepton), numbered after the registry's styles
+        sf_meta = np.array([[_compiled.face_style_id(st, extra), face.dim, face.side, group(w.group, w.all_atoms),
+                             w.cutoff.mode_id] for w, st, face in soft_faces], np.int64).reshape(-1, 5)
+        lp_val = _compiled._lepton_rows(soft_faces, C)  # wall/lepton faces' parameters as arrays
         tables = bool(np.any(sf_meta[:, 0] == _compiled.TABLE_STYLE))
         tb = (*_compiled._tables(soft_faces), np.zeros(((N + 63) // 64) * 64 if tables else 0, np.uint8))
         rg_meta, rg_geo, rg_val = _compiled.FastPath._regions(plan, group)
@@ -1969,9 +1986,9 @@ class PairChunks(_compiled.KernelPath):
         kernel = pair_chunk_for(tuple({(int(r[0]), int(r[4])) for r in sf_meta if 0 <= r[0] < n}),
                                 tuple({(int(r[2]), int(r[4])) for r in rg_meta}), fk is not None, tables,
                                 sk is not None, fixes=bool(fx[0].shape[0]), reflect=bool(rf_meta.shape[0]),
-                                dtr=dtr is not None)
+                                dtr=dtr is not None, extra=extra)
         if not kernel.signatures:
-            _compiled.announce_compile(kernel, compile_estimate(bool(fx[0].shape[0])))
+            _compiled.announce_compile(kernel, compile_estimate(bool(fx[0].shape[0]), bool(extra)))
         done = []
         call = backend.Repeated(kernel)  # the cases' one-thread calls: numba's typing once (same types)
         threadable = threads_take(plan)  # (else one thread: dt/reset, reflect statistics)
@@ -1996,7 +2013,7 @@ class PairChunks(_compiled.KernelPath):
                     sf_meta, sf_val[c], groups_arr, (rg_meta, rg_geo, rg_val[c:c + 1]), fl,
                     (_compiled._fix_slice(fx, slice(c, c + 1)), fx_rngs[c] if fx_rngs else _compiled._NO_RNGS,
                      int(s.step[c]), fix_buffers(N if fx[0].shape[0] else 0, fx[13].shape[2] // 3, self._buffer)),
-                    (rf_meta, rf_val[c], rf_prev[c], rf_stat[c], bool(stats)), tb,
+                    (rf_meta, rf_val[c], rf_prev[c], rf_stat[c], bool(stats)), tb, lp_val[c],
                     (sto[0], sto[1][c:c + 1], sto[2][c:c + 1], sto[3],
                      _compiled._stochastic_rngs(plan, c), float(s.units.mvv2e)),
                     (int(dtr.every) if dtr is not None else 0, dtr_group, dtr_par[c], clk[c]),
@@ -2024,6 +2041,8 @@ class PairChunks(_compiled.KernelPath):
                 self.fallbacks += 1
                 return False
             done.append((x, v, f, xref, owner, first, neigh, builds, held))
+        if extra:  # compiled (and cached on disk by numba) by now: later processes load it
+            _compiled._mark_compiled(extra, "pair")
         for c, (x, v, f, xref, owner, first, neigh, builds, held) in enumerate(done):
             s.x[c], s.v[c], s.f[c] = x, v, f
             pair._xref[c], pair._owner[c], pair._first[c] = xref, owner, first
