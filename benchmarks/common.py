@@ -186,6 +186,17 @@ def hot_cold_slit(n: int, kind: str = "langevin", **kw: Any) -> dict:
     return with_fixes(cfg, fixes, f"hot-cold-{kind}")
 
 
+def frozen_gas_slit(n: int, **kw: Any) -> dict:
+    """The lj93 gas slit with a fifth of its atoms (group `still`, anywhere in the slab) in no
+    integrator's group: fix nve on the rest (`gas`); the walls push both."""
+    cfg = gas_slit(n, "lj93", **kw)
+    base = cfg["atoms"][0]
+    region = base["create"]["random"]["region"]
+    cfg["atoms"] = [{**base, "group": g, "create": {"random": {"count": k, "region": region}}}
+                    for g, k in (("gas", n - n // 5), ("still", n // 5))]
+    return with_fixes(cfg, {"nve": "fix nve gas nve"}, "frozen")
+
+
 def gas_2d(n: int, *, steps: int = 1000, thermo: int = 100, dt: float = 0.005, density: float = 0.1,
            seed: int = 7) -> dict:
     """A 2-D ideal gas (dimension 2, enforce2d) of n atoms at area density `density` in a channel

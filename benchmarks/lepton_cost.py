@@ -102,7 +102,8 @@ def pair_costs(np, common, Engine) -> None:  # noqa: ANN001
                 Engine([case]).run()
                 best = min(best, (time.perf_counter() - t0) / steps)
             per_step[(mode, n)] = best
-            print(f"{mode:6s} N={n:6d}: {best * 1e3:.3f} ms per step, {best / n * 1e9:.0f} ns per atom-step", flush=True)
+            print(f"{mode:6s} N={n:6d}: {best * 1e3:.3f} ms per step, {best / n * 1e9:.0f} ns per atom-step",
+                  flush=True)
     ns = np.array(sizes, float)
     diff = np.polyfit(ns, [per_step[("never", n)] - per_step[("always", n)] for n in sizes], 1)
     print(f"NumPy walls minus fused: {diff[1] * 1e3:.3f} ms per step + {diff[0] * 1e9:.1f} ns per atom-step")

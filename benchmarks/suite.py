@@ -72,10 +72,10 @@ sys.path.insert(0, str(HERE))
 
 import common  # noqa: E402
 import host_cores  # noqa: E402
-from common import (build, ellipsoid_slit, flow_gas, flow_lj, frozen_slab_slit, gas_2d, gas_slit, hot_cold_slit,  # noqa: E402
-                    lammps_export_run, lammps_module, lammps_script, lepton_slit, lj_fcc_slit, region_ees, region_gas,
-                    stochastic_slit, stochastic_two_slit, table_slit, thermostat_slit, THERMOSTATS, with_dt_reset,
-                    with_fixes)
+from common import (build, ellipsoid_slit, flow_gas, flow_lj, frozen_gas_slit, frozen_slab_slit, gas_2d,  # noqa: E402
+                    gas_slit, hot_cold_slit, lammps_export_run, lammps_module, lammps_script, lepton_slit,
+                    lj_fcc_slit, region_ees, region_gas, stochastic_slit, stochastic_two_slit, table_slit,
+                    thermostat_slit, THERMOSTATS, with_dt_reset, with_fixes)
 
 from wallbatch.engine.engine import Engine  # noqa: E402
 
@@ -382,6 +382,7 @@ KINDS: list[tuple[str, str, Callable[..., dict], float]] = [  # (row prefix, sce
     ("thermostat-berendsen", "gas slit lj93 + fix temp/berendsen",
      lambda n, **k: thermostat_slit(n, "berendsen", **k), 1e7),
     ("2d", "2-D gas channel lj93 (enforce2d)", gas_2d, 1e7),
+    ("frozen-atoms", "gas slit lj93, a fifth of the atoms frozen (fix nve on the rest)", frozen_gas_slit, 1e7),
     ("table", "gas slit wall/table (spline 2000)", table_slit, 1e7),
     ("stochastic", "gas slit wall/reflect/stochastic diffusive", stochastic_slit, 1e7),
     ("stochastic-two-fixes", "gas slit, two wall/reflect/stochastic fixes (diffusive, maxwell)", stochastic_two_slit,

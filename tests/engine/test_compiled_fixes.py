@@ -248,12 +248,59 @@ def test_two_nvt_fixes_hot_and_cold(monkeypatch):
     assert every.fast.sampled_calls > 0
 
 
-def test_refused_fix_combinations_run_in_numpy(monkeypatch):
-    """An integrator on part of the atoms in a scene without pair forces stays on the NumPy path."""
-    d = gas({"a": "fix a hot nve"}, steps=40, thermo=20)
-    d["atoms"].append({**d["atoms"][0], "group": "hot", "create": {"random": {"count": 100, "region": "mid"}}})
-    _, got, eng = run_both(monkeypatch, [d])
-    assert eng.fast is None
+def with_frozen(fixes: dict, **kw) -> dict:
+    """`gas` (300 atoms, group gas) plus 120 atoms of group hot in the middle; `fixes` decides who
+    is integrated (atoms in no nve or nvt group are frozen)."""
+    d = gas(fixes, **kw)
+    d["atoms"].append({**d["atoms"][0], "group": "hot", "create": {"random": {"count": 120, "region": "mid"}}})
+    return d
+
+
+FROZEN = {  # who is integrated; the others stay where they are
+    "nve on hot": {"a": "fix a hot nve"},
+    "nve on gas": {"a": "fix a gas nve"},
+    "nvt on hot, langevin": {"a": "fix a hot nvt temp 2.0 2.0 0.1", "b": "fix b all langevin 1.0 1.0 0.5 48279"},
+    "nve + berendsen on gas": {"a": "fix a gas nve", "b": "fix b gas temp/berendsen 0.5 0.5 0.2"},
+}
+
+
+@pytest.mark.parametrize("who", sorted(FROZEN))
+@pytest.mark.parametrize("thermo", [1, 20])
+def test_frozen_atoms_run_compiled_bit_for_bit(monkeypatch, who, thermo):
+    """An integrator on part of the atoms (without pair forces): the kernel with `_K_FROZEN` keeps
+    the others' v and x as they are (the walls still push them, a Langevin fix on all atoms still
+    adds its force), every output the NumPy engine's, bit for bit, sampled every step or every
+    20th; the frozen atoms have not moved by a bit."""
+    d = with_frozen(FROZEN[who], steps=60, thermo=thermo)
+    ref, got, eng = check(monkeypatch, [d])
+    assert eng.fast.kernel.dispatcher.py_func.__globals__["_K_FROZEN"] is True
+    case = build_case(config_from_dict(d))
+    moving = eng.ensemble.integrated
+    assert 0 < moving.sum() < moving.size
+    x, v = eng.state.x[0], eng.state.v[0]
+    assert np.array_equal(x[~moving], case.x[~moving]) and np.array_equal(v[~moving], case.v[~moving])
+    assert np.all(np.any(x[moving] != case.x[moving], axis=1))
+    assert np.ptp(got[0].data["temp"]) > 0
+
+
+def test_frozen_atoms_with_dt_reset_bit_for_bit(monkeypatch):
+    """Frozen atoms with fix dt/reset (the kernel's final kick fused with dt/reset's test)."""
+    d = with_frozen({"a": "fix a gas nve"}, steps=80, thermo=10)
+    d["dt_reset"] = {"every": 1, "xmax": 0.02, "tmax": 0.005, "units": "box"}
+    d["output"] = {"thermo": OUT + ["dt"]}
+    ref, got, eng = check(monkeypatch, [d])
+    assert np.ptp(got[0].data["dt"]) > 0  # dt/reset acted
+
+
+def test_frozen_atoms_split_over_threads_give_the_bits_of_one_thread(monkeypatch):
+    """One case with frozen atoms split over two threads by atoms (each its atoms' rows of the
+    integrated mask): one thread's bits."""
+    configs = [with_frozen({"a": "fix a gas nve"}, n=3000, steps=60, thermo=20)]
+    monkeypatch.setattr(fast, "SPLIT_SAMPLE_STEPS", 1)  # (samples 20 steps apart: split all the same)
+    one, _, split1 = run_with(monkeypatch, configs, 1)
+    two, eng2, split2 = run_with(monkeypatch, configs, 2)
+    assert split1["atoms"] == 0 and split2["atoms"] >= 1 and eng2.fast.fallbacks == 0
+    assert_same(one, two)
 
 
 @pytest.mark.parametrize("fix", ["fix b all langevin 1.0 2.0 0.5 48279 tally yes", "fix b all nvt temp 1.0 2.0 0.1",

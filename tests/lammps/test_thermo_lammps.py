@@ -135,9 +135,12 @@ def test_rescaling_thermostats_match_lammps(fixes, lines):
     assert abs(ref["ecouple"][-1]) > 1.0
 
 
-def test_nvt_and_berendsen_on_subgroups_with_frozen_atoms_match_lammps():
+@pytest.mark.parametrize("numba", ["0", "1"])
+def test_nvt_and_berendsen_on_subgroups_with_frozen_atoms_match_lammps(monkeypatch, numba):
     """nvt on one group, nve + berendsen on another, a third group integrated by nobody (frozen);
-    each thermostat uses its own group's temperature (dof 3 n - 3)."""
+    each thermostat uses its own group's temperature (dof 3 n - 3). On the NumPy path and on the
+    compiled one (the kernel with frozen atoms, `_K_FROZEN`)."""
+    monkeypatch.setenv("WALLBATCH_NUMBA", numba)
     x, v = slit_gas(n=90)
     sel = np.arange(90) % 3
     groups = {"hot": sel == 0, "cold": sel == 1, "still": sel == 2}

@@ -444,9 +444,10 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
             scheduler: str | None = None, plan: SweepPlan | None = None
             ) -> Iterator[tuple[int, list[int], list[Outcome]]]:
     """Run windows (see `_run_window`; in this process from `plan`); yield (window index, positions
-    in it, their outcomes) as each finishes (in this process: as each of its batches finishes). Local workers each get an equal share of the cores as threads, and inherit
-    the kernels loaded here on the run's first case (_FIRST, see _warm_compiler). Closing the
-    generator early (an interrupt) cancels the pending tasks and stops the workers."""
+    in it, their outcomes) as each finishes (in this process: as each of its batches finishes).
+    Local workers each get an equal share of the cores as threads, and inherit the kernels loaded
+    here on the run's first case (_FIRST, see _warm_compiler). Closing the generator early (an
+    interrupt) cancels the pending tasks and stops the workers."""
     if executor == "dask":
         from distributed import Client
         from distributed import as_completed as dask_completed

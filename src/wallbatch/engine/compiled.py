@@ -40,7 +40,9 @@ with the case's own generator (`_flow_step`; numba's Generator draws NumPy's str
 step over all atoms. `fixes:` (nvt, langevin, temp/berendsen, temp/rescale, enforce2d;
 `fixes_eligible`) run in the kernel with engine/thermostats.py's functions (`_fix_pre`,
 `_fix_post_force`, `_fix_end`; step by step when a thermostat couples the atoms, one case per call
-with the case's generator of each langevin fix). wall/table faces run in every scene kernel with their tables as data
+with the case's generator of each langevin fix); nve or nvt on some groups only leaves the other
+atoms where they are (`_K_FROZEN`: the kick and drift keep their v and x, selects in the same
+loops). wall/table faces run in every scene kernel with their tables as data
 (`_table_faces`: one concatenated array, styles.table's lookups jitted; no compile per table);
 wall/lepton faces with the force generated from each expression (`kernel_for`'s `extra`, compiled
 once per set of expressions and cached on disk). wall/reflect/stochastic fixes run after the
@@ -152,6 +154,10 @@ _K_FIXES = _K_DTR = _K_FLOW = _K_TIME = _K_SAMPLES = True
 # v_z = f_z = 0 at the chunk's start and enforce2d zeroes them every step, so z's updates are the
 # identity); False here: all three dimensions
 _K_2D = False
+# True in the kernel of a scene whose integrators leave some atoms out (`fixes:` with nve or nvt on
+# some groups only: Ensemble.moving): the kick and drift keep those atoms' v and x as they are, bit
+# for bit (the force clear, wrap and walls still see them); False here: every atom is integrated
+_K_FROZEN = False
 # The chunk kernel's arguments read only by the code of one of those features: a scene kernel
 # without it gets None in their place (`SceneKernel`), so its compiled entry point neither unboxes
 # them nor holds them (fewer arguments to convert and release: a shorter first compile)
@@ -1289,12 +1295,13 @@ if njit is not None:
         kick; with `due`, fix dt/reset's candidates. Returns (status, smallest candidate over
         the dt/reset group, NaN if any is NaN); status 0, 1 (an atom on/behind a soft wall) or
         2 (an atom left through a fixed boundary). box rows: lo, hi, periodic (1.0) per dimension;
-        dtr_par[c]: xmax, emax, tmin, tmax; tbst = (tb, st, lp): the wall/table faces' tables
-        (`_table_faces`), the wall/reflect/stochastic faces (`_stochastic_faces`) and the
-        parameter rows (C, faces, P) of wall/lepton faces with more than 3 parameters, one argument
+        dtr_par[c]: xmax, emax, tmin, tmax; tbst = (tb, st, lp, mv): the wall/table faces' tables
+        (`_table_faces`), the wall/reflect/stochastic faces (`_stochastic_faces`), the
+        parameter rows (C, faces, P) of wall/lepton faces with more than 3 parameters and the
+        integrated atoms' mask (nonzero: integrated; read with _K_FROZEN only), one argument
         (a call of more than 30 arguments is compiled by CPython as f(*args), which numba cannot
         inline)."""
-        tb, st, lp = tbst
+        tb, st, lp, mv = tbst
         # the periodic wrap joins the drift unless something between them reads or moves a
         # periodic coordinate (a wall/reflect face on a periodic dimension, wall/reflect/stochastic);
         # the force clear joins it too (nothing reads F before the clear): the same values, fewer passes
@@ -1309,16 +1316,23 @@ if njit is not None:
                 length = hid - lod
                 for i in range(u0, u1):
                     vi = V[d, i] + DTFM[i] * F[d, i]
-                    V[d, i] = vi
                     xi = X[d, i] + dtc * vi
+                    if _K_FROZEN:  # atoms no integrator moves keep v and x (selects: the loop still vectorises)
+                        vi = vi if mv[i] != 0 else V[d, i]
+                        xi = xi if mv[i] != 0 else X[d, i]
+                    V[d, i] = vi
                     xi = xi - length if xi >= hid else xi
                     X[d, i] = xi + length if xi < lod else xi
                     F[d, i] = 0.0
             else:
                 for i in range(u0, u1):
                     vi = V[d, i] + DTFM[i] * F[d, i]
+                    xi = X[d, i] + dtc * vi
+                    if _K_FROZEN:
+                        vi = vi if mv[i] != 0 else V[d, i]
+                        xi = xi if mv[i] != 0 else X[d, i]
                     V[d, i] = vi
-                    X[d, i] = X[d, i] + dtc * vi
+                    X[d, i] = xi
                     F[d, i] = 0.0
         if _K_REFLECT:
             for k in range(rf_meta.shape[0]):  # wall/reflect (post_integrate)
@@ -1369,7 +1383,10 @@ if njit is not None:
         if not _K_DTR or not due or tmax != tmax:
             for d in range(2 if _K_2D else 3):  # final_integrate: v += dtfm f (2-D: z stays 0)
                 for i in range(u0, u1):
-                    V[d, i] = V[d, i] + DTFM[i] * F[d, i]
+                    vi = V[d, i] + DTFM[i] * F[d, i]
+                    if _K_FROZEN:
+                        vi = vi if mv[i] != 0 else V[d, i]
+                    V[d, i] = vi
             if not _K_DTR or not due:
                 return 0, np.inf
         else:
@@ -1390,6 +1407,8 @@ if njit is not None:
                 v0 = V[0, i] + DTFM[i] * f0
                 v1 = V[1, i] + DTFM[i] * f1
                 v2 = V[2, i] + DTFM[i] * f2
+                if _K_FROZEN and mv[i] == 0:
+                    v0, v1, v2 = V[0, i], V[1, i], V[2, i]
                 V[0, i] = v0
                 V[1, i] = v1
                 V[2, i] = v2
@@ -1466,7 +1485,7 @@ if njit is not None:
                        step, lo, hi, periodic, sf_meta, sf_val, groups, rf_meta, rf_val, rf_prev, rf_stat,
                        stats, dtr_every, dtr_group, dtr_par, ftm2v, mvv2e, xo, vo, fo, rg_meta, rg_geo, rg_val,
                        fl_int, fl_f, fl_walls, fl_grp, fl_phys, fl_pend, fl_prev, fl_cross, fl_rng, fx, fx_rng,
-                       tb_meta, tb_par, tb_data, st_meta, st_val, st_stat, st_flag, st_rng, lp_val, sm):
+                       tb_meta, tb_par, tb_data, st_meta, st_val, st_stat, st_flag, st_rng, lp_val, mrow, sm):
             """Advance every case by nsteps steps (or, with time_mode, to the time `target` as
             Engine.advance_to_time does), reading x, v, f and writing xo, vo, fo. Returns 0, or the
             nonzero status of the first trouble met (1: an atom on/behind a soft wall, 2: a lost atom,
@@ -1572,7 +1591,8 @@ if njit is not None:
                 sto = (st_meta, st_val, st_stat, st_flag, st_rng, np.empty(nst, np.int64), np.empty((4, nst)))
             else:
                 sto = (st_meta, st_val, st_stat, st_flag, st_rng, None, None)
-            tbst = (tb, sto, lp_val)  # wall/reflect/stochastic, lepton parameter rows
+            # wall/reflect/stochastic, lepton parameter rows, the integrated atoms (groups row mrow; -1: all)
+            tbst = (tb, sto, lp_val, groups[mrow] if mrow >= 0 else groups[0])
             for c in range(ncase):
                 for a in range(natom):
                     for d in range(3):
@@ -1937,20 +1957,20 @@ if njit is not None:
     def kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...] = (), flow: bool = False,
                    extra: tuple[str, ...] = (), parallel: bool = False, fixes: bool = True, dtr: bool = True,
                    tables: bool = False, stochastic: bool = False, reflect: bool = True, time: bool = True,
-                   sampled: bool = True, two_d: bool = False) -> Any:
+                   sampled: bool = True, two_d: bool = False, frozen: bool = False) -> Any:
         """The chunk kernel of one kind of scene (`_kernel_for`), one per specialisation and process;
         False leaves that code out: `fixes` (`fixes:`), `dtr` (fix dt/reset), `reflect`
         (wall/reflect), `time` (time-based runs, `FastPath.advance_to_time`), `sampled` (samples
         recorded in the kernel, `FastPath.advance_sampled`); `two_d`: the step integrates x and y
-        only (`two_d_eligible`)."""
+        only (`two_d_eligible`); `frozen`: some atoms are not integrated (`_K_FROZEN`)."""
         return _kernel_for(*_scene_args(soft, region, flow, extra, tables, stochastic), bool(parallel), bool(fixes),
-                           bool(dtr), bool(reflect), bool(time), bool(sampled), bool(two_d))
+                           bool(dtr), bool(reflect), bool(time), bool(sampled), bool(two_d), bool(frozen))
 
     @functools.lru_cache(maxsize=64)
     def _kernel_for(soft: tuple[tuple[int, int], ...], region: tuple[tuple[int, int], ...], flow: bool,
                     extra: tuple[str, ...], tables: bool, stochastic: bool, parallel: bool, fixes: bool = True,
                     dtr: bool = True, reflect: bool = True, time: bool = True, sampled: bool = True,
-                    two_d: bool = False) -> Any:
+                    two_d: bool = False, frozen: bool = False) -> Any:
         """The chunk kernel of one kind of scene (`pieces_for`; `parallel`: compiled with numba
         parallel=True, reserved for a two-thread variant, not used by the engine yet): this
         module's chunk kernel re-linked to the scene's block and flow steps and to its
@@ -1961,7 +1981,7 @@ if njit is not None:
         flags = {"_K_REFLECT": reflect, "_K_STOCHASTIC": stochastic, "_K_TABLES": tables,
                  "_K_VECTOR": any(src.startswith(VECTOR_MARK) for src in extra), "_K_REGION": bool(region),
                  "_K_FIXES": fixes, "_K_DTR": dtr, "_K_FLOW": flow, "_K_TIME": time, "_K_SAMPLES": sampled,
-                 "_K_2D": two_d}
+                 "_K_2D": two_d, "_K_FROZEN": frozen}
         fp = _fingerprint(tuple(sorted(set(soft) | set(region))), flow, parallel,
                           p.source + "\n# " + ", ".join(f"{k} {v}" for k, v in flags.items()))
         gone: dict[str, Any] = {}
@@ -2377,10 +2397,10 @@ def _compiled_face(w: SoftWallKernel, style: WallStyle) -> bool:
     return _generated_force(style) is not None and w.cutoff.mode_id == SHIFT
 
 
-def eligible(plan: ChunkPlan, partial: bool = False, kind: str = "chunk") -> bool:
+def eligible(plan: ChunkPlan, kind: str = "chunk") -> bool:
     """Whitelist: flat soft walls of compiled styles, wall/reflect (lab or wall frame), wall/region
     with compiled styles and constant parameters, one wall/flow (not with dt/reset), dt/reset,
-    variables; nothing else in the scene (`partial`: see `fixes_eligible`; `kind`: the kernel
+    variables; nothing else in the scene (`fixes_eligible`; `kind`: the kernel
     whose wall/lepton policy applies, `lepton_compiled_wanted`)."""
     if plan.others:
         return False
@@ -2394,7 +2414,7 @@ def eligible(plan: ChunkPlan, partial: bool = False, kind: str = "chunk") -> boo
         return False
     if len(plan.flow) > 1 or (plan.flow and plan.dt_reset is not None):
         return False
-    if not fixes_eligible(plan, partial):
+    if not fixes_eligible(plan):
         return False
     if not _stochastic_eligible(plan):
         return False
@@ -2432,16 +2452,14 @@ def two_d_eligible(plan: ChunkPlan) -> bool:
     return True
 
 
-def fixes_eligible(plan: ChunkPlan, partial: bool = False) -> bool:
-    """The batch's `fixes:` the kernel runs: every atom integrated (nve or nvt; with `partial`,
-    the pair chunks', some atoms may be left out: frozen atoms, fx_int[2]), any number of nvt and
-    langevin fixes, temp/berendsen, temp/rescale, enforce2d; with dt/reset or wall/flow too
-    (Engine.step's end_of_step order: the thermostats, the flow walls, dt/reset)."""
+def fixes_eligible(plan: ChunkPlan) -> bool:
+    """The batch's `fixes:` the kernel runs: nve or nvt on every atom or on some (the others stay
+    where they are: frozen atoms, fx_int[2], `_K_FROZEN`), any number of nvt and langevin fixes,
+    temp/berendsen, temp/rescale, enforce2d; with dt/reset or wall/flow too (Engine.step's
+    end_of_step order: the thermostats, the flow walls, dt/reset)."""
     ens = plan.ensemble
     if ens is None:
         return True
-    if ens.moving is not None and not partial:
-        return False
     styles = [f.style for f in ens.fixes]
     if any(st not in FIX_KINDS and st != "nve" for st in styles):
         return False
@@ -2484,7 +2502,7 @@ def _fix_arrays(plan: ChunkPlan, group: Callable[[np.ndarray, bool], int]) -> tu
         per_case = tuple(np.zeros((C, 1)) for _ in range(4))
     u = s.units
     run_time = np.nan if s.run_time is None else float(s.run_time)  # (a run to a time: the ramp follows the time)
-    # the integrated atoms' group row (Ensemble.moving; -1: every atom), for the pair chunks
+    # the integrated atoms' group row (Ensemble.moving; -1: every atom): the frozen atoms' mask
     moving = -1 if ens is None or ens.moving is None else group(ens.moving, False)
     # fx_int: 0 (the pair chunks' sample step on threads sets 1 in its copy: its tail on all atoms ends the
     # fixes' step too), the run's end step, the moving row
@@ -2843,6 +2861,7 @@ class FastPath(KernelPath):
             dtr_group, dtr_par = 0, np.zeros((C, 4))
         rg = self._regions(plan, group)
         fx, fx_fixes, fx_rngs = _fix_arrays(plan, group)
+        mrow = int(fx[11][2])  # the integrated atoms' group row (-1: every atom)
         sk = _stochastic_kernel(plan)
         sto = _stochastic_arrays(plan, group)
         groups_arr = np.stack(groups)
@@ -2863,7 +2882,7 @@ class FastPath(KernelPath):
                             tables=bool(np.any(sf_meta[:, 0] == TABLE_STYLE)), stochastic=sk is not None,
                             reflect=bool(rf_meta.shape[0]), time=time_mode,
                             # one kernel for both ways of sampling (a second would be a second compile)
-                            sampled=sampled_eligible(plan), two_d=two_d_eligible(plan))
+                            sampled=sampled_eligible(plan), two_d=two_d_eligible(plan), frozen=mrow >= 0)
         self.kernel = kernel  # the last chunk's kernel (tests read its cache statistics)
         self.kernel_names.add(kernel.py_func.__qualname__)
         if not kernel.signatures:
@@ -2883,7 +2902,7 @@ class FastPath(KernelPath):
                     s.atimestep[c], s.step[c], lo, hi, periodic, sf_meta, sf_val[c], groups_arr, rf_meta,
                     rf_val[c], rf_prev[c], rf_stat[c], *consts, dtr_par[c], *units, xo[c], vo[c], fo[c],
                     rg[0], rg[1], rg[2][c], *fl, _fix_slice(fx, c), fx_rng, *tb, sto[0], sto[1][c],
-                    sto[2][c], sto[3], st_rng, lp_val[c],
+                    sto[2][c], sto[3], st_rng, lp_val[c], mrow,
                     (sm[0],) + tuple(a[c] for a in sm[1:]))
 
         # generators drawn from in the kernel (fix langevin, wall/flow, wall/reflect/stochastic):

@@ -1783,7 +1783,7 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
     # a case over threads keeps on its per-step path: reflect statistics and stochastic walls, dt/reset
     if (not reflect_on_threads(plan) or plan.dt_reset is not None) and case_parts(plan.state.x.shape[1]) >= 2:
         return False
-    if ens is not None and not _compiled.fixes_eligible(plan, partial=True):
+    if ens is not None and not _compiled.fixes_eligible(plan):
         return False
     if plan.dt_reset is not None and (plan.flow or _compiled.FastPath._uses_time(plan)):
         return False  # compiled.py's order with wall/flow; per-step wall values depend on dt
@@ -1792,7 +1792,7 @@ def chunk_eligible(plan: "_compiled.ChunkPlan", pair: Any) -> bool:
         return False  # reflect faces on fixed dims only (the kernel reflects after the wrap)
     if not pair.compiled or pair.ncases != plan.state.ncases:
         return False
-    if not _compiled.eligible(dataclasses.replace(plan, others=()), partial=True, kind="pair"):
+    if not _compiled.eligible(dataclasses.replace(plan, others=()), kind="pair"):
         return False
     for w in plan.soft:  # the registry's compiled styles, wall/table, or wall/lepton (generated forces)
         for st in _compiled._face_styles(w):

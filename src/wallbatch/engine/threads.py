@@ -56,7 +56,7 @@ COUNTERS = ("dt", "atime", "atimestep", "step", "rf_prev", "rf_stat")  # per-cas
 SHARED = frozenset({"nsteps", "time_mode", "target", "tol", "lo", "hi", "periodic", "sf_meta", "groups", "rf_meta",
                     "stats", "dtr_every", "dtr_group", "ftm2v", "mvv2e", "rg_meta", "rg_geo", "fl_int", "fl_f",
                     "fl_walls", "fl_grp", "fl_phys", "fl_pend", "fl_prev", "fl_cross", "fl_rng", "fx", "fx_rng",
-                    "tb_meta", "tb_par", "tb_data", "st_meta", "st_flag", "st_rng"})
+                    "tb_meta", "tb_par", "tb_data", "st_meta", "st_flag", "st_rng", "mrow"})
 # the sample arrays of a sampled chunk (compiled._sample_arrays): sm[0] shared, the others by case
 SAMPLES = "sm"
 KNOWN = CASE_AXIS | SHARED | {SAMPLES}
