@@ -283,6 +283,31 @@ def test_frozen_atoms_run_compiled_bit_for_bit(monkeypatch, who, thermo):
     assert np.ptp(got[0].data["temp"]) > 0
 
 
+@pytest.mark.parametrize("scene", ["reflect statistics", "stochastic", "flow", "run to a time"])
+def test_frozen_atoms_with_other_walls_and_runs_bit_for_bit(monkeypatch, scene):
+    """Frozen atoms beside wall/reflect with statistics, wall/reflect/stochastic, wall/flow, and in
+    a run to a simulated time: the NumPy engine's bits on every output."""
+    d = with_frozen({"a": "fix a gas nve"}, steps=100, thermo=10)
+    if scene == "reflect statistics":
+        d["walls"] = {"r": {"style": "reflect", "units": "box", "zlo": 1.5, "zhi": 6.5}}
+        d["output"] = {"thermo": OUT + ["reflect_count", "reflect_impulse"]}
+    elif scene == "stochastic":
+        d["walls"] = {"th": {"style": "reflect/stochastic", "rstyle": "diffusive", "seed": 2024, "units": "box",
+                             "zlo": {"coord": 1.5, "temp": 2.0}, "zhi": {"coord": 6.5, "temp": 0.5}}}
+        d["output"] = {"thermo": OUT + ["reflect_count"]}
+    elif scene == "flow":
+        d["walls"]["f"] = {"style": "flow", "axis": "x", "vflow": 0.5, "temperature": 1.5, "seed": 11,
+                           "coords": [1.5, 4.5], "units": "box"}
+        d["output"] = {"thermo": OUT + ["flow_crossings"]}
+    else:
+        d["timestep"] = 0.0045
+        d["run"] = {"time": 0.45, "thermo": {"time": 0.1}}
+    ref, got, eng = check(monkeypatch, [d])
+    assert eng.fast.kernel.dispatcher.py_func.__globals__["_K_FROZEN"] is True
+    counts = [k for k in ("reflect_count", "flow_crossings") if k in got[0].data]
+    assert all(got[0].data[k][1:].sum() > 5 for k in counts)  # the walls acted
+
+
 def test_frozen_atoms_with_dt_reset_bit_for_bit(monkeypatch):
     """Frozen atoms with fix dt/reset (the kernel's final kick fused with dt/reset's test)."""
     d = with_frozen({"a": "fix a gas nve"}, steps=80, thermo=10)
