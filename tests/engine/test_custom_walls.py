@@ -271,6 +271,32 @@ def test_lammps_wall_lepton_slit_trajectories(tmp_path, name):
 
 @pytest.mark.lammps
 @requires_lammps
+def test_lammps_wall_lepton_with_pair_forces_compiled(tmp_path, monkeypatch):
+    """An LJ gas (pair lj/cut) between wall/lepton faces, lj93 spelled out below and a
+    4-parameter expression above (its parameters as an array), run by the compiled pair chunk with
+    the generated forces (forced: WALLBATCH_NUMBA=1, WALLBATCH_LEPTON_COMPILED=always): LAMMPS's
+    fix wall/lepton on the exported scene agrees on every output."""
+    from wallbatch.engine import pair_compiled  # noqa: PLC0415
+
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    monkeypatch.setenv("WALLBATCH_LEPTON_COMPILED", "always")
+    made: list = []  # the fused pair chunks of the run (their counters)
+    real = pair_compiled.attach_pair_chunks
+    monkeypatch.setattr(pair_compiled, "attach_pair_chunks", lambda *a: made.append(real(*a)) or made[-1])
+    text = slit("w: {style: lepton, units: box, energy: true, "
+                "zlo: {coord: EDGE, expression: 'eps*(2/15*(sig/r)^9-(sig/r)^3)', params: {eps: 1.0, sig: 1.0}, "
+                "cutoff: 2.5}, zhi: {coord: EDGE, expression: 'a*(r-rc)^2 + b*exp(-r/l)', "
+                "params: {a: 20.0, rc: 2.0, b: 3.0, l: 0.4}, cutoff: 2.0}}\n", steps=300, thermo=50, count=60,
+                extra="pair: {style: lj/cut, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}\n")
+    text = text.replace("region: inner}", "region: inner, overlap: 1.0}")  # no two atoms closer than sigma
+    report = _validate(write(tmp_path, text))
+    rows = {r.output: r for r in report.rows}
+    assert made and made[0] is not None and made[0].compiled_chunks > 0 and made[0].fallbacks == 0
+    assert rows["wall_force[w/zhi]"].status == "ok" and rows["pe"].max_rel <= 1e-9
+
+
+@pytest.mark.lammps
+@requires_lammps
 @pytest.mark.parametrize("tabstyle", ["linear", "spline"])
 def test_lammps_wall_table_slit_trajectories(tmp_path, tabstyle):
     tab = lj93_tables(tmp_path, n=300)
