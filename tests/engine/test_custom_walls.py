@@ -411,20 +411,27 @@ def test_compiled_lepton_sweep_sampled_every_step_equals_numpy(tmp_path, monkeyp
     assert len({float(r.data["wall_energy"][1:].sum()) for r in numpy_res}) == 3
 
 
-def test_lepton_auto_policy_picks_the_faster_path_for_this_run(tmp_path, monkeypatch):
-    """WALLBATCH_LEPTON_COMPILED=auto: a batch runs compiled when the cost model (steps, atoms over
-    its cases, samples; the kernel's load or compile) expects it to take less time in this run
-    than the NumPy path, decided once per batch (every chunk of a run gets the first answer);
-    always / never decide alone."""
-    from types import SimpleNamespace  # noqa: PLC0415
-
+@pytest.fixture
+def lepton_policy(tmp_path, monkeypatch):
+    """(engine.compiled, the generated force of k*(r-rc)^2 as a kernel's `extra`) with the wall/lepton
+    policy fresh: its own cache folder (no markers), no kernel run yet, WALLBATCH_LEPTON_COMPILED unset."""
     fast = pytest.importorskip("wallbatch.engine.compiled")
     from wallbatch.styles.lepton import compile_expression, force_source  # noqa: PLC0415
 
     monkeypatch.setenv("WALLBATCH_CACHE_DIR", str(tmp_path))
     monkeypatch.delenv("WALLBATCH_LEPTON_COMPILED", raising=False)
     monkeypatch.setattr(fast, "_LEPTON_RUN", set())
-    extra = (force_source(compile_expression("k*(r-rc)^2", ("k", "rc"))),)
+    return fast, (force_source(compile_expression("k*(r-rc)^2", ("k", "rc"))),)
+
+
+def test_lepton_auto_policy_picks_the_faster_path_for_this_run(lepton_policy, monkeypatch):
+    """WALLBATCH_LEPTON_COMPILED=auto: a batch runs compiled when the cost model (steps, atoms over
+    its cases, samples; the kernel's load or compile) expects it to take less time in this run
+    than the NumPy path, decided once per batch (every chunk of a run gets the first answer);
+    always / never decide alone."""
+    from types import SimpleNamespace  # noqa: PLC0415
+
+    fast, extra = lepton_policy
 
     def state(cases: int, atoms: int, steps: int) -> SimpleNamespace:
         return SimpleNamespace(end_step=steps, step=np.zeros(cases, np.int64), x=np.zeros((cases, atoms, 3)))
@@ -459,20 +466,14 @@ def test_lepton_auto_policy_picks_the_faster_path_for_this_run(tmp_path, monkeyp
     assert wanted(1, 10, 10, 1)
 
 
-def test_lepton_auto_policy_with_pair_forces_has_its_own_kernel_and_model(tmp_path, monkeypatch):
+def test_lepton_auto_policy_with_pair_forces_has_its_own_kernel_and_model(lepton_policy):
     """With pair lj/cut the fused pair chunk runs the wall/lepton faces (kind "pair"): its kernel
     is another compile with its own marker, and the model counts only what differs between the
     paths (both run the compiled pair forces): NumPy's walls and integration per step and
     atom-step against nothing, plus the kernel's start."""
     from types import SimpleNamespace  # noqa: PLC0415
 
-    fast = pytest.importorskip("wallbatch.engine.compiled")
-    from wallbatch.styles.lepton import compile_expression, force_source  # noqa: PLC0415
-
-    monkeypatch.setenv("WALLBATCH_CACHE_DIR", str(tmp_path))
-    monkeypatch.delenv("WALLBATCH_LEPTON_COMPILED", raising=False)
-    monkeypatch.setattr(fast, "_LEPTON_RUN", set())
-    extra = (force_source(compile_expression("k*(r-rc)^2", ("k", "rc"))),)
+    fast, extra = lepton_policy
 
     def wanted(kind: str, atoms: int, steps: int) -> bool:
         st = SimpleNamespace(end_step=steps, step=np.zeros(1, np.int64), x=np.zeros((1, atoms, 3)))
