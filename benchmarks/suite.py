@@ -464,6 +464,20 @@ def ljcut_wall_kinds() -> dict:
 register("ljcut-4000", _ljcut(4000, 4e6), at_least(1.5))
 
 
+@row("ljcut-lepton-1000", at_least(1.5), "issue 15 (pair lj/cut with wall/lepton faces, compiled: >= 1.5x)")
+def ljcut_lepton() -> dict:
+    """ljcut-wall-kinds' LJ liquid slit between wall/lepton faces (lj93 spelled out), N = 1000,
+    warm as a user's later run in the same process: a short run first with
+    WALLBATCH_LEPTON_COMPILED=always compiles (or loads) the fused pair chunk with these
+    expressions, then the timed runs at default settings take it. LAMMPS: its fix wall/lepton."""
+    n = 1000
+    steps = scaled(2e6, n)
+    cfg = PAIR_WALLS["lepton"](n, steps, max(1, steps // 10))
+    with _env(WALLBATCH_LEPTON_COMPILED="always"):
+        engine_run(build(_short(cfg)))
+    return speed("LJ liquid slit (pair lj/cut) between wall/lepton faces, compiled walls", cfg)
+
+
 @row("ljcut-frozen-floor-4000", at_least(1.5), "issue 15 (pair lj/cut: >= 1.5x; frozen groups)")
 def ljcut_frozen() -> dict:
     """ljcut-4000's liquid with its lowest 1.5 sigma of atoms frozen (fix nve on the rest)."""
