@@ -356,3 +356,37 @@ def test_a_case_sent_to_a_worker_still_runs_compiled():
     case = pickle.loads(pickle.dumps(_build(_cfg(d))))
     engine = _Engine([case])
     assert engine.fast is not None
+
+
+def test_finish_chunk_sets_the_kernels_forces_aside_without_copying():
+    """A sampled chunk's end: the NumPy output pass writes its forces into the scratch array (the
+    kernel's spare buffer), and the kernel's own forces come back as the same array, values
+    untouched; without scratch they are copied aside and written back. Also after the pass raises."""
+    import types
+
+    f = np.arange(12.0).reshape(1, 4, 3)
+    scratch = np.zeros_like(f)
+    calls = []
+
+    def outputs():
+        s.f[...] = -1.0  # the NumPy pass's forces
+        calls.append(s.f)
+        return {"w": (np.ones(1),)}
+
+    plan = types.SimpleNamespace(compute_outputs=outputs, finish_step=lambda out, sample: calls.append(out))
+    s = types.SimpleNamespace(f=f, ctx=1, var_step={1: 2})
+    fast.finish_chunk(plan, s, True, scratch={"f": scratch})
+    assert s.f is f and np.array_equal(f, np.arange(12.0).reshape(1, 4, 3))
+    assert calls[0] is scratch and np.all(scratch == -1.0) and list(calls[1]) == ["w"]
+    assert s.ctx is None and s.var_step == {}
+    fast.finish_chunk(plan, s, True)  # no scratch: the pass writes into f, the copy is put back
+    assert s.f is f and calls[2] is f and np.array_equal(f, np.arange(12.0).reshape(1, 4, 3))
+
+    def broken():
+        s.f[...] = np.nan
+        raise RuntimeError("outputs failed")
+
+    plan.compute_outputs = broken
+    with pytest.raises(RuntimeError):
+        fast.finish_chunk(plan, s, True, scratch={"f": scratch})
+    assert s.f is f and np.array_equal(f, np.arange(12.0).reshape(1, 4, 3))

@@ -691,7 +691,9 @@ class AspherePath(_compiled.KernelPath):
             plan.record_samples(**_sample_record(plan, at, step, sm_face, sm_reg, sm_kin))
             return True
         s.step += nsteps
-        _compiled.finish_chunk(plan, s, sample, keep=("f", "torque"))
+        # the forces and torques before the chunk (free now) take the NumPy pass's
+        _compiled.finish_chunk(plan, s, sample, keep=("f", "torque"),
+                               scratch={"f": self._spare[2], "torque": self._spare[5]})
         return True
 
 
