@@ -18,6 +18,13 @@ Each capacity is the work of two threads per second over that of one (2.00: two 
 1.0-1.3 for the vector loop: two hyperthreads of one core, or a core shared with another guest).
 wallbatch's two-core rows in suite.py (threads, --jobs 2) need the vector kind of capacity; the
 figure is a snapshot (a few seconds) of a host that can change from one minute to the next.
+
+    python benchmarks/host_cores.py --pair 100000
+
+also measures the same capacity for wallbatch's own pair kernels (`pair_probe`): two copies of the
+force pass (and of the list build) of pair_threads.py's LJ liquid at once, each on its own arrays,
+against one alone. Nothing is shared and nobody waits, so no split of that work over two threads
+can do better on this host at that moment: the ceiling of the threads-ljcut rows.
 """
 
 from __future__ import annotations
@@ -91,6 +98,63 @@ def probe(rounds: int = 3) -> dict[str, list[float]]:
     return got
 
 
+def pair_probe(n: int = 100_000, rounds: int = 3) -> dict[str, list[float]]:
+    """`_capacity` of wallbatch's pair kernels (pair_compiled's `forces_case` and `build_case`) on
+    pair_threads.py's LJ liquid slit of about n atoms, `rounds` times in turns: {"pair forces":
+    [...], "pair build": [...]}; each thread runs its own copy (positions, list, forces). Raises if
+    a copy run beside the other gives other forces or another list than one run alone (then the
+    copies were not independent). Empty lists without numba."""
+    from wallbatch.engine import pair_compiled as pc  # noqa: PLC0415 - wallbatch only for this probe
+    from wallbatch.engine.engine import Engine  # noqa: PLC0415
+
+    if njit is None or not pc.enabled():
+        return {"pair forces": [], "pair build": []}
+    import common  # noqa: PLC0415 - benchmarks/common.py: the scene
+    import pair_threads  # noqa: PLC0415
+
+    eng = Engine([common.build(pair_threads.scene(n, 10))])
+    eng.run()  # positions of a melted liquid, and the kernels compiled (or loaded)
+    pair = eng.pair
+    x0 = np.ascontiguousarray(eng.state.x[0])
+    reach = float(pair.cutoff[0] + pair.skin)
+    eps, sig, rc = float(pair.epsilon[0]), float(pair.sigma[0]), float(pair.cutoff[0])
+    lj = (24.0 * eps, 4.0 * eps, sig * sig, rc * rc, 0.0, pair.length, pair.periodic, False)
+    room = 2 * len(pair._neigh[0]) + 16 * len(x0)
+    copies = [(x0.copy(), np.empty(len(x0), np.int32), np.empty(len(x0) + 1, np.int64), np.empty(room, np.int32),
+               np.zeros_like(x0)) for _ in range(2)]
+
+    def build(x, owner, first, neigh, f) -> None:  # noqa: ANN001
+        if pc.build_case(x, pair.box_lo, pair.length, pair.periodic, reach, owner, first, neigh) < 0:
+            raise RuntimeError("pair_probe: the list outgrew its room")
+
+    def forces(x, owner, first, neigh, f) -> None:  # noqa: ANN001
+        f[:] = 0.0
+        pc.forces_case(x, f, owner, first, neigh, *lj)
+
+    got: dict[str, list[float]] = {"pair forces": [], "pair build": []}
+    for fn in (build, forces):  # (the list first: the force pass reads it)
+        for k in range(2):
+            fn(*copies[k])
+    alone = [a.copy() for a in copies[0][1:]]
+    for _ in range(rounds):
+        got["pair build"].append(_capacity(build, lambda k: copies[k]))
+        got["pair forces"].append(_capacity(forces, lambda k: copies[k]))
+    for k in range(2):
+        m = int(copies[k][2][-1])
+        if not (np.array_equal(copies[k][1], alone[0]) and np.array_equal(copies[k][2], alone[1])
+                and np.array_equal(copies[k][3][:m], alone[2][:m]) and np.array_equal(copies[k][4], alone[3])):
+            raise RuntimeError("pair_probe: a copy run beside the other differs from one run alone")
+    return got
+
+
+def pair_summary(got: dict[str, list[float]]) -> str:
+    """One line: the pair kernels' median capacities (`pair_probe`) and their ranges."""
+    if not got["pair forces"]:
+        return "pair kernels' probe not run (no numba)"
+    parts = [f"{name} {statistics.median(v):.2f}x ({min(v):.2f}-{max(v):.2f})" for name, v in got.items()]
+    return "two copies of wallbatch's pair kernels at once vs one alone: " + ", ".join(parts)
+
+
 def medians(got: dict[str, list[float]]) -> tuple[float, float]:
     """(vector, chain): each loop's median capacity over the rounds of a `probe`."""
     return statistics.median(got["vector"]), statistics.median(got["chain"])
@@ -110,10 +174,16 @@ def summary(got: dict[str, list[float]]) -> str:
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=5, help="measurements of each loop, in turns")
+    ap.add_argument("--pair", type=int, default=0, metavar="N",
+                    help="also probe wallbatch's pair kernels on the LJ liquid of about N atoms (pair_probe)")
     args = ap.parse_args(argv)
     if args.rounds < 1:
         ap.error(f"--rounds {args.rounds}: give a whole number of measurements, 1 or more")
+    if args.pair < 0:
+        ap.error(f"--pair {args.pair}: give a number of atoms (about 100000 for the threads-ljcut rows' scene)")
     print(summary(probe(args.rounds)))
+    if args.pair:
+        print(pair_summary(pair_probe(args.pair, args.rounds)))
 
 
 if __name__ == "__main__":

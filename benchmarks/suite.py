@@ -36,7 +36,10 @@ two cores at that moment (`host_cores.py`: an in-cache vector loop and a latency
 threads against one); the row's note and the header report it. A virtual machine's two cores may
 be two hyperthreads of one physical core for some minutes and two cores for others: the vector
 figure (2.00 on two free cores, about 1.2 when our two threads share one core's vector units) says
-how much of two cores there was a few seconds before the row; it can change within the row.
+how much of two cores there was a few seconds before the row; it can change within the row. The
+rows that split the pair kernels over two threads (PAIR_PROBE_ROWS) are also preceded by
+`host_cores.pair_probe`: two copies of those very kernels at once, each on its own arrays, against
+one alone; no split of that work can get more from the host at that moment.
 """
 
 from __future__ import annotations
@@ -51,6 +54,7 @@ import platform
 import re
 import shutil
 import signal
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -84,6 +88,10 @@ SWEEP = ROOT / "sweeps" / "lj93-epsilon-sigma-cutoff.yaml"
 TWO_CORE_ROWS = ("jobs2-64cases", "threads-1e6", "threads-ellipsoids-1e5", "threads-ljcut-1e5",
                  "threads-ljcut-langevin-1e5")
 PROBE_ROUNDS = 3
+# the rows that split the pair kernels over two threads: also preceded by `host_cores.pair_probe`,
+# two copies of those kernels at once against one alone (the most a split can get from the host now)
+PAIR_PROBE_ROWS = ("threads-ljcut-1e5", "threads-ljcut-langevin-1e5")
+PAIR_PROBE_ROUNDS = 5
 PROBES: list[tuple[float, float]] = []  # this run's probes: medians (vector, chain) (the header reports them)
 README_BEGIN = "<!-- speed table: written by benchmarks/suite.py --readme; do not edit by hand -->"
 README_END = "<!-- end of speed table -->"
@@ -961,6 +969,13 @@ def header(started: str, clock: str) -> str:
             + f", scale {SCALE:g}." + probe_text())
 
 
+def pair_probe_text(got: dict[str, list[float]]) -> str:
+    """A row's note on `host_cores.pair_probe` just before it: the median capacities."""
+    forces, build = (statistics.median(got[k]) for k in ("pair forces", "pair build"))
+    return (f"two copies of its pair kernels at once just before (the most a split can get): force pass "
+            f"{forces:.2f}x, list build {build:.2f}x one alone")
+
+
 def probe_text() -> str:
     """The header's sentence on the two-core probes of this run (benchmarks/host_cores.py)."""
     if not PROBES:
@@ -1046,6 +1061,7 @@ def main(argv: list[str] | None = None) -> None:
     results: dict[str, dict] = {}
     for k in names:
         probed = host_cores.probe(PROBE_ROUNDS) if k in TWO_CORE_ROWS else None  # the host's two cores, now
+        paired = host_cores.pair_probe(100_000, PAIR_PROBE_ROUNDS) if k in PAIR_PROBE_ROWS else None
         try:
             r = ROWS[k].fn()
         except Exception as exc:  # noqa: BLE001 - one failing row does not stop the suite
@@ -1055,6 +1071,8 @@ def main(argv: list[str] | None = None) -> None:
             PROBES.append((vec, chain))
             r["note"] = (r.get("note", "") + "; " if r.get("note") else "") + \
                 f"host probe just before: vector {vec:.2f}x, chain {chain:.2f}x"
+        if paired is not None and paired["pair forces"]:
+            r["note"] = r.get("note", "") + "; " + pair_probe_text(paired)
         results[k] = r
         print(text_line(k, r), flush=True)
     head = header(started, args.clock) + f" Suite time {time.perf_counter() - t_all:.0f} s."

@@ -175,3 +175,30 @@ def test_two_core_probe_measures_what_two_threads_get_and_the_suite_reports_it(s
     assert "an in-cache vector loop 1.20-1.60x, a latency-bound chain 1.90-1.95x" in suite.header("now", "cpu")
     monkeypatch.setattr(suite, "PROBES", [])
     assert "vector loop" not in suite.header("now", "cpu")
+
+
+@pytest.mark.slow
+def test_pair_probe_runs_two_independent_copies_of_the_pair_kernels(suite, monkeypatch):
+    import host_cores
+
+    from wallbatch.engine import pair_compiled as pc
+
+    if not pc.enabled():
+        pytest.skip("numba not importable")
+    assert set(suite.PAIR_PROBE_ROWS) <= set(suite.TWO_CORE_ROWS)
+    got = host_cores.pair_probe(2000, 2)
+    assert sorted(got) == ["pair build", "pair forces"]
+    assert all(len(v) == 2 and min(v) > 0 for v in got.values())
+    # a force pass whose result depends on what else ran (here: on a call count) is caught
+    real, calls = pc.forces_case, []
+
+    def leaky(x, f, *args):  # noqa: ANN001, ANN002, ANN202
+        real(x, f, *args)
+        calls.append(1)
+        f[0, 0] += len(calls)
+
+    monkeypatch.setattr(pc, "forces_case", leaky)
+    with pytest.raises(RuntimeError, match="differs from one run alone"):
+        host_cores.pair_probe(2000, 1)
+    text = suite.pair_probe_text({"pair forces": [1.3, 1.4, 1.5], "pair build": [1.2, 1.1, 1.3]})
+    assert "force pass 1.40x, list build 1.20x one alone" in text
