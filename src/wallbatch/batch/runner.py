@@ -440,6 +440,11 @@ def _frozen_for_fork() -> Iterator[None]:
             gc.unfreeze()
 
 
+def _whole(tasks: list[list], k: int, outcomes: list[Outcome]) -> tuple[int, list[int], list[Outcome]]:
+    """What `execute` yields for window k run as one task: (k, every position in it, its outcomes)."""
+    return k, list(range(len(tasks[k]))), outcomes
+
+
 def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
             scheduler: str | None = None, plan: SweepPlan | None = None
             ) -> Iterator[tuple[int, list[int], list[Outcome]]]:
@@ -457,7 +462,7 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
             futures = {client.submit(_run_window_on_cluster, t, path, pure=False): k for k, t in enumerate(tasks)}
             try:
                 for fut in dask_completed(futures):
-                    yield futures[fut], list(range(len(tasks[futures[fut]]))), fut.result()
+                    yield _whole(tasks, futures[fut], fut.result())
             except BaseException:
                 client.cancel(list(futures))
                 raise
@@ -475,7 +480,7 @@ def execute(tasks: list[list], jobs: int = 1, executor: str = "local",
             with _frozen_for_fork():  # the pool forks its workers at the first submit
                 futures = {pool.submit(_run_window, t, None, backend.numba_allowed()): k for k, t in enumerate(tasks)}
             for fut in as_completed(futures):
-                yield futures[fut], list(range(len(tasks[futures[fut]]))), fut.result()
+                yield _whole(tasks, futures[fut], fut.result())
         except BaseException:
             _stop_pool(pool)
             raise
