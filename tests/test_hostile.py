@@ -209,6 +209,48 @@ def test_set_on_a_swept_path_is_refused(tmp_path):
     assert "is also swept by sweep.product.eps" in msg  # a parent of the swept path
 
 
+def test_two_sweep_entries_on_one_value_are_refused_where_the_second_is_written(tmp_path):
+    """A path swept inside another swept path (a parent set to a number, then its child) or swept
+    twice: one located error naming both entries, before any case is built (found by the loader's
+    fuzz test: the case expansion used to fail with no location)."""
+    p = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            zlo: {path: walls.zwalls.zlo, values: [{coord: EDGE, epsilon: 1, sigma: 1, cutoff: 2.5}]}
+            eps: {path: walls.zwalls.zlo.epsilon, values: [1.0, 2.0]}
+        """)
+    (msg,) = config_error(p)
+    assert msg == (f"{p}:5:17: sweep.product.eps: walls.zwalls.zlo.epsilon lies inside walls.zwalls.zlo, which is "
+                   f"swept by sweep.product.zlo ({p}:4:17): sweep one or the other")
+    p = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            eps: {path: walls.zwalls.zlo.epsilon, values: [1.0, 2.0]}
+            zlo: {path: walls.zwalls.zlo, values: [{coord: EDGE, epsilon: 1, sigma: 1, cutoff: 2.5}]}
+        """)
+    (msg,) = config_error(p)
+    assert msg.startswith(f"{p}:5:17: sweep.product.zlo: walls.zwalls.zlo contains walls.zwalls.zlo.epsilon, ")
+    p = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            a: {path: walls.zwalls.zlo.epsilon, values: [1.0, 2.0]}
+          zip:
+            dim: both
+            params:
+              b: {path: [walls.zwalls.zhi.epsilon, walls.zwalls.zlo.epsilon], values: [3.0, 4.0]}
+        """)
+    (msg,) = config_error(p)
+    assert msg.startswith(f"{p}:") and "walls.zwalls.zlo.epsilon is also swept by sweep.product.a" in msg
+    # different values side by side stay allowed
+    ok = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            lo: {path: walls.zwalls.zlo.epsilon, values: [1.0, 2.0]}
+            hi: {path: walls.zwalls.zhi.epsilon, values: [1.0, 2.0]}
+        """)
+    assert len(load_plan(ok).cases) == 4
+
+
 @pytest.mark.slow
 def test_long_user_text_is_cut(scene):
     (msg,) = config_error(scene, ["walls.zwalls.zlo.epsilon=" + "x" * 2_000_000])

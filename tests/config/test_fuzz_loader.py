@@ -12,7 +12,7 @@ import shutil
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from wallbatch.config.source import ConfigError
@@ -91,6 +91,10 @@ def test_mutated_configs_only_raise_located_config_errors(tree, case):
 @settings(max_examples=1500, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
                                                                      HealthCheck.too_slow])
 @given(case=mutated())
+@example(case=(Path("sweeps/lepton-spring.yaml"),  # found 2026-11-28: a swept path inside another swept path
+               "base: ../configs/lepton-slit.yaml\nsweep:\n  product:\n"
+               "    k: {path: walls.soft.zlo.params, values: [10.0, 50.0, 250.0]}\n"
+               "    rc: {path: walls.soft.zlo.params.rc, values: [1.0, 1.5]}\n"))
 def test_mutated_configs_only_raise_located_config_errors_long(tree, case):
     seed, text = case
     _check(tree, seed, text)

@@ -356,6 +356,7 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
     base_data = config_to_dict(base)
     # where each swept path was written, and paths checked once (not once per case)
     swept: dict[str, str] = {}
+    setters: dict[str, tuple[tuple, str]] = {}  # each swept path: the entry that sets it, and where
     for d in dims:
         if d.name == "replica" and d.paths == ("seed",):
             continue
@@ -364,7 +365,16 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
             loc = _dim_where(smap, d.name, param)
             where = _where_text(smap, loc + ("values",)) if smap.marks.get(loc + ("values",)) else \
                 _where_text(smap, loc)
+            path_where = _where_text(smap, loc + ("path",)) if smap.marks.get(loc + ("path",)) else where
             for p in paths:
+                for q, (other, other_where) in setters.items():  # two entries writing one value
+                    if other != loc and _overlaps(p, q):
+                        inside = "is also swept by" if p == q else (
+                            f"lies inside {q}, which is swept by" if p.startswith(q + ".") else
+                            f"contains {q}, which is swept by")
+                        raise ConfigError([f"{path_where}: {'.'.join(map(str, loc))}: {p} {inside} "
+                                           f"{'.'.join(map(str, other))} ({other_where}): sweep one or the other"])
+                setters.setdefault(p, (loc, path_where))
                 for key in overrides or {}:  # a --set the sweep would silently override
                     if _overlaps(key, p) and origins[key].startswith("--set"):
                         raise ConfigError([f"{origins[key]}: {key} is also swept by {'.'.join(map(str, loc))} "
@@ -372,7 +382,6 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
                 try:
                     set_path(copy.deepcopy(base_data), p, vals[0])
                 except ConfigError as exc:
-                    path_where = _where_text(smap, loc + ("path",)) if smap.marks.get(loc + ("path",)) else where
                     raise ConfigError([f"{path_where}: {'.'.join(map(str, loc))}: {q}" for q in exc.problems]) \
                         from None
                 swept[p] = where
@@ -390,13 +399,15 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
             coords[d.name] = d.values[i]
             if d.name == "replica" and d.paths == ("seed",):
                 continue
-            if d.extra:
-                for _, (vals, paths) in d.extra.items():
-                    for p in paths:
+            entries = d.extra.items() if d.extra else [(None, (d.values, d.paths))]
+            for param, (vals, paths) in entries:
+                for p in paths:
+                    try:
                         set_path(case_data, p, vals[i])
-            else:
-                for p in d.paths:
-                    set_path(case_data, p, d.values[i])
+                    except ConfigError as exc:  # (checked above for the first values: not expected)
+                        loc = _dim_where(smap, d.name, param)
+                        raise ConfigError([f"{setters[p][1]}: {'.'.join(map(str, loc))}: {q}"
+                                           for q in exc.problems]) from None
         label = ", ".join(f"{k}={v}" for k, v in coords.items())
         try:
             cfg = validate_data(case_data, case_map, base_dir)
