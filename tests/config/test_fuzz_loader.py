@@ -116,3 +116,27 @@ def test_mutated_set_arguments_only_raise_located_config_errors(tree, path, valu
     except ConfigError as exc:
         for problem in exc.problems:
             assert LOCATED.match(problem), f"no location: {problem!r}"
+
+
+SWEEP_VALUES = ["[1.0, 2.0]", "[2]", "[]", "{linspace: [0.5, 1.5, 3]}", "[[1, 2], [3, 4]]", "[null]", "[.nan]",
+                "[{coord: EDGE, epsilon: 1, sigma: 1, cutoff: 2.5}]", "[fix w all wall/lj93 zlo EDGE 1 1 2.5]"]
+
+
+# nested and equal paths first (hypothesis draws the first elements of a list most often)
+SWEEP_PATHS = ["walls.zwalls.zlo", "walls.zwalls.zlo.epsilon", "walls", "atoms.0", "atoms.0.mass", *PATHS]
+
+
+@pytest.mark.slow
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture],
+          derandomize=True)
+@given(entries=st.lists(st.tuples(st.sampled_from(SWEEP_PATHS), st.sampled_from(SWEEP_VALUES)), min_size=1,
+                        max_size=3), zipped=st.booleans())
+@example(entries=[("walls.zwalls.zlo", "[1.0, 2.0]"), ("walls.zwalls.zlo.epsilon", "[1.0, 2.0]")], zipped=False)
+def test_sweep_entries_on_any_paths_only_raise_located_config_errors(tree, entries, zipped):
+    """Sweeps of one to three entries on paths that may not exist, index lists out of range, or lie
+    inside one another (a parent swept to a value and its child): every problem is located."""
+    empty = '""'
+    rows = [f"    e{k}: {{path: {p or empty}, values: {v}}}" for k, (p, v) in enumerate(entries)]
+    body = ("  zip:\n    dim: z\n    params:\n" + "\n".join("  " + r for r in rows) if zipped
+            else "  product:\n" + "\n".join(rows))
+    _check(tree, Path("sweeps/x.yaml"), f"base: ../configs/lj93-slit.yaml\nsweep:\n{body}\n")
