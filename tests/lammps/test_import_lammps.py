@@ -29,7 +29,7 @@ from wallbatch.lammps.export import (
     lammps_ready,
     write_export,
 )
-from wallbatch.lammps.importer import import_lammps, import_lammps_text
+from wallbatch.lammps.importer import LammpsImportError, import_lammps, import_lammps_text
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import CaseError
 from wallbatch.scene.datafile import DataFileError, read_data_file, write_data_file
@@ -249,6 +249,59 @@ def test_unsupported_commands_are_listed_by_line(tmp_path: Path) -> None:
     assert res.exit_code == 0
     res = runner.invoke(app, ["import-lammps", str(script), "-o", str(tmp_path / "c.yaml"), "--strict"])
     assert res.exit_code == 1 and "in.script:11: fix 2 all npt" in res.output
+
+
+MALFORMED = """units lj
+region box block 0 10 0 10 0 10 units box
+create_box 1 box
+create_atoms 1 single 5 5 5 units box
+mass 1 1.0
+lattice fcc 0
+lattice fcc -0.8
+timestep
+fix 1 all nve
+fix w all wall/lj93 zlo EDGE 1.0 1.0 2.5 units box
+fix_modify
+run
+"""
+
+
+def test_malformed_commands_are_listed_by_line_not_raised(tmp_path: Path) -> None:
+    """A command with too few words or unusable values is one NOT IMPORTED line naming the command
+    (found by fuzzing the shipped example script: these raised IndexError and ZeroDivisionError)."""
+    result = import_lammps_text(MALFORMED, tmp_path)
+    got = [(i.line, i.reason) for i in result.unsupported]
+    assert got == [(6, "the lattice scale must be a positive number, got 0"),
+                   (7, "the lattice scale must be a positive number, got -0.8"),
+                   (8, "timestep: too few arguments (LAMMPS would stop here too)"),
+                   (11, "fix_modify: too few arguments (LAMMPS would stop here too)"),
+                   (12, "run: too few arguments (LAMMPS would stop here too)"),
+                   (12, "no run command: imported as a run of 0 steps")]
+    res = CliRunner().invoke(app, ["import-lammps", str(tmp_path / "in.script"), "-o", str(tmp_path / "c.yaml")])
+    assert res.exit_code == 0 and "Traceback" not in res.output
+
+
+def test_an_undefined_variable_is_reported_at_the_line_that_uses_it(tmp_path: Path) -> None:
+    """A wall coordinate v_top with no `variable top` (and a variable using an undefined one): the
+    issue points at the wall fix (and at that variable), not at line 0 (found by fuzzing)."""
+    script = MALFORMED.split("lattice fcc 0")[0] + (
+        "variable lift equal v_nowhere+1\n"
+        "fix w all wall/lj93 zlo EDGE 1.0 1.0 2.5 zhi v_top 1.0 1.0 2.5 units box\n"
+        "fix v all wall/lj93 ylo v_lift 1.0 1.0 2.5 units box\n"
+        "run 10\n")
+    got = [(i.line, i.reason) for i in import_lammps_text(script, tmp_path).unsupported]
+    assert (7, "variable top is not defined") in got and (6, "variable nowhere is not defined") in got, got
+    assert all(line >= 1 for line, _ in got)
+
+
+def test_a_type_without_mass_stops_the_import_with_the_script_named(tmp_path: Path) -> None:
+    """LAMMPS refuses to run with a type that has no mass; the import says so instead of raising an
+    internal error (found by fuzzing)."""
+    script = MALFORMED.replace("mass 1 1.0\n", "")
+    with pytest.raises(LammpsImportError, match=r"in\.script: atom type 1 has no mass \(mass 1 VALUE\)"):
+        import_lammps_text(script, tmp_path)
+    res = CliRunner().invoke(app, ["import-lammps", str(tmp_path / "in.script"), "-o", str(tmp_path / "c.yaml")])
+    assert res.exit_code == 2 and "atom type 1 has no mass" in res.output and "Traceback" not in res.output
 
 
 # ----------------------------------------------------------------------------- scripts vs LAMMPS

@@ -447,6 +447,13 @@ class _Importer:
                 self.dispatch(words)
             except Unsupported as exc:
                 self.unsupported_here(str(exc))
+            except LammpsImportError:
+                raise
+            except IndexError:  # a command's handler read a word the line does not have
+                self.unsupported_here(f"{words[0]}: too few arguments (LAMMPS would stop here too)")
+            except (ValueError, ArithmeticError) as exc:  # values no handler check caught (pydantic's too)
+                text = " ".join(str(exc).split())
+                self.unsupported_here(f"{words[0]}: cannot use these values: {text[:300]}")
 
     def dispatch(self, w: list[str]) -> None:
         name = w[0]
@@ -505,6 +512,8 @@ class _Importer:
         if len(w) < 3:
             raise Unsupported("lattice takes a style and a scale")
         style, scale = w[1], _num(w[2], "the lattice scale")
+        if not (math.isfinite(scale) and scale > 0):
+            raise Unsupported(f"the lattice scale must be a positive number, got {w[2]}")
         if len(w) > 3:
             raise Unsupported(f"lattice keywords {' '.join(w[3:])} (origin, orient, spacing, basis, ...) are not "
                               f"supported: wallbatch lattices are the cubic sc, bcc, fcc cells")
@@ -1292,33 +1301,35 @@ class _Importer:
             wall["units"] = "box"
 
     def variable_refs(self, walls: dict) -> dict[str, Any]:
-        """The variables the walls reference (v_name), with the ones those reference."""
-        names: list[str] = []
+        """The variables the walls reference (v_name), with the ones those reference. An undefined
+        one is reported at the line that uses it (the wall fix, or the variable referencing it)."""
+        names: list[tuple[str, str]] = []  # (name, the `where` topic of the line that uses it)
 
-        def scan(value: Any) -> None:
+        def scan(value: Any, topic: str) -> None:
             if isinstance(value, dict):
                 for v in value.values():
-                    scan(v)
+                    scan(v, topic)
             elif isinstance(value, list):
                 for v in value:
-                    scan(v)
+                    scan(v, topic)
             elif isinstance(value, str) and value.startswith("v_"):
-                names.append(value[2:])
+                names.append((value[2:], topic))
 
-        scan(walls)
+        for fid, wall in walls.items():
+            scan(wall, f"fix:{fid}")
         out: dict[str, Any] = {}
         while names:
-            n = names.pop(0)
+            n, user = names.pop(0)
             if n in out:
                 continue
             if n not in self.vars:
-                self.issue_at(f"var:{n}", f"v_{n}", f"variable {n} is not defined")
+                self.issue_at(user, f"v_{n}", f"variable {n} is not defined")
                 continue
             style, value = self.vars[n]
             if style == "equal":
                 out[n] = value
                 try:
-                    names += [r.name for r in _walk(parse(value)) if isinstance(r, VarRef)]
+                    names += [(r.name, f"var:{n}") for r in _walk(parse(value)) if isinstance(r, VarRef)]
                 except VariableError as exc:
                     self.issue_at(f"var:{n}", f"v_{n}", f"equal-style formula of {n} that wallbatch cannot "
                                   f"evaluate: {exc}")
@@ -1492,7 +1503,10 @@ def import_lammps(script: str | Path, output: str | Path | None = None, variable
         imp.run_file(script)
         imp.notes.append(f"--exact: positions, velocities and masses are LAMMPS's state before the first "
                          f"run/minimize, written to {state.name} (groups are evaluated on that state)")
-    data, comments = imp.build(name)
+    try:
+        data, comments = imp.build(name)
+    except Unsupported as exc:  # a problem of the whole script (LAMMPS would not run it either)
+        raise LammpsImportError(f"{script}: {exc}") from None
     for entry in data["atoms"]:
         create = entry["create"]
         if "file" in create:
