@@ -7,6 +7,8 @@ import math
 import mpmath
 import numpy as np
 import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 
 from lammps_oracle import requires_lammps
 from wallbatch.expr import Binary, Call, Num, Unary, VarRef
@@ -365,3 +367,31 @@ def test_generated_module_is_a_file_numba_caches_across_processes(tmp_path, monk
     hits, misses, value = proc.stdout.split()
     assert (int(hits), int(misses)) == (1, 0), proc.stdout  # loaded from the first process's cache
     assert float(value) == float(expr.energy_force(np.float64(1.1), {"eps": 1.3, "sig": 0.9, "k": 2.0})[1])
+
+
+def test_an_exponent_beyond_the_floats_is_a_value_not_an_internal_error():
+    """k*(r-rc)^1e400 (an exponent of inf) raised OverflowError while simplifying, before any check
+    (found by fuzzing the shipped lepton config); now it is an ordinary power that the cut-off
+    check refuses."""
+    for text in ("k*(r-rc)^1e400", "k*(r-rc)^-1e400", "k*(r-rc)^(1e400-1e400)"):
+        with pytest.raises(LeptonError, match="not finite at the cut-off"):
+            compile_expression(text, ["k", "rc"]).check(1.5, {"k": 50.0, "rc": 1.5})
+
+
+LEPTON_TOKENS = ["r", "k", "rc", "eps", "(", ")", "^", "*", "/", "+", "-", "exp(", "log(", "sqrt(", "step(", "min(",
+                 "max(", "abs(", "recip(", ",", ";", "=", "0", "1", "2.5", "1e400", "1e-400", "nan", "x", "^-", "**",
+                 ";eps=1", "k=2;", "delta(", "erf(", "tanh("]
+
+
+@pytest.mark.slow
+@settings(max_examples=400, deadline=None, derandomize=True)
+@given(tokens=st.lists(st.sampled_from(LEPTON_TOKENS), min_size=1, max_size=12))
+@example(tokens=["k", "*", "(", "r", "-", "rc", ")", "^", "1e400"])
+def test_any_token_string_is_an_expression_or_a_lepton_error(tokens):
+    """Strings of expression tokens, parsed with parameters k and rc, then checked on (0, 2.5]:
+    LeptonError or nothing; never another exception (an exponent of 1e400 once raised OverflowError)."""
+    text = "".join(tokens)
+    try:
+        compile_expression(text, ["k", "rc"]).check(2.5, {"k": 2.0, "rc": 1.5})
+    except LeptonError:
+        pass

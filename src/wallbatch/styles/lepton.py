@@ -279,7 +279,8 @@ def _const(node: Node) -> bool:
 
 
 def _int_exponent(node: Node) -> int | None:
-    if isinstance(node, Num) and node.value == int(node.value) and abs(node.value) <= _MAX_INT_POWER:
+    # (the bound first: an exponent of inf or nan, say 1e400, has no integer value)
+    if isinstance(node, Num) and abs(node.value) <= _MAX_INT_POWER and node.value == int(node.value):
         return int(node.value)
     return None
 
