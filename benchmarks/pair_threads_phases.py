@@ -7,6 +7,13 @@ Wraps pair_compiled's phases (list build parts, force parts, sampled pass, tails
 split set-up) with timers recording (thread, phase, start, end); prints per thread the phases'
 totals and counts, and the main thread's waits at the meetings. Timers add a little overhead:
 compare phases, not the run's total, with pair_threads.py.
+
+    python benchmarks/pair_threads_phases.py --serial [--rounds 5]
+
+runs the two-thread split with its parts one after the other on one thread (the split's own cost,
+without two threads slowing each other down), in turns with the one-thread fused chunk, in one
+process: the CPU seconds of each (medians over the rounds) and their ratio, then the phases of the
+last serial run.
 """
 
 from __future__ import annotations
@@ -55,17 +62,52 @@ def install() -> None:
     pc._chunk_steps = steps
 
 
+def serial_against_one(n: int, steps: int, rounds: int) -> None:
+    """CPU seconds of the one-thread chunk and of the two-part split run serially (`--serial`), in
+    turns; leaves the serial split in place for the phases that follow."""
+    import statistics  # noqa: PLC0415
+
+    from wallbatch.engine import threads  # noqa: PLC0415
+
+    count, in_threads, crew = threads.count, threads._in_threads, pc.Crew.__call__
+    serial = {"Crew": lambda self, calls: [c() for c in calls], "in": lambda calls: [c() for c in calls]}
+    cpu: dict[str, list[float]] = {"one thread": [], "split, serial": []}
+    for _ in range(rounds):
+        for way in cpu:
+            split = way != "one thread"
+            threads.count = (lambda: 2) if split else (lambda: 1)
+            pc.Crew.__call__ = serial["Crew"] if split else crew
+            threads._in_threads = serial["in"] if split else in_threads
+            case = common.build(common.lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10)))
+            eng = Engine([case])
+            c0 = time.process_time()
+            eng.run()
+            cpu[way].append(time.process_time() - c0)
+            if split and eng.fast.threaded_chunks == 0:
+                raise SystemExit("the split did not run: is the case large enough for two parts?")
+    one, two = (statistics.median(v) for v in cpu.values())
+    print(f"CPU seconds, medians of {rounds}: one thread {one:.3f}, split run serially {two:.3f} "
+          f"({two / one:.2f}x the work)")
+    threads.count = lambda: 2  # the phases below: the serial split
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--atoms", type=int, default=100000)
     ap.add_argument("--steps", type=int, default=50)
     ap.add_argument("--no-busy-skip", action="store_true", help="thread every chunk (THREAD_MIN_USE = 0)")
+    ap.add_argument("--serial", action="store_true",
+                    help="the split's parts one after the other on one thread, against the one-thread chunk")
+    ap.add_argument("--rounds", type=int, default=5, help="with --serial: runs of each, in turns")
     args = ap.parse_args()
-    if args.no_busy_skip:
+    if args.no_busy_skip or args.serial:
         pc.THREAD_MIN_USE = 0.0
     n, steps = args.atoms, args.steps
     Engine([common.build(common.lj_fcc_slit(n, steps=10, thermo=10))]).run()
     case = common.build(common.lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10)))
+    if args.serial:
+        serial_against_one(n, steps, args.rounds)
+        case = common.build(common.lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10)))
     install()
     EVENTS.clear()
     t0, c0 = time.perf_counter(), time.process_time()
