@@ -69,7 +69,7 @@ def serial_against_one(n: int, steps: int, rounds: int) -> None:
 
     from wallbatch.engine import threads  # noqa: PLC0415
 
-    count, in_threads, crew = threads.count, threads._in_threads, pc.Crew.__call__
+    in_threads, crew = threads._in_threads, pc.Crew.__call__
     serial = {"Crew": lambda self, calls: [c() for c in calls], "in": lambda calls: [c() for c in calls]}
     cpu: dict[str, list[float]] = {"one thread": [], "split, serial": []}
     for _ in range(rounds):
