@@ -294,6 +294,15 @@ def test_an_undefined_variable_is_reported_at_the_line_that_uses_it(tmp_path: Pa
     assert all(line >= 1 for line, _ in got)
 
 
+def test_a_script_that_includes_itself_is_not_followed_forever(tmp_path: Path) -> None:
+    """`include in.script` inside in.script: the importer follows it 32 levels deep, then lists the
+    include line as not imported (it raised RecursionError before; found by hand after the fuzz test)."""
+    script = MALFORMED.split("lattice fcc 0")[0] + "include in.script\nrun 10\n"
+    result = import_lammps_text(script, tmp_path)
+    nested = [i for i in result.unsupported if "include nested more than 32 deep" in i.reason]
+    assert len(nested) == 1 and nested[0].line == 6, result.unsupported
+
+
 def test_a_type_without_mass_stops_the_import_with_the_script_named(tmp_path: Path) -> None:
     """LAMMPS refuses to run with a type that has no mass; the import says so instead of raising an
     internal error (found by fuzzing)."""

@@ -73,6 +73,9 @@ ENSEMBLE_FIXES = tuple(s for s in ENSEMBLE_STYLES if s not in INTEGRATORS)
 DEFAULT_THERMO = ["step", "time", "dt", "temp", "ke", "pe", "etot"]
 
 
+MAX_INCLUDE_DEPTH = 32  # include files within include files: deeper is a loop (a file including itself)
+
+
 class LammpsImportError(ValueError):
     """The script cannot be read at all (missing file, no box, ...)."""
 
@@ -439,6 +442,9 @@ class _Importer:
                     if len(words) != 2:
                         raise Unsupported("include takes one file name")
                     inc = Path(words[1])
+                    if depth + 1 > MAX_INCLUDE_DEPTH:
+                        raise Unsupported(f"include nested more than {MAX_INCLUDE_DEPTH} deep (does {words[1]} "
+                                          f"include itself?): not followed")
                     self.run_file(inc if inc.is_absolute() else self.base / inc, depth + 1)
                     self.cmd = cmd
                     continue
