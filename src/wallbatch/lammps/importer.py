@@ -456,10 +456,10 @@ class _Importer:
             except LammpsImportError:
                 raise
             except IndexError:  # a command's handler read a word the line does not have
-                self.unsupported_here(f"{words[0]}: too few arguments (LAMMPS would stop here too)")
+                self.unsupported_here(f"{body.split()[0]}: too few arguments (LAMMPS would stop here too)")
             except (ValueError, ArithmeticError) as exc:  # values no handler check caught (pydantic's too)
                 text = " ".join(str(exc).split())
-                self.unsupported_here(f"{words[0]}: cannot use these values: {text[:300]}")
+                self.unsupported_here(f"{body.split()[0]}: cannot use these values: {text[:300]}")
 
     def dispatch(self, w: list[str]) -> None:
         name = w[0]
