@@ -45,3 +45,26 @@ def test_run_a_config_object_equals_running_its_path(tmp_path):
 def test_load_reports_bad_values_with_their_place():
     with pytest.raises(ConfigError, match="cutoff"):
         wallbatch.load(ROOT / "configs/quickstart.yaml", sets=["walls.zwalls.zlo.cutoff=-1"])
+
+
+def test_numpy_scalars_are_numbers_in_a_config_built_in_python():
+    """A wall face or a dt_reset bound taken from a NumPy array (np.float32, np.int16) is a number,
+    as a float is (np.float32 was refused as "expected a number or v_name, got '1.0'"); a NumPy
+    bool stays refused."""
+    box = {"lo": [0, 0, 0], "hi": [6, 6, 8], "boundary": ["p", "p", "f"]}
+    atoms = [{"group": "g", "mass": 1.0, "create": {"random": {"count": 20}}}]
+    eps = np.linspace(0.5, 1.0, 3, dtype=np.float32)
+
+    def config(face: list, tmax=None) -> dict:
+        out = {"box": box, "atoms": atoms, "run": {"steps": 10},
+               "walls": {"w": {"style": "lj93", "units": "box", "zlo": face}}}
+        if tmax is not None:
+            out["dt_reset"] = {"every": 1, "tmin": None, "tmax": tmax, "xmax": 0.05, "units": "box"}
+        return out
+
+    plan = wallbatch.load(config(["EDGE", eps[1], np.int16(1), np.float32(2.5)], tmax=np.float32(0.01)))
+    face = plan.cases[0].config.walls["w"].zlo
+    assert (face.epsilon, face.sigma, face.cutoff) == (0.75, 1.0, 2.5)
+    assert plan.cases[0].config.dt_reset.tmax == pytest.approx(0.01)
+    with pytest.raises(ConfigError, match="walls.w.zlo.epsilon"):
+        wallbatch.load(config(["EDGE", np.bool_(True), 1.0, 2.5]))

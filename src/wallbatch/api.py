@@ -34,7 +34,8 @@ def load(config: ConfigLike, sets: Sequence[str] | Mapping[str, Any] = ()) -> Sw
     """A validated plan: every case of the config's sweep, each a validated `Config`.
 
     ``config`` is a path to a scene or sweep YAML file, a `Config`, a plain mapping in the config
-    language, or a plan (returned as is when ``sets`` is empty). ``sets`` overrides values by
+    language (its numbers may be NumPy scalars, say values taken from an array), or a plan
+    (returned as is when ``sets`` is empty). ``sets`` overrides values by
     dotted path, as ``--set`` does: ``["walls.zw.zlo.epsilon=2"]`` or ``{"walls.zw.zlo.epsilon": 2}``.
     Raises `wallbatch.config.source.ConfigError` (one line per problem, with file:line:col).
     """

@@ -8,6 +8,7 @@ Every problem is reported as `file:line:col: dotted.path: message` through `Conf
 from __future__ import annotations
 
 import math
+import numbers
 import re
 from collections.abc import Iterator, Mapping
 from pathlib import Path
@@ -57,7 +58,7 @@ def _finite(x: float, v: Any) -> float:
 def _number_or_name(v: Any, allow: tuple[str, ...]) -> Any:
     if isinstance(v, bool):
         raise ValueError("expected a number")
-    if isinstance(v, (int, float)):
+    if isinstance(v, numbers.Real):  # (NumPy's scalars too: a face list built from an array)
         return _finite(float(v), v)
     if isinstance(v, str):
         s = v.strip()
@@ -86,7 +87,7 @@ def _bound(v: Any) -> float | None:
     """dt_reset tmin/tmax: a number, or INF / NULL / null for no bound."""
     if v is None or (isinstance(v, str) and v.strip().upper() in ("INF", "NULL", "NONE")):
         return None
-    if isinstance(v, bool) or not isinstance(v, (int, float, str)):
+    if isinstance(v, bool) or not isinstance(v, (numbers.Real, str)):
         raise ValueError("expected a number, INF or NULL")
     try:
         x = float(v)
