@@ -68,3 +68,27 @@ def test_numpy_scalars_are_numbers_in_a_config_built_in_python():
     assert plan.cases[0].config.dt_reset.tmax == pytest.approx(0.01)
     with pytest.raises(ConfigError, match="walls.w.zlo.epsilon"):
         wallbatch.load(config(["EDGE", np.bool_(True), 1.0, 2.5]))
+
+
+def test_sweep_values_and_sets_may_be_numpy_arrays(tmp_path):
+    """`values: np.linspace(...)` (an array, or a list of np.float32) and sets with NumPy values: the
+    plan is the one of the same plain lists (an array raised yaml's RepresenterError)."""
+    base = {"box": {"lo": [0, 0, 0], "hi": [6, 6, 8], "boundary": ["p", "p", "f"]},
+            "atoms": [{"group": "g", "mass": 1.0, "create": {"random": {"count": 20}}}],
+            "walls": {"w": {"style": "lj93", "units": "box",
+                            "zlo": {"coord": "EDGE", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5}}},
+            "run": {"steps": 10, "thermo": 5}}
+
+    def swept(values) -> dict:
+        return {**base, "sweep": {"product": {"eps": {"path": "walls.w.zlo.epsilon", "values": values}}}}
+
+    plain = wallbatch.load(swept([0.5, 1.0, 1.5]))
+    for values in (np.linspace(0.5, 1.5, 3), np.linspace(0.5, 1.5, 3, dtype=np.float32),
+                   list(np.linspace(0.5, 1.5, 3, dtype=np.float32))):
+        plan = wallbatch.load(swept(values))
+        assert [c.coords for c in plan.cases] == [c.coords for c in plain.cases]
+        assert [c.config.model_dump() for c in plan.cases] == [c.config.model_dump() for c in plain.cases]
+    plan = wallbatch.load(base, {"walls.w.zlo.epsilon": np.float32(3.0), "box.hi": np.array([6.0, 6.0, 9.0])})
+    assert plan.cases[0].config.walls["w"].zlo.epsilon == 3.0 and plan.cases[0].config.box.hi == (6.0, 6.0, 9.0)
+    ds = wallbatch.run(swept(np.linspace(0.5, 1.5, 3)), tmp_path / "np.nc", progress=False)
+    np.testing.assert_array_equal(ds["eps"].values, [0.5, 1.0, 1.5])

@@ -30,11 +30,25 @@ ConfigLike = str | os.PathLike | SweepPlan | Config | Mapping[str, Any]
 __all__ = ["load", "run", "check", "CheckReport", "BatchPlan"]
 
 
+def _plain(value: Any) -> Any:
+    """Config data from Python with NumPy's arrays and scalars as the lists and numbers of the
+    config language (sweep values from np.linspace, say), so that it validates and the plan's
+    sweep text can be written as YAML."""
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(_plain(v) for v in value)
+    if type(value).__module__ == "numpy":  # ndarray -> nested lists, np.float32(1) -> 1.0 (no NumPy import)
+        return _plain(value.tolist()) if hasattr(value, "tolist") else value
+    return value
+
+
 def load(config: ConfigLike, sets: Sequence[str] | Mapping[str, Any] = ()) -> SweepPlan:
     """A validated plan: every case of the config's sweep, each a validated `Config`.
 
     ``config`` is a path to a scene or sweep YAML file, a `Config`, a plain mapping in the config
-    language (its numbers may be NumPy scalars, say values taken from an array), or a plan
+    language (its numbers may be NumPy scalars and its lists NumPy arrays: sweep values from
+    np.linspace, say), or a plan
     (returned as is when ``sets`` is empty). ``sets`` overrides values by
     dotted path, as ``--set`` does: ``["walls.zw.zlo.epsilon=2"]`` or ``{"walls.zw.zlo.epsilon": 2}``.
     Raises `wallbatch.config.source.ConfigError` (one line per problem, with file:line:col).
@@ -46,8 +60,8 @@ def load(config: ConfigLike, sets: Sequence[str] | Mapping[str, Any] = ()) -> Sw
     if isinstance(config, (str, os.PathLike)):
         items = [f"{k}={v}" for k, v in sets.items()] if isinstance(sets, Mapping) else list(sets)
         return load_plan(Path(config), items)
-    data = config_to_dict(config) if isinstance(config, Config) else dict(config)
-    overrides = dict(sets) if isinstance(sets, Mapping) else dict(parse_set(s) for s in sets)
+    data = config_to_dict(config) if isinstance(config, Config) else _plain(dict(config))
+    overrides = _plain(dict(sets)) if isinstance(sets, Mapping) else dict(parse_set(s) for s in sets)
     base_dir = getattr(config, "_base_dir", Path("."))
     return expand(data, SourceMap("<config>", {}, data), "", base_dir, overrides or None)
 
