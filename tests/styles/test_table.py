@@ -216,3 +216,35 @@ def test_kernel_rows_jitted_lookup_is_the_numpy_lookup_bit_for_bit(tabstyle):
         assert np.any(want != 0.0)
     offsets = [lin(x, i, rows[0], rows[3], rows[5], table.invdelta) for x, i in zip(rs, idx)]
     assert offsets == [table.offset(x) for x in rs]
+
+
+def test_table_sizes_and_keywords_are_checked_before_memory_or_the_file(tmp_path):
+    """N or -n beyond 10,000,000 points is refused with the limit (it was a MemoryError: "unexpected
+    ... please report"); a keyword of several words or none, which LAMMPS could not read back, is
+    refused; a wall not finite at lo is named without NumPy's overflow warning."""
+    import warnings
+
+    from wallbatch.config.models import load_config_text
+    from wallbatch.config.source import ConfigError
+    from wallbatch.styles.table import MAX_TABLE_POINTS, TableError, write_source_table
+
+    lj = {"epsilon": 1.0, "sigma": 1.0, "cutoff": 2.5}
+    out = tmp_path / "w.table"
+    with pytest.raises(TableError, match="n = 10,000,001: a table has at most 10,000,000 points"):
+        write_source_table(out, "lj93", lj, 0.5, 3.0, MAX_TABLE_POINTS + 1, "LJ")
+    for bad in ("A B", "", "#x"):
+        with pytest.raises(TableError, match="a section keyword is one word"):
+            write_source_table(out, "lj93", lj, 0.5, 3.0, 100, bad)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(TableError, match=r"'lj93' is not finite at r = 1e-300: choose a larger lo"):
+            write_source_table(out, "lj93", lj, 1e-300, 3.0, 100, "LJ")
+    write_source_table(out, "lj93", lj, 0.5, 3.0, 100, "LJ")
+    head = ("box: {lo: [0,0,0], hi: [5,5,8], boundary: [p,p,f]}\n"
+            "atoms: [{group: g, mass: 1, create: {positions: [[2,2,2]]}}]\n")
+    for walls in (f"walls: {{w: {{style: table, units: box, tabstyle: spline, N: 10000001, "
+                  f"zlo: {{coord: EDGE, file: {out}, keyword: LJ, cutoff: 2.5}}}}}}\n",
+                  f"walls: {{w: {{fix: 'fix w all wall/table spline 10000001 zlo EDGE {out} LJ 2.5 units box'}}}}\n"):
+        with pytest.raises(ConfigError) as err:
+            load_config_text(head + walls + "run: {steps: 1}\n")
+        assert "10000000" in err.value.problems[0].replace(",", ""), err.value.problems

@@ -294,6 +294,8 @@ def _wall_words(w: _Words, style: str, out: dict) -> int:
             out[p.name] = w.integer(j, f"{p.name} ({p.doc})" if p.doc else p.name)
             if p.min is not None and out[p.name] < p.min:
                 raise w.error(j, f"{p.name} must be at least {p.min:g}")
+            if p.max is not None and out[p.name] > p.max:
+                raise w.error(j, f"{p.name} must be at most {p.max:,.0f}")
         else:
             out[p.name] = w[j]
     return 4 + len(entry.wall_parameters)

@@ -359,13 +359,14 @@ class SoftWall(_FaceWall):
 def _param_type(p: StyleParam) -> Any:
     """The Pydantic type of one style parameter by its kind: a number or v_name (`variable`), else
     a number (> 0 when `positive`; lower bounds of numbers are checked in check_scene); a word
-    (non-empty text), one of `choices`, an integer (>= `min`), or a mapping of names to numbers."""
+    (non-empty text), one of `choices`, an integer (>= `min`, <= `max`), or a mapping of names to numbers."""
     if p.kind == "word":
         return Annotated[str, Field(min_length=1)]
     if p.kind == "choice":
         return Literal[p.choices]  # type: ignore[valid-type]
     if p.kind == "integer":
-        return Annotated[int, Field(ge=int(p.min))] if p.min is not None else int
+        bounds = {k: int(v) for k, v in (("ge", p.min), ("le", p.max)) if v is not None}
+        return Annotated[int, Field(**bounds)] if bounds else int
     if p.kind == "mapping":
         return dict[str, float]
     if p.variable:

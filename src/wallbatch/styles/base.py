@@ -35,6 +35,7 @@ class Param:
     name: str
     unit: str
     min: float | None = None
+    max: float | None = None  # an upper bound of an ``integer`` (a table's points: memory)
     positive: bool = False
     variable: bool = True
     required: bool = True
@@ -43,7 +44,7 @@ class Param:
     lammps_variable_note: str | None = None  # LAMMPS does not use a variable here: the export's decision row
     # what the value is: ``number`` (the default; a float, or v_name where ``variable``), ``word``
     # (a string: an expression, a file name; ``quoted``: written in double quotes in a fix line),
-    # ``choice`` (one of ``choices``), ``integer`` (>= ``min``), or ``mapping`` (names -> numbers,
+    # ``choice`` (one of ``choices``), ``integer`` (>= ``min``, <= ``max``), or ``mapping`` (names -> numbers,
     # a config key with no word of its own in the fix line, e.g. wall/lepton's params)
     kind: str = "number"
     choices: tuple[str, ...] = ()

@@ -54,6 +54,9 @@ __all__ = [
 ]
 
 
+MAX_TABLE_POINTS = 10_000_000  # points of a table (a written one, or the N it is resampled onto): memory
+
+
 class TableError(ValueError):
     """A missing or malformed table file or section, or a distance outside the table."""
 
@@ -340,6 +343,8 @@ def tabulate(energy_force, lo: float, hi: float, n: int) -> tuple[np.ndarray, np
     """Sample ``energy_force(r) -> (E, F)`` at n equally spaced r in [lo, hi] for a table file."""
     if not (0.0 < lo < hi) or n < 2 or not math.isfinite(hi):
         raise TableError(f"need 0 < lo < hi and n >= 2 (got lo={lo}, hi={hi}, n={n})")
+    if n > MAX_TABLE_POINTS:
+        raise TableError(f"n = {n:,}: a table has at most {MAX_TABLE_POINTS:,} points")
     r = lo + np.arange(n) * ((hi - lo) / (n - 1))
     r[-1] = hi
     e, f = energy_force(r)
@@ -408,11 +413,14 @@ def write_source_table(path, source: str, params: dict[str, float], lo: float, h
                        keyword: str, append: bool = False) -> None:
     """Tabulate a style or expression on n equally spaced points of [lo, hi] into a LAMMPS table
     section (with FP from the exact dF/dr for an expression)."""
+    if not keyword or len(keyword.split()) != 1 or keyword.startswith("#"):
+        raise TableError(f"keyword {keyword!r}: a section keyword is one word (LAMMPS reads the line's first word)")
     energy_force, dfdr = table_source(source, params)
-    r, e, f = tabulate(energy_force, lo, hi, n)
+    with np.errstate(all="ignore"):  # (overflow near r = 0: refused just below, without NumPy's warning)
+        r, e, f = tabulate(energy_force, lo, hi, n)
     if not (np.all(np.isfinite(e)) and np.all(np.isfinite(f))):
-        bad = r[~(np.isfinite(e) & np.isfinite(f))][0]
-        raise TableError(f"{source!r} is not finite at r = {bad!r}: choose a larger lo")
+        bad = float(r[~(np.isfinite(e) & np.isfinite(f))][0])
+        raise TableError(f"{source!r} is not finite at r = {bad:g}: choose a larger lo")
     fp = None if dfdr is None else (float(dfdr(np.float64(lo))), float(dfdr(np.float64(hi))))
     text = ", ".join(f"{k}={v!r}" for k, v in params.items())
     write_table(path, keyword, r, e, f, fp=fp, append=append,
@@ -486,6 +494,6 @@ TABLE = TableEntry(
      cutoff_param()),
     wall_parameters=(Param("tabstyle", "", variable=False, kind="choice", choices=("linear", "spline"),
                            doc="interpolation: linear or spline (as LAMMPS)"),
-                     Param("N", "", variable=False, kind="integer", min=2,
+                     Param("N", "", variable=False, kind="integer", min=2, max=MAX_TABLE_POINTS,
                            doc="the number of points the table is resampled onto (as LAMMPS)")),
     region=False, compiled=False, per_face=True, doc="a tabulated wall")
