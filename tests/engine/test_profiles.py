@@ -57,6 +57,11 @@ def line_of(text: str, needle: str) -> int:
      "output.profiles.across.freq", "longer than the run"),
     ("{axis: z, bins: 10, every: 10, repeat: 5, freq: 100, quantities: [temp], group: gas}", "group: gas",
      "output.profiles.across.group", "unknown group 'gas'"),
+    # more bins than memory allows (a MemoryError reported as a bug before)
+    ("{axis: z, delta: 1e-10, every: 10, repeat: 5, freq: 100, quantities: [temp]}", "delta: 1e-10",
+     "output.profiles.across.delta", "100,000,000,000 bins across the box's z (10 long): at most 1,000,000"),
+    ("{axis: z, bins: 1000001, every: 10, repeat: 5, freq: 100, quantities: [temp]}", "bins: 1000001",
+     "output.profiles.across.bins", "1,000,001 bins across the box's z"),
 ])
 def test_bad_profiles_name_file_line_and_field(prof, needle, field, words):
     text = BASE + "  profiles:\n    across: " + prof + "\n"

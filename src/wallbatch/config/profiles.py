@@ -45,6 +45,18 @@ class Averages(BaseModel):
     time: NonNegativeFloat | None = None
 
 
+MAX_PROFILE_BINS = 1_000_000  # bins of one profile (memory: bins x windows x cases per quantity)
+
+
+def _axis_length(cfg: Any, axis: str) -> float:
+    """The box's extent along `axis` [box units] (0 if it is not a number here)."""
+    k = "xyz".index(axis)
+    try:
+        return float(cfg.box.hi[k]) - float(cfg.box.lo[k])
+    except (TypeError, ValueError, IndexError):
+        return 0.0
+
+
 def check_profiles(cfg: Any, groups: list[str]) -> list[tuple[tuple, str]]:
     """(path, message) per problem of output.profiles / output.averages (LAMMPS's own checks of
     fix ave/chunk, plus what a run must have for a window or an average to exist)."""
@@ -61,6 +73,12 @@ def check_profiles(cfg: Any, groups: list[str]) -> list[tuple[tuple, str]]:
             add(at + ("bins",), f"bins must be >= 1, got {p.bins}")
         if p.delta is not None and not p.delta > 0:
             add(at + ("delta",), f"delta (bin width) must be > 0, got {p.delta}")
+        length = _axis_length(cfg, p.axis)
+        nbins = p.bins if p.bins is not None else (length / p.delta if p.delta and p.delta > 0 and length else 0)
+        if nbins > MAX_PROFILE_BINS:
+            key = "bins" if p.bins is not None else "delta"
+            add(at + (key,), f"{nbins:,.0f} bins across the box's {p.axis} ({length:g} long): at most "
+                f"{MAX_PROFILE_BINS:,} (each window holds every bin of every quantity)")
         for key in ("every", "repeat", "freq"):
             if getattr(p, key) < 1:
                 add(at + (key,), f"{key} must be >= 1 (LAMMPS: Illegal fix ave/chunk command)")
