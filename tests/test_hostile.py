@@ -209,6 +209,35 @@ def test_set_on_a_swept_path_is_refused(tmp_path):
     assert "is also swept by sweep.product.eps" in msg  # a parent of the swept path
 
 
+@pytest.mark.parametrize("values,where,text", [
+    ("{linspace: [0.5, 1.5, 0]}", "values.linspace.2", "Input should be greater than 0"),
+    ("{linspace: [.nan, 1.5, 3]}", "values.linspace.0", "Input should be a finite number"),
+    ("{range: [1.0, 0.5, 0.1]}", "values.range", "range [a, b, step] needs a step that goes from a toward b"),
+    ("{lnspace: [0.5, 1.5, 3]}", "values", "values: give a list, {linspace: [a, b, n]}"),
+    ("3", "values", "values: give a list, {linspace: [a, b, n]}"),
+    ("[]", "values", "List should have at least 1 item"),
+])
+def test_a_bad_values_form_is_one_problem_at_its_key(tmp_path, values, where, text):
+    """A mistake inside one form of `values` is reported once, at that form's key (it came with an
+    error for every other form: up to 20 lines, most of them about forms the user did not write)."""
+    p = sweep_file(tmp_path, f"""\
+        sweep:
+          product:
+            eps: {{path: walls.zwalls.zlo.epsilon, values: {values}}}
+        """)
+    (msg,) = config_error(p)
+    assert msg.startswith(f"{p}:4:") and f"sweep.product.eps.{where}: {text}" in msg, msg
+
+
+def test_a_product_entry_without_its_path_says_so(tmp_path):
+    p = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            eps: {values: [1.0, 2.0]}
+        """)
+    assert config_error(p) == [f"{p}:4:10: sweep.product.eps.path: Field required"]
+
+
 def test_two_sweep_entries_on_one_value_are_refused_where_the_second_is_written(tmp_path):
     """A path swept inside another swept path (a parent set to a number, then its child) or swept
     twice: one located error naming both entries, before any case is built (found by the loader's

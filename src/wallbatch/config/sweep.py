@@ -18,7 +18,7 @@ from typing import Annotated, Any, Union
 
 import numpy as np
 import yaml
-from pydantic import ConfigDict, Field, PositiveInt, ValidationError, field_validator
+from pydantic import ConfigDict, Discriminator, Field, PositiveInt, Tag, ValidationError, field_validator
 
 from wallbatch.config.models import Config, Model, validate_data
 from wallbatch.config.source import ConfigError, SourceMap, _Loader, load_yaml, read_config_text
@@ -50,12 +50,45 @@ class Range(_SweepModel):
         return v
 
 
-Values = Union[Annotated[list[Any], Field(min_length=1)], Linspace, Logspace, Range]
+def _values_kind(v: Any) -> str | None:
+    """Which form of `values` v is written in (a list, or a mapping keyed linspace, logspace or
+    range), so that a mistake in one form is reported alone, not with every other form's errors."""
+    if isinstance(v, (list, tuple)):
+        return "list"
+    if isinstance(v, dict):
+        return next((k for k in ("linspace", "logspace", "range") if k in v), None)
+    return None
+
+
+VALUES_FORMS = "a list, {linspace: [a, b, n]}, {logspace: [a, b, n]} or {range: [a, b, step]}"
+Values = Annotated[Union[Annotated[Annotated[list[Any], Field(min_length=1)], Tag("list")],
+                         Annotated[Linspace, Tag("linspace")], Annotated[Logspace, Tag("logspace")],
+                         Annotated[Range, Tag("range")]],
+                   Discriminator(_values_kind, custom_error_type="values",
+                                 custom_error_message=f"values: give {VALUES_FORMS}")]
 
 
 class Param(_SweepModel):
     path: Union[str, Annotated[list[str], Field(min_length=1)]]
     values: Values
+
+
+def _untagged(loc: tuple) -> tuple:
+    """A sweep validation error's location without the tags the discriminators add (`_entry_kind`
+    after a product entry's name, `_values_kind` after `values`), so it names keys of the file."""
+    out: list = []
+    for i, key in enumerate(loc):
+        after_entry = i >= 2 and loc[i - 2] == "product" and key in ("param", "values")
+        after_values = i >= 1 and loc[i - 1] == "values" and key in ("list", "linspace", "logspace", "range")
+        if not (after_entry or after_values):
+            out.append(key)
+    return tuple(out)
+
+
+def _entry_kind(v: Any) -> str:
+    """A product entry: {path: ..., values: ...} (a mapping with either key: the other is then
+    reported missing), or the shorthand whose key is the path."""
+    return "param" if isinstance(v, dict) and ("path" in v or "values" in v) else "values"
 
 
 class Zip(_SweepModel):
@@ -64,7 +97,8 @@ class Zip(_SweepModel):
 
 
 class Sweep(_SweepModel):
-    product: dict[str, Union[Param, Values]] = {}
+    product: dict[str, Annotated[Union[Annotated[Param, Tag("param")], Annotated[Values, Tag("values")]],
+                                 Discriminator(_entry_kind)]] = {}
     zip: Zip | None = None
     replicas: PositiveInt | None = None
 
@@ -349,7 +383,7 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
     try:
         sweep = Sweep.model_validate(raw_sweep)
     except ValidationError as exc:
-        raise ConfigError([smap.format(("sweep",) + tuple(e["loc"]), e["msg"].removeprefix("Value error, "))
+        raise ConfigError([smap.format(("sweep",) + _untagged(e["loc"]), e["msg"].removeprefix("Value error, "))
                            for e in exc.errors(include_url=False)]) from None
     order = [k for k in raw_sweep if k in ("product", "zip")]
     dims = _dims(sweep, order, smap)
