@@ -631,3 +631,19 @@ def test_show_on_a_foreign_netcdf(tmp_path):
     junk.write_text("hello")
     res = run("show", junk)
     assert res.exit_code == 2 and f"cannot open {junk}: not a NetCDF file" in res.output
+
+
+def test_an_unknown_or_missing_style_is_named_at_its_key(tmp_path):
+    """A wall's style misspelled, or left out: pydantic's "Input tag 'lj39' found using 'style' does
+    not match any of the expected tags" became one line at the style's value naming the styles; a
+    wall without style also names the fix-line form."""
+    head = ("box: {lo: [0,0,0], hi: [5,5,8], boundary: [p,p,f]}\n"
+            "atoms: [{group: g, mass: 1, create: {random: {count: 10}}}]\n")
+    p = tmp_path / "s.yaml"
+    p.write_text(head + "walls: {w: {style: lj39, units: box, zlo: [EDGE, 1, 1, 2.5]}}\nrun: {steps: 10}\n")
+    (msg,) = config_error(p)
+    assert msg.startswith(f"{p}:3:20: walls.w.style: unknown style 'lj39': one of lj93, lj126, lj1043,"), msg
+    p.write_text(head + "walls: {w: {units: box, zlo: [EDGE, 1, 1, 2.5]}}\nrun: {steps: 10}\n")
+    (msg,) = config_error(p)
+    assert msg == (f"{p}:3:12: walls.w: no style: give style: (see docs/reference/config.md) or fix: "
+                   f"'fix ID group wall/STYLE ...' (a LAMMPS fix line)")

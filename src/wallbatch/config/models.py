@@ -712,6 +712,18 @@ def _expand_fix_lines(data: Any, srcmap: SourceMap) -> Any:
     return {**data, "walls": walls}
 
 
+def _tag_message(err: dict, loc: tuple) -> tuple[str, tuple]:
+    """The message and place of a discriminated union's error (an unknown or missing `style:` of a
+    wall or fix), instead of pydantic's wording about tags."""
+    ctx = err.get("ctx") or {}
+    key = str(ctx.get("discriminator", "style")).strip("'")
+    expected = str(ctx.get("expected_tags", "")).replace("'", "")
+    if err["type"] == "union_tag_invalid":
+        return f"unknown {key} {ctx.get('tag')!r}: one of {expected}", loc + (key,)
+    alt = " or fix: 'fix ID group wall/STYLE ...' (a LAMMPS fix line)" if loc[:1] == ("walls",) else ""
+    return f"no {key}: give {key}: (see docs/reference/config.md){alt}", loc
+
+
 def validate_data(data: Any, srcmap: SourceMap, base: Path | None = None) -> Config:
     """Validate loaded YAML data into a Config, then run the cross-field checks (relative table
     files of wall/table start from `base`)."""
@@ -730,7 +742,10 @@ def validate_data(data: Any, srcmap: SourceMap, base: Path | None = None) -> Con
                 msg = "fld (lubrication models, fix wall ... fld yes) is not supported: remove it"
             elif err["type"] == "extra_forbidden":
                 msg = "unknown key (misspelled? see docs/reference/config.md for the valid keys)"
-            problems.append(srcmap.format(drop_fix_tag(tuple(err["loc"])), msg))
+            loc = drop_fix_tag(tuple(err["loc"]))
+            if err["type"] in ("union_tag_invalid", "union_tag_not_found"):  # style: of a wall or a fix
+                msg, loc = _tag_message(err, loc)
+            problems.append(srcmap.format(loc, msg))
         raise ConfigError(problems) from None
     if base is not None:
         cfg._base_dir = base
