@@ -48,8 +48,7 @@ def load(config: ConfigLike, sets: Sequence[str] | Mapping[str, Any] = ()) -> Sw
 
     ``config`` is a path to a scene or sweep YAML file, a `Config`, a plain mapping in the config
     language (its numbers may be NumPy scalars and its lists NumPy arrays: sweep values from
-    np.linspace, say), or a plan
-    (returned as is when ``sets`` is empty). ``sets`` overrides values by
+    np.linspace, say), or a plan (returned as is when ``sets`` is empty). ``sets`` overrides values by
     dotted path, as ``--set`` does: ``["walls.zw.zlo.epsilon=2"]`` or ``{"walls.zw.zlo.epsilon": 2}``.
     Raises `wallbatch.config.source.ConfigError` (one line per problem, with file:line:col).
     """

@@ -48,13 +48,17 @@ class Averages(BaseModel):
 MAX_PROFILE_BINS = 1_000_000  # bins of one profile (memory: bins x windows x cases per quantity)
 
 
-def _axis_length(cfg: Any, axis: str) -> float:
-    """The box's extent along `axis` [box units] (0 if it is not a number here)."""
-    k = "xyz".index(axis)
-    try:
-        return float(cfg.box.hi[k]) - float(cfg.box.lo[k])
-    except (TypeError, ValueError, IndexError):
-        return 0.0
+def profile_bins(p: Any, lo: float, hi: float) -> tuple[int, float]:
+    """(bins, delta) of profile `p` over [lo, hi] along its axis [box units]: with `delta`,
+    ceil(L / delta) bins (the last one may reach past the box, as LAMMPS bin/1d); with `bins`,
+    delta = L / bins. At least one bin."""
+    if p.bins is not None:
+        return max(int(p.bins), 1), (hi - lo) / p.bins
+    delta = float(p.delta)
+    nbins = int((hi - lo) / delta)
+    if lo + nbins * delta < hi:
+        nbins += 1
+    return max(nbins, 1), delta
 
 
 def check_profiles(cfg: Any, groups: list[str]) -> list[tuple[tuple, str]]:
@@ -73,8 +77,12 @@ def check_profiles(cfg: Any, groups: list[str]) -> list[tuple[tuple, str]]:
             add(at + ("bins",), f"bins must be >= 1, got {p.bins}")
         if p.delta is not None and not p.delta > 0:
             add(at + ("delta",), f"delta (bin width) must be > 0, got {p.delta}")
-        length = _axis_length(cfg, p.axis)
-        nbins = p.bins if p.bins is not None else (length / p.delta if p.delta and p.delta > 0 and length else 0)
+        k = "xyz".index(p.axis)
+        lo, hi = float(cfg.box.lo[k]), float(cfg.box.hi[k])
+        length = hi - lo
+        sized = p.bins >= 1 if p.delta is None and p.bins is not None else (
+            p.bins is None and p.delta is not None and p.delta > 0)  # (else reported above)
+        nbins = profile_bins(p, lo, hi)[0] if sized else 0
         if nbins > MAX_PROFILE_BINS:
             key = "bins" if p.bins is not None else "delta"
             add(at + (key,), f"{nbins:,.0f} bins across the box's {p.axis} ({length:g} long): at most "

@@ -390,12 +390,11 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
     base_data = config_to_dict(base)
     # where each swept path was written, and paths checked once (not once per case)
     swept: dict[str, str] = {}
-    setters: dict[str, tuple[tuple, str]] = {}  # each swept path: the entry that sets it, and where
+    setters: dict[str, tuple[tuple, str]] = {}  # each swept path: the entry that sets it, and where it is
     for d in dims:
         if d.name == "replica" and d.paths == ("seed",):
             continue
-        entries = d.extra.items() if d.extra else [(None, (d.values, d.paths))]
-        for param, (vals, paths) in entries:
+        for param, (vals, paths) in _entries(d):
             loc = _dim_where(smap, d.name, param)
             where = _where_text(smap, loc + ("values",)) if smap.marks.get(loc + ("values",)) else \
                 _where_text(smap, loc)
@@ -433,15 +432,10 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
             coords[d.name] = d.values[i]
             if d.name == "replica" and d.paths == ("seed",):
                 continue
-            entries = d.extra.items() if d.extra else [(None, (d.values, d.paths))]
-            for param, (vals, paths) in entries:
+            # (each path was set above on the base; swept paths are disjoint, so none fails here)
+            for _, (vals, paths) in _entries(d):
                 for p in paths:
-                    try:
-                        set_path(case_data, p, vals[i])
-                    except ConfigError as exc:  # (checked above for the first values: not expected)
-                        loc = _dim_where(smap, d.name, param)
-                        raise ConfigError([f"{setters[p][1]}: {'.'.join(map(str, loc))}: {q}"
-                                           for q in exc.problems]) from None
+                    set_path(case_data, p, vals[i])
         label = ", ".join(f"{k}={v}" for k, v in coords.items())
         try:
             cfg = validate_data(case_data, case_map, base_dir)
@@ -457,6 +451,11 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
         grouped = _group(problems, int(np.prod([len(d.values) for d in dims], dtype=int)))
         raise ConfigError(grouped[:20] + ([f"... and {len(grouped) - 20} more"] if len(grouped) > 20 else []))
     return SweepPlan(dims, cases, base_text, yaml.safe_dump(raw_sweep, sort_keys=False), inputs)
+
+
+def _entries(d: Any) -> list[tuple[str | None, tuple[list, tuple[str, ...]]]]:
+    """A dimension's entries: (param, (values, paths)) of each zip parameter, or (None, its own)."""
+    return list(d.extra.items()) if d.extra else [(None, (d.values, d.paths))]
 
 
 def parse_set(item: str) -> tuple[str, Any]:

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from wallbatch.config.models import Config, TimeInterval, lattice_spacing
+from wallbatch.config.profiles import profile_bins
 from wallbatch.expr import Variables
 from wallbatch.geometry.quaternion import normalize, random_quaternions
 from wallbatch.geometry.regions import RegionGeom
@@ -611,20 +612,13 @@ def _stochastic_spec(cfg: Config, fid: str, wall: Any, group: np.ndarray, seed: 
 
 
 def _profiles(cfg: Config, mask: Any) -> tuple[ProfileSpec, ...]:
-    """output.profiles in box units; with `delta`, ceil(L / delta) bins (the last one may reach past
-    the box, as LAMMPS bin/1d); with `bins`, delta = L / bins."""
+    """output.profiles in box units, binned by config.profiles.profile_bins."""
     out = []
     for name, p in cfg.output.profiles.items():
         axis = "xyz".index(p.axis)
         lo, hi = float(cfg.box.lo[axis]), float(cfg.box.hi[axis])
-        if p.bins is not None:
-            nbins, delta = int(p.bins), (hi - lo) / p.bins
-        else:
-            delta = float(p.delta)
-            nbins = int((hi - lo) / delta)
-            if lo + nbins * delta < hi:
-                nbins += 1
-        out.append(ProfileSpec(name, axis, lo, delta, max(nbins, 1), p.every, p.repeat, p.freq,
+        nbins, delta = profile_bins(p, lo, hi)
+        out.append(ProfileSpec(name, axis, lo, delta, nbins, p.every, p.repeat, p.freq,
                                tuple(p.quantities), mask(p.group)))
     return tuple(out)
 
