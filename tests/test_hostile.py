@@ -196,6 +196,18 @@ def test_set_errors_name_the_argument(scene):
     assert msg.startswith("--set run.steps=!!python/name:os.system: the value is not valid YAML")
 
 
+@pytest.mark.parametrize("setting, where", [
+    ("output.profiles={rho: {axis: z, bins: x, every: 1, repeat: 1, freq: 1, quantities: [temp]}}",
+     "output.profiles.rho.bins"),
+    ("fixes={nvt: {style: nvt, temp: [1, 1], damp: 0.1, tchain: x}}", "fixes.nvt.tchain"),
+    ("walls.new={style: lj93, zlo: [EDGE, 1, 1, x]}", "walls.new.zlo.cutoff"),
+])
+def test_a_mistake_inside_a_set_mapping_is_named_in_full(scene, setting, where):
+    """Keys the file does not have are still named down to the wrong value, at the argument."""
+    (msg,) = config_error(scene, [setting])
+    assert msg.startswith(f"--set {setting}: {where}: Input should be a valid "), msg
+
+
 def test_set_on_a_swept_path_is_refused(tmp_path):
     p = sweep_file(tmp_path, """\
         sweep:
@@ -306,6 +318,27 @@ def test_non_finite_numbers_refused(scene, setting, words):
     (msg,) = config_error(scene, [setting])
     assert words in msg, msg
     assert msg.startswith("--set ") or msg.startswith(f"{scene}:")
+
+
+@pytest.mark.parametrize("setting, where, words", [
+    ("run.steps=true", "run.steps", "Input should be a valid integer"),
+    ("seed=false", "seed", "Input should be a valid integer"),
+    ("atoms.0.mass=true", "atoms.0.mass", "Input should be a valid number"),
+    ("box.hi=[true, 6, 10]", "box.hi.0", "Input should be a valid number"),
+    ("walls.zwalls.zlo.epsilon=true", "walls.zwalls.zlo.epsilon", "expected a number"),
+    ("fixes={nvt: {style: nvt, temp: [1, 1], damp: 0.1, tchain: true}}", "fixes.nvt.tchain", "valid integer"),
+    ("output.profiles={rho: {axis: z, bins: true, every: 1, repeat: 1, freq: 1, quantities: [temp]}}",
+     "output.profiles.rho.bins", "valid integer"),
+])
+def test_true_or_false_is_not_a_number(scene, setting, where, words):
+    """Pydantic reads a bool as 1 or 0 in lax mode (`steps: true` would run one step)."""
+    (msg,) = config_error(scene, [setting])
+    assert f": {where}: " in msg and words in msg, msg
+
+
+def test_bool_keys_still_take_bools(scene):
+    plan = load_plan(scene, ["walls.zwalls.energy=false", "run.steps=10"])
+    assert plan.cases[0].config.walls["zwalls"].energy is False and plan.cases[0].config.run.steps == 10
 
 
 def test_region_bounds_may_be_infinite_never_nan(scene):
@@ -630,7 +663,7 @@ def test_show_on_a_foreign_netcdf(tmp_path):
     junk = tmp_path / "junk.nc"
     junk.write_text("hello")
     res = run("show", junk)
-    assert res.exit_code == 2 and f"cannot open {junk}: not a NetCDF file" in res.output
+    assert res.exit_code == 2 and f"cannot open {junk}: not a NetCDF file, or a damaged one" in res.output
 
 
 def test_an_unknown_or_missing_style_is_named_at_its_key(tmp_path):

@@ -245,7 +245,7 @@ def _open(results: Path):
     try:
         ds = xr.open_dataset(results)
     except Exception as exc:  # noqa: BLE001 - any reader failure: not a readable NetCDF file
-        raise _fail(f"cannot open {results}: not a NetCDF file ({type(exc).__name__})") from None
+        raise _fail(f"cannot open {results}: not a NetCDF file, or a damaged one ({type(exc).__name__})") from None
     if "wallbatch_version" not in ds.attrs or "status" not in ds:
         raise _fail(f"{results} is a NetCDF file but not a wallbatch results file (no wallbatch_version "
                     f"attribute or status variable)")
@@ -336,8 +336,8 @@ def table(source: str = typer.Argument(..., help="a wall style (lj93, lj126, lj1
 @app.command("export-lammps")
 def export_lammps(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
                   output: Path = typer.Option(..., "-o", "--output", help="folder for in.NAME and data.NAME"),
-                  case: str = typer.Option(None, "--case", help="one case of a sweep: index (0, 1, ...) or "
-                                           "coordinates name=value,name=value"),
+                  case: str = typer.Option(None, "--case", help="one case of a sweep: index (0, 1, ...; -1: the last) "
+                                           "or coordinates name=value,name=value"),
                   steps: int = typer.Option(None, "--steps", help="run length in steps (default: the config's)"),
                   set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)"),
                   ) -> None:
@@ -361,8 +361,8 @@ def export_lammps(config: Path = typer.Argument(..., help="scene or sweep YAML f
 
 @app.command()
 def validate(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
-             case: str = typer.Option(None, "--case", help="one case of a sweep: index (0, 1, ...) or "
-                                      "coordinates name=value,name=value"),
+             case: str = typer.Option(None, "--case", help="one case of a sweep: index (0, 1, ...; -1: the last) "
+                                      "or coordinates name=value,name=value"),
              steps: int = typer.Option(None, "--steps", help="run length in steps (default: the config's)"),
              rtol: float = typer.Option(1e-9, "--rtol", help="relative tolerance of every output"),
              set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)"),

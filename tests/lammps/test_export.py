@@ -763,7 +763,8 @@ def test_case_selection(tmp_path):
     assert select_case(plan, "3").coords == {"epsilon": 1.0, "sigma": 0.8}  # C order: epsilon outer
     assert select_case(plan, "-1").coords == {"epsilon": 1.0, "sigma": 1.0}
     for sel, msg in ((None, "6 cases"), ("epsilon=1.0", "3 cases match"), ("eps=1.0", "not a sweep dimension"),
-                     ("epsilon=3.0,sigma=0.8", "no case has these coordinates"), ("6", "indexed 0 to 5"),
+                     ("epsilon=3.0,sigma=0.8", "no case has these coordinates"),
+                     ("6", r"indexed 0 to 5 \(or -6 to -1 from the last\)"), ("-7", "indexed 0 to 5"),
                      ("epsilon", "name=value")):
         with pytest.raises(ExportError, match=msg):
             select_case(plan, sel)

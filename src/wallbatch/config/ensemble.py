@@ -16,7 +16,6 @@ from __future__ import annotations
 from typing import Annotated, Any, Literal
 
 from pydantic import (
-    BaseModel,
     ConfigDict,
     Field,
     NonNegativeFloat,
@@ -25,6 +24,7 @@ from pydantic import (
     field_validator,
 )
 
+from wallbatch.config.base import NoBoolNumbers
 from wallbatch.config.fixline import FixLineError, _Words
 from wallbatch.config.ondemand import tagged_on_demand
 
@@ -37,7 +37,7 @@ GroupName = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_\-]*$")]
 Temps = tuple[NonNegativeFloat, NonNegativeFloat]
 
 
-class _Fix(BaseModel):
+class _Fix(NoBoolNumbers):
     # built when a config first uses the style (EnsembleFix)
     model_config = ConfigDict(extra="forbid", frozen=True, defer_build=True)
 

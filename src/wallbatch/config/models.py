@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal, Union
 
 from pydantic import (
-    BaseModel,
     ConfigDict,
     Field,
     NonNegativeFloat,
@@ -29,6 +28,7 @@ from pydantic import (
     model_validator,
 )
 
+from wallbatch.config.base import NoBoolNumbers
 from wallbatch.config.ondemand import tagged_on_demand
 from wallbatch.config.profiles import Averages, Profile, check_profiles
 from wallbatch.config.source import FACES, ConfigError, SourceMap, load_yaml
@@ -118,7 +118,7 @@ Bound = Annotated[Union[float, None], BeforeValidator(_bound)]
 Vec3 = tuple[float, float, float]
 
 
-class Model(BaseModel):
+class Model(NoBoolNumbers):
     # every float finite: .inf / .nan / 'NaN' are refused ("no bound" is written INF or NULL where allowed)
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 

@@ -12,12 +12,14 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, NonNegativeInt
+from pydantic import ConfigDict, Field, NonNegativeFloat, NonNegativeInt
+
+from wallbatch.config.base import NoBoolNumbers
 
 PROFILE_QUANTITIES = ("density/number", "density/mass", "temp", "vx", "vy", "vz")
 
 
-class Profile(BaseModel):
+class Profile(NoBoolNumbers):
     """One binned axis, sampled every `every` steps, `repeat` samples averaged into one window
     ending at every multiple of `freq` (LAMMPS Nevery Nrepeat Nfreq). Give `bins` (equal bins
     over the box, LAMMPS `bin/1d ... units reduced`) or `delta` (bin width in box distance units,
@@ -35,7 +37,7 @@ class Profile(BaseModel):
     group: str = "all"
 
 
-class Averages(BaseModel):
+class Averages(NoBoolNumbers):
     """Samples before `start` (a step, inclusive) or `time` (simulated time, inclusive) are left
     out of every `_mean` / `_sem`. Default: all samples."""
 

@@ -21,7 +21,7 @@ import yaml
 from pydantic import ConfigDict, Discriminator, Field, PositiveInt, Tag, ValidationError, field_validator
 
 from wallbatch.config.models import Config, Model, validate_data
-from wallbatch.config.source import ConfigError, SourceMap, _Loader, load_yaml, read_config_text
+from wallbatch.config.source import WALL_TAGS, ConfigError, SourceMap, _Loader, load_yaml, read_config_text
 
 # ----------------------------------------------------------------------------- the sweep models
 
@@ -317,6 +317,12 @@ class OverlayMap(SourceMap):
 
     def format(self, loc: tuple, message: str) -> str:
         path, _ = self.locate(loc)
+        # inside a value written elsewhere (`--set output.profiles={...}`) the file's data has no
+        # such keys to walk: show the whole location (less union tags) under that origin
+        full = tuple(p for p in loc if not (isinstance(p, str) and (p in WALL_TAGS or any(c in p for c in "[]()"))))
+        if len(full) > len(path) and [str(p) for p in full[:len(path)]] == [str(p) for p in path] \
+                and self.origin(".".join(str(p) for p in full)) is not None:
+            path = full
         dotted = ".".join(str(p) for p in path) or "(top level)"
         where = self.origin(dotted)
         if where is not None:

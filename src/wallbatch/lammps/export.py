@@ -204,7 +204,8 @@ def select_case(plan: SweepPlan, sel: str | None) -> SweepCase:
     if re.fullmatch(r"-?\d+", sel):
         i = int(sel)
         if not -len(cases) <= i < len(cases):
-            raise ExportError(f"--case {sel}: there are {len(cases)} case(s), indexed 0 to {len(cases) - 1}")
+            raise ExportError(f"--case {sel}: there are {len(cases)} case(s), indexed 0 to {len(cases) - 1} "
+                              f"(or -{len(cases)} to -1 from the last)")
         return cases[i]
     extras = {k: d for d in plan.dims for k in d.extra}
     names = [d.name for d in plan.dims] + list(extras)
