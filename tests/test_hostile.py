@@ -162,6 +162,17 @@ def test_bad_sweep_path_at_its_line(tmp_path):
     assert msg.startswith(f"{p}:4:") and "sweep.product.eps" in msg and "walls.nowall does not exist" in msg
 
 
+def test_a_sweep_path_into_a_face_written_as_a_list_names_its_keys(tmp_path):
+    p = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            eps: {path: walls.zwalls.zlo.1, values: [1.0, 2.0]}
+        """)
+    (msg,) = config_error(p)
+    assert msg == (f"{p}:4:17: sweep.product.eps: sweep path walls.zwalls.zlo.1: a face's values are named, also "
+                   "where the file writes them as a list: walls.zwalls.zlo.{coord, epsilon, sigma, cutoff}")
+
+
 @pytest.mark.parametrize("body, where, words", [
     ("sweep:\n  zip:\n    dim: g\n    params:\n      a: {path: run.steps, values: [1, 2]}\n"
      "      b: {path: run.thermo, values: [1]}\n", ":6:7: sweep.zip.params:", "must have equal lengths"),

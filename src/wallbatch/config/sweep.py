@@ -21,7 +21,7 @@ import yaml
 from pydantic import ConfigDict, Discriminator, Field, PositiveInt, Tag, ValidationError, field_validator
 
 from wallbatch.config.models import Config, Model, validate_data
-from wallbatch.config.source import WALL_TAGS, ConfigError, SourceMap, _Loader, load_yaml, read_config_text
+from wallbatch.config.source import FACES, WALL_TAGS, ConfigError, SourceMap, _Loader, load_yaml, read_config_text
 
 # ----------------------------------------------------------------------------- the sweep models
 
@@ -217,6 +217,9 @@ def set_path(data: dict, path: str, value: Any) -> None:
             raise ConfigError([f"sweep path {path}: {last} is not an index of a list of {len(node)}"])
         node[int(last)] = value
     elif isinstance(node, dict):
+        if last.isdigit() and last not in node and len(parts) > 1 and parts[-2] in FACES:
+            raise ConfigError([f"sweep path {path}: a face's values are named, also where the file writes them "
+                               f"as a list: {'.'.join(parts[:-1])}.{{{', '.join(node)}}}"])
         node[last] = value
     else:
         raise ConfigError([f"sweep path {path}: {'.'.join(parts[:-1])} is a value, not a mapping or list"])
