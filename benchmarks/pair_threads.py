@@ -2,12 +2,14 @@
 (serial `lmp` and `mpiexec -np 2 lmp`), in one run.
 
     python benchmarks/pair_threads.py [--atoms 32000 100000] [--atom-steps 5e6] [--repeat 2] [--no-lammps]
-                                      [--fix langevin|nvt|berendsen]
+                                      [--fix langevin|nvt|berendsen] [--variant reflect|reflect-stats|dt-reset]
 
 Scene: the LJ liquid slit of benchmarks/pair_lj.py (fcc at rho 0.8 melted at T = 2, lj/cut 2.5
 shifted, neighbor skin 0.3 checked every step, lj93 walls at the z edges, dt 0.005), thermo
 every steps / 10; with `--fix`, held at T = 1 by that thermostat (benchmarks/common.py's
-THERMOSTATS: its sums over all atoms run between the threads' parts of each step). Each
+THERMOSTATS: its sums over all atoms run between the threads' parts of each step); with
+`--variant`, wall/reflect faces in place of the lj93 walls (with reflect statistics too) or fix
+dt/reset (VARIANTS: the last two keep a case over threads on the per-step path). Each
 wallbatch run is a new process (WALLBATCH_THREADS=k, NUMBA_NUM_THREADS=k)
 that warms its kernels on a 10-step run, then times `Engine([case]).run()`; the one- and
 two-thread runs alternate (`--repeat` rounds, best of each), and the final kinetic and potential
@@ -40,12 +42,12 @@ import os, resource, sys, time
 sys.path.insert(0, {here!r})
 import common
 from wallbatch.engine.engine import Engine
-n, steps, fix = {n}, {steps}, {fix!r}
-def scene(steps, thermo):
-    cfg = common.lj_fcc_slit(n, steps=steps, thermo=thermo)
-    return common.with_fixes(cfg, common.THERMOSTATS[fix], fix) if fix else cfg
-Engine([common.build(scene(10, 10))]).run()
-case = common.build(scene(steps, max(1, steps // 10)))
+import pair_threads
+n, steps, fix, variant = {n}, {steps}, {fix!r}, {variant!r}
+warm = pair_threads.scene(n, 10, fix, variant)
+warm["run"]["thermo"] = 10
+Engine([common.build(warm)]).run()
+case = common.build(pair_threads.scene(n, steps, fix, variant))
 def busy():  # (CPU seconds the machine's processes used, seconds the hypervisor stole) so far
     try:
         v = [int(t) for t in open("/proc/stat").readline().split()[1:]]
@@ -68,22 +70,37 @@ print("RESULT", sec, res.status, case.natoms, getattr(fast, "threaded_chunks", 0
 """
 
 
-def scene(n: int, steps: int, fix: str | None = None) -> dict:
-    """The benchmark's scene: the LJ liquid slit of n atoms, with the thermostat `fix` if given."""
+VARIANTS = {  # --variant: what a pair case over threads runs otherwise (reflect-stats, dt-reset: per-step path)
+    "reflect": "wall/reflect faces in place of the lj93 walls (split like them)",
+    "reflect-stats": "wall/reflect faces with reflect_count and reflect_impulse output (per-step path on threads)",
+    "dt-reset": "fix dt/reset every 10 steps, xmax 0.05, tmax 0.005 (per-step path on threads)",
+}
+
+
+def scene(n: int, steps: int, fix: str | None = None, variant: str | None = None) -> dict:
+    """The benchmark's scene: the LJ liquid slit of n atoms, with the thermostat `fix` if given,
+    changed as `variant` (VARIANTS) says."""
     import common  # noqa: PLC0415
 
     cfg = common.lj_fcc_slit(n, steps=steps, thermo=max(1, steps // 10))
+    if variant in ("reflect", "reflect-stats"):
+        cfg["walls"] = {"pore": {"style": "reflect", "units": "box", "zlo": "EDGE", "zhi": "EDGE"}}
+        if variant == "reflect-stats":
+            cfg["output"] = {"thermo": ["reflect_count", "reflect_impulse"]}
+    elif variant == "dt-reset":
+        cfg["dt_reset"] = {"every": 10, "tmin": None, "tmax": 0.005, "xmax": 0.05, "units": "box"}
     return common.with_fixes(cfg, common.THERMOSTATS[fix], fix) if fix else cfg
 
 
-def wallbatch_run(n: int, steps: int, threads: int, fix: str | None = None
+def wallbatch_run(n: int, steps: int, threads: int, fix: str | None = None, variant: str | None = None
                   ) -> tuple[float, int, int, str, float, float, int, float]:
     """(seconds, atoms, chunks run over threads, final ke and pe as hex, CPU seconds, other
     processes' CPU seconds meanwhile, page faults, seconds the hypervisor stole from the machine's
     cores meanwhile: /proc/stat's steal, time a virtual core was ready but not run) of one child
-    process (`fix`: a thermostat)."""
+    process (`fix`: a thermostat; `variant`: VARIANTS)."""
     env = dict(os.environ, WALLBATCH_THREADS=str(threads), NUMBA_NUM_THREADS=str(threads))
-    out = subprocess.run([sys.executable, "-c", CHILD.format(here=str(HERE), n=n, steps=steps, fix=fix)], env=env,
+    child = CHILD.format(here=str(HERE), n=n, steps=steps, fix=fix, variant=variant)
+    out = subprocess.run([sys.executable, "-c", child], env=env,
                          capture_output=True, text=True, check=True).stdout
     f = next(ln.split()[1:] for ln in out.splitlines() if ln.startswith("RESULT"))
     if f[1] != "ok":
@@ -96,7 +113,8 @@ def lmp_binary() -> str | None:
     return str(own) if own.exists() else shutil.which("lmp")
 
 
-def lammps_runs(n: int, steps: int, repeat: int, fix: str | None = None) -> dict[int, float]:
+def lammps_runs(n: int, steps: int, repeat: int, fix: str | None = None, variant: str | None = None
+                ) -> dict[int, float]:
     """Best "Loop time" [s] of LAMMPS serial (1) and `mpiexec -np 2` (2) on the exported scene."""
     import common  # noqa: PLC0415
 
@@ -104,7 +122,7 @@ def lammps_runs(n: int, steps: int, repeat: int, fix: str | None = None) -> dict
     if lmp is None:
         return {}
     mpiexec = Path(sys.prefix) / "bin" / "mpiexec"
-    cfg = scene(n, steps, fix)
+    cfg = scene(n, steps, fix, variant)
     best: dict[int, float] = {}
     with tempfile.TemporaryDirectory(prefix="wb_pairthr_") as tmp:
         setup, nrun, _ = common.lammps_script(cfg, None, tmp)
@@ -131,10 +149,11 @@ def main() -> None:
     ap.add_argument("--show-runs", action="store_true", help="print every run (seconds, CPU, others' CPU, faults)")
     ap.add_argument("--fix", choices=["langevin", "nvt", "berendsen"],
                     help="hold the liquid at T = 1 by this thermostat")
+    ap.add_argument("--variant", choices=sorted(VARIANTS), help="; ".join(f"{k}: {v}" for k, v in VARIANTS.items()))
     args = ap.parse_args()
     load = os.getloadavg()[0]
     print(f"# {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, load {load:.2f}"
-          + (f"; fix {args.fix}" if args.fix else ""))
+          + (f"; fix {args.fix}" if args.fix else "") + (f"; {VARIANTS[args.variant]}" if args.variant else ""))
     print(f"| N | steps | wb 1 thread [s] | wb 2 threads [s] | 2/1 | same bits | LAMMPS serial [s] | LAMMPS np 2 [s] "
           f"| LAMMPS 2/1 | wb 2 thr vs LAMMPS np 2 |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
@@ -146,7 +165,7 @@ def main() -> None:
         runs: list[str] = []
         for _ in range(args.repeat):
             for k in (1, 2):
-                sec, atoms, thr, b, cpu, others, faults, steal = wallbatch_run(n, steps, k, args.fix)
+                sec, atoms, thr, b, cpu, others, faults, steal = wallbatch_run(n, steps, k, args.fix, args.variant)
                 best[k] = min(best.get(k, sec), sec)
                 bits[k].add(b)
                 threaded = max(threaded, thr) if k == 2 else threaded
@@ -155,7 +174,7 @@ def main() -> None:
                             f"{faults} page faults"
                             + (f", {thr} chunks over threads" if k > 1 else ""))
         same = "yes" if len(bits[1] | bits[2]) == 1 else "NO"
-        lmp = {} if args.no_lammps else lammps_runs(n, steps, args.repeat, args.fix)
+        lmp = {} if args.no_lammps else lammps_runs(n, steps, args.repeat, args.fix, args.variant)
         l1, l2 = lmp.get(1), lmp.get(2)
         f = lambda v, spec: "n/a" if v is None else format(v, spec)  # noqa: E731
         vs = None if l2 is None else l2 / best[2]
