@@ -202,3 +202,23 @@ def test_pair_probe_runs_two_independent_copies_of_the_pair_kernels(suite, monke
         host_cores.pair_probe(2000, 1)
     text = suite.pair_probe_text({"pair forces": [1.3, 1.4, 1.5], "pair build": [1.2, 1.1, 1.3]})
     assert "force pass 1.40x, list build 1.20x one alone" in text
+
+
+@pytest.mark.parametrize("variant, split", [(None, True), ("reflect", True), ("reflect-stats", False),
+                                            ("dt-reset", False)])
+def test_pair_threads_variants_are_the_scenes_they_name(suite, variant, split):
+    """benchmarks/pair_threads.py --variant: the LJ liquid slit with reflect faces (split over threads
+    like the lj93 walls), with their statistics or with fix dt/reset (which a case over threads runs
+    on the per-step path)."""
+    import pair_threads
+
+    from wallbatch.engine import pair_compiled as pc
+    from wallbatch.engine.engine import Engine
+
+    cfg = pair_threads.scene(2000, 10, None, variant)
+    assert cfg["walls"]["pore"]["style"] == ("reflect" if variant and variant.startswith("reflect") else "lj93")
+    assert ("dt_reset" in cfg) == (variant == "dt-reset")
+    engine = Engine([suite.common.build(cfg)])
+    assert (engine.dt_reset is not None) == (variant == "dt-reset")
+    if pc.enabled():
+        assert pc.threads_take(engine.compiled_plan()) == split
