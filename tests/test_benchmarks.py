@@ -150,6 +150,40 @@ def test_repeat_times_both_codes_in_turns_and_keeps_the_best_of_each(suite, monk
     assert "best of 2 measurements per cell" in suite.header("now", "cpu")
 
 
+@pytest.mark.parametrize("wb, lmp, lammps, runs", [
+    (0.05, 0.2, True, 6),    # wallbatch short: up to MAX_REPEAT
+    (0.3, 0.1, True, 5),     # LAMMPS short: until it measured 0.5 s (5 x 0.1)
+    (0.3, 0.3, True, 2),     # neither short (0.6 s each): REPEAT
+    (0.05, None, False, 6),  # without LAMMPS, wallbatch alone decides
+    (0.3, None, False, 2),
+])
+def test_a_short_row_is_measured_more_times_both_codes_in_turns(suite, monkeypatch, wb, lmp, lammps, runs):
+    calls: list[str] = []
+
+    class Result:
+        status, error = "ok", ""
+
+    def engine_run(case):
+        calls.append("wb")
+        return wb * (1 + 0.01 * len(calls)), Result(), "compiled"
+
+    def lammps_export_run(cfg, case):
+        calls.append("lmp")
+        return lmp
+
+    monkeypatch.setattr(suite, "engine_run", engine_run)
+    monkeypatch.setattr(suite, "lammps_export_run", lammps_export_run)
+    monkeypatch.setattr(suite, "build", lambda cfg: Case.__new__(Case))
+    monkeypatch.setattr(Case, "natoms", 1000, raising=False)
+    monkeypatch.setattr(Case, "steps", 100, raising=False)
+    monkeypatch.setattr(suite, "USE_LAMMPS", lammps)
+    monkeypatch.setattr(suite, "REPEAT", 2)
+    out = suite.speed("scene", {"run": {"steps": 100, "thermo": 10}})
+    assert calls == ["wb"] + (["wb", "lmp"] if lammps else ["wb"]) * runs  # the warm-up, then in turns
+    assert out["wb_s"] == pytest.approx(wb * 1.02)  # the best: the first timed run (later ones take longer)
+    assert ("best of" in out.get("note", "")) == (runs > 2)
+
+
 def test_two_core_probe_measures_what_two_threads_get_and_the_suite_reports_it(suite, monkeypatch):
     import threading
     import time
