@@ -119,29 +119,35 @@ def test_scenes_build_and_export_for_lammps_with_its_default_neighbor_settings(s
     assert (tmp_path / exp.data_name).exists()
 
 
-def test_repeat_times_both_codes_in_turns_and_keeps_the_best_of_each(suite, monkeypatch):
+def fake_speed_row(suite, monkeypatch, wb_time, lmp_time, lammps: bool, repeat: int) -> tuple[dict, list[str]]:
+    """`suite.speed` with wallbatch's and LAMMPS's runs faked: wb_time(calls so far) and lmp_time()
+    give their seconds. Returns the row and the calls in order ("wb", "lmp")."""
     calls: list[str] = []
-    wb_times, lmp_times = iter([0.01, 0.30, 0.20, 0.25]), iter([0.9, 1.1, 0.8])  # 0.01: the warm-up
 
     class Result:
         status, error = "ok", ""
 
     def engine_run(case):
         calls.append("wb")
-        return next(wb_times), Result(), "compiled"
+        return wb_time(len(calls)), Result(), "compiled"
 
     def lammps_export_run(cfg, case):
         calls.append("lmp")
-        return next(lmp_times)
+        return lmp_time()
 
     monkeypatch.setattr(suite, "engine_run", engine_run)
     monkeypatch.setattr(suite, "lammps_export_run", lammps_export_run)
     monkeypatch.setattr(suite, "build", lambda cfg: Case.__new__(Case))
     monkeypatch.setattr(Case, "natoms", 1000, raising=False)
     monkeypatch.setattr(Case, "steps", 100, raising=False)
-    monkeypatch.setattr(suite, "USE_LAMMPS", True)
-    monkeypatch.setattr(suite, "REPEAT", 3)
-    out = suite.speed("scene", {"run": {"steps": 100, "thermo": 10}})
+    monkeypatch.setattr(suite, "USE_LAMMPS", lammps)
+    monkeypatch.setattr(suite, "REPEAT", repeat)
+    return suite.speed("scene", {"run": {"steps": 100, "thermo": 10}}), calls
+
+
+def test_repeat_times_both_codes_in_turns_and_keeps_the_best_of_each(suite, monkeypatch):
+    wb_times, lmp_times = iter([0.01, 0.30, 0.20, 0.25]), iter([0.9, 1.1, 0.8])  # 0.01: the warm-up
+    out, calls = fake_speed_row(suite, monkeypatch, lambda _: next(wb_times), lambda: next(lmp_times), True, 3)
     assert calls == ["wb"] + ["wb", "lmp"] * 3  # the warm-up, then in turns
     assert out["wb_s"] == 0.20 and out["lmp_s"] == 0.8 and out["ratio"] == pytest.approx(4.0)  # warm-up not kept
     monkeypatch.setattr(suite, "REPEAT", 1)
@@ -158,27 +164,7 @@ def test_repeat_times_both_codes_in_turns_and_keeps_the_best_of_each(suite, monk
     (0.3, None, False, 2),
 ])
 def test_a_short_row_is_measured_more_times_both_codes_in_turns(suite, monkeypatch, wb, lmp, lammps, runs):
-    calls: list[str] = []
-
-    class Result:
-        status, error = "ok", ""
-
-    def engine_run(case):
-        calls.append("wb")
-        return wb * (1 + 0.01 * len(calls)), Result(), "compiled"
-
-    def lammps_export_run(cfg, case):
-        calls.append("lmp")
-        return lmp
-
-    monkeypatch.setattr(suite, "engine_run", engine_run)
-    monkeypatch.setattr(suite, "lammps_export_run", lammps_export_run)
-    monkeypatch.setattr(suite, "build", lambda cfg: Case.__new__(Case))
-    monkeypatch.setattr(Case, "natoms", 1000, raising=False)
-    monkeypatch.setattr(Case, "steps", 100, raising=False)
-    monkeypatch.setattr(suite, "USE_LAMMPS", lammps)
-    monkeypatch.setattr(suite, "REPEAT", 2)
-    out = suite.speed("scene", {"run": {"steps": 100, "thermo": 10}})
+    out, calls = fake_speed_row(suite, monkeypatch, lambda k: wb * (1 + 0.01 * k), lambda: lmp, lammps, 2)
     assert calls == ["wb"] + (["wb", "lmp"] if lammps else ["wb"]) * runs  # the warm-up, then in turns
     assert out["wb_s"] == pytest.approx(wb * 1.02)  # the best: the first timed run (later ones take longer)
     assert ("best of" in out.get("note", "")) == (runs > 2)
