@@ -219,6 +219,14 @@ def test_a_mistake_inside_a_set_mapping_is_named_in_full(scene, setting, where):
     assert msg.startswith(f"--set {setting}: {where}: Input should be a valid "), msg
 
 
+def test_union_tags_stay_out_of_a_set_value_s_location(scene):
+    """pydantic's union members (`constrained-int`, `float`, a model's name) are not keys."""
+    for setting, where in (("run.thermo=x", "run.thermo"), ("regions.slab.hi=x", "regions.slab.hi"),
+                           ("regions.new={style: block, lo: [0, 0, 1], hi: x, units: box}", "regions.new.hi")):
+        problems = config_error(scene, [setting])
+        assert problems and all(p.startswith(f"--set {setting}: {where}: ") for p in problems), problems
+
+
 def test_set_on_a_swept_path_is_refused(tmp_path):
     p = sweep_file(tmp_path, """\
         sweep:

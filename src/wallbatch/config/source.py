@@ -49,9 +49,21 @@ class SourceMap:
     def locate(self, loc: tuple) -> tuple[tuple, tuple[int, int] | None]:
         """Resolve a Pydantic error location against the data: drop union tags and other loc
         parts that index nothing, and return (path to show, nearest known mark)."""
+        shown, path, _ = self.walk(loc)
+        mark = None
+        for n in range(len(path), -1, -1):
+            mark = self.marks.get(tuple(path[:n]))
+            if mark:
+                break
+        return shown, mark
+
+    def walk(self, loc: tuple, fix_lines: bool = True) -> tuple[tuple, list, bool]:
+        """`locate`'s walk of the data: (path to show, path indexing the marks, whether a key of
+        loc is missing from the data). `fix_lines`: a wall written as a fix line (a string) has its
+        fields named after it."""
         path: list = []  # indexes the marks: mapping keys as written (text), list indices
         shown: list = []  # what the user reads: field names, also for positional faces
-        node = self.data
+        node, missing = self.data, False
         for part in loc:
             if isinstance(node, dict) and isinstance(part, str) and part not in node and part.lstrip("-").isdigit() \
                     and int(part) in node:
@@ -72,16 +84,11 @@ class SourceMap:
             elif isinstance(node, dict) and isinstance(part, str) and (part in FACES or (
                     part not in WALL_TAGS and not any(c in part for c in "[]()"))):
                 shown.append(part)  # a missing key: name it, point at its parent
-                node = None
-            elif isinstance(node, str) and isinstance(part, str) and part not in WALL_TAGS \
+                node, missing = None, True
+            elif fix_lines and isinstance(node, str) and isinstance(part, str) and part not in WALL_TAGS \
                     and not any(c in part for c in "[]()"):
                 shown.append(part)  # a field of a wall written as a fix line: name it, point at the line
-        mark = None
-        for n in range(len(path), -1, -1):
-            mark = self.marks.get(tuple(path[:n]))
-            if mark:
-                break
-        return tuple(shown), mark
+        return tuple(shown), path, missing
 
     def format(self, loc: tuple, message: str) -> str:
         path, mark = self.locate(loc)

@@ -21,7 +21,7 @@ import yaml
 from pydantic import ConfigDict, Discriminator, Field, PositiveInt, Tag, ValidationError, field_validator
 
 from wallbatch.config.models import Config, Model, validate_data
-from wallbatch.config.source import FACES, WALL_TAGS, ConfigError, SourceMap, _Loader, load_yaml, read_config_text
+from wallbatch.config.source import FACES, ConfigError, SourceMap, _Loader, load_yaml, read_config_text
 
 # ----------------------------------------------------------------------------- the sweep models
 
@@ -308,9 +308,12 @@ class OverlayMap(SourceMap):
     """A SourceMap whose errors under some dotted paths point at another place: the sweep file's
     line of a swept value or a `set:` entry, or the `--set` command-line argument."""
 
-    def __init__(self, base: SourceMap, where: dict[str, str]):
+    def __init__(self, base: SourceMap, where: dict[str, str], data: Any = None):
         super().__init__(base.filename, base.marks, base.data)
         self.where = where  # dotted path -> location text ("file:line:col" or "--set a.b=1")
+        # the data with the values written elsewhere (validated form): what a location inside one
+        # of them walks, where the file's data has no such keys (`--set output.profiles={...}`)
+        self._written = None if data is None else SourceMap(base.filename, {}, data)
 
     def origin(self, dotted: str) -> str | None:
         for path, where in self.where.items():
@@ -319,13 +322,11 @@ class OverlayMap(SourceMap):
         return None
 
     def format(self, loc: tuple, message: str) -> str:
-        path, _ = self.locate(loc)
-        # inside a value written elsewhere (`--set output.profiles={...}`) the file's data has no
-        # such keys to walk: show the whole location (less union tags) under that origin
-        full = tuple(p for p in loc if not (isinstance(p, str) and (p in WALL_TAGS or any(c in p for c in "[]()"))))
-        if len(full) > len(path) and [str(p) for p in full[:len(path)]] == [str(p) for p in path] \
-                and self.origin(".".join(str(p) for p in full)) is not None:
-            path = full
+        path, _, missing = self.walk(loc)
+        if missing and self._written is not None:  # a key the file does not have, inside a value
+            full = self._written.walk(loc, fix_lines=False)[0]  # written elsewhere: walk that value
+            if self.origin(".".join(str(p) for p in full)) is not None:
+                path = full
         dotted = ".".join(str(p) for p in path) or "(top level)"
         where = self.origin(dotted)
         if where is not None:
@@ -383,7 +384,7 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
             except ConfigError as exc:
                 raise ConfigError([f"{origins[key]}: {p.removeprefix(f'sweep path {key}: ')}"
                                    for p in exc.problems]) from None
-        base = validate_data(base_data, OverlayMap(srcmap, origins), base_dir)
+        base = validate_data(base_data, OverlayMap(srcmap, origins, base_data), base_dir)
         base_text = (f"# {srcmap.filename} with {', '.join(f'{k}={v}' for k, v in overrides.items())}\n"
                      + yaml.safe_dump(config_to_dict(base), sort_keys=False))
     base._base_dir = base_dir
@@ -427,7 +428,7 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
                     raise ConfigError([f"{path_where}: {'.'.join(map(str, loc))}: {q}" for q in exc.problems]) \
                         from None
                 swept[p] = where
-    case_map = OverlayMap(srcmap, {**origins, **swept})
+    case_map = OverlayMap(srcmap, {**origins, **swept}, base_data)
     # the top-level sections a swept path writes into are copied per case; the others are shared
     # (validation does not change its input), and so are their validated models when equal to the
     # base's: a 10,000-case sweep holds one copy of what its cases have in common
