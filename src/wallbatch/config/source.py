@@ -38,6 +38,10 @@ class ConfigError(ValueError):
         super().__init__("\n".join(self.problems))
 
 
+# pydantic's names of a union's members in an error's location: a type, a constrained type, a model
+_UNION_MEMBER = re.compile(r"float|int|str|bool|none|bytes|constrained-\w+|[A-Z]\w*")
+
+
 class SourceMap:
     """Where each value of a YAML document stands: dotted path -> (line, column), 1-based."""
 
@@ -60,7 +64,8 @@ class SourceMap:
     def walk(self, loc: tuple, fix_lines: bool = True) -> tuple[tuple, list, bool]:
         """`locate`'s walk of the data: (path to show, path indexing the marks, whether a key of
         loc is missing from the data). `fix_lines`: a wall written as a fix line (a string) has its
-        fields named after it."""
+        fields named after it; without, pydantic's names of a union's members (`float`,
+        `constrained-int`, a model's name) are never taken for missing keys either."""
         path: list = []  # indexes the marks: mapping keys as written (text), list indices
         shown: list = []  # what the user reads: field names, also for positional faces
         node, missing = self.data, False
@@ -82,7 +87,8 @@ class SourceMap:
                 path.append(i)
                 shown.append(part)
             elif isinstance(node, dict) and isinstance(part, str) and (part in FACES or (
-                    part not in WALL_TAGS and not any(c in part for c in "[]()"))):
+                    part not in WALL_TAGS and not any(c in part for c in "[]()")
+                    and (fix_lines or not _UNION_MEMBER.fullmatch(part)))):
                 shown.append(part)  # a missing key: name it, point at its parent
                 node, missing = None, True
             elif fix_lines and isinstance(node, str) and isinstance(part, str) and part not in WALL_TAGS \
