@@ -242,3 +242,19 @@ def test_pair_threads_variants_are_the_scenes_they_name(suite, variant, split):
     assert (engine.dt_reset is not None) == (variant == "dt-reset")
     if pc.enabled():
         assert pc.threads_take(engine.compiled_plan()) == split
+
+
+def test_pair_split_cost_compares_the_split_with_the_whole_on_the_same_list(suite, monkeypatch, capsys):
+    """benchmarks/pair_split_cost.py: the split pass and build give the whole's bits (it checks), and
+    its table has both rows."""
+    import pair_split_cost
+
+    from wallbatch.engine import pair_compiled as pc
+
+    if not pc.enabled():
+        pytest.skip("numba not importable")
+    monkeypatch.setattr(sys, "argv", ["pair_split_cost.py", "--atoms", "4000", "--rounds", "1"])
+    pair_split_cost.main()
+    out = capsys.readouterr().out
+    assert "same forces and list bits: yes" in out
+    assert "| force pass |" in out and "| list build + RowSplit |" in out
