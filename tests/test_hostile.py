@@ -227,6 +227,17 @@ def test_union_tags_stay_out_of_a_set_value_s_location(scene):
         assert problems and all(p.startswith(f"--set {setting}: {where}: ") for p in problems), problems
 
 
+def test_union_tags_stay_out_of_a_file_value_s_location(tmp_path):
+    """The same written in the file (`run.thermo.constrained-int` and `regions.slab.hi.float` before)."""
+    text = Path(__file__).resolve().parents[1].joinpath("configs", "quickstart.yaml").read_text()
+    text = text.replace("hi: [10, 10, 11], units: box}", "hi: x, units: box}").replace("thermo: 200}", "thermo: x}")
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    problems = config_error(path)
+    assert len(problems) == 4, problems
+    assert [p.split(": ")[1] for p in problems] == ["regions.slab.hi"] * 2 + ["run.thermo"] * 2, problems
+
+
 def test_set_on_a_swept_path_is_refused(tmp_path):
     p = sweep_file(tmp_path, """\
         sweep:

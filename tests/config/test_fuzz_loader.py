@@ -111,7 +111,7 @@ MAPPINGS = ["{rho: {axis: z, bins: x, every: 1, repeat: 1, freq: 1, quantities: 
             "{nvt: {style: nvt, temp: [1, true], damp: x}}", "{style: block, lo: [0, 0, 1], hi: x, units: box}",
             "{style: lj93, zlo: [EDGE, 1, true, x]}", "{style: lj93, zlo: {coord: x}}",
             "{steps: 10, thermo: {every: x}}", "[x, {a: [true]}]", "{x: {y: {z: true}}}"]
-UNION_MEMBER = re.compile(r"\.(?:float|int|str|bool|none|constrained-\w+|(?!None\b)[A-Z]\w+)(?:\.|: )")
+UNION_MEMBER = re.compile(r"\.(?:float|int|str|bool|none|constrained-\w+|(?!None\b)[A-Z][A-Za-z0-9]*[a-z]\w*)(?:\.|: )")
 
 
 @pytest.mark.slow

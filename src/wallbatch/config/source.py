@@ -39,7 +39,13 @@ class ConfigError(ValueError):
 
 
 # pydantic's names of a union's members in an error's location: a type, a constrained type, a model
-_UNION_MEMBER = re.compile(r"float|int|str|bool|none|bytes|constrained-\w+|[A-Z]\w*")
+# (CamelCase with a lower-case letter; keys such as D0 or N have none)
+_UNION_MEMBER = re.compile(r"float|int|str|bool|none|bytes|constrained-\w+|[A-Z][A-Za-z0-9]*[a-z]\w*")
+
+
+def _a_key(part: str) -> bool:
+    """Whether a loc part a pydantic error names could be a config key (not a union's tag)."""
+    return part not in WALL_TAGS and not any(c in part for c in "[]()") and not _UNION_MEMBER.fullmatch(part)
 
 
 class SourceMap:
@@ -61,11 +67,11 @@ class SourceMap:
                 break
         return shown, mark
 
-    def walk(self, loc: tuple, fix_lines: bool = True) -> tuple[tuple, list, bool]:
+    def walk(self, loc: tuple) -> tuple[tuple, list, bool]:
         """`locate`'s walk of the data: (path to show, path indexing the marks, whether a key of
-        loc is missing from the data). `fix_lines`: a wall written as a fix line (a string) has its
-        fields named after it; without, pydantic's names of a union's members (`float`,
-        `constrained-int`, a model's name) are never taken for missing keys either."""
+        loc is missing from the data). Loc parts that are no key (union tags: a wall style,
+        pydantic's names of a union's members such as `float`, `constrained-int` or a model's
+        name) are left out."""
         path: list = []  # indexes the marks: mapping keys as written (text), list indices
         shown: list = []  # what the user reads: field names, also for positional faces
         node, missing = self.data, False
@@ -86,13 +92,10 @@ class SourceMap:
                 node = node[i]
                 path.append(i)
                 shown.append(part)
-            elif isinstance(node, dict) and isinstance(part, str) and (part in FACES or (
-                    part not in WALL_TAGS and not any(c in part for c in "[]()")
-                    and (fix_lines or not _UNION_MEMBER.fullmatch(part)))):
+            elif isinstance(node, dict) and isinstance(part, str) and (part in FACES or _a_key(part)):
                 shown.append(part)  # a missing key: name it, point at its parent
                 node, missing = None, True
-            elif fix_lines and isinstance(node, str) and isinstance(part, str) and part not in WALL_TAGS \
-                    and not any(c in part for c in "[]()"):
+            elif isinstance(node, str) and isinstance(part, str) and _a_key(part):
                 shown.append(part)  # a field of a wall written as a fix line: name it, point at the line
         return tuple(shown), path, missing
 

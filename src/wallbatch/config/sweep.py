@@ -324,7 +324,7 @@ class OverlayMap(SourceMap):
     def format(self, loc: tuple, message: str) -> str:
         path, _, missing = self.walk(loc)
         if missing and self._written is not None:  # a key the file does not have, inside a value
-            full = self._written.walk(loc, fix_lines=False)[0]  # written elsewhere: walk that value
+            full = self._written.walk(loc)[0]  # written elsewhere: walk that value
             if self.origin(".".join(str(p) for p in full)) is not None:
                 path = full
         dotted = ".".join(str(p) for p in path) or "(top level)"
