@@ -105,21 +105,12 @@ def pair_probe(n: int = 100_000, rounds: int = 3) -> dict[str, list[float]]:
     a copy run beside the other gives other forces or another list than one run alone (then the
     copies were not independent). Empty lists without numba."""
     from wallbatch.engine import pair_compiled as pc  # noqa: PLC0415 - wallbatch only for this probe
-    from wallbatch.engine.engine import Engine  # noqa: PLC0415
 
     if njit is None or not pc.enabled():
         return {"pair forces": [], "pair build": []}
-    import common  # noqa: PLC0415 - benchmarks/common.py: the scene
-    import pair_threads  # noqa: PLC0415
+    import pair_threads  # noqa: PLC0415 - benchmarks/pair_threads.py: the scene
 
-    eng = Engine([common.build(pair_threads.scene(n, 10))])
-    eng.run()  # positions of a melted liquid, and the kernels compiled (or loaded)
-    pair = eng.pair
-    x0 = np.ascontiguousarray(eng.state.x[0])
-    reach = float(pair.cutoff[0] + pair.skin)
-    eps, sig, rc = float(pair.epsilon[0]), float(pair.sigma[0]), float(pair.cutoff[0])
-    lj = (24.0 * eps, 4.0 * eps, sig * sig, rc * rc, 0.0, pair.length, pair.periodic, False)
-    room = 2 * len(pair._neigh[0]) + 16 * len(x0)
+    pair, x0, reach, lj, room = pair_threads.liquid_pair(n)
     copies = [(x0.copy(), np.empty(len(x0), np.int32), np.empty(len(x0) + 1, np.int64), np.empty(room, np.int32),
                np.zeros_like(x0)) for _ in range(2)]
 
@@ -129,7 +120,7 @@ def pair_probe(n: int = 100_000, rounds: int = 3) -> dict[str, list[float]]:
 
     def forces(x, owner, first, neigh, f) -> None:  # noqa: ANN001
         f[:] = 0.0
-        pc.forces_case(x, f, owner, first, neigh, *lj)
+        pc.forces_case(x, f, owner, first, neigh, *lj, False)
 
     got: dict[str, list[float]] = {"pair forces": [], "pair build": []}
     for fn in (build, forces):  # (the list first: the force pass reads it)

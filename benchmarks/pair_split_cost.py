@@ -23,11 +23,9 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-import common  # noqa: E402
 import pair_threads  # noqa: E402
 
 from wallbatch.engine import pair_compiled as pc  # noqa: E402
-from wallbatch.engine.engine import Engine  # noqa: E402
 
 
 def serial(calls: list) -> list:
@@ -42,15 +40,8 @@ def main() -> None:
     args = ap.parse_args()
     if not pc.enabled():
         raise SystemExit("numba is not importable: no compiled pair kernels to measure")
-    eng = Engine([common.build(pair_threads.scene(args.atoms, 10))])
-    eng.run()  # a melted liquid's positions; the kernels compiled or loaded
-    pair = eng.pair
-    x = np.ascontiguousarray(eng.state.x[0])
+    pair, x, reach, lj, room = pair_threads.liquid_pair(args.atoms)
     n = len(x)
-    reach = float(pair.cutoff[0] + pair.skin)
-    eps, sig, rc = float(pair.epsilon[0]), float(pair.sigma[0]), float(pair.cutoff[0])
-    lj = (24.0 * eps, 4.0 * eps, sig * sig, rc * rc, 0.0, pair.length, pair.periodic)
-    room = 2 * len(pair._neigh[0]) + 16 * n
     whole = (np.empty(n, np.int32), np.empty(n + 1, np.int64), np.empty(room, np.int32))
     split = (np.empty(n, np.int32), np.empty(n + 1, np.int64), np.empty(room, np.int32))
     marks, rows = np.zeros((2, n), np.uint8), np.empty(3, np.int64)

@@ -92,6 +92,25 @@ def scene(n: int, steps: int, fix: str | None = None, variant: str | None = None
     return common.with_fixes(cfg, common.THERMOSTATS[fix], fix) if fix else cfg
 
 
+def liquid_pair(n: int) -> tuple:
+    """The inputs of wallbatch's pair kernels on `scene`'s liquid of about n atoms, melted (10
+    steps) and with the kernels compiled or loaded: (the engine's pair, positions (N, 3), the list
+    reach cutoff + skin, `forces_case`'s parameters (24 eps, 4 eps, sigma^2, rc^2, offset 0,
+    length, periodic), a list capacity with room to spare)."""
+    import numpy as np  # noqa: PLC0415
+    from wallbatch.engine.engine import Engine  # noqa: PLC0415
+
+    import common  # noqa: PLC0415
+
+    eng = Engine([common.build(scene(n, 10))])
+    eng.run()
+    pair = eng.pair
+    x = np.ascontiguousarray(eng.state.x[0])
+    eps, sig, rc = float(pair.epsilon[0]), float(pair.sigma[0]), float(pair.cutoff[0])
+    lj = (24.0 * eps, 4.0 * eps, sig * sig, rc * rc, 0.0, pair.length, pair.periodic)
+    return pair, x, float(pair.cutoff[0] + pair.skin), lj, 2 * len(pair._neigh[0]) + 16 * len(x)
+
+
 def wallbatch_run(n: int, steps: int, threads: int, fix: str | None = None, variant: str | None = None
                   ) -> tuple[float, int, int, str, float, float, int, float]:
     """(seconds, atoms, chunks run over threads, final ke and pe as hex, CPU seconds, other
