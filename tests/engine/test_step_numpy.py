@@ -200,3 +200,22 @@ def test_wrap_leaves_a_batch_inside_the_box_alone_and_still_wraps_beside_a_nan()
     assert s.x[1, 5, 0] == s.box_hi[0] + 0.25 - (s.box_hi[0] - s.box_lo[0])
     assert s.x[0, 6, 1] == s.box_lo[1] - 0.25 + (s.box_hi[1] - s.box_lo[1])
     assert np.isnan(s.x[1, 4, 0])
+
+
+@pytest.mark.parametrize("ncases", [1, 3])
+def test_an_atom_on_or_behind_a_flat_wall_fails_its_case_only(ncases):
+    """The "on or behind the wall" test of a flat soft wall (one reduction when the limit is one
+    number): an atom at distance <= 0 from zlo fails its case, named by atom ID and distance; an
+    atom just in front does not; the other cases run on."""
+    eng = _engine(_gas(), cases=ncases)
+    s = eng.state
+    zlo = s.box_lo[2]
+    bad = ncases - 1  # the last case
+    s.x[bad, 4, 2] = zlo - 0.25  # behind the wall: distance -0.25
+    s.x[0, 9, 2] = zlo + 1e-9  # just in front: a large force, no failure
+    eng.compute_forces(False)
+    assert sorted(s.failed) == [bad]
+    assert "atom ID 5 at distance -0.25 from the wall" in s.failed[bad]
+    assert "on or behind the wall" in s.failed[bad]
+    if ncases > 1:
+        assert s.f[0, 9, 2] > 1e60  # the atom in front felt the wall (lj93 repulsion ~ r^-10)

@@ -27,6 +27,16 @@ def at_atoms(p: dict[str, np.ndarray], ci: np.ndarray) -> dict[str, np.ndarray]:
     return {key: val if val.shape == (1,) else val[ci] for key, val in p.items()}
 
 
+def add_along(f: np.ndarray, ci: np.ndarray, ai: np.ndarray, dim: int, values: np.ndarray) -> None:
+    """f[ci, ai, dim] += values, each (case, atom) once. With one case, through the atoms' 1-D view
+    of that component (a third of the time of the 3-index scatter on a small run's few atoms)."""
+    if f.shape[0] == 1:
+        column = f[0, :, dim]  # a view
+        column[ai] += values
+    else:
+        f[ci, ai, dim] += values
+
+
 class SoftWallKernel:
     """fix wall/lj93 | lj126 | lj1043 | colloid | harmonic | morse over a batch (physics.md §3-4)."""
 
@@ -61,14 +71,18 @@ class SoftWallKernel:
             pa = at_atoms(p, ci)
             if self.style.needs_radius:
                 pa["radius"] = state.radius[ci, ai]
-            bad = r <= self.style.too_close(pa)
-            if bad.any():
+            limit = self.style.too_close(pa)
+            if np.ndim(limit) == 0 and not r.min() <= limit:  # one reduction where the limit is one number
+                bad = None
+            else:
+                bad = r <= limit
+            if bad is not None and bad.any():
                 self._fail_inside(state, ci[bad], ai[bad], r[bad], face.name)
                 ok = ~bad
                 ci, ai, r = ci[ok], ai[ok], r[ok]
                 pa = {key: val[ok] if val.shape == ok.shape else val for key, val in pa.items()}
             f = self.cutoff.force(r, pa)
-            state.f[ci, ai, face.dim] -= face.side * f
+            add_along(state.f, ci, ai, face.dim, -face.side * f)
             if outputs:
                 e_shifted = self.cutoff.energy(r, pa)  # E(r) - E(rc) without cancellation (shift)
                 energy += np.bincount(ci, weights=e_shifted, minlength=C)
@@ -143,7 +157,7 @@ class EESWallKernel(SoftWallKernel):
                 ok = ~bad
                 ci, ai, r, sn, q, shape, rot = ci[ok], ai[ok], r[ok], sn[ok], q[ok], shape[ok], rot[ok]
             e, f, tw = ees_energy_force_torque(r, sn, p["epsilon"][ci], p["sigma"][ci])
-            state.f[ci, ai, face.dim] -= face.side * f
+            add_along(state.f, ci, ai, face.dim, -face.side * f)
             state.torque[ci, ai] += ees_torque(q, shape, normal, tw, rot)
             if outputs:
                 energy += np.bincount(ci, weights=e, minlength=C)
