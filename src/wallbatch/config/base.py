@@ -41,8 +41,9 @@ class NoBoolNumbers(BaseModel):
     @model_validator(mode="before")
     @classmethod
     def _bools_are_not_numbers(cls, data: Any) -> Any:
-        if not isinstance(data, dict) or not any(_has_bool(v) for v in data.values()):
+        if not isinstance(data, dict):
             return data
         fields = cls.model_fields
-        return {k: _spelled(v) if _has_bool(v) and k in fields and not admits_bool_or_text(fields[k].annotation)
-                else v for k, v in data.items()}
+        spell = [k for k, v in data.items()
+                 if _has_bool(v) and k in fields and not admits_bool_or_text(fields[k].annotation)]
+        return {**data, **{k: _spelled(data[k]) for k in spell}} if spell else data
