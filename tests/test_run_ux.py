@@ -211,3 +211,37 @@ def test_only_the_wall_styles_a_config_uses_get_their_models_built(tmp_path):
 
     assert lines[-4:] == ["made:lj93", "built:", "schema:" + ",".join(sorted([*STYLES, *OTHER_WALLS])),
                           "made:" + ",".join(sorted(STYLES))]
+
+
+MINIMIZE_SWEEP = """\
+units: lj
+seed: 3
+box: {lo: [0, 0, 0], hi: [6, 6, 6], boundary: [p, p, f]}
+atoms:
+  - group: g
+    create: {positions: [[1, 1, 1.5], [3, 3, 3.0], [4, 4, 4.4]]}
+    mass: 1.0
+walls:
+  quiet: {style: lj93, units: box, zlo: {coord: EDGE, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}}
+minimize: {style: cg}
+run: {steps: 10, thermo: 5}
+sweep:
+  product:
+    eps: {path: walls.quiet.zlo.epsilon, values: [1.0, 2.0, 3.0]}
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_a_wallbatch_warning_is_one_line_once_per_run(tmp_path, jobs):
+    """minimize with a wall whose energy is left out warns (MinimizeWarning) for every case it
+    builds; `wallbatch run` shows it as one line, `warning: ...`, once, without Python's file and
+    source line, whatever the workers; no ResourceWarning of wallbatch's own files either."""
+    (tmp_path / "m.yaml").write_text(MINIMIZE_SWEEP)
+    res = subprocess.run([sys.executable, "-W", "always::ResourceWarning", "-m", "wallbatch.cli", "run", "m.yaml",
+                          "-o", "m.nc", "-j", jobs], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    lines = res.stderr.splitlines()
+    assert lines == ["warning: minimize: wall(s) quiet have energy: false, so (as in LAMMPS without fix_modify energy "
+                     "yes) their forces act during minimization but their energy is not in the minimized quantity; "
+                     "set energy: true on them for a consistent minimization"], res.stderr

@@ -101,8 +101,27 @@ def _main(ctx: typer.Context,
           debug: bool = typer.Option(False, "--debug", help="show the Python traceback of an unexpected error "
                                                             "(for a bug report)")) -> None:
     """Batches of wall-bounded particle simulations (LAMMPS wall fixes) to labelled NetCDF."""
+    _warnings_as_lines()
     if ctx.invoked_subcommand != "run":  # run: once its modules are imported and its plan loaded
         _start_up_done()
+
+
+def _warnings_as_lines() -> None:
+    """wallbatch's own warnings (minimize with a wall whose energy is left out, ...) as one line
+    each on stderr, `warning: TEXT`, each text once per process (every case of a sweep would repeat
+    it); other packages' warnings as Python shows them."""
+    import warnings
+
+    shown = warnings.showwarning
+
+    def show(message: Any, category: type, filename: str, lineno: int, file: Any = None, line: Any = None) -> None:
+        if category.__module__.startswith("wallbatch."):
+            sys.stderr.write(f"warning: {message}\n")
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
+    warnings.filterwarnings("once", category=UserWarning, module=r"wallbatch\.")
 
 
 def _fail(message: str, code: int = 2) -> typer.Exit:
@@ -272,7 +291,7 @@ def plot(results: Path = typer.Argument(..., help="results NetCDF written by wal
     try:
         import matplotlib  # noqa: F401 - only to give a one-line message when it is missing
     except ImportError:
-        raise _fail("plot needs matplotlib: pip install 'wallbatch[plot]'") from None
+        raise _fail("plot needs matplotlib: pip install matplotlib (the extra 'plot')") from None
     from wallbatch.io.report import plot as make_plot
 
     selection = {}

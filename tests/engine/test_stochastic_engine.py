@@ -64,7 +64,10 @@ def test_fix_line_and_mapping_give_the_same_case():
         ('  w: "fix w all wall/reflect/stochastic cercignanilampis 3 zlo EDGE 1.0 0 0 0 0.5 0.5 0.5"\n',
          "LAMMPS spells the Cercignani-Lampis model ccl"),
         ("  w: {style: reflect/stochastic, rstyle: cercignanilampis, seed: 3, units: box, zlo: {coord: EDGE, temp: 1.0, "
-         "accom: [0.5, 0.5, 0.5]}}\n", "rstyle"),
+         "accom: [0.5, 0.5, 0.5]}}\n", "rstyle: Input should be 'diffusive', 'maxwell' or 'ccl' (LAMMPS spells the "
+         "Cercignani-Lampis model ccl"),
+        ("  w: {style: reflect/stochastic, rstyle: Maxwel, seed: 3, units: box, zlo: {coord: EDGE, temp: 1.0}}\n",
+         "rstyle: Input should be 'diffusive', 'maxwell' or 'ccl'"),
     ],
 )
 def test_errors_name_file_line_and_field(walls, needle):

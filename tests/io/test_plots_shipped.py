@@ -166,7 +166,7 @@ def test_cli_plot_without_matplotlib_is_one_line(tmp_path):
     res = subprocess.run([sys.executable, "-c", code, "plot", str(tmp_path / "r.nc"), "pe", "-o",
                           str(tmp_path / "p.png")], capture_output=True, text=True, timeout=120)
     assert res.returncode == 2
-    assert res.stderr.strip() == "error: plot needs matplotlib: pip install 'wallbatch[plot]'"
+    assert res.stderr.strip() == "error: plot needs matplotlib: pip install matplotlib (the extra 'plot')"
 
 
 @pytest.mark.slow

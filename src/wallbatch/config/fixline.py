@@ -755,6 +755,12 @@ _RSTYLE_ACCOM = {"diffusive": 0, "maxwell": 1, "ccl": 3}
 _STOCHASTIC_USAGE = "wall/reflect/stochastic diffusive|maxwell|ccl SEED face coord temp vx vy vz [accom ...] [units lattice|box]"
 
 
+def rstyle_hint(rstyle: object) -> str:
+    """The hint for a long name of the Cercignani-Lampis model (LAMMPS spells it ccl), else ''."""
+    long = isinstance(rstyle, str) and rstyle.lower() in ("cercignanilampis", "cercignani-lampis", "cl")
+    return " (LAMMPS spells the Cercignani-Lampis model ccl: it refuses the long name too)" if long else ""
+
+
 def _parse_stochastic(w: _Words, group: str) -> dict:
     """``wall/reflect/stochastic rstyle seed face pos temp vx vy vz [a | ax ay az] ... [units]``
     -> ``{"style": "reflect/stochastic", "group", "rstyle", "seed", face: {coord, temp, vel,
@@ -763,9 +769,7 @@ def _parse_stochastic(w: _Words, group: str) -> dict:
         raise w.missing(f"missing arguments: write 'fix {w[1]} {group} {_STOCHASTIC_USAGE}'")
     rstyle = w[4]
     if rstyle not in _RSTYLE_ACCOM:
-        hint = (" (LAMMPS spells the Cercignani-Lampis model ccl: it refuses the long name too)"
-                if rstyle.lower() in ("cercignanilampis", "cercignani-lampis", "cl") else "")
-        raise w.error(4, f"the reflection style must be diffusive, maxwell or ccl{hint}")
+        raise w.error(4, f"the reflection style must be diffusive, maxwell or ccl{rstyle_hint(rstyle)}")
     seed = w.integer(5, "SEED (the random seed)")
     if seed <= 0:
         raise w.error(5, "the random seed must be a positive integer")

