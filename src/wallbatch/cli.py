@@ -18,6 +18,10 @@ from typing import Any
 # ~0.1 s of CPU), and wallbatch multiplies no matrices big enough for BLAS threads (its compiled
 # chunks use numba's own threads, WALLBATCH_THREADS). Set before anything imports NumPy.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# No Pydantic plugins in the command line's process unless the user names some: none is meant for
+# wallbatch's config models, and looking for them reads the entry points of every installed
+# package at the first model's build (~5 ms with 160 packages, more in a large environment).
+os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
 
 # The imports below (typer, NumPy, the config and scene layers) allocate ~80k long-lived objects
 # and free almost none: the collector is paused while they run, as for a command's start-up (see

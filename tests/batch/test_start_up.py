@@ -121,6 +121,35 @@ def test_the_command_line_starts_no_blas_threads_unless_asked(given):
         assert int(tasks) == 1  # the main thread alone
 
 
+_PLUGINS = """
+import importlib.metadata, os, sys
+scans = []
+real = importlib.metadata.distributions
+importlib.metadata.distributions = lambda *a, **k: (scans.append(1), real(*a, **k))[1]
+import wallbatch.cli  # noqa: F401 - the command line's module, as `wallbatch` starts
+from wallbatch import api
+api.load({"units": "lj", "box": {"lo": [0, 0, 0], "hi": [5, 5, 5]},
+          "atoms": [{"group": "g", "create": {"positions": [[1, 1, 1]]}, "mass": 1.0}], "run": {"steps": 1}})
+print(repr(os.environ.get("PYDANTIC_DISABLE_PLUGINS")), len(scans))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("given", [None, ""])
+def test_the_command_line_looks_for_no_pydantic_plugins_unless_asked(given):
+    """Looking for Pydantic plugins reads every installed package's entry points at the first
+    model's build: the command line turns plugins off (PYDANTIC_DISABLE_PLUGINS=__all__), unless
+    the user set the variable (then theirs is kept, and Pydantic looks)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYDANTIC_DISABLE_PLUGINS"}
+    env["PYTHONPATH"] = str(ROOT / "src")
+    if given is not None:
+        env["PYDANTIC_DISABLE_PLUGINS"] = given
+    out = subprocess.run([sys.executable, "-c", _PLUGINS], capture_output=True, text=True, env=env, check=True)
+    value, scans = out.stdout.split()
+    assert value == repr(given if given is not None else "__all__")
+    assert (int(scans) > 0) == (given is not None)
+
+
 def _console(args: list[str], cwd: Path, **env: str) -> subprocess.CompletedProcess:
     """`python -m wallbatch.cli ARGS` as the console script runs (cli.main), output through pipes."""
     full = {**os.environ, "PYTHONPATH": str(ROOT / "src"), **env}
