@@ -429,6 +429,12 @@ def test_check_prints_kernels_and_atoms(tmp_path):
     assert "steps: 10" in out
     assert "samples: 4" in out
     assert not list(tmp_path.glob("*.nc"))  # check runs nothing
+    thermal = text.replace('"fix mirror all wall/reflect zlo EDGE units box"',
+                           '"fix mirror all wall/reflect/stochastic diffusive 3 zlo EDGE 1.0 0 0 0 units box"')
+    result = run_cli("check", write(tmp_path, thermal, "thermal.yaml"))
+    kernels = next(line for line in result.stdout.splitlines() if "kernels:" in line)
+    assert kernels.split("kernels:")[1].strip() == ("nve, wall/reflect/stochastic mirror, wall/harmonic lo, "
+                                                    "wall/harmonic hi")
 
 
 def test_check_bad_config_exit_2(tmp_path):

@@ -137,7 +137,8 @@ def kernels(case: Case) -> list[str]:
         names = ["nve/asphere" if case.shape is not None else "nve"]
     else:  # fixes: integrators and thermostats (enforce2d acts after the forces; listed here too)
         names = [f"{f.style} {f.fix_id}" for f in case.fixes]
-    names += [f"wall/reflect {w.fix_id}" for w in case.reflect_walls]
+    names += [f"wall/reflect{'/stochastic' if w.frame.startswith('stochastic/') else ''} {w.fix_id}"
+              for w in case.reflect_walls]
     if case.pair is not None:
         names.append("pair lj/cut")
     names += [f"wall/{w.style.name} {w.fix_id}" for w in case.soft_walls]

@@ -265,6 +265,24 @@ def test_reflect_face_takes_only_a_coord():
     assert "walls.r.zlo.epsilon" in msg and "unknown key" in msg
 
 
+@pytest.mark.parametrize("key", ["energy", "virial"])
+@pytest.mark.parametrize("wall,fix", [
+    ("{style: reflect, units: box, zlo: EDGE, KEY: true}", "wall/reflect"),
+    ('{fix: "fix r all wall/reflect zlo EDGE units box", KEY: true}', "wall/reflect"),
+    ("{style: reflect/stochastic, rstyle: diffusive, seed: 3, units: box, zlo: {coord: EDGE, temp: 1.0}, KEY: true}",
+     "wall/reflect/stochastic"),
+])
+def test_reflecting_walls_refuse_energy_and_virial(wall, fix, key):
+    """LAMMPS refuses fix_modify energy / virial on wall/reflect and wall/reflect/stochastic (they
+    store no energy): so does the config, at the key, instead of dropping it silently; false is
+    accepted (the default)."""
+    text = scene(f"  r: {wall.replace('KEY', key)}\n")
+    msg = problem_at(config_error(text), line_of(text, "  r: "))
+    assert f"walls.r.{key}: {fix} has no {key}" in msg
+    assert f"does not support fix_modify {key} command" in msg
+    load_config_text(scene(f"  r: {wall.replace('KEY: true', key + ': false')}\n"), FILE)
+
+
 @pytest.mark.parametrize(
     "order",
     [("zhi", "zlo", "xlo"), ("xlo", "zlo", "zhi"), ("zlo", "xlo", "zhi")],

@@ -133,6 +133,24 @@ def test_2d_with_a_z_wall_is_refused_at_the_wall():
         load_config_text(BAD.replace("fixes:\nFIXES\n", "dimension: 2\n"))
 
 
+def test_2d_atoms_are_in_the_plane_z_0(tmp_path):
+    """A 2-D run's atoms sit at z = 0, as LAMMPS's: the box's z range must straddle 0, explicit
+    positions and atom files with z != 0 are refused at their place (LAMMPS refuses them too)."""
+    base = {"units": "lj", "dimension": 2, "box": {"lo": [0, 0, -0.5], "hi": [6, 6, 0.5], "boundary": ["p", "p", "p"]},
+            "run": {"steps": 1},
+            "atoms": [{"group": "g", "mass": 1.0, "create": {"positions": [[1, 1, 0], [3, 3, 0]]}}]}
+    build_case(config_from_dict(base))
+    with pytest.raises(ConfigError, match=r"box.lo: a 2-D run .* z range \(0 to 1\) must straddle 0"):
+        config_from_dict({**base, "box": {"lo": [0, 0, 0], "hi": [6, 6, 1], "boundary": ["p", "p", "p"]}})
+    moved = {**base, "atoms": [{"group": "g", "mass": 1.0, "create": {"positions": [[1, 1, 0], [3, 3, 0.25]]}}]}
+    with pytest.raises(ConfigError, match=r"atoms.0.create.positions.1: z = 0.25 in a 2-D run"):
+        config_from_dict(moved)
+    np.savez(tmp_path / "off.npz", x=np.array([[1.0, 1.0, 0.0], [2.0, 2.0, 0.1]]))
+    filed = {**base, "atoms": [{"group": "g", "mass": 1.0, "create": {"file": str(tmp_path / "off.npz")}}]}
+    with pytest.raises(CaseError, match=r"atom 2 has z = 0.1 in a 2-D run"):
+        build_case(config_from_dict(filed))
+
+
 def test_nvt_on_a_group_with_no_atoms_is_refused(tmp_path):
     """Only a .npz file can give a group no atoms; the error names file:line:col and the field."""
     np.savez(tmp_path / "empty.npz", x=np.zeros((0, 3)))

@@ -612,9 +612,14 @@ def test_minimize_script(style):
     exp = export_selected(plan, steps=10)
     cmds = script_lines(exp.script)
     tail = cmds[cmds.index('thermo_modify norm no format float "%.17g"'):]
-    assert tail == ['thermo_modify norm no format float "%.17g"', "thermo 100", f"min_style {style}",
+    keep, restore = [], []
+    if style == "fire":  # the created velocities kept for the run (the decisions table)
+        keep = ["fix wb_v0 all store/state 0 vx vy vz"]
+        restore = ["variable wb_vx atom f_wb_v0[1]", "variable wb_vy atom f_wb_v0[2]", "variable wb_vz atom f_wb_v0[3]",
+                   "velocity all set v_wb_vx v_wb_vy v_wb_vz units box", "unfix wb_v0"]
+    assert tail == ['thermo_modify norm no format float "%.17g"', "thermo 100", *keep, f"min_style {style}",
                     "min_modify dmax 0.05", "minimize 0.0001 0.0001 200 10000",
-                    'print "wb_min $(pe:%.17g) $(fnorm:%.17g)"', "reset_timestep 0 time 0.0", "run 10"]
+                    'print "wb_min $(pe:%.17g) $(fnorm:%.17g)"', *restore, "reset_timestep 0 time 0.0", "run 10"]
     mins = [(c.label, c.keyword, c.source) for c in exp.columns if c.source == "min"]
     assert mins == [("min_energy_before", "energy_before", "min"), ("min_energy", "energy", "min"),
                     ("min_fnorm", "fnorm", "min"), ("min_iterations", "iterations", "min"),
@@ -624,7 +629,7 @@ def test_minimize_script(style):
     topics = [d.split(":")[0] for d in exp.decisions]
     assert "minimize" in topics  # norm no before minimize
     assert ("minimize (cg) with every force exactly zero" in topics) == (style == "cg")
-    assert ("fire's own (damped) velocities" in comment(exp.script)) == (style == "fire")
+    assert ("fire leaves its own damped velocities" in comment(exp.script)) == (style == "fire")
 
 
 # ----------------------------------------------------------------------------- validate's parsers and comparison
@@ -803,6 +808,94 @@ EXPORTABLE = {"colloid-slit", "dt-reset-rescue", "harmonic-confinement", "lj1043
               "lepton-slit", "table-slit"}
 FLOW = {"flow-seed"}  # exported, but compared with LAMMPS only statistically (tests/engine/test_flow.py)
 THERMAL = {"thermal-walls"}  # wall/reflect/stochastic: statistically only (tests/engine/test_stochastic.py)
+
+
+LANGEVIN_HOT = """\
+units: lj
+box: {lo: [0, 0, 0], hi: [6, 6, 6], boundary: [p, p, f]}
+atoms:
+  - group: a
+    create: {positions: [[1.0, 2.0, 1.9], [4.0, 4.5, 3.0]]}
+    mass: 1.0
+walls:
+  zw: {style: lj93, units: box, zlo: [EDGE, 1.0, 1.0, 2.5], zhi: [EDGE, 1.0, 1.0, 2.5]}
+fixes:
+  nve: {style: nve}
+  l: "fix l all langevin TEMP 0.5 4242"
+run: {steps: 40, thermo: 20}
+"""
+
+
+@requires_lammps
+@pytest.mark.parametrize("temp", ["1.0 1.0", "0.0 0.0"])
+def test_validate_refuses_langevin_above_zero_temperature(tmp_path, temp):
+    """fix langevin above temp 0 draws random forces from wallbatch's own streams: validate stops
+    with exit 2 and says where the thermostat is checked instead; at temp 0 (drag only) the case
+    is compared, every row ok."""
+    result = validate(write(tmp_path, LANGEVIN_HOT.replace("TEMP", temp)))
+    if temp == "0.0 0.0":
+        assert result.exit_code == 0, result.output
+        assert all(r[3] == "ok" for r in report_rows(result.output).values())
+        return
+    assert result.exit_code == 2, result.output
+    assert "fixes.l: fix langevin at a temperature above 0 adds random forces" in result.output
+    assert "tests/engine/test_ensemble.py" in result.output
+
+
+LEPTON_VIRIAL = """\
+units: lj
+seed: 5
+box: {lo: [0, 0, 0], hi: [8, 8, 10], boundary: [p, p, f]}
+regions:
+  sl: {style: block, lo: [0, 0, 1.3], hi: [8, 8, 8.7], units: box}
+atoms:
+  - group: a
+    create: {random: {count: 200, region: sl, overlap: 0.9}}
+    mass: 1.0
+    velocity: {temperature: 1.0}
+walls:
+  floor:
+    style: lepton
+    units: box
+    energy: true
+    virial: true
+    zlo: {coord: EDGE, cutoff: 2.5, expression: "4*((1/r)^12-(1/r)^6)"}
+    zhi: {coord: EDGE, cutoff: 2.5, expression: "4*((1/r)^12-(1/r)^6)"}
+run: {steps: 60, thermo: 20}
+output: {thermo: [step, time, temp, ke, pe, etot, press]}
+"""
+
+
+@requires_lammps
+def test_lepton_virial_sign_is_lammps_s_vector_sign(tmp_path):
+    """Decision: LAMMPS's wall/lepton adds its virial with the sign of its vector (the force on
+    the atoms), the opposite of every other wall. wallbatch adds the virial of the wall's force:
+    the lepton wall's press equals the same wall written as lj126 (in wallbatch, and in LAMMPS's
+    wall/lj126), while LAMMPS's wall/lepton gives the kinetic part minus the wall's share.
+    validate reports press as expected, every other output ok."""
+    from wallbatch.config.models import load_config_text
+    from wallbatch.engine.engine import run_cases
+    from wallbatch.scene.build import build_case
+
+    lj126 = LEPTON_VIRIAL.replace("style: lepton", "style: lj126").replace(
+        'cutoff: 2.5, expression: "4*((1/r)^12-(1/r)^6)"', "epsilon: 1.0, sigma: 1.0, cutoff: 2.5")
+    press, lmp = {}, {}
+    for name, text in (("lepton", LEPTON_VIRIAL), ("lj126", lj126)):
+        cfg = load_config_text(text)
+        case = build_case(cfg)
+        res = run_cases([case])[0]
+        press[name], ke = res.data["press"], res.data["ke"]
+        exp = validate_mod.export_case(cfg, case, data_dir=tmp_path / name)
+        lmp[name] = validate_mod.run_lammps(exp, tmp_path / name)["press"]
+    np.testing.assert_allclose(press["lepton"], press["lj126"], rtol=1e-12)
+    np.testing.assert_allclose(lmp["lj126"], press["lj126"], rtol=1e-10)
+    kinetic = 2.0 * ke / (3.0 * 8 * 8 * 10)  # LAMMPS press: (2 ke + W) / (3 V), lj units
+    assert np.all(np.abs(press["lepton"] - kinetic) > 1e-3)  # the walls' virial is not negligible
+    np.testing.assert_allclose(lmp["lepton"] - kinetic, -(press["lepton"] - kinetic), rtol=1e-9)
+    result = validate(write(tmp_path, LEPTON_VIRIAL))
+    assert result.exit_code == 0, result.output
+    rows = report_rows(result.output)
+    assert rows["press"][3] == "expected" and all(r[3] == "ok" for k, r in rows.items() if k != "press")
 
 
 @requires_lammps
@@ -1105,23 +1198,37 @@ run: {steps: 100, thermo: 50}
 
 @requires_lammps
 def test_minimize_fire_keeps_the_created_velocities_lammps_does_not(tmp_path):
-    """Decision (docs/quirks.md): after `minimize: {style: fire}` wallbatch's dynamics starts with the
-    velocities the config created, as if LAMMPS's `velocity` came after `minimize` (a config has no
-    other way to set them). LAMMPS's fire leaves its own damped velocities in the atoms, so the runs
-    after the minimization part ways: validate reports it (exit 1) while the min_* rows agree."""
-    text = WALLMIN.replace("style: cg", "style: fire")
+    """Decision (the decisions table): after `minimize: {style: fire}` wallbatch's dynamics starts
+    with the velocities the config created, as if LAMMPS's `velocity` came after `minimize` (a
+    config has no other way to set them). LAMMPS's fire leaves its own damped velocities in the
+    atoms: the exported script stores the velocities before minimize (fix store/state) and sets
+    them back after it, so validate passes, every row; without those lines LAMMPS's run starts
+    from fire's velocities. With velocities zero too (fire's are not)."""
     from wallbatch.config.models import load_config_text
     from wallbatch.engine.engine import run_cases
     from wallbatch.scene.build import build_case
 
-    res = run_cases([build_case(load_config_text(text))])[0]
     v0 = np.array([[0.3, 0.0, -0.2], [0.0, 0.4, 0.1], [-0.2, 0.1, 0.3], [0.1, -0.3, 0.0]])
-    assert res.data["ke"][0] == pytest.approx(0.5 * np.sum(v0 * v0), rel=1e-14)
-    result = validate(write(tmp_path, text))
-    assert result.exit_code == 1, result.output
-    rows = report_rows(result.output)
-    assert rows["min_energy"][3] == "ok" and rows["min_stop_reason"][3] == "ok"
-    assert rows["ke"][3] != "ok"
+    moving = WALLMIN.replace("style: cg", "style: fire")
+    created = ("    velocity: {values: [[0.3, 0.0, -0.2], [0.0, 0.4, 0.1], [-0.2, 0.1, 0.3], "
+               "[0.1, -0.3, 0.0]]}\n")
+    resting = moving.replace("maxiter: 1000", "maxiter: 12").replace(created, "")
+    assert resting != moving
+    for text, ke0 in ((moving, 0.5 * np.sum(v0 * v0)), (resting, 0.0)):
+        res = run_cases([build_case(load_config_text(text))])[0]
+        assert res.data["ke"][0] == pytest.approx(ke0, rel=1e-14, abs=1e-300)
+        result = validate(write(tmp_path, text))
+        assert result.exit_code == 0, result.output
+        assert all(r[3] == "ok" for r in report_rows(result.output).values())
+        cfg = load_config_text(text)
+        exp = validate_mod.export_case(cfg, build_case(cfg), data_dir=tmp_path / "plain")
+        lines = script_lines(exp.script)
+        assert "fix wb_v0 all store/state 0 vx vy vz" in lines
+        assert "velocity all set v_wb_vx v_wb_vy v_wb_vz units box" in lines
+        assert any("fix store/state" in d for d in exp.decisions)
+        kept = [ln for ln in exp.script.splitlines() if "wb_v" not in ln]  # LAMMPS's own fire velocities
+        ref = validate_mod.run_lammps(dataclasses.replace(exp, script="\n".join(kept) + "\n"), tmp_path / "plain")
+        assert abs(ref["ke"][0] - ke0) > 1e-6  # fire's velocities, not the created ones
 
 
 @requires_lammps

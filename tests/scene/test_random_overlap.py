@@ -46,8 +46,24 @@ def reference(cfg: NS, spec: NS, rng: np.random.Generator, existing: np.ndarray)
     return np.concatenate(accepted)[len(existing):]
 
 
-def scene(lo, hi, boundary, count, overlap):
-    return NS(box=NS(lo=list(lo), hi=list(hi), boundary=list(boundary))), NS(count=count, overlap=overlap, region=None)
+def scene(lo, hi, boundary, count, overlap, dimension=3):
+    return (NS(box=NS(lo=list(lo), hi=list(hi), boundary=list(boundary)), dimension=dimension),
+            NS(count=count, overlap=overlap, region=None))
+
+
+def test_two_dimensional_placement_is_in_the_plane_z_0_and_apart_in_it():
+    """dimension: 2: every random atom at z = 0 (LAMMPS's create_atoms random too; the exported
+    data file then reads in LAMMPS), so `overlap` holds in the x-y plane; x and y are the draws a
+    3-D placement of the same candidates would make."""
+    cfg, spec = scene((0, 0, -0.5), (10, 10, 0.5), "ppp", 60, 0.9, dimension=2)
+    x = build._random_positions(cfg, spec, np.random.default_rng(3), "atoms.0.create.random", np.zeros((0, 3)))
+    assert x.shape == (60, 3) and np.all(x[:, 2] == 0.0)
+    d = np.abs(x[:, None, :2] - x[None, :, :2])
+    d = np.minimum(d, 10.0 - d)
+    r = np.sqrt((d * d).sum(-1)) + np.eye(60) * 99
+    assert r.min() > 0.9
+    first = np.random.default_rng(3).random((120, 3))  # the first round's candidates (2 x 60)
+    assert np.array_equal(x[0, :2], first[0, :2] * 10.0)
 
 
 @pytest.mark.parametrize("seed", range(12))

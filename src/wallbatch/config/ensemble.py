@@ -296,6 +296,16 @@ def check_ensemble(cfg: Any) -> list[tuple[tuple, str]]:
     if cfg.dimension == 2:
         if cfg.box.boundary[2] != "p":
             add(("box", "boundary"), "a 2-D run (dimension: 2) needs a periodic z boundary, as LAMMPS")
+        if not cfg.box.lo[2] < 0.0 < cfg.box.hi[2]:
+            add(("box", "lo"), f"a 2-D run (dimension: 2) has its atoms at z = 0: the box's z range "
+                f"({cfg.box.lo[2]:g} to {cfg.box.hi[2]:g}) must straddle 0, e.g. -0.5 to 0.5 (LAMMPS: Create_box "
+                f"region zlo/zhi for 2d simulation must straddle 0.0)")
+        for i, group in enumerate(cfg.atoms):
+            pos = group.create.positions
+            off = [k for k, p in enumerate(pos or []) if p[2] != 0.0]
+            if off:
+                add(("atoms", i, "create", "positions", off[0]), f"z = {pos[off[0]][2]:g} in a 2-D run (dimension: "
+                    f"2): every atom has z = 0 (LAMMPS: Create_atoms single for 2d simulation requires z coord = 0.0)")
         for fid, wall in cfg.walls.items():
             zfaces = [f for f in ("zlo", "zhi") if getattr(wall, f, None) is not None]
             if zfaces:

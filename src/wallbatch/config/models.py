@@ -461,7 +461,23 @@ class _WallModels(Mapping):
 WALL_MODELS = _WallModels()
 
 
-class ReflectWall(_FaceWall):
+class _HardWall(_FaceWall):
+    """A wall that only moves atoms (wall/reflect, wall/reflect/stochastic): it has no energy or
+    virial, and LAMMPS refuses fix_modify energy / virial on it."""
+
+    _lammps: ClassVar[str] = "wall/reflect"
+
+    @field_validator("energy", "virial")
+    @classmethod
+    def _no_fix_modify(cls, v: bool, info: Any) -> bool:
+        if v:
+            raise ValueError(f"{cls._lammps} has no {info.field_name}: it moves atoms and stores no energy "
+                             f"(LAMMPS: Fix ID {cls._lammps} does not support fix_modify {info.field_name} "
+                             f"command): leave {info.field_name} out")
+        return v
+
+
+class ReflectWall(_HardWall):
     """fix wall/reflect: faces take only a coord. `frame: wall` reflects in a moving wall's frame."""
 
     style: Literal["reflect"]
@@ -493,8 +509,10 @@ class StochasticFace(Model):
     accom: Union[float, Vec3, None] = None
 
 
-class StochasticWall(_FaceWall):
+class StochasticWall(_HardWall):
     """fix wall/reflect/stochastic rstyle seed face args: thermal walls (diffusive, maxwell, ccl)."""
+
+    _lammps: ClassVar[str] = "wall/reflect/stochastic"
 
     style: Literal["reflect/stochastic"]
     rstyle: Literal["diffusive", "maxwell", "ccl"]

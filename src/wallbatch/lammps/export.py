@@ -158,6 +158,10 @@ DECISIONS: dict[str, str] = {
     "min_forces_zero": "minimize (cg) with every force exactly zero: wallbatch stops with `forces are zero`, LAMMPS "
                        "with `search direction is not downhill` (same state; `wallbatch validate` reports the "
                        "stopping criterion as expected then)",
+    "min_fire_velocities": "minimize (fire): wallbatch's run starts from the velocities the config created, as if "
+                           "`velocity` came after `minimize`; LAMMPS's fire leaves its own damped velocities in the "
+                           "atoms, so this script stores the velocities before minimize (fix store/state) and sets "
+                           "them back after it",
 }
 
 # the wall styles' own rows: STYLE (a style's decision), STYLE_PARAM (a parameter LAMMPS takes as a
@@ -682,6 +686,10 @@ def _per_face_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
     if entry.lammps_force_sign < 0:
         s.notes.append(f"walls.{fid}: LAMMPS's {entry.lammps} vector is the force on the atoms, the opposite of "
                        "wallbatch's wall_force (the force on the wall): compared through v_wb_..._force = -f_ID[i]")
+        if spec.virial:
+            s.expected["press"] = (f"walls.{fid}: LAMMPS's {entry.lammps} adds its virial with the sign of its vector, "
+                                   "the opposite of every other wall's; wallbatch adds the virial of the wall's force, "
+                                   "as for every style (decisions table)")
 
 
 def _stochastic_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
@@ -909,21 +917,23 @@ def _minimize(s: _Script) -> list[str]:
     s.decide("min_norm")
     if m.style == "cg":
         s.decide("min_forces_zero")
-    if m.style == "fire" and np.any(s.case.v != 0.0):
-        s.notes.append("minimize with min_style fire: LAMMPS leaves fire's own (damped) velocities in the atoms, "
-                       "wallbatch keeps the initial velocities for the run: the runs differ (a known difference, "
-                       "not a decision)")
+    keep, restore = [], []
+    if m.style == "fire":
+        s.decide("min_fire_velocities")
+        keep = ["fix             wb_v0 all store/state 0 vx vy vz"]
+        restore = [*(f"variable        wb_v{c} atom f_wb_v0[{k}]" for k, c in enumerate("xyz", 1)),
+                   "velocity        all set v_wb_vx v_wb_vy v_wb_vz units box", "unfix           wb_v0"]
     moving = [v for v in s.case.variables.names() if s.case.variables.constant_value(v) is None]
     if moving:
         s.notes.append(f"minimize: LAMMPS evaluates variables ({', '.join(moving)}) at the minimizer's step (its "
                        f"iteration count), wallbatch at step 0: walls that move with them differ during minimize")
     s.columns += [Column(label, where, label, source="min") for label, where in MIN_RESULTS.items()]
-    return [f"min_style       {m.style}", f"min_modify      dmax {_num(m.dmax)}",
+    return [*keep, f"min_style       {m.style}", f"min_modify      dmax {_num(m.dmax)}",
             f"minimize        {_num(m.etol)} {_num(m.ftol)} {int(m.maxiter)} {int(m.maxeval)}",
             'print           "wb_min $(pe:%.17g) $(fnorm:%.17g)"',
             *([f"write_dump      all custom {_quoted(s.minimized_dump)} id x y z modify sort id format float %.17g"]
               if s.minimized_dump else []),
-            "reset_timestep  0 time 0.0"]
+            *restore, "reset_timestep  0 time 0.0"]
 
 
 def _quoted(path: str | Path) -> str:

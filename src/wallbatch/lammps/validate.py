@@ -19,7 +19,8 @@ differ), and the script as exported is reported apart, as expected. A minimizati
 run is compared through its results (min_*: the log's "Minimization stats" and a printed line;
 the path-dependent energy and force norm within max(rtol, MIN_RTOL)), and the run itself from
 LAMMPS's minimized positions (wallbatch reruns the case from them without minimizing).
-wall/flow cases are refused: their random numbers differ by design (decisions table), so they are
+Cases that draw random numbers during the run (wall/flow, wall/reflect/stochastic, fix langevin
+above temp 0) are refused: their random numbers differ by design (decisions table), so they are
 checked statistically, not sample by sample. A wall with a non-shift `cutoff_mode` runs in LAMMPS
 as a spline wall/table: the outputs are then compared within TABLE_FACTOR times the table's
 measured interpolation error (`LammpsExport.table_rtol`) when that exceeds rtol.
@@ -100,11 +101,13 @@ class NotComparable(ExportError):
 
 
 FLOW_TESTS = "tests/engine/test_flow.py"  # wall/flow's statistical checks (shifted Maxwellian, crossing rates)
+ENSEMBLE_TESTS = "tests/engine/test_ensemble.py"  # fix langevin's statistical checks (temperature, velocities)
 
 
 def check_comparable(cfg: Config) -> None:
-    """Refuse wall/flow: wallbatch's NumPy streams and LAMMPS's RANMAR draw different velocities at
-    the first crossing (decisions table), so the runs agree only statistically."""
+    """Refuse what draws random numbers during the run (wall/reflect/stochastic, fix langevin above
+    temp 0, wall/flow): wallbatch's NumPy streams and LAMMPS's generators differ (decisions table),
+    so the runs agree only statistically."""
     thermal = [fid for fid, w in cfg.walls.items() if w.style == "reflect/stochastic"]
     if thermal:
         raise NotComparable(
@@ -112,6 +115,13 @@ def check_comparable(cfg: Config) -> None:
             f"generators in wallbatch, LAMMPS's own generator: decisions table), so the runs part at the first "
             f"reflection; it is checked statistically instead (tests/engine/test_stochastic.py). `wallbatch export-lammps` "
             f"still writes the case for LAMMPS")
+    hot = [fid for fid, f in (cfg.fixes or {}).items() if f.style == "langevin" and any(t != 0 for t in f.temp)]
+    if hot:
+        raise NotComparable(
+            f"fixes.{hot[0]}: fix langevin at a temperature above 0 adds random forces (NumPy generators in "
+            f"wallbatch, LAMMPS's own generator: the decisions table), so the runs part at the first step; it is "
+            f"checked statistically instead ({ENSEMBLE_TESTS}). At temp 0 (drag only) the case is compared. "
+            f"`wallbatch export-lammps` still writes the case for LAMMPS")
     flows = [fid for fid, w in cfg.walls.items() if w.style == "flow"]
     if flows:
         raise NotComparable(

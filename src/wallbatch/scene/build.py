@@ -180,6 +180,8 @@ def _random_positions(cfg: Config, spec: Any, rng: np.random.Generator, path: st
         if need <= 0:
             break
         cand = lo + rng.random((max(2 * need, 64), 3)) * length
+        if cfg.dimension == 2:  # in the plane z = 0, as LAMMPS's create_atoms random (x, y draws unchanged)
+            cand[:, 2] = 0.0
         if spec.region is not None:
             cand = cand[_region_contains(cfg, spec.region, cand)]
         if ov > 0 and len(cand):
@@ -377,6 +379,11 @@ def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]
                                                f"(one row per atom of x)")
                 _check_finite_rows(cfg, where, file, key, data[key])
             x = data["x"]
+            if cfg.dimension == 2 and np.any(x[:, 2] != 0.0):
+                k = int(np.nonzero(x[:, 2] != 0.0)[0][0])
+                raise _fail_at(cfg, where, f"{file}: atom {k + 1} has z = {x[k, 2]:g} in a 2-D run (dimension: 2): "
+                                           f"every atom has z = 0 (LAMMPS: Read_data atom z coord is non-zero for "
+                                           f"2d simulation)")
         n = len(x)
         for key, given in (("mass", g.mass), ("radius", g.radius)):
             if key in data and given is not None:
