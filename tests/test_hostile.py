@@ -413,8 +413,16 @@ def test_variable_dividing_by_zero_fails_that_case_only(tmp_path):
     assert "failed (1 case: d=2): cannot set up the case: variable 'a': Divide by 0 in variable formula" in res.output
     res = run("check", p)
     assert res.exit_code == 1
-    assert ("1 case(s) cannot be built (d=2): cannot set up the case: variable 'a': Divide by 0 in variable "
+    assert f"{p}: the config is valid, but 1 of 3 case(s) cannot be built" in res.output
+    assert ("1 case(s) (d=2) cannot be built: cannot set up the case: variable 'a': Divide by 0 in variable "
             "formula") in res.output
+    one = tmp_path / "one.yaml"  # a single case (no sweep) that cannot be built
+    text = p.read_text().replace("variables.d: 1", "variables.d: 2")
+    one.write_text(text[:text.index("sweep:")])
+    res = run("check", one)
+    assert res.exit_code == 1
+    assert "the config is valid, but 1 of 1 case(s) cannot be built" in res.output
+    assert "  the case cannot be built: cannot set up the case: variable 'a': Divide by 0" in res.output
     with xr.open_dataset(out) as ds:
         assert ds["status"].values.tolist() == ["ok", "failed", "ok"]
         assert np.isfinite(ds["pe"].sel(d=3).values).all() and np.isnan(ds["pe"].sel(d=2).values).all()

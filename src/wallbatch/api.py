@@ -116,7 +116,9 @@ class CheckReport:
 
     def lines(self, name: str = "config") -> list[str]:
         """The report as `wallbatch check` prints it."""
-        out = [f"{name}: valid, {len(self.plan.cases)} case(s)"]
+        n = len(self.plan.cases)
+        out = [f"{name}: valid, {n} case(s)" if self.ok else
+               f"{name}: the config is valid, but {len(self.errors)} of {n} case(s) cannot be built"]
         for d in self.plan.dims:
             vals = ", ".join(str(v) for v in d.values[:8]) + (" ..." if len(d.values) > 8 else "")
             out.append(f"  dimension {d.name} ({len(d.values)}): {vals}   <- {d.path}")

@@ -252,7 +252,8 @@ def check(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
         groups.setdefault(msg, []).append(plan.cases[i].label)
     for msg, labels in groups.items():
         shown = "; ".join(labels[:4]) + (f"; and {len(labels) - 4} more" if len(labels) > 4 else "")
-        typer.echo(f"  {len(labels)} case(s) cannot be built ({shown}): {msg}", err=True)
+        which = "the case" if labels == ["(single case)"] else f"{len(labels)} case(s) ({shown})"
+        typer.echo(f"  {which} cannot be built: {msg}", err=True)
     for line in lines[1 + len(plan.dims):]:
         typer.echo(line)
     if not report.ok:
