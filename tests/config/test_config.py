@@ -525,7 +525,10 @@ def test_positional_face_wrong_count():
 
 
 def test_units_lattice_without_lattice():
-    text = scene("  zw: {style: lj93, zlo: [EDGE, 1.0, 1.0, 2.5]}\n")
+    """A wall coordinate in lattice units (the default) needs a `lattice:`; a wall at EDGE alone has
+    nothing to scale and is accepted."""
+    load_config_text(scene("  zw: {style: lj93, zlo: [EDGE, 1.0, 1.0, 2.5]}\n"), FILE)
+    text = scene("  zw: {style: lj93, zlo: [0.5, 1.0, 1.0, 2.5]}\n")
     err = config_error(text)
     assert len(err.problems) == 1
     msg = err.problems[0]
@@ -957,7 +960,7 @@ def test_several_scene_errors_all_reported():
         "  a: {style: lj93, units: box, group: nobody, zlo: [EDGE, 1.0, 1.0, 2.5]}\n"
         "  b: {style: lj93, units: box, xlo: [EDGE, 1.0, 1.0, 2.5]}\n"
         "  c: {style: harmonic, units: box, zhi: {coord: v_nope, epsilon: 1.0, cutoff: 2.5}}\n"
-        "  d: {style: lj93, zlo: [EDGE, 1.0, 1.0, 2.5]}\n"
+        "  d: {style: lj93, zlo: [0.5, 1.0, 1.0, 2.5]}\n"
     )
     err = config_error(text)
     assert len(err.problems) == 4, err.problems

@@ -238,6 +238,9 @@ def test_lattice_units_without_a_lattice():
                                                                            "cutoff": 2.5}}})
     with pytest.raises(ConfigError, match="units: box"):
         config_from_dict(d)
+    edge = {"w": {"style": "harmonic", "xlo": {"coord": "EDGE", "epsilon": 1.0, "cutoff": 2.5}, "pbc": True},
+            "r": {"style": "reflect", "xhi": "EDGE", "pbc": True}}
+    config_from_dict(scene([point([(3.0, 5, 5)])], edge))  # every face at EDGE: nothing to scale, accepted
     d["walls"]["w"]["units"] = "box"
     for units in ("", " units lattice", " units box"):
         ref = oracle(d, [f"fix w all wall/harmonic xlo 1.0 1.0 1.0 2.5{units}"], ["f_w"])

@@ -884,7 +884,8 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
             continue
         if entry is not None and entry.per_face:
             _check_per_face_wall(cfg, fid, wall, entry, add)
-        if wall.units == "lattice" and cfg.lattice is None:
+        edges = wall.style != "reflect/stochastic" and all(getattr(f, "coord", None) == "EDGE" for _, f in wall.faces())
+        if wall.units == "lattice" and cfg.lattice is None and not edges:  # EDGE alone: nothing to scale
             add(("walls", fid), _LATTICE_MSG)
         for face, spec in wall.faces():
             dim = "xyz".index(face[0])
