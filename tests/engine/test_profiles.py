@@ -46,9 +46,13 @@ def line_of(text: str, needle: str) -> int:
 
 @pytest.mark.parametrize("prof,needle,field,words", [
     ("{axis: z, bins: 10, every: 30, repeat: 2, freq: 100, quantities: [temp]}", "freq: 100",
-     "output.profiles.across.freq", "multiple of every"),
+     "output.profiles.across.freq", "multiple of every (30), as LAMMPS Nfreq and Nevery (LAMMPS: Inconsistent fix "
+     "ave/chunk nevery/nrepeat/nfreq values)"),
     ("{axis: z, bins: 10, every: 10, repeat: 11, freq: 100, quantities: [temp]}", "repeat: 11",
-     "output.profiles.across.repeat", "must not exceed freq"),
+     "output.profiles.across.repeat", "must not exceed freq (100): the samples of one window would overlap the "
+     "previous one (LAMMPS: Inconsistent fix ave/chunk nevery/nrepeat/nfreq values)"),
+    ("{axis: z, bins: 10, every: 0, repeat: 5, freq: 100, quantities: [temp]}", "every: 0",
+     "output.profiles.across.every", "every must be >= 1 (LAMMPS: Illegal fix ave/chunk nevery value: 0)"),
     ("{axis: z, bins: 0, every: 10, repeat: 5, freq: 100, quantities: [temp]}", "bins: 0",
      "output.profiles.across.bins", "bins must be >= 1"),
     ("{axis: z, bins: 10, every: 10, repeat: 5, freq: 100, quantities: [temp, pressure]}", "quantities",
@@ -76,6 +80,21 @@ def test_averages_start_past_the_end():
     assert msg.startswith(f"{FILE}:{line_of(text, 'averages')}:") and "output.averages.start" in msg, msg
     assert "past the end of the run (1000 steps)" in msg
     load_config_text(BASE + GOOD + "  averages: {start: 1000}\n", FILE)  # inclusive: the last sample
+
+
+def test_profiles_share_one_freq_and_averages_need_a_window():
+    """Every profile's windows are on one `window` axis: two profiles with different freq are
+    refused at the second one's freq (the run used to fail after computing every case); an
+    averaging start after the last window is refused at `start` (the means were NaN)."""
+    text = BASE + GOOD + "    along: {axis: x, bins: 4, every: 10, repeat: 2, freq: 200, quantities: [vx]}\n"
+    msg = error(text)
+    assert msg.startswith(f"{FILE}:{line_of(text, 'along:')}:") and "output.profiles.along.freq" in msg, msg
+    assert "every profile's freq must be the same (across has 100, along has 200)" in msg
+    load_config_text(text.replace("freq: 200", "freq: 100"), FILE)
+    late = BASE.replace("steps: 1000", "steps: 1050") + GOOD + "  averages: {start: 1020}\n"
+    msg = error(late)
+    assert "output.averages.start" in msg and "after the last profile window (step 1000" in msg, msg
+    load_config_text(late.replace("start: 1020", "start: 1000"), FILE)
 
 
 def test_bins_and_delta_exclusive_and_time_runs():
@@ -284,6 +303,34 @@ def test_failed_case_profiles_and_means_are_nan():
     good = ds.isel(top=0)
     assert np.isfinite(good["profile_across_density_number"]).all()
     np.testing.assert_allclose((good["profile_across_density_number"] * 64 * 1.0).sum("across_bin"), 50, rtol=1e-12)
+
+
+@pytest.mark.parametrize("with_density", [True, False])
+def test_intensive_means_are_nan_in_bins_empty_in_some_window(with_density):
+    """A bin with no atom in a window reads 0 there (as LAMMPS); the time mean of its temperature
+    and mean velocities is then undefined: NaN mean and sem, flag false, in every bin empty in
+    one averaged window or more, seen in the profile's density (or, without one, a temperature of
+    exactly 0). Bins occupied in every window keep the block average of their windows; densities
+    keep theirs everywhere."""
+    quantities = ["temp", "vz"] + (["density/number"] if with_density else [])
+    prof = {"axis": "z", "bins": 10, "every": 5, "repeat": 2, "freq": 10, "quantities": quantities}
+    walls = {"w": {"style": "harmonic", "units": "box", "zlo": [-1.0, 2.0, 1.0, 4.0], "zhi": [11.0, 2.0, 1.0, 4.0]}}
+    ds = run(ideal_gas(40, 400, walls, prof, start=100))
+    assert ds.status.item() == "ok"
+    temp = ds["profile_across_temp"].sel(window=ds.window_step >= 100)
+    empty = (temp == 0.0).any("window").values  # the gas starts in 3 < z < 7: the end bins are empty at times
+    assert empty.any() and not empty.all()
+    mean, sem = ds["profile_across_temp_mean"].values, ds["profile_across_temp_sem"].values
+    assert np.isnan(mean[empty]).all() and np.isnan(sem[empty]).all()
+    assert not ds["profile_across_temp_sem_converged"].values[empty].any()
+    from wallbatch.stats import block_average
+    ref = block_average(temp.transpose("across_bin", "window").values)
+    np.testing.assert_array_equal(mean[~empty], ref.mean[~empty])
+    np.testing.assert_array_equal(sem[~empty], ref.sem[~empty])
+    vz = ds["profile_across_vz_mean"].values
+    assert np.isnan(vz[empty]).all() == with_density and np.isfinite(vz[~empty]).all()
+    if with_density:
+        assert np.isfinite(ds["profile_across_density_number_mean"]).all()
 
 
 def test_two_d_profiles_per_area_and_two_dof():

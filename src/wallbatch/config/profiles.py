@@ -91,14 +91,15 @@ def check_profiles(cfg: Any, groups: list[str]) -> list[tuple[tuple, str]]:
                 f"{MAX_PROFILE_BINS:,} (each window holds every bin of every quantity)")
         for key in ("every", "repeat", "freq"):
             if getattr(p, key) < 1:
-                add(at + (key,), f"{key} must be >= 1 (LAMMPS: Illegal fix ave/chunk command)")
+                add(at + (key,), f"{key} must be >= 1 (LAMMPS: Illegal fix ave/chunk n{key} value: {getattr(p, key)})")
         if p.every >= 1 and p.repeat >= 1 and p.freq >= 1:
             if p.freq % p.every != 0:
                 add(at + ("freq",), f"freq ({p.freq}) must be a multiple of every ({p.every}), as LAMMPS Nfreq "
-                    f"and Nevery (LAMMPS: Illegal fix ave/chunk nfreq value)")
+                    f"and Nevery (LAMMPS: Inconsistent fix ave/chunk nevery/nrepeat/nfreq values)")
             elif p.repeat * p.every > p.freq:
                 add(at + ("repeat",), f"repeat * every ({p.repeat} * {p.every} = {p.repeat * p.every}) must not "
-                    f"exceed freq ({p.freq}): the samples of one window would overlap the previous one")
+                    f"exceed freq ({p.freq}): the samples of one window would overlap the previous one (LAMMPS: "
+                    f"Inconsistent fix ave/chunk nevery/nrepeat/nfreq values)")
             if steps is not None and p.freq > steps:
                 add(at + ("freq",), f"freq ({p.freq}) is longer than the run ({steps} steps): no window would "
                     f"close; the first window ends at step freq")
@@ -108,6 +109,13 @@ def check_profiles(cfg: Any, groups: list[str]) -> list[tuple[tuple, str]]:
             add(at + ("group",), f"unknown group '{p.group}' (groups: {', '.join(groups)})")
         if cfg.run.time is not None:
             add(at, "profiles count steps (every/repeat/freq): they need a step-based run (run: {steps: N})")
+    freqs = {name: p.freq for name, p in cfg.output.profiles.items()}
+    first = next(iter(freqs), None)
+    for name, freq in freqs.items():
+        if freq != freqs[first]:  # one window axis (window, window_step) for every profile
+            add(("output", "profiles", name, "freq"), f"profiles share one window axis: every profile's freq must "
+                f"be the same ({first} has {freqs[first]}, {name} has {freq}): give them one freq")
+            break
     av = cfg.output.averages
     if av is not None:
         if av.start is not None and av.time is not None:
@@ -119,6 +127,12 @@ def check_profiles(cfg: Any, groups: list[str]) -> list[tuple[tuple, str]]:
             elif steps is not None and av.start > steps:
                 add(("output", "averages", "start"), f"start ({av.start}) is past the end of the run ({steps} "
                     f"steps): no sample would be averaged")
+            elif steps is not None and cfg.output.profiles and first is not None and freqs[first] >= 1 and \
+                    steps // freqs[first] * freqs[first] < av.start:
+                last = steps // freqs[first] * freqs[first]
+                add(("output", "averages", "start"), f"start ({av.start}) is after the last profile window (step "
+                    f"{last}, every freq = {freqs[first]} steps): no window would be averaged; start at or before "
+                    f"{last}")
         elif av.time is not None:
             if cfg.run.time is None:
                 add(("output", "averages", "time"), "a step-based run averages from a step: write "

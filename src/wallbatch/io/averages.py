@@ -128,11 +128,44 @@ def add_averages(ds: Results, case: Case) -> None:
         keepw = ds["window_step"].values >= start
         if case.run_time is None:
             idx = np.nonzero(keepw)[0]
+            empty = _empty_bins(ds, case, idx)
             for name in ds.data_vars:
                 if name.startswith("profile_") and "window" in ds[name].dims:
                     v = ds[name]
-                    _put(ds, name, _stats(_isel(v, "window", idx), "window"), v.attrs.get("units", "1"),
-                         v.attrs.get("long_name", name), f"windows at or after step {start:g}")
+                    stats = _stats(_isel(v, "window", idx), "window")
+                    where = f"windows at or after step {start:g}"
+                    if name in empty:  # an intensive quantity of a bin that was empty in some window: undefined
+                        gone = empty[name]
+                        stats = (Var(stats[0].dims, np.where(gone, np.nan, stats[0].data)),
+                                 Var(stats[1].dims, np.where(gone, np.nan, stats[1].data)),
+                                 Var(stats[2].dims, np.where(gone, False, stats[2].data)))
+                        where += "; NaN in bins that held no atom in some of these windows"
+                    _put(ds, name, stats, v.attrs.get("units", "1"), v.attrs.get("long_name", name), where)
+
+
+INTENSIVE = ("temp", "vx", "vy", "vz")  # per-atom averages: 0 in an empty bin's window, as LAMMPS writes
+
+
+def _empty_bins(ds: Results, case: Case, idx: np.ndarray) -> dict[str, np.ndarray]:
+    """For each intensive profile variable (temp, vx, vy, vz), the bins (sweep..., bin) that held
+    no atom in one of the windows `idx` or more: the window's 0 (LAMMPS's value there) is no
+    temperature or velocity, so the time mean of such a bin is left undefined. Empty windows are
+    seen in the profile's own density (density/number or density/mass, 0 exactly when empty);
+    without one, a temperature of exactly 0 counts as empty (velocities are then not checked)."""
+    out: dict[str, np.ndarray] = {}
+    for p in case.profiles:
+        dens = next((output_name(p.name, q) for q in ("density/number", "density/mass") if q in p.quantities), None)
+        for q in p.quantities:
+            if q not in INTENSIVE:
+                continue
+            name = output_name(p.name, q)
+            probe = dens if dens is not None else (name if q == "temp" else None)
+            if probe is None or probe not in ds.data_vars:
+                continue
+            v = _isel(ds[probe], "window", idx)
+            axis = v.dims.index("window")
+            out[name] = np.any(v.data == 0.0, axis=axis)
+    return out
 
 
 def _nansum(v: Var, dim: str) -> Var:
