@@ -95,6 +95,17 @@ def test_forking_workers_leaves_the_collector_as_it_was(tmp_path, monkeypatch, f
         np.testing.assert_array_equal(two[name].values, one[name].values)
 
 
+def _child(code: str, var: str, given: str | None) -> list[str]:
+    """The words a new Python process running `code` prints, with environment variable `var` unset
+    (None) or set to `given`, and this tree's wallbatch."""
+    env = {k: v for k, v in os.environ.items() if k != var}
+    env["PYTHONPATH"] = str(ROOT / "src")
+    if given is not None:
+        env[var] = given
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    return out.stdout.split()
+
+
 _THREADS = """
 import os, sys
 import wallbatch.cli  # noqa: F401 - the command line's module, as `wallbatch` starts
@@ -110,12 +121,7 @@ def test_the_command_line_starts_no_blas_threads_unless_asked(given):
     """NumPy's OpenBLAS starts a thread per core when NumPy is imported (~0.07 s of a command's
     start-up): the command line asks for one, i.e. none besides the main thread, unless the user
     set OPENBLAS_NUM_THREADS (then theirs is kept)."""
-    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
-    env["PYTHONPATH"] = str(ROOT / "src")
-    if given is not None:
-        env["OPENBLAS_NUM_THREADS"] = given
-    out = subprocess.run([sys.executable, "-c", _THREADS], capture_output=True, text=True, env=env, check=True)
-    value, tasks = out.stdout.split()
+    value, tasks = _child(_THREADS, "OPENBLAS_NUM_THREADS", given)
     assert value == (given or "1")
     if given is None:
         assert int(tasks) == 1  # the main thread alone
@@ -140,12 +146,7 @@ def test_the_command_line_looks_for_no_pydantic_plugins_unless_asked(given):
     """Looking for Pydantic plugins reads every installed package's entry points at the first
     model's build: the command line turns plugins off (PYDANTIC_DISABLE_PLUGINS=__all__), unless
     the user set the variable (then theirs is kept, and Pydantic looks)."""
-    env = {k: v for k, v in os.environ.items() if k != "PYDANTIC_DISABLE_PLUGINS"}
-    env["PYTHONPATH"] = str(ROOT / "src")
-    if given is not None:
-        env["PYDANTIC_DISABLE_PLUGINS"] = given
-    out = subprocess.run([sys.executable, "-c", _PLUGINS], capture_output=True, text=True, env=env, check=True)
-    value, scans = out.stdout.split()
+    value, scans = _child(_PLUGINS, "PYDANTIC_DISABLE_PLUGINS", given)
     assert value == repr(given if given is not None else "__all__")
     assert (int(scans) > 0) == (given is not None)
 
