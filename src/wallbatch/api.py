@@ -20,7 +20,7 @@ from wallbatch.config.sweep import SweepPlan, config_to_dict, expand, load_plan,
 from wallbatch.engine import backend
 from wallbatch.engine.engine import sample_instants
 from wallbatch.batch.runner import build_cases, check_layout, make_tasks, run_plan
-from wallbatch.scene.case import Case
+from wallbatch.scene.case import Case, StochasticSpec
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -139,7 +139,7 @@ def kernels(case: Case) -> list[str]:
         names = ["nve/asphere" if case.shape is not None else "nve"]
     else:  # fixes: integrators and thermostats (enforce2d acts after the forces; listed here too)
         names = [f"{f.style} {f.fix_id}" for f in case.fixes]
-    names += [f"wall/reflect{'/stochastic' if w.frame.startswith('stochastic/') else ''} {w.fix_id}"
+    names += [f"wall/reflect{'/stochastic' if isinstance(w, StochasticSpec) else ''} {w.fix_id}"
               for w in case.reflect_walls]
     if case.pair is not None:
         names.append("pair lj/cut")

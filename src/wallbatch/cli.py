@@ -117,6 +117,8 @@ def _warnings_as_lines() -> None:
     import warnings
 
     shown = warnings.showwarning
+    if getattr(shown, "wallbatch", False):  # already installed (the app called again in this process)
+        return
 
     def show(message: Any, category: type, filename: str, lineno: int, file: Any = None, line: Any = None) -> None:
         if category.__module__.startswith("wallbatch."):
@@ -124,6 +126,7 @@ def _warnings_as_lines() -> None:
         else:
             shown(message, category, filename, lineno, file, line)
 
+    show.wallbatch = True  # type: ignore[attr-defined]
     warnings.showwarning = show
     warnings.filterwarnings("once", category=UserWarning, module=r"wallbatch\.")
 
