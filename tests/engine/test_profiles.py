@@ -97,6 +97,63 @@ def test_profiles_share_one_freq_and_averages_need_a_window():
     load_config_text(late.replace("start: 1020", "start: 1000"), FILE)
 
 
+def test_a_bad_profile_name_is_shown_at_its_key():
+    """A name that is no word is a problem of the key: shown at the key's line and column (a
+    problem of the profile's values stays at its first value), written in the file or in --set."""
+    text = BASE + "  profiles:\n    bad name!:\n      axis: z\n      bins: 10\n      every: 10\n      repeat: 5\n" \
+        "      freq: 100\n      quantities: [temp]\n"
+    msg = error(text)
+    assert msg.startswith(f"{FILE}:{line_of(text, 'bad name!')}:5: output.profiles.bad name!: profile name "), msg
+    msg = error(text.replace("bad name!", "gap").replace("      bins: 10\n", ""))  # a problem of the values
+    assert msg.startswith(f"{FILE}:{line_of(text, 'axis: z')}:7: output.profiles.gap: give exactly one of bins"), msg
+
+
+def _sweep(tmp_path, sweep: str, scene: str = BASE + GOOD):
+    (tmp_path / "p.yaml").write_text(scene)
+    (tmp_path / "s.yaml").write_text("base: p.yaml\n" + sweep)
+    return tmp_path / "s.yaml"
+
+
+def test_a_sweep_is_checked_with_its_set_and_swept_values_in(tmp_path):
+    """The cross-field checks run on the cases, after `set:` and the swept values: a base value
+    they replace never runs and is no problem; a swept value that is one names its case."""
+    bad = BASE + GOOD.replace("repeat: 5", "repeat: 20")  # 20 x 10 > freq 100
+    assert "repeat" in error(bad)
+    plan = load(_sweep(tmp_path, "set: {output.profiles.across.repeat: 5}\n"
+                                 "sweep: {product: {e: {path: walls.w.zlo.epsilon, values: [10, 20]}}}\n", bad))
+    assert [c.config.output.profiles["across"].repeat for c in plan.cases] == [5, 5]
+    plan = load(_sweep(tmp_path, "sweep: {product: {r: {path: output.profiles.across.repeat, values: [2, 10]}}}\n",
+                       bad))
+    assert [c.config.output.profiles["across"].repeat for c in plan.cases] == [2, 10]
+    with pytest.raises(ConfigError) as info:
+        load(_sweep(tmp_path, "sweep: {product: {r: {path: output.profiles.across.repeat, values: [2, 11]}}}\n",
+                    bad))
+    (msg,) = info.value.problems
+    assert msg.startswith("s.yaml:") or "s.yaml:" in msg, msg
+    assert "output.profiles.across.repeat: repeat * every (11 * 10 = 110) must not exceed freq (100)" in msg
+    assert msg.endswith("(case r=11)"), msg
+    with pytest.raises(ConfigError, match=r"p\.yaml:\d+:\d+: output\.profiles\.across\.repeat: .* \(every case\)"):
+        load(_sweep(tmp_path, "sweep: {product: {e: {path: walls.w.zlo.epsilon, values: [10, 20]}}}\n", bad))
+
+
+def test_a_sweep_of_profile_windows_names_the_key_and_both_cases(tmp_path):
+    """Cases share one `window` axis: a sweep of freq is refused by `check` (api.check) and by a
+    run, naming the key that differs and the two cases."""
+    from wallbatch.api import check
+    from wallbatch.scene.case import CaseError
+
+    path = _sweep(tmp_path, "set: {run.steps: 200}\n"
+                            "sweep: {product: {f: {path: output.profiles.across.freq, values: [100, 200]}}}\n")
+    words = r"case f=200 differs from case f=100 in output\.profiles\.across\.every, repeat or freq \(its windows\)"
+    with pytest.raises(CaseError, match=words):
+        check(load(path))
+    with pytest.raises(CaseError, match=words):
+        run_plan(load(path), tmp_path / "o.nc", jobs=1, progress=False)
+    path = _sweep(tmp_path, "sweep: {product: {t: {path: run.thermo, values: [10, 20]}}}\n")
+    with pytest.raises(CaseError, match=r"case t=20 differs from case t=10 in run\.thermo: the cases of a sweep"):
+        check(load(path))
+
+
 def test_bins_and_delta_exclusive_and_time_runs():
     msg = error(BASE + "  profiles:\n    across: {axis: z, bins: 10, delta: 0.5, every: 10, repeat: 5, freq: 100, "
                        "quantities: [temp]}\n")

@@ -181,26 +181,41 @@ def check_size(case: Case) -> None:
                         f"less often")
 
 
-def _layout(case: Case) -> tuple:
-    """What must agree between cases for their results to share one dataset."""
-    return (case.steps, case.run_time, case.thermo, case.thermo_is_time, case.outputs,
-            tuple((w.fix_id, tuple(f.label for f in w.faces)) for w in case.soft_walls),
-            tuple((w.fix_id, tuple(f.label for f in w.faces)) for w in case.reflect_walls),
-            case.units.name,
-            tuple((p.name, p.axis, p.lo, p.delta, p.nbins, p.every, p.repeat, p.freq, p.quantities)
-                  for p in case.profiles), case.average_start)
+def _layout(case: Case) -> tuple[tuple[str, Any], ...]:
+    """What must agree between cases for their results to share one dataset: (the config keys
+    that set it, its value) pairs (`layout_difference` names the first that differs)."""
+    def faces(walls: list) -> tuple:
+        return tuple((w.fix_id, tuple(f.label for f in w.faces)) for w in walls)
+
+    profiles: list[tuple[str, Any]] = [("output.profiles (their names)", tuple(p.name for p in case.profiles))]
+    for p in case.profiles:
+        at = f"output.profiles.{p.name}"
+        profiles += [(f"{at}.axis", p.axis), (f"{at}.bins or delta (its bins)", (p.lo, p.delta, p.nbins)),
+                     (f"{at}.every, repeat or freq (its windows)", (p.every, p.repeat, p.freq)),
+                     (f"{at}.quantities", p.quantities)]
+    return (("run.steps", case.steps), ("run.time", case.run_time),
+            ("run.thermo", (case.thermo, case.thermo_is_time)), ("the outputs (output.thermo)", case.outputs),
+            ("the wall fixes or their faces (walls:)", faces(case.soft_walls)),
+            ("the reflecting walls or their faces (walls:)", faces(case.reflect_walls)), ("units", case.units.name),
+            *profiles, ("output.averages.start", case.average_start))
+
+
+def layout_difference(label: str, layout: tuple, ref_label: str, ref: tuple) -> str:
+    """The message for case `label` whose results layout differs from that of case `ref_label`."""
+    what = next((k for (k, v), (k2, v2) in zip(layout, ref) if k != k2 or v != v2), "the results' layout")
+    return (f"case {label} differs from case {ref_label} in {what}: the cases of a sweep share one results file, "
+            f"so they must share its sample instants, outputs, walls and profile windows; sweep it in separate runs")
 
 
 def check_layout(plan: SweepPlan, cases: list[Case | None]) -> None:
     """All cases must share sample instants, outputs and wall faces to share one results file."""
-    good = [c for c in cases if c is not None]
+    good = [(sc, c) for sc, c in zip(plan.cases, cases) if c is not None]
     if not good:
         return
-    ref = _layout(good[0])
-    for sc, c in zip(plan.cases, cases):
-        if c is not None and _layout(c) != ref:
-            raise CaseError(f"case {sc.label} changes the sample instants, outputs or walls of the results "
-                            f"(e.g. run.steps, run.thermo or a wall style): such values cannot be swept into one file")
+    ref_case, ref = good[0][0], _layout(good[0][1])
+    for sc, c in good[1:]:
+        if _layout(c) != ref:
+            raise CaseError(layout_difference(sc.label, _layout(c), ref_case.label, ref))
 
 
 def make_tasks(cases: dict[int, Case], jobs: int) -> list[list[int]]:
@@ -855,6 +870,7 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
             local = executor == "local" and (jobs <= 1 or len(windows) <= 1 or _fork_context() is not None)
             tasks = [w if local else [build_one(plan.cases[i]) for i in w] for w in windows]
             layout: tuple | None = None
+            layout_case = -1
             built = len(saved)  # cases built (or reused)
             _PLAN = plan  # for forked workers
             # the first case that builds, built once: forked workers inherit the kernels loaded on
@@ -873,13 +889,13 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
                         if not out.built:
                             unbuilt.add(i)
                         elif layout is None:
-                            layout = out.layout
+                            layout, layout_case = out.layout, i
                         elif out.layout != layout:
                             if parts is not None and not resume and parts.exists():
                                 shutil.rmtree(parts)  # an invalid sweep: leave nothing to resume
-                            raise CaseError(f"case {plan.cases[i].label} changes the sample instants, outputs or "
-                                            f"walls of the results (e.g. run.steps, run.thermo or a wall style): "
-                                            f"such values cannot be swept into one file")
+                            a, b = sorted((i, layout_case))  # (named in plan order, as `check` names them)
+                            raise CaseError(layout_difference(plan.cases[b].label, out.layout if b == i else layout,
+                                                              plan.cases[a].label, layout if b == i else out.layout))
                         built += out.built
                         if out.dump is not None and output is not None:
                             write_dump(dump_path(output, plan.cases[i]), out.dump, res)

@@ -749,9 +749,10 @@ def _tag_message(err: dict, loc: tuple) -> tuple[str, tuple]:
     return f"no {key}: give {key}: (see docs/reference/config.md){alt}", loc
 
 
-def validate_data(data: Any, srcmap: SourceMap, base: Path | None = None) -> Config:
+def validate_data(data: Any, srcmap: SourceMap, base: Path | None = None, *, cross: bool = True) -> Config:
     """Validate loaded YAML data into a Config, then run the cross-field checks (relative table
-    files of wall/table start from `base`)."""
+    files of wall/table start from `base`); `cross=False` leaves those checks out (a sweep's base,
+    whose cases are checked whole once their `set:` and swept values are in)."""
     data = _expand_fix_lines(data, srcmap)
     data, problems = expand_ensemble_lines(data, srcmap)
     if problems:
@@ -775,7 +776,7 @@ def validate_data(data: Any, srcmap: SourceMap, base: Path | None = None) -> Con
     if base is not None:
         cfg._base_dir = base
     cfg._srcmap = srcmap
-    problems = [srcmap.format(path, msg) for path, msg in check_scene(cfg)]
+    problems = [srcmap.format(path, msg) for path, msg in check_scene(cfg)] if cross else []
     if problems:
         raise ConfigError(problems)
     return cfg

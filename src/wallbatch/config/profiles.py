@@ -15,6 +15,7 @@ from typing import Annotated, Any, Literal
 from pydantic import ConfigDict, Field, NonNegativeFloat, NonNegativeInt
 
 from wallbatch.config.base import NoBoolNumbers
+from wallbatch.config.source import KEY
 
 PROFILE_QUANTITIES = ("density/number", "density/mass", "temp", "vx", "vy", "vz")
 
@@ -72,7 +73,7 @@ def check_profiles(cfg: Any, groups: list[str]) -> list[tuple[tuple, str]]:
     for name, p in cfg.output.profiles.items():
         at = ("output", "profiles", name)
         if not name.replace("_", "a").replace("-", "a").isalnum() or not (name[0].isalpha() or name[0] == "_"):
-            add(at, f"profile name '{name}' must be a word (letters, digits, _): it names output variables")
+            add(at + (KEY,), f"profile name '{name}' must be a word (letters, digits, _): it names output variables")
         if (p.bins is None) == (p.delta is None):
             add(at, "give exactly one of bins (number of equal bins) or delta (bin width, box units)")
         if p.bins is not None and p.bins < 1:

@@ -48,6 +48,9 @@ def _a_key(part: str) -> bool:
     return part not in WALL_TAGS and not any(c in part for c in "[]()") and not _UNION_MEMBER.fullmatch(part)
 
 
+KEY = "<key>"  # last part of a path that means the mapping key itself (a problem of a name: shown at the key)
+
+
 class SourceMap:
     """Where each value of a YAML document stands: dotted path -> (line, column), 1-based."""
 
@@ -76,6 +79,9 @@ class SourceMap:
         shown: list = []  # what the user reads: field names, also for positional faces
         node, missing = self.data, False
         for part in loc:
+            if part == KEY:  # the key written for the path so far (its own mark), not a value inside it
+                path.append(KEY)
+                break
             if isinstance(node, dict) and isinstance(part, str) and part not in node and part.lstrip("-").isdigit() \
                     and int(part) in node:
                 part = int(part)  # a fix-ID like `1:` that YAML read as a number
@@ -251,6 +257,7 @@ def load_yaml(text: str, filename: str = "<config>") -> tuple[Any, SourceMap]:
                                         f"defined twice (first at line {line}{alias}); keep one")
                     else:
                         seen[same] = (k.start_mark.line + 1, key)
+                    marks.setdefault(path + (key, KEY), (k.start_mark.line + 1, k.start_mark.column + 1))
                     walk(v, path + (key,), active)
             else:
                 for i, v in enumerate(n.value):

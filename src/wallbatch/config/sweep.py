@@ -373,7 +373,9 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
     smap = sweep_map or srcmap
     origins = dict(origins or {})
     raw_sweep = data.pop("sweep", None)
-    base = validate_data(data, srcmap, base_dir)
+    # the cross-field checks run on what runs: the base with its overrides, or each case (a value
+    # that `set:` or the sweep replaces is no problem of the sweep)
+    base = validate_data(data, srcmap, base_dir, cross=not overrides and raw_sweep is None)
     if overrides:
         for key in overrides:
             origins.setdefault(key, f"--set {key}")
@@ -384,7 +386,7 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
             except ConfigError as exc:
                 raise ConfigError([f"{origins[key]}: {p.removeprefix(f'sweep path {key}: ')}"
                                    for p in exc.problems]) from None
-        base = validate_data(base_data, OverlayMap(srcmap, origins, base_data), base_dir)
+        base = validate_data(base_data, OverlayMap(srcmap, origins, base_data), base_dir, cross=raw_sweep is None)
         base_text = (f"# {srcmap.filename} with {', '.join(f'{k}={v}' for k, v in overrides.items())}\n"
                      + yaml.safe_dump(config_to_dict(base), sort_keys=False))
     base._base_dir = base_dir
