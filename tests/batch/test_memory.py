@@ -103,7 +103,8 @@ def test_sweep_changing_the_layout_fails_and_leaves_no_parts(tmp_path):
     out = tmp_path / "o.nc"
     from wallbatch.scene.case import CaseError
 
-    with pytest.raises(CaseError, match=r"case steps=40 differs from case steps=20 in run\.steps: the cases of a sweep share one results file"):
+    words = r"case steps=40 differs from case steps=20 in run\.steps: the cases of a sweep share one results file"
+    with pytest.raises(CaseError, match=words):
         run_plan(load(path), out, jobs=1, progress=False)
     assert not (tmp_path / "o.nc.parts").exists() and not out.exists()
 
