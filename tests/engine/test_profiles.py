@@ -362,32 +362,49 @@ def test_failed_case_profiles_and_means_are_nan():
     np.testing.assert_allclose((good["profile_across_density_number"] * 64 * 1.0).sum("across_bin"), 50, rtol=1e-12)
 
 
-@pytest.mark.parametrize("with_density", [True, False])
-def test_intensive_means_are_nan_in_bins_empty_in_some_window(with_density):
-    """A bin with no atom in a window reads 0 there (as LAMMPS); the time mean of its temperature
-    and mean velocities is then undefined: NaN mean and sem, flag false, in every bin empty in
-    one averaged window or more, seen in the profile's density (or, without one, a temperature of
-    exactly 0). Bins occupied in every window keep the block average of their windows; densities
+@pytest.mark.parametrize("density", ["density/number", "density/mass", None])
+def test_intensive_means_pool_the_windows_of_bins_empty_in_some(density):
+    """A bin with no atom in a window reads 0 there (as LAMMPS), no temperature or velocity, so
+    the plain mean of its windows would be wrong. With the profile's density/number the windows
+    of such a bin are pooled, weighted by the atoms counted (sum n T / sum n; NaN where no window
+    counted one); with only density/mass (atoms of other masses would weigh differently) or no
+    density (a temperature of exactly 0 is then the sign) its mean, sem and flag are NaN, NaN,
+    false. Bins occupied in every window keep the block average of their windows; densities
     keep theirs everywhere."""
-    quantities = ["temp", "vz"] + (["density/number"] if with_density else [])
+    quantities = ["temp", "vz"] + ([density] if density else [])
     prof = {"axis": "z", "bins": 10, "every": 5, "repeat": 2, "freq": 10, "quantities": quantities}
     walls = {"w": {"style": "harmonic", "units": "box", "zlo": [-1.0, 2.0, 1.0, 4.0], "zhi": [11.0, 2.0, 1.0, 4.0]}}
     ds = run(ideal_gas(40, 400, walls, prof, start=100))
     assert ds.status.item() == "ok"
-    temp = ds["profile_across_temp"].sel(window=ds.window_step >= 100)
+    late = ds.window_step >= 100
+    temp = ds["profile_across_temp"].sel(window=late)
     empty = (temp == 0.0).any("window").values  # the gas starts in 3 < z < 7: the end bins are empty at times
-    assert empty.any() and not empty.all()
+    never = (temp == 0.0).all("window").values
+    assert (empty & ~never).any() and not empty.all()
     mean, sem = ds["profile_across_temp_mean"].values, ds["profile_across_temp_sem"].values
-    assert np.isnan(mean[empty]).all() and np.isnan(sem[empty]).all()
-    assert not ds["profile_across_temp_sem_converged"].values[empty].any()
+    conv = ds["profile_across_temp_sem_converged"].values
     from wallbatch.stats import block_average
     ref = block_average(temp.transpose("across_bin", "window").values)
     np.testing.assert_array_equal(mean[~empty], ref.mean[~empty])
     np.testing.assert_array_equal(sem[~empty], ref.sem[~empty])
     vz = ds["profile_across_vz_mean"].values
-    assert np.isnan(vz[empty]).all() == with_density and np.isfinite(vz[~empty]).all()
-    if with_density:
-        assert np.isfinite(ds["profile_across_density_number_mean"]).all()
+    assert np.isfinite(vz[~empty]).all()
+    if density == "density/number":
+        n = ds["profile_across_density_number"].sel(window=late)
+        assert ((n == 0.0) == (temp == 0.0)).all()
+        pooled = (n * temp).sum("window") / n.sum("window")  # one window over all of them
+        some = empty & ~never
+        np.testing.assert_allclose(mean[some], pooled.values[some], rtol=1e-12)
+        assert np.all(mean[some] > 0.1) and np.all(sem[some] > 0) and np.all(sem[some] < mean[some])
+        assert np.isnan(mean[never]).all() and np.isnan(sem[never]).all() and not conv[never].any()
+        np.testing.assert_allclose(vz[some], ((n * ds["profile_across_vz"].sel(window=late)).sum("window")
+                                              / n.sum("window")).values[some], rtol=1e-12)
+        assert "pooled" in ds["profile_across_temp_mean"].attrs["comment"]
+    else:
+        assert np.isnan(mean[empty]).all() and np.isnan(sem[empty]).all() and not conv[empty].any()
+        assert np.isnan(vz[empty]).all() == (density is not None)
+    if density:
+        assert np.isfinite(ds[f"profile_across_{density.replace('/', '_')}_mean"]).all()
 
 
 def test_two_d_profiles_per_area_and_two_dof():

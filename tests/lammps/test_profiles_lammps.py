@@ -99,3 +99,33 @@ def test_repeat_one_window_at_step_zero_is_lammps_only():
     assert list(ds["window_step"].values) == [5, 10, 15, 20]
     ours = ds["profile_across_density_number"].values
     np.testing.assert_allclose(ours, np.stack([ref[s]["density/number"] for s in (5, 10, 15, 20)]), rtol=RTOL)
+
+
+def test_time_means_are_lammps_ave_running_or_one_window_over_all():
+    """The time means of temp, vx, vy, vz against LAMMPS, on the scene with bins of 0.25 (some
+    empty in some windows, next to the walls): in a bin occupied in every window, the plain mean
+    of the windows, which is LAMMPS's `ave running` at the last window; in a bin empty in some
+    window, the windows pooled by atoms counted, which is LAMMPS's one window over every sample
+    (the windows' samples are contiguous here: every 2, repeat 5, freq 10); NaN where no window
+    counted an atom (LAMMPS writes 0)."""
+    cfg, sc, files = configs("lj", 2, 5, 10, 50)
+    cfg["output"]["profiles"]["across"]["delta"] = 0.25
+    sc.fixes = [f.replace("lower 0.7 ", "lower 0.25 ") for f in sc.fixes]
+    whole, running = files["across"] + ".whole", files["across"] + ".running"
+    sc.fixes += chunk_fixes("whole", "all", "z", 2, 25, 50, QUANTITIES, whole, delta=0.25)
+    sc.fixes += [ln.replace("norm all", "norm all ave running")
+                 for ln in chunk_fixes("running", "all", "z", 2, 5, 10, QUANTITIES, running, delta=0.25)]
+    ds = run_config(config_from_dict(cfg))
+    assert ds.status.item() == "ok", ds.error.item()
+    run_lammps(sc)
+    windows, one, ave = read_ave_chunk(files["across"]), read_ave_chunk(whole)[50], read_ave_chunk(running)[50]
+    counted = np.stack([windows[s]["Ncount"] for s in sorted(windows)])
+    full, never = (counted > 0).all(axis=0), (counted == 0).all(axis=0)
+    some = ~full & ~never
+    assert some.sum() >= 3 and full.sum() >= 10 and never.any()
+    for q in ("temp", "vx", "vy", "vz"):
+        ours = ds[f"profile_across_{q}_mean"].values
+        np.testing.assert_allclose(ours[full], ave[q][full], rtol=RTOL, atol=1e-12, err_msg=q)
+        np.testing.assert_allclose(ours[some], one[q][some], rtol=RTOL, atol=1e-12, err_msg=q)
+        assert np.isnan(ours[never]).all() and (one[q][never] == 0).all()
+    np.testing.assert_allclose(ds["profile_across_density_number_mean"].values, ave["density/number"], rtol=RTOL)

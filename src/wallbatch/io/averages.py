@@ -132,29 +132,35 @@ def add_averages(ds: Results, case: Case) -> None:
             for name in ds.data_vars:
                 if name.startswith("profile_") and "window" in ds[name].dims:
                     v = ds[name]
-                    stats = _stats(_isel(v, "window", idx), "window")
+                    windows = _isel(v, "window", idx)
+                    stats = _stats(windows, "window")
                     where = f"windows at or after step {start:g}"
-                    if name in empty:  # an intensive quantity of a bin that was empty in some window: undefined
-                        gone = empty[name]
-                        stats = (Var(stats[0].dims, np.where(gone, np.nan, stats[0].data)),
-                                 Var(stats[1].dims, np.where(gone, np.nan, stats[1].data)),
-                                 Var(stats[2].dims, np.where(gone, False, stats[2].data)))
-                        where += "; NaN in bins that held no atom in some of these windows"
+                    if name in empty:  # an intensive quantity of a bin that was empty in some window
+                        gone, counts = empty[name]
+                        pooled = _pooled(windows, _isel(ds[counts], "window", idx), "window") if counts else None
+                        stats = tuple(Var(a.dims, np.where(gone, b.data if pooled else fill, a.data))
+                                      for a, b, fill in zip(stats, pooled or stats, (np.nan, np.nan, False)))
+                        where += ("; in bins that held no atom in some of these windows, the windows pooled "
+                                  "(weighted by the atoms counted; NaN if none ever)" if pooled else
+                                  "; NaN in bins that held no atom in some of these windows")
                     _put(ds, name, stats, v.attrs.get("units", "1"), v.attrs.get("long_name", name), where)
 
 
 INTENSIVE = ("temp", "vx", "vy", "vz")  # per-atom averages: 0 in an empty bin's window, as LAMMPS writes
 
 
-def _empty_bins(ds: Results, case: Case, idx: np.ndarray) -> dict[str, np.ndarray]:
+def _empty_bins(ds: Results, case: Case, idx: np.ndarray) -> dict[str, tuple[np.ndarray, str | None]]:
     """For each intensive profile variable (temp, vx, vy, vz), the bins (sweep..., bin) that held
-    no atom in one of the windows `idx` or more: the window's 0 (LAMMPS's value there) is no
-    temperature or velocity, so the time mean of such a bin is left undefined. Empty windows are
-    seen in the profile's own density (density/number or density/mass, 0 exactly when empty);
-    without one, a temperature of exactly 0 counts as empty (velocities are then not checked)."""
-    out: dict[str, np.ndarray] = {}
+    no atom in one of the windows `idx` or more (the window's 0, LAMMPS's value there, is no
+    temperature or velocity, so the plain mean of the windows would be wrong there), and the
+    variable whose windows weigh them by the atoms counted (the profile's density/number), None
+    without it. Empty windows are seen in the profile's own density (density/number or
+    density/mass, 0 exactly when empty); without one, a temperature of exactly 0 counts as empty
+    (velocities are then not checked)."""
+    out: dict[str, tuple[np.ndarray, str | None]] = {}
     for p in case.profiles:
         dens = next((output_name(p.name, q) for q in ("density/number", "density/mass") if q in p.quantities), None)
+        counts = output_name(p.name, "density/number") if "density/number" in p.quantities else None
         for q in p.quantities:
             if q not in INTENSIVE:
                 continue
@@ -164,8 +170,27 @@ def _empty_bins(ds: Results, case: Case, idx: np.ndarray) -> dict[str, np.ndarra
                 continue
             v = _isel(ds[probe], "window", idx)
             axis = v.dims.index("window")
-            out[name] = np.any(v.data == 0.0, axis=axis)
+            out[name] = (np.any(v.data == 0.0, axis=axis), counts if counts in ds.data_vars else None)
     return out
+
+
+def _pooled(v: Var, n: Var, dim: str) -> tuple[Var, Var, Var]:
+    """Mean, sem and converged of the windows `v` pooled along `dim` with weights `n` (the atoms
+    counted in each, up to a constant: a density/number): R = sum(n v) / sum(n), what one window
+    over all of them would give (LAMMPS norm all: sum m v^2 over the atoms counted, for temp). Its
+    error is that of a ratio estimator: the block-averaged sem of z = (n v - R n) / mean(n), whose
+    mean is R's first-order error. NaN (flag false) where no window counted an atom."""
+    axis = v.dims.index(dim)
+    rest = v.dims[:axis] + v.dims[axis + 1:]
+    x, w = np.moveaxis(v.data, axis, -1), np.moveaxis(n.data, axis, -1)
+    total = w.sum(axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(total > 0, (w * x).sum(axis=-1) / total, np.nan)
+        z = (w * x - ratio[..., None] * w) / (total[..., None] / w.shape[-1])
+    res = block_average(z)
+    none = ~(total > 0)
+    return (Var(rest, ratio), Var(rest, np.where(none, np.nan, res.sem)),
+            Var(rest, np.where(none, False, res.converged)))
 
 
 def _nansum(v: Var, dim: str) -> Var:
