@@ -242,6 +242,26 @@ def test_temperature_by_damp_sweep_is_one_batch_and_bit_identical_to_single_runs
     assert temps[0] < 1.2 < temps[3]  # the thermostats pull toward their own targets
 
 
+def test_a_sweep_of_temp_pairs_writes_its_results_file(tmp_path):
+    """`fixes.ID.temp` is a pair [Tstart, Tstop]: swept, each value is a list. The results file
+    holds it as the text of the pair (a 1-d coordinate needs one scalar per case; writing the file
+    used to fail with a ValueError after every case had run), and each case's outputs are those of
+    its single run."""
+    from wallbatch.batch.runner import run_plan
+    from wallbatch.io.report import select
+    import xarray as xr
+    plan = _plan('nh: "fix nh all nvt temp 1.0 1.0 0.1"',
+                 "product:\n  T: {path: fixes.nh.temp, values: [[0.8, 0.8], [1.0, 1.6]]}\n")
+    run_plan(plan, tmp_path / "out.nc", jobs=1)
+    with xr.open_dataset(tmp_path / "out.nc") as ds:
+        assert list(ds["T"].values) == ["[0.8, 0.8]", "[1.0, 1.6]"]
+        assert ds["T"].attrs["path"] == "fixes.nh.temp"
+        assert list(ds["status"].values) == ["ok", "ok"]
+        cases, _ = build_cases(plan)
+        alone = run_cases([cases[1]])[0]
+        assert np.array_equal(select(ds, {"T": "[1.0, 1.6]"})["ecouple"].values, alone.data["ecouple"])
+
+
 # ----------------------------------------------------------------------------- Langevin statistics
 
 

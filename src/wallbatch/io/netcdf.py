@@ -240,10 +240,19 @@ def _sweep_coords(dims: Sequence[SweepDim]) -> dict[str, Var]:
     parameters along its dimension (extra coordinates), each with the path(s) it sets."""
     coords: dict[str, Var] = {}
     for d in dims:
-        coords[d.name] = Var((d.name,), np.asarray(d.values), {"path": d.path})
+        coords[d.name] = Var((d.name,), _coord_values(d.values), {"path": d.path})
         for k, (vals, paths) in d.extra.items():  # a zip's parameters along its dimension
-            coords[k] = Var((d.name,), np.asarray(vals), {"path": ", ".join(paths)})
+            coords[k] = Var((d.name,), _coord_values(vals), {"path": ", ".join(paths)})
     return coords
+
+
+def _coord_values(values: Sequence) -> np.ndarray:
+    """One coordinate value per case along a sweep dimension. A value that is itself a list (a
+    thermostat's `temp: [Tstart, Tstop]`, a position) is written as its text, `[0.8, 1.6]` (the
+    case label's spelling): a 1-d coordinate needs one scalar per case."""
+    if any(isinstance(v, (list, tuple, dict)) for v in values):
+        return np.asarray([str(list(v) if isinstance(v, tuple) else v) for v in values], dtype=object)
+    return np.asarray(values)
 
 
 BLOCK_BYTES = 2_000_000  # output bytes of a block of cases when the file is written block by block
