@@ -313,6 +313,24 @@ def test_a_type_without_mass_stops_the_import_with_the_script_named(tmp_path: Pa
     assert res.exit_code == 2 and "atom type 1 has no mass" in res.output and "Traceback" not in res.output
 
 
+def test_no_box_names_the_commands_it_could_not_import(tmp_path: Path) -> None:
+    """A 2-D script in the style of LAMMPS's examples (`lattice hex`, the box region in lattice
+    units): the region cannot be imported (hex scales x and y differently), so neither can
+    create_box. The import stops with "no box", and says why, line by line (it said only "no box")."""
+    script = ("dimension 2\nunits lj\nboundary p f p\nlattice hex 0.7\n"
+              "region box block 0 20 0 10 -0.25 0.25\ncreate_box 1 box\ncreate_atoms 1 box\n"
+              "mass 1 1.0\nfix 1 all nve\nfix 2 all enforce2d\nrun 10\n")
+    with pytest.raises(LammpsImportError) as err:
+        import_lammps_text(script, tmp_path)
+    text = str(err.value)
+    assert "in.script: no box (create_box or read_data) in the script; not imported:\n" in text, text
+    assert "in.script:5: region box block 0 20 0 10 -0.25 0.25  ->  lattice units of a hex lattice" in text
+    assert "write this command with units box" in text
+    assert "in.script:6: create_box 1 box  ->  create_box needs a block region (got 'box')" in text
+    res = CliRunner().invoke(app, ["import-lammps", str(tmp_path / "in.script")])
+    assert res.exit_code == 2 and "in.script:5: region" in res.output and "Traceback" not in res.output
+
+
 # ----------------------------------------------------------------------------- scripts vs LAMMPS
 
 

@@ -1189,7 +1189,12 @@ class _Importer:
 
     def build(self, name: str) -> tuple[dict, dict[str, list[str]]]:
         if self.box is None:
-            raise LammpsImportError(f"{self.script}: no box (create_box or read_data) in the script")
+            # the commands a box comes from that were not imported: they are why there is none
+            why = [i for i in self.unsupported
+                   if i.text.split()[:1] and i.text.split()[0] in ("create_box", "read_data", "region", "lattice")]
+            because = "".join(f"\n  {i.file or self.script}:{i.line}: {i.text.strip()}  ->  {i.reason}" for i in why)
+            raise LammpsImportError(f"{self.script}: no box (create_box or read_data) in the script"
+                                    + (f"; not imported:{because}" if because else ""))
         data: dict[str, Any] = {"name": name, "units": self.units}
         if self.seed is not None:
             data["seed"] = self.seed
