@@ -131,6 +131,11 @@ def test_2d_with_a_z_wall_is_refused_at_the_wall():
         load_config_text(text)
     with pytest.raises(ConfigError, match=r"box.boundary: a 2-D run .* periodic z"):
         load_config_text(BAD.replace("fixes:\nFIXES\n", "dimension: 2\n"))
+    # without pbc yes: only that error, not the 3-D advice to make z fixed (2-D needs it periodic)
+    with pytest.raises(ConfigError) as info:
+        load_config_text(text.replace(" pbc yes", ""))
+    about = [p.split(": ", 2)[2] for p in info.value.problems if ": walls.zw.zlo: " in p]
+    assert about == ["a zlo wall in a 2-D run (dimension: 2): 2-D walls act in x and y only"], info.value.problems
 
 
 def test_2d_atoms_are_in_the_plane_z_0(tmp_path):

@@ -890,7 +890,8 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
             add(("walls", fid), _LATTICE_MSG)
         for face, spec in wall.faces():
             dim = "xyz".index(face[0])
-            if cfg.box.boundary[dim] == "p" and not wall.pbc:
+            if cfg.box.boundary[dim] == "p" and not wall.pbc and not (dim == 2 and cfg.dimension == 2):
+                # (a z face in 2-D: refused as such, `check_ensemble`; z must stay periodic there)
                 add(("walls", fid, face),
                     f"cannot use a {face} wall in periodic {face[0]} dimension: make box.boundary "
                     f"{face[0]} 'f', or set pbc: true on this wall")
