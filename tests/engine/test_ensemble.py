@@ -182,6 +182,22 @@ def test_nvt_on_a_group_with_no_atoms_is_refused(tmp_path):
 # ----------------------------------------------------------------------------- frozen atoms
 
 
+def test_a_zero_temperature_names_the_thermostat_s_group():
+    """temp/berendsen on a group at rest (LAMMPS stops: computed temperature cannot be 0.0): the
+    failed case names the fix, its group and the step."""
+    cfg = config_from_dict({
+        "units": "lj", "box": {"lo": [0, 0, 0], "hi": [10, 9, 9]},
+        "atoms": [{"group": "still", "mass": 1.0, "create": {"positions": [[5.0, 3.0, 3.0], [5.0, 6.0, 6.0]]}},
+                  {"group": "ball", "mass": 1.0, "create": {"positions": [[2.0, 4.0, 4.0]]},
+                   "velocity": {"values": [1.0, 0.0, 0.0]}}],
+        "fixes": {"move": "fix move all nve", "ber": "fix ber still temp/berendsen 1.0 1.0 0.5"},
+        "run": {"steps": 10, "thermo": 5}})
+    res = run_cases([build_case(cfg)])[0]
+    assert res.status == "failed"
+    assert res.error.startswith("fixes.ber: the temperature of group 'still' is 0 at step 1 (LAMMPS: computed "
+                                "temperature for fix temp/berendsen cannot be 0.0)"), res.error
+
+
 def test_frozen_group_does_not_move_and_still_pushes():
     """A 3x3 patch of atoms nobody integrates; one mobile atom flies at it and bounces back
     (lj/cut), while the patch keeps its positions to the bit."""

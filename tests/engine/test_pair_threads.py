@@ -233,7 +233,7 @@ def test_a_zero_temperature_on_threads_is_reported_as_on_one_thread(monkeypatch)
     ref, _ = run_threads(monkeypatch, config, 1)
     got, eng = run_threads(monkeypatch, config, 2)
     assert_bits(got, ref)
-    assert ref[0].status == "failed" and "temperature of group atoms is 0" in ref[0].error
+    assert ref[0].status == "failed" and "fixes.b: the temperature of group 'all' is 0 at step 1" in ref[0].error
     assert eng.fast.fallbacks >= 1 and eng.fast.threaded_chunks >= 1
 
 

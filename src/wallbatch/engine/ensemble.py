@@ -39,7 +39,7 @@ class _Fix:
     def __init__(self, cases: list[Case], i: int, dimension: int):
         specs = [c.fixes[i] for c in cases]
         s0 = specs[0]
-        self.fix_id, self.style, self.group = s0.fix_id, s0.style, s0.group
+        self.fix_id, self.style, self.group, self.group_name = s0.fix_id, s0.style, s0.group, s0.group_name
         self.all = bool(self.group.all())
         self.count = int(self.group.sum())
         self.dof = group_dof(self.count, dimension)
@@ -187,7 +187,7 @@ class Ensemble:
             zero = t_now == 0.0
             if zero.any():
                 s.fail(np.nonzero(zero)[0], lambda c, f=f: (
-                    f"fixes.{f.fix_id}: the temperature of group atoms is 0 at step {int(s.step[c])} "
+                    f"fixes.{f.fix_id}: the temperature of group '{f.group_name}' is 0 at step {int(s.step[c])} "
                     f"(LAMMPS: computed temperature for fix {f.style} cannot be 0.0): give them velocities"))
             if f.style == "temp/berendsen":
                 factor, removed = berendsen_factor(t_now, f.target(s), s.dt, f.damp, f.dof, s.units.boltz)

@@ -39,6 +39,7 @@ class EnsembleFixSpec:
     zero: bool = False
     tally: bool = False
     seed: tuple[int, ...] = ()  # langevin: random stream key (master seed, sweep coordinates, fix seed)
+    group_name: str = "all"  # the group's name in the config (messages)
 
     @property
     def integrates(self) -> bool:
@@ -79,7 +80,7 @@ def build_fixes(cfg: Any, mask: Callable[[str], np.ndarray],
             elif isinstance(f, RescaleFix):
                 kw = {"t_start": f.temp[0], "t_stop": f.temp[1], "every": f.every, "window": f.window,
                       "fraction": f.fraction}
-            out.append(EnsembleFixSpec(fid, f.style, group, **kw))
+            out.append(EnsembleFixSpec(fid, f.style, group, group_name=f.group, **kw))
     if getattr(cfg, "dimension", 3) == 2 and not any(s.style == "enforce2d" for s in out):
         out.append(EnsembleFixSpec("__enforce2d__", "enforce2d", mask("all")))
     return tuple(out)
