@@ -367,3 +367,34 @@ def test_parts_of_an_earlier_format_refuse_too_and_resume_recomputes_them(tmp_pa
     assert f"resuming: 0 of {len(plan.cases)} case(s) reused from {parts_dir(out)}; 1 part(s) written by an older " \
            "wallbatch: recomputed" in notes
     assert out.exists() and not parts_dir(out).exists()
+
+
+def test_edited_atoms_file_recomputes_its_cases(tmp_path):
+    """A case's identity includes the content of the files it reads: an atoms file edited between
+    an interrupt and --resume makes every case that reads it run again (the parts of the old file
+    were reused, mixing two different inputs in one results file)."""
+    rng = np.random.default_rng(5)
+    x = np.column_stack([rng.uniform(0, 6, 30), rng.uniform(0, 6, 30), rng.uniform(2, 7, 30)])
+    np.savez(tmp_path / "atoms.npz", x=x, v=np.zeros_like(x))
+    scene = SCENE.replace("create: {random: {count: 40, overlap: 0.8, region: slab}}",
+                          "create: {file: atoms.npz}").replace("    velocity: {temperature: 1.0}\n", "")
+    assert "atoms.npz" in scene and "velocity" not in scene
+    (tmp_path / "scene.yaml").write_text(scene)
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text("base: scene.yaml\nsweep:\n  product:\n    eps: {path: walls.zwalls.zlo.epsilon, "
+                     "values: [0.5, 1.0]}\n")
+    out, saved = tmp_path / "out.nc", tmp_path / "saved.parts"
+    run_plan(load_plan(sweep), out, jobs=1, progress=False,
+             on_result=lambda i, r: shutil.copytree(parts_dir(out), saved, dirs_exist_ok=True))
+    restore(saved, out)  # as if interrupted after both cases were saved
+    np.savez(tmp_path / "atoms.npz", x=x, v=np.full_like(x, 0.5))  # the atoms file is edited
+    plan = load_plan(sweep)
+    computed, ds = resume_counting(plan, out)
+    assert computed == [0, 1]
+    fresh = run_plan(plan, progress=False)
+    assert_same_results(open_nc(out), fresh)
+    assert float(fresh["ke"].isel(eps=0, sample=0)) == pytest.approx(30 * 0.5 * 3 * 0.25)
+    # unchanged files: every part is reused
+    restore(saved, out)
+    np.savez(tmp_path / "atoms.npz", x=x, v=np.zeros_like(x))
+    assert resume_counting(load_plan(sweep), out)[0] == []

@@ -527,9 +527,44 @@ def stop_on_signals() -> Iterator[None]:
 # ----------------------------------------------------------------------------- resume
 
 
-def case_key(sc: SweepCase) -> str:
-    """Identity of a case for resuming: its full validated config and random stream."""
-    blob = json.dumps([config_to_dict(sc.config), sc.seed_key, __version__], sort_keys=True, default=str)
+def _input_files(data: Any, base_dir: Path, memo: dict[tuple, str]) -> dict[str, str]:
+    """The files a case reads (every `file:` of its config: atoms files, wall/table files) as
+    their resolved path -> a hash of their content ('missing' if they cannot be read). `memo`
+    keeps one hash per (path, size, modification time), so a sweep hashes each file once."""
+    found: dict[str, str] = {}
+    stack = [data]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, dict):
+            for k, v in node.items():
+                if k == "file" and isinstance(v, str):
+                    path = Path(v) if Path(v).is_absolute() else base_dir / v
+                    try:
+                        st = path.stat()
+                        key = (str(path.resolve()), st.st_size, st.st_mtime_ns, st.st_ino)
+                        if key not in memo:
+                            h = hashlib.sha256()
+                            with open(path, "rb") as fh:
+                                for block in iter(lambda: fh.read(1 << 20), b""):
+                                    h.update(block)
+                            memo[key] = h.hexdigest()
+                        found[key[0]] = memo[key]
+                    except OSError:
+                        found[str(path)] = "missing"
+                else:
+                    stack.append(v)
+        elif isinstance(node, list):
+            stack.extend(node)
+    return found
+
+
+def case_key(sc: SweepCase, memo: dict[tuple, str] | None = None) -> str:
+    """Identity of a case for resuming: its full validated config, random stream and the content
+    of the files it reads (an atoms or table file edited between an interrupt and `--resume`
+    makes its cases differ). `memo` (see `_input_files`) shares file hashes between cases."""
+    data = config_to_dict(sc.config)
+    files = _input_files(data, Path(getattr(sc.config, "_base_dir", Path("."))), {} if memo is None else memo)
+    blob = json.dumps([data, sc.seed_key, __version__] + ([files] if files else []), sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()[:24]
 
 
@@ -844,7 +879,8 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
     try:
         with stop_on_signals():
             check_memory(plan, jobs if executor == "local" else 1)
-            keys = [case_key(sc) for sc in plan.cases] if parts is not None else []
+            memo: dict[tuple, str] = {}
+            keys = [case_key(sc, memo) for sc in plan.cases] if parts is not None else []
             if parts is not None and resume:
                 bad: dict[str, int] = {}
                 for i in range(total):
