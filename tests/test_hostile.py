@@ -191,6 +191,28 @@ def test_sweep_structure_errors_have_sweep_file_locations(tmp_path, body, where,
     assert msg.startswith(f"{p}{where}") and words in msg, msg
 
 
+@pytest.mark.parametrize("name, where, words", [
+    ('"a/b"', ":4:12: sweep.product.a/b:", "'a/b' is not a NetCDF name"),
+    ('""', ":4:9: sweep.product.:", "'' is empty"),
+    ("wall_force_mean", ":4:22: sweep.product.wall_force_mean:", "'wall_force_mean' would clash with a variable"),
+    ("temp_sem", ":4:15: sweep.product.temp_sem:", "'temp_sem' would clash with a variable"),
+    ("window", ":4:13: sweep.product.window:", "'window' would clash with a variable"),
+    ("wall_pressure_mean", ":4:25: sweep.product.wall_pressure_mean:", "would clash with a variable"),
+])
+def test_sweep_names_the_results_file_cannot_hold_are_refused_at_their_line(tmp_path, name, where, words):
+    """Refused before anything runs: such a name failed writing the file after every case had run
+    ('a/b', ''), crashed ('window') or silently replaced a time mean (`wall_force_mean`)."""
+    p = sweep_file(tmp_path, f"sweep:\n  product:\n    {name}: {{path: run.steps, values: [10, 20]}}\n")
+    (msg,) = config_error(p)
+    assert msg.startswith(f"{p}{where} ") and words in msg and msg.endswith(": choose another name"), msg
+    p = sweep_file(tmp_path, "sweep:\n  zip:\n    dim: g\n    params:\n"
+                             "      temp_mean: {path: run.steps, values: [10, 20]}\n")
+    (msg,) = config_error(p)
+    assert msg.startswith(f"{p}:6:18: sweep.zip.params.temp_mean: 'temp_mean' would clash"), msg
+    ok = sweep_file(tmp_path, "sweep:\n  product:\n    gap_mean: {path: run.steps, values: [10, 20]}\n")
+    assert [d.name for d in load_plan(ok).dims] == ["gap_mean"]
+
+
 def test_set_errors_name_the_argument(scene):
     assert config_error(scene, ["epsilon=2"]) == [
         "--set epsilon=2: epsilon: unknown key (misspelled? see shared/spec/config.md for the valid keys)"] or \

@@ -301,7 +301,35 @@ def _dims(sweep: Sweep, order: list[str], smap: SourceMap) -> list[SweepDim]:
             d.name in clash for d in dims) else ("sweep", "zip")
         raise ConfigError([smap.format(where, f"{', '.join(clash)} would clash with names of the results file "
                                               f"({', '.join(sorted(RESERVED))}): choose another name")])
+    for d in dims:  # names the file derives from the outputs, and names NetCDF cannot store
+        for name, loc in [(d.name, ("sweep", "zip", "dim") if d.extra else _dim_where(smap, d.name))] + \
+                [(k, ("sweep", "zip", "params", k)) for k in d.extra]:
+            why = _name_problem(name)
+            if why:
+                raise ConfigError([smap.format(loc, f"{name!r} {why}: choose another name")])
     return dims
+
+
+DERIVED_SUFFIXES = ("_mean", "_sem", "_sem_converged")  # time means of the outputs (io/averages.py)
+DERIVED = frozenset({"window", "window_step", "wall_pressure", "min_iterations", "min_evaluations",
+                     "min_stop_reason", "min_energy_before", "min_energy", "min_fnorm"})
+
+
+def _name_problem(name: str) -> str | None:
+    """Why a sweep dimension or zip parameter cannot have this name in the results file (None: it can)."""
+    if not name or not name.strip():
+        return "is empty"
+    if "/" in name or any(ord(ch) < 32 or ord(ch) == 127 for ch in name) or name != name.rstrip() or \
+            not (name[0].isalnum() or name[0] == "_" or ord(name[0]) > 127):
+        return ("is not a NetCDF name (no '/', no control characters, no trailing blank, "
+                "starting with a letter, a digit or '_')")
+    base = next((name[:-len(s)] for s in DERIVED_SUFFIXES if name.endswith(s)), None)
+    if name in DERIVED or name.startswith("profile_") or name.endswith("_bin") or \
+            (base is not None and (base in RESERVED or base in DERIVED)):
+        return ("would clash with a variable the results file derives from its outputs (time means "
+                "NAME_mean, NAME_sem, NAME_sem_converged, wall_pressure_*, profile_*, window, window_step, "
+                "*_bin, min_*)")
+    return None
 
 
 class OverlayMap(SourceMap):
