@@ -184,6 +184,8 @@ def test_a_sweep_path_into_a_face_written_as_a_list_names_its_keys(tmp_path):
      "    b: {path: run.thermo, values: {linspace: [1, 2, 1000]}}\n", ":3:3: sweep:",
      "1,000,000 cases: more than the limit of 100,000"),
     ("sweep:\n  replicas: 1000000000\n", ":3:3: sweep:", "1,000,000,000 cases: more than the limit of 100,000"),
+    ("sweep:\n  product:\n    e: {path: run.steps, values: {logspace: [0, 400, 3]}}\n",
+     ":4:45: sweep.product.e.values.logspace:", "10^400 is not a usable number; give exponents between -307 and 307"),
 ])
 def test_sweep_structure_errors_have_sweep_file_locations(tmp_path, body, where, words):
     p = sweep_file(tmp_path, body)

@@ -38,6 +38,14 @@ class Linspace(_SweepModel):
 class Logspace(_SweepModel):
     logspace: tuple[float, float, PositiveInt]
 
+    @field_validator("logspace")
+    @classmethod
+    def _exponents(cls, v: tuple[float, float, int]) -> tuple[float, float, int]:
+        if max(abs(v[0]), abs(v[1])) > 307:  # 10**308 overflows (numpy warned), 10**-324 is 0
+            raise ValueError(f"logspace [a, b, n] takes base-10 exponents: 10^{v[0] if abs(v[0]) > 307 else v[1]:g} "
+                             f"is not a usable number; give exponents between -307 and 307")
+        return v
+
 
 class Range(_SweepModel):
     range: tuple[float, float, float]
