@@ -262,6 +262,29 @@ def test_union_tags_stay_out_of_a_file_value_s_location(tmp_path):
     assert [p.split(": ")[1] for p in problems] == ["regions.slab.hi"] * 2 + ["run.thermo"] * 2, problems
 
 
+def test_a_new_fix_line_replaces_the_wall_it_overrides(tmp_path):
+    """`--set walls.ID.fix=LINE` (and a sweep over it) on a wall written as a fix line replaces the
+    wall: its style, faces and numbers are the new line's, the keys written beside the old line
+    stay (energy). They used to merge: the old style kept, the new face added beside the old one.
+    A line that cannot be read is named at the --set argument, not at the file's wall."""
+    root = Path(__file__).resolve().parents[1]
+    piston = root / "configs" / "lj126-piston.yaml"
+    new = "fix piston all wall/lj93 zlo EDGE 2.0 1.3 2.5 units box"
+    wall = load_plan(piston, [f"walls.piston.fix={new}"]).cases[0].config.walls["piston"]
+    assert wall.style == "lj93" and wall.energy is True
+    assert [(face, spec.epsilon, spec.sigma, spec.cutoff) for face, spec in wall.faces()] == [("zlo", 2.0, 1.3, 2.5)]
+    p = tmp_path / "lines.yaml"
+    p.write_text(f"base: {piston}\nsweep:\n  product:\n    line:\n      path: walls.piston.fix\n      values:\n"
+                 f"        - fix piston all wall/lj126 zhi v_piston 2.0 1.3 1.122462 units box\n        - {new}\n")
+    walls = [c.config.walls["piston"] for c in load_plan(p).cases]
+    assert [(w.style, [f for f, _ in w.faces()], w.energy) for w in walls] == [("lj126", ["zhi"], True),
+                                                                               ("lj93", ["zlo"], True)]
+    assert [s.epsilon for _, s in walls[0].faces()] == [2.0]
+    (msg,) = config_error(piston, ["walls.piston.fix=garbage"])
+    assert msg.startswith("--set walls.piston.fix=garbage: walls.piston.fix: word 1 'garbage': a wall line must "
+                          "start with 'fix'"), msg
+
+
 def test_set_on_a_swept_path_is_refused(tmp_path):
     p = sweep_file(tmp_path, """\
         sweep:

@@ -729,8 +729,8 @@ def _expand_fix_lines(data: Any, srcmap: SourceMap) -> Any:
                 w = parse_fix_line(w, str(fid))
             elif isinstance(w, dict) and "fix" in w:
                 w = {**parse_fix_line(str(w["fix"]), str(fid)), **{k: v for k, v in w.items() if k != "fix"}}
-        except FixLineError as exc:
-            problems.append(srcmap.format(("walls", fid), str(exc)))
+        except FixLineError as exc:  # (at the `fix:` key when there is one: a --set of it is named there)
+            problems.append(srcmap.format(("walls", fid) + (("fix",) if isinstance(w, dict) else ()), str(exc)))
         walls[str(fid)] = w  # a LAMMPS fix-ID may be a number (`1:`): IDs are strings
     if problems:
         raise ConfigError(problems)

@@ -12,6 +12,7 @@ import copy
 import hashlib
 import itertools
 import json
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Union
@@ -233,6 +234,25 @@ def set_path(data: dict, path: str, value: Any) -> None:
         raise ConfigError([f"sweep path {path}: {'.'.join(parts[:-1])} is a value, not a mapping or list"])
 
 
+_FIX_LINE_PATH = re.compile(r"walls\.([^.]+)\.fix")
+
+
+def set_value(data: dict, path: str, value: Any, raw: Any) -> None:
+    """`set_path` on a case's validated data, but a wall's fix line (`walls.ID.fix`) replaces the
+    wall: the keys the file (`raw`, as read) wrote beside the old line stay (`energy: true`),
+    every key the old line set goes (else the new line's style, faces and keywords would merge
+    with the old line's: a new face beside the old ones, the old style kept)."""
+    m = _FIX_LINE_PATH.fullmatch(path)
+    walls = data.get("walls") if isinstance(data, dict) else None
+    if m and isinstance(walls, dict) and m.group(1) in walls:
+        old = raw.get("walls", {}).get(m.group(1)) if isinstance(raw, dict) and isinstance(raw.get("walls"), dict) \
+            else None
+        beside = {k: v for k, v in old.items() if k != "fix"} if isinstance(old, dict) and "fix" in old else {}
+        walls[m.group(1)] = {**copy.deepcopy(beside), "fix": value}
+        return
+    set_path(data, path, value)
+
+
 def _seed_key(coords: dict[str, Any]) -> tuple[int, ...]:
     """Random streams per case from its coordinates (never its place in a batch)."""
     digest = hashlib.sha256(json.dumps(coords, sort_keys=True, default=str).encode()).digest()
@@ -418,7 +438,7 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
         base_data = config_to_dict(base)
         for key, value in overrides.items():
             try:
-                set_path(base_data, key, value)
+                set_value(base_data, key, value, data)
             except ConfigError as exc:
                 raise ConfigError([f"{origins[key]}: {p.removeprefix(f'sweep path {key}: ')}"
                                    for p in exc.problems]) from None
@@ -461,7 +481,7 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
                         raise ConfigError([f"{origins[key]}: {key} is also swept by {'.'.join(map(str, loc))} "
                                            f"({where}): drop one of the two"])
                 try:
-                    set_path(copy.deepcopy(base_data), p, vals[0])
+                    set_value(copy.deepcopy(base_data), p, vals[0], data)
                 except ConfigError as exc:
                     raise ConfigError([f"{path_where}: {'.'.join(map(str, loc))}: {q}" for q in exc.problems]) \
                         from None
@@ -483,7 +503,7 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
             # (each path was set above on the base; swept paths are disjoint, so none fails here)
             for _, (vals, paths) in _entries(d):
                 for p in paths:
-                    set_path(case_data, p, vals[i])
+                    set_value(case_data, p, vals[i], data)
         label = ", ".join(f"{k}={v}" for k, v in coords.items())
         try:
             cfg = validate_data(case_data, case_map, base_dir)
