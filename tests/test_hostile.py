@@ -285,6 +285,40 @@ def test_a_new_fix_line_replaces_the_wall_it_overrides(tmp_path):
                           "start with 'fix'"), msg
 
 
+def test_a_value_twice_on_a_product_dimension_is_refused_at_its_line(tmp_path):
+    """Two equal values of a dimension (1 and 1.0 too) would be two cases with one coordinate and
+    one random stream, the same results twice and an ambiguous selection: refused at the values
+    (or the shorthand entry). Repeated parameters along a zip are distinct cases (the zip's
+    coordinate is the position) and stay allowed."""
+    p = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            eps: {path: walls.zwalls.zlo.epsilon, values: [1.0, 2.0, 1]}
+        """)
+    (msg,) = config_error(p)
+    assert msg == (f"{p}:4:51: sweep.product.eps.values: dimension eps: values 1 and 3 are the same (1): the two "
+                   f"cases would be one case (one coordinate, one random stream); remove one, or use "
+                   f"sweep.replicas for independent repeats"), msg
+    p = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            walls.zwalls.zlo.epsilon: [2.0, 2.0]
+        """)
+    (msg,) = config_error(p)
+    assert msg.startswith(f"{p}:4:") and "sweep.product.walls.zwalls.zlo.epsilon: dimension epsilon: values 1 and 2" \
+        in msg, msg
+    p = sweep_file(tmp_path, """\
+        sweep:
+          zip:
+            dim: g
+            params:
+              a: {path: walls.zwalls.zlo.epsilon, values: [1.0, 1.0]}
+              b: {path: walls.zwalls.zlo.sigma, values: [1.0, 1.0]}
+        """)
+    plan = load_plan(p)
+    assert [c.coords for c in plan.cases] == [{"g": 0}, {"g": 1}] and plan.cases[0].seed_key != plan.cases[1].seed_key
+
+
 def test_set_on_a_swept_path_is_refused(tmp_path):
     p = sweep_file(tmp_path, """\
         sweep:
@@ -765,3 +799,19 @@ def test_an_unknown_or_missing_style_is_named_at_its_key(tmp_path):
     (msg,) = config_error(p)
     assert msg == (f"{p}:3:12: walls.w: no style: give style: (see docs/reference/config.md) or fix: "
                    f"'fix ID group wall/STYLE ...' (a LAMMPS fix line)")
+
+
+def test_output_written_as_a_folder_and_an_interrupt_with_nothing_saved(scene, tmp_path):
+    """`-o out/` (a folder, by its slash) is refused before anything runs: a file named `out` was
+    written. An interrupt before any case finished says there is nothing to resume (it pointed
+    at a parts folder that does not exist)."""
+    res = run("run", scene, "-o", f"{tmp_path}/out/")
+    assert res.exit_code == 2 and not (tmp_path / "out").exists()
+    assert f"-o {tmp_path}/out/: the results are one file, not a folder: give its name, e.g. {tmp_path}/out/scene.nc" \
+        in res.output, res.output
+    from wallbatch.batch.runner import Interrupted
+
+    assert str(Interrupted(0, 50, tmp_path / "k.nc.parts")) == \
+        "interrupted: 0/50 cases finished: nothing to resume, rerun to start again"
+    assert str(Interrupted(3, 50, tmp_path / "k.nc.parts")) == \
+        f"interrupted: 3/50 cases saved in {tmp_path / 'k.nc.parts'}; rerun with --resume"

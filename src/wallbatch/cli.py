@@ -174,8 +174,8 @@ def _failures(ds) -> list[str]:
 
 @app.command()
 def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
-        output: Path = typer.Option(None, "-o", "--output",
-                                    help="results file (default: CONFIG's name with .nc, in the current directory)"),
+        output: str = typer.Option(None, "-o", "--output",
+                                   help="results file (default: CONFIG's name with .nc, in the current directory)"),
         set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)"),
         jobs: int = typer.Option(os.cpu_count() or 1, "--jobs", "-j",
                                  help="local worker processes (at most the cores and the tasks)"),
@@ -199,11 +199,14 @@ def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
         raise _fail(f"--jobs {jobs}: give at least 1")
     if resume and fresh:
         raise _fail("--resume and --fresh contradict each other: give one")
+    if output is not None and output.endswith(("/", os.sep)):  # (a Path drops the slash: a file would be written)
+        raise _fail(f"-o {output}: the results are one file, not a folder: give its name, e.g. "
+                    f"{Path(output) / (config.stem + '.nc')}")
     plan = _plan(config, set_)  # a bad config fails here, before the runner and the engine are imported
     from wallbatch.batch.runner import Interrupted, RunError, run_plan
 
     _start_up_done()
-    out = output or Path(config.stem + ".nc")
+    out = Path(output) if output else Path(config.stem + ".nc")
     if verbose:
         from wallbatch.engine import backend
 

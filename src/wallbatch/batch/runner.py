@@ -69,7 +69,12 @@ class Interrupted(Exception):
 
     def __init__(self, saved: int, total: int, parts: Path | None):
         self.saved, self.total, self.parts = saved, total, parts
-        where = f"saved in {parts}; rerun with --resume" if parts is not None else "finished (no output file)"
+        if parts is None:
+            where = "finished (no output file)"
+        elif saved == 0:  # (no part was written: there is no folder to point at)
+            where = "finished: nothing to resume, rerun to start again"
+        else:
+            where = f"saved in {parts}; rerun with --resume"
         super().__init__(f"interrupted: {saved}/{total} cases {where}")
 
 

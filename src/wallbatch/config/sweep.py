@@ -259,6 +259,16 @@ def _seed_key(coords: dict[str, Any]) -> tuple[int, ...]:
     return tuple(int.from_bytes(digest[i:i + 4], "little") for i in range(0, 16, 4))
 
 
+def _same(value: Any) -> Any:
+    """A hashable form of a sweep value that is equal for equal values (1 and 1.0 too, as the
+    results coordinate holds them)."""
+    if isinstance(value, (list, tuple)):
+        return tuple(_same(v) for v in value)
+    if isinstance(value, dict):
+        return tuple(sorted((str(k), _same(v)) for k, v in value.items()))
+    return value
+
+
 def _dim_where(smap: SourceMap, name: str, zip_param: str | None = None) -> tuple:
     """The sweep-file location of a dimension (or zip parameter) entry, as a SourceMap loc."""
     if zip_param is not None:
@@ -316,6 +326,20 @@ def _dims(sweep: Sweep, order: list[str], smap: SourceMap) -> list[SweepDim]:
             n = next(iter(lens.values()))
             paths = tuple(p for _, ps in extra.values() for p in ps)
             dims.append(SweepDim(sweep.zip.dim, list(range(n)), paths, extra))
+    for d in dims:  # a value twice on a product dimension: two cases with one coordinate and one random stream
+        if d.extra:
+            continue  # (a zip's coordinate is the position along it: repeated parameters are distinct cases)
+        seen: dict[Any, int] = {}
+        for i, v in enumerate(d.values):
+            if _same(v) in seen:
+                key = next((k for k, e in sweep.product.items() if (k if isinstance(e, Param) else k.split(".")[-1])
+                            == d.name), d.name)
+                at = ("sweep", "product", key) + (("values",) if isinstance(sweep.product.get(key), Param) else ())
+                raise ConfigError([smap.format(at, f"dimension {d.name}: values {seen[_same(v)] + 1} and {i + 1} are "
+                                                   f"the same ({v}): the two cases would be one case (one coordinate, "
+                                                   f"one random stream); remove one, or use sweep.replicas for "
+                                                   f"independent repeats")])
+            seen[_same(v)] = i
     if sweep.replicas:
         dims.append(SweepDim("replica", list(range(sweep.replicas)), ("seed",)))
     names = [d.name for d in dims] + [k for d in dims for k in d.extra]
