@@ -99,3 +99,16 @@ def test_cli_prints_orders_and_the_choice(tmp_path):
     assert xr.open_dataset(out).sizes["dt"] == 4
     bad = CliRunner().invoke(app, ["convergence", str(HARMONIC), "--dt", "0.01,x"])
     assert bad.exit_code == 2 and "--dt 0.01,x" in bad.output
+
+
+def test_the_dataset_keeps_the_config_the_time_and_the_ladder_units(harmonic, tmp_path):
+    """The file has the provenance of every results file (the config as YAML text, `created`) and
+    its `dt` coordinate its units, as every variable of a results file."""
+    harmonic.dataset.to_netcdf(tmp_path / "c.nc")
+    ds = xr.open_dataset(tmp_path / "c.nc")
+    assert "name: harmonic" in ds.attrs["config"]
+    assert ds.attrs["created"]
+    assert ds["dt"].attrs["units"] == "1"  # lj
+    real = convergence(HARMONIC, sets=["units=real", "timestep=1.0", "run.steps=40", "run.thermo=10"],
+                       dts=[2.0, 1.0, 0.5])
+    assert real.dataset["dt"].attrs["units"] == "fs"

@@ -209,6 +209,13 @@ def convergence(config: Any, *, case: str | None = None, dts: Sequence[float] | 
     names = list(points[0].errors)
     orders = {n: _order([p.h for p in points[:-1]], [p.errors[n] for p in points[:-1]]) for n in names}
     dataset = _combine(runs, dim, values)
+    u = UNIT_SYSTEMS[cfg.units]
+    dataset[dim].attrs["units"] = u.time if dim == "dt" else (u.distance if cfg.dt_reset.units == "box" else "lattice")
+    # the provenance every results file carries (outputs.md): the run's config and sweep as YAML
+    # text, the case compared and when; concat drops what differs between runs ("created")
+    dataset.attrs.update(config=plan.base_text, sweep=plan.sweep_text, created=runs[-1].attrs.get("created", ""))
+    if case is not None:
+        dataset.attrs["convergence_case"] = str(case)
     return ConvergenceReport(dim, points, orders, dataset)
 
 
