@@ -201,14 +201,17 @@ def test_time_series_time_axis(tmp_path):
 @pytest.mark.slow
 def test_summary_plot_against_sweep_dim(sweep_ds, tmp_path):
     ax = _plot(sweep_ds, "pe", tmp_path, x="epsilon", hue="sigma", sel={"replica": "0"}).axes[0]
-    lines = ax.get_lines()
+    lines = [ln for ln in ax.get_lines() if ln.get_marker() == "o"]  # the others: error-bar caps
     assert len(lines) == 2
-    mean = sweep_ds["pe"].sel(replica=0).mean("sample")
+    mean = sweep_ds["pe_mean"].sel(replica=0)  # no averages.start here: the mean of every sample
+    np.testing.assert_allclose(mean, sweep_ds["pe"].sel(replica=0).mean("sample"))
     np.testing.assert_allclose(lines[0].get_xdata(), [0.5, 1.0, 2.0])
     np.testing.assert_allclose(lines[1].get_ydata(), mean.isel(sigma=1).values)
     fig = ax.figure
     assert ax.get_xlabel() == "epsilon" and "time mean of potential energy" in fig._suptitle.get_text()
-    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["sigma=0.8", "sigma=1.2"]
+    texts = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert [t for t in texts if t.startswith("sigma")] == ["sigma=0.8", "sigma=1.2"]
+    assert "+-1 s.e. (pe_sem)" in texts  # nothing averaged: the error bars are pe_sem
     ax = _plot(sweep_ds, "seconds", tmp_path, x="sigma").axes[0]  # no sample dim: plotted as is
     # colour epsilon, replicas averaged: one error-bar series (mean +- s.e. over the 2 replicas) per epsilon
     assert len(ax.containers) == 3 and ax.get_ylabel() == "seconds [s]"
@@ -294,3 +297,19 @@ def test_config_json_schema():
     assert {"product", "zip", "replicas"} <= set(sweep["properties"])
     refs = set(re.findall(r'"#/\$defs/([^"]+)"', json.dumps(schema)))
     assert refs <= set(schema["$defs"]), refs - set(schema["$defs"])
+
+
+def test_plot_against_a_sweep_dim_is_the_time_mean_of_the_file(tmp_path):
+    """`plot VAR --x DIM` draws `VAR_mean` (from `output.averages` on, what `show` prints) with
+    `VAR_sem` as error bars: it drew the mean over every sample, equilibration included."""
+    ds = synthetic(failed=())
+    ds["temp"][...] = np.where(ds["step"] < 10, 5.0, 1.0)  # an equilibration spike before step 10
+    ds["temp_mean"] = ds["temp"].where(ds["step"] >= 10).mean("sample")
+    ds["temp_sem"] = xr.full_like(ds["temp_mean"], 0.25)
+    ds["temp_mean"].attrs["comment"] = "samples at or after step 10"
+    fig = _plot(ds, "temp", tmp_path, x="a", sel={"b": "0"})
+    ax = fig.axes[0]
+    line = next(ln for ln in ax.get_lines() if ln.get_marker() == "o")
+    np.testing.assert_allclose(line.get_ydata(), 1.0)
+    assert "(samples at or after step 10)" in fig._suptitle.get_text().replace("\n", " ")
+    assert ax.containers and np.isclose(np.ptp(ax.containers[0][2][0].get_segments()[0][:, 1]), 0.5)

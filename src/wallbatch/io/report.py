@@ -393,7 +393,8 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
 
     `sel` (strings, as from `--sel epsilon=1.0`) picks cases/entries first, by exact value (see
     `select`). Then `x` None, 'sample', 'step' or 'time' draws a time series; `x` a sweep dimension
-    draws the time mean over the samples against it (or, with `kind='heatmap'` or 'auto' and a
+    draws the time mean against it (`<var>_mean` of the file, from `output.averages` on, with
+    `<var>_sem`; the mean of the samples when a selection left fewer) (or, with `kind='heatmap'` or 'auto' and a
     `hue` sweep dim of many values, a heat map over (`x`, `hue`)). Lines:
 
     - one panel per wall face (or fix / region-force component) when there are several;
@@ -473,7 +474,18 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
         marker = ""
     else:
         along, what = x, (f"time mean of {long_name}" if "sample" in da.dims else long_name)
-        if "sample" in da.dims:
+        mean_name, sem_of_mean = f"{var}_mean", f"{var}_sem"
+        if ("sample" in da.dims and sub.sizes["sample"] == ds.sizes["sample"] and mean_name in sub.data_vars
+                and sem_of_mean in sub.data_vars):
+            # the time mean the file holds (samples from output.averages on, as `show` prints it)
+            # with its block-averaged standard error, not a mean over every sample
+            da = sub[mean_name].where(ok) if "status" in sub else sub[mean_name]
+            sem = sub[sem_of_mean].where(ok) if "status" in sub else sub[sem_of_mean]
+            sem_name = sem_of_mean
+            since = str(sub[mean_name].attrs.get("comment", "")).split(";")[0]
+            what += f" ({since})" if since else ""
+            da.attrs = sub[var].attrs
+        elif "sample" in da.dims:
             n = da.count("sample")
             if sem is not None and "sample" in sem.dims:  # s.e. of a mean of independent block means
                 sem = np.sqrt((sem ** 2).sum("sample", skipna=True)) / n.where(n > 0)
