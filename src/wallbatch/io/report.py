@@ -394,8 +394,8 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
     `sel` (strings, as from `--sel epsilon=1.0`) picks cases/entries first, by exact value (see
     `select`). Then `x` None, 'sample', 'step' or 'time' draws a time series; `x` a sweep dimension
     draws the time mean against it (`<var>_mean` of the file, from `output.averages` on, with
-    `<var>_sem`; the mean of the samples when a selection left fewer) (or, with `kind='heatmap'` or 'auto' and a
-    `hue` sweep dim of many values, a heat map over (`x`, `hue`)). Lines:
+    `<var>_sem`; the mean of the samples when a selection left fewer) (or, with `kind='heatmap'` or
+    'auto' and a `hue` sweep dim of many values, a heat map over (`x`, `hue`)). Lines:
 
     - one panel per wall face (or fix / region-force component) when there are several;
     - colour: `hue` (default: the first sweep dimension left), with a legend (a colour bar when
