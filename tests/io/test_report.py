@@ -264,8 +264,8 @@ def test_auto_heatmap_for_many_hue_values(tmp_path):
     (dict(var="pe", kind="pie"), r"kind='pie': choose one of auto, line, heatmap"),
     (dict(var="pe", kind="heatmap"), r"heatmap' needs x and hue to be two sweep dimensions"),
     (dict(var="pe", x="epsilon", kind="heatmap"), r"needs hue to be a second sweep dimension"),
-    (dict(var="wall_force", x="epsilon", hue="sigma", kind="heatmap"), r"more dimensions left: face; pick one value of each with --sel DIM=VALUE "
-                                                                         r"\(sel= in Python\)"),
+    (dict(var="wall_force", x="epsilon", hue="sigma", kind="heatmap"),
+     r"more dimensions left: face; pick one value of each with --sel DIM=VALUE \(sel= in Python\)"),
     (dict(var="pe", x="epsilon", sel={"epsilon": "1"}), r"x=epsilon: epsilon was selected away"),
 ])
 def test_plot_errors(sweep_ds, tmp_path, kwargs, match):

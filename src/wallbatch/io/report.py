@@ -508,7 +508,8 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
         extra = [d for d in mean.dims if d not in (x, hue) and mean.sizes[d] > 1]
         if extra:
             raise ValueError(f"a heat map of {var} over ({x}, {hue}) has more dimensions left: "
-                             f"{', '.join(map(str, extra))}; pick one value of each with --sel DIM=VALUE (sel= in Python)")
+                             f"{', '.join(map(str, extra))}; pick one value of each with --sel DIM=VALUE "
+                             f"(sel= in Python)")
         mean = mean.squeeze([d for d in mean.dims if d not in (x, hue)], drop=True)
         ax = fig.add_subplot()
         _heatmap(ax, fig, sub, mean.transpose(hue, x), x, hue, _axis_label(sub, var))
