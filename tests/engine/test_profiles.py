@@ -305,6 +305,50 @@ def test_wall_pressure_reflect_is_nkt_over_v():
                                rtol=1e-12)
 
 
+@pytest.mark.parametrize("thermo,start", [(0, 0), (20, 0), (20, 200)])
+def test_interval_output_means_skip_the_first_sample(thermo, start):
+    """reflect_count / reflect_impulse hold the interval since the previous sample: the first
+    sample (step 0, a 0 that is no interval) is not averaged in, so reflect_count_mean is the mean
+    count per interval and reflect_impulse_mean agrees with wall_pressure_mean (the same
+    intervals: those starting at or after averages.start). With thermo 0 (one interval) the mean
+    was half the count; it is now NaN, as every mean of a single sample."""
+    walls = {"m": {"style": "reflect", "units": "box", "zlo": "EDGE", "zhi": "EDGE"}}
+    cfg = ideal_gas(200, 1000, walls, None, thermo=thermo, start=start)
+    cfg["output"]["thermo"] = ["step", "time", "temp", "reflect_count", "reflect_impulse"]
+    ds = run_config(config_from_dict(cfg))
+    assert ds.status.item() == "ok"
+    steps = ds["step"].values
+    first = int(np.nonzero(steps >= start)[0][0])  # the intervals ending after it start at or after `start`
+    counts = ds["reflect_count"].isel(sample=slice(first + 1, None))
+    assert counts.sum() > 0
+    if counts.sizes["sample"] == 1:  # thermo 0: one interval, no error bar (a one-sample mean is NaN)
+        assert np.isnan(ds["reflect_count_mean"].values).all() and np.isnan(ds["reflect_impulse_mean"]).all()
+        return
+    np.testing.assert_allclose(ds["reflect_count_mean"].values, counts.mean("sample").values, rtol=1e-12)
+    imp = ds["reflect_impulse"].isel(sample=slice(first + 1, None))
+    np.testing.assert_allclose(ds["reflect_impulse_mean"].values, imp.mean("sample").values, rtol=1e-12)
+    # equal intervals: the mean impulse per interval over the interval and the area is the pressure
+    interval = float(ds["time"].isel(sample=-1) - ds["time"].isel(sample=-2))
+    np.testing.assert_allclose(ds["reflect_impulse_mean"].values * np.array([-1.0, 1.0]) / interval / 64.0,
+                               ds["wall_pressure_mean"].values, rtol=1e-12)
+    assert ds["reflect_count_mean"].attrs["comment"] == f"sampling intervals that start at or after step {start}"
+
+
+def test_failed_case_with_reflect_impulse_warns_nothing(recwarn):
+    """A failed case's reflect wall pressure is NaN without numpy's 0/0 RuntimeWarning (it was
+    printed with its source line on every run with a failed case)."""
+    walls = {"m": {"style": "reflect", "units": "box", "zhi": "EDGE"},
+             "w": {"style": "harmonic", "units": "box", "zlo": [-1.0, 2.0, 1.0, 4.0]}}
+    cfg = ideal_gas(20, 100, walls, None, sweep={"product": {"lo": {"path": "walls.w.zlo.coord",
+                                                                    "values": [-1.0, 5.0]}}})
+    cfg["output"]["thermo"] = ["step", "time", "temp", "reflect_impulse"]
+    ds = run(cfg)
+    assert list(ds.status.values) == ["ok", "failed"], ds.error.values
+    assert np.isnan(ds["wall_pressure_mean"].isel(lo=1)).all()
+    assert np.isfinite(ds["wall_pressure_mean"].isel(lo=0)).all()
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)], [str(w.message) for w in recwarn]
+
+
 def test_batching_is_bit_identical_and_netcdf_round_trip(tmp_path):
     prof = {"axis": "z", "bins": 10, "every": 5, "repeat": 4, "freq": 20, "quantities": ["density/number", "vx"]}
     cfg = ideal_gas(100, 100, HARMONIC, prof, sweep={"product": {"k": {"path": "walls.w.zlo.epsilon",

@@ -25,6 +25,10 @@ from wallbatch.scene.case import Case
 from wallbatch.stats import block_average
 
 NOT_AVERAGED = {"step", "time", "dt"}
+# counts and sums over the interval since the previous sample: the first sample (step 0) holds no
+# interval (its 0 is no measurement), so their means run over the intervals that start at or
+# after averages.start, as the wall pressure of reflect walls
+INTERVAL = {"reflect_count", "reflect_impulse", "flow_crossings"}
 
 PROFILE_LONG = {
     "density/number": "number density",
@@ -117,10 +121,15 @@ def add_averages(ds: Results, case: Case) -> None:
         axis = ds["step"] if case.run_time is None else ds["time"]
         keep = np.asarray(axis.values, float) >= start - 1e-9 * max(1.0, abs(start))
         idx = np.nonzero(keep)[0]
-        where = f"samples at or after {'step' if case.run_time is None else 'time'} {start:g}"
+        at = f"{'step' if case.run_time is None else 'time'} {start:g}"
+        where = f"samples at or after {at}"
         for name in ds.data_vars:
             v = ds[name]
             if "sample" not in v.dims or name in NOT_AVERAGED or v.data.dtype.kind not in "fiu":
+                continue
+            if name in INTERVAL:
+                _put(ds, name, _stats(_isel(v, "sample", idx[1:]), "sample"), v.attrs.get("units", "1"), name,
+                     f"sampling intervals that start at or after {at}")
                 continue
             _put(ds, name, _stats(_isel(v, "sample", idx), "sample"), v.attrs.get("units", "1"), name, where)
         _wall_pressure(ds, case, keep)
@@ -228,7 +237,8 @@ def _wall_pressure(ds: Results, case: Case, keep: np.ndarray) -> None:
         per_face = dt.data[..., None]  # dt's dims are imp's without face
         rm, rs, rc = _stats(Var(imp.dims, imp.data / per_face * factor), "sample")
         total = _nansum(imp, "sample")
-        rm = Var(total.dims, total.data / _nansum(dt, "sample").data[..., None] * factor)
+        with np.errstate(invalid="ignore", divide="ignore"):  # a failed case: 0 / 0, NaN
+            rm = Var(total.dims, total.data / _nansum(dt, "sample").data[..., None] * factor)
         if mean is None:
             mean, sem, conv = rm, rs, rc
         else:
