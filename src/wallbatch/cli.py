@@ -311,6 +311,10 @@ def plot(results: Path = typer.Argument(..., help="results NetCDF written by wal
         if not eq:
             typer.echo(f"error: --sel {item}: write dim=value", err=True)
             raise typer.Exit(2)
+        if key.strip() in selection:  # the later one silently replaced the earlier one
+            typer.echo(f"error: --sel {item}: {key.strip()} is already selected ({key.strip()}="
+                       f"{selection[key.strip()]}); give one value per dimension", err=True)
+            raise typer.Exit(2)
         selection[key.strip()] = value.strip()
     try:
         path = make_plot(_open(results), var, output, x=x, hue=hue, sel=selection, kind=kind)

@@ -104,6 +104,16 @@ def test_profile_plot_has_error_bars_per_hue(results, tmp_path):
     assert (tmp_path / "c.png").stat().st_size > 1000
 
 
+def test_plot_refuses_a_dimension_selected_twice(results, tmp_path):
+    """`--sel k=5 --sel k=10` drew k=10 alone, the first selection silently dropped."""
+    _, path = results
+    cli = CliRunner().invoke(app, ["plot", path, "temp", "--sel", "k=5", "--sel", "k=10", "-o",
+                                   str(tmp_path / "twice.png")])
+    assert cli.exit_code == 2
+    assert cli.output.strip() == "error: --sel k=10: k is already selected (k=5); give one value per dimension"
+    assert not (tmp_path / "twice.png").exists()
+
+
 def test_sweep_plot_of_mean_has_error_bars(results, tmp_path):
     ds, _ = results
     _, fig = plot(ds, "wall_pressure_mean", tmp_path / "w.png", return_figure=True)  # x: the sweep dim
