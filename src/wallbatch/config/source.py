@@ -78,7 +78,9 @@ class SourceMap:
         path: list = []  # indexes the marks: mapping keys as written (text), list indices
         shown: list = []  # what the user reads: field names, also for positional faces
         node, missing = self.data, False
-        for part in loc:
+        for i, part in enumerate(loc):
+            if isinstance(node, dict) and part in WALL_TAGS and node.get("style") == part and i + 1 < len(loc):
+                continue  # the union tag of this wall (`region` is also a key of a region wall)
             if part == KEY:  # the key written for the path so far (its own mark), not a value inside it
                 path.append(KEY)
                 break
