@@ -1010,3 +1010,42 @@ def test_dump_needs_a_step_based_run():
     assert "output.dump" in str(err) and "step-based run" in str(err)
 
 
+
+
+# --- region walls and regions ---------------------------------------------------------------
+
+REGION = "regions:\n  ball: {style: sphere, center: [5, 5, 6], radius: 4, units: box}\n"
+
+
+@pytest.mark.parametrize("wall, key, needle", [
+    ("{style: region, region: ball, potential: ees, epsilon: 1, sigma: 1, cutoff: 2.5}", "potential", "ees"),
+    ("{style: region, region: ball, potential: lj93, epsilon: x, sigma: 1, cutoff: 2.5}", "epsilon", "x,"),
+])
+def test_region_wall_error_names_its_key_not_the_region(wall, key, needle):
+    # `region` is both the wall's style (pydantic's union tag) and a key of the wall: the error
+    # was reported as walls.w.region.KEY at the region's name
+    text = scene(f"  w: {wall}\n", REGION)
+    err = config_error(text)
+    assert str(err).startswith(where(line_of(text, "  w: "), col_of(text, needle)) + f" walls.w.{key}:")
+
+
+def test_region_wall_missing_key_is_named_at_the_wall():
+    text = scene("  w: {style: region, region: ball, potential: lj93, epsilon: 1, sigma: 1}\n", REGION)
+    err = config_error(text)
+    assert str(err).startswith(where(line_of(text, "  w: "), col_of(text, "{style: region")) + " walls.w.cutoff: Field required")
+
+
+def test_region_wall_unknown_region_still_at_the_region_key():
+    text = scene("  w: {style: region, region: nope, potential: lj93, epsilon: 1, sigma: 1, cutoff: 2.5}\n", REGION)
+    err = config_error(text)
+    assert str(err).startswith(where(line_of(text, "  w: "), col_of(text, "nope")) + " walls.w.region: unknown region 'nope'")
+
+
+def test_block_region_lo_above_hi_is_refused():
+    # LAMMPS: "Illegal region block xlo: 6 >= xhi: 4"; an empty block made a region wall fail every atom
+    text = scene(extra="regions:\n  b: {style: block, lo: [6, 1, 1], hi: [4, 9, 9], units: box}\n")
+    err = config_error(text)
+    assert str(err).startswith(where(line_of(text, "  b: ")) )
+    assert "regions.b: a block region needs lo <= hi on every axis: xlo = 6 > xhi = 4" in str(err)
+    ok = scene(extra="regions:\n  b: {style: block, lo: [4, 1, 1], hi: [4, 9, INF], units: box}\n")
+    load_config_text(ok, FILE)

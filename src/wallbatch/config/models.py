@@ -271,6 +271,11 @@ class Region(Model):
             raise ValueError(f"a {self.style} region needs {', '.join(missing)}")
         if self.style == "block" and not (isinstance(self.lo, tuple) and isinstance(self.hi, tuple)):
             raise ValueError("a block region needs lo and hi as [x, y, z]")
+        if self.style == "block":
+            for axis, lo, hi in zip("xyz", self.lo, self.hi):
+                if lo > hi:  # LAMMPS: Illegal region block xlo > xhi (an empty region)
+                    raise ValueError(f"a block region needs lo <= hi on every axis: {axis}lo = {lo:g} > "
+                                     f"{axis}hi = {hi:g} (LAMMPS: Illegal region block): swap them")
         if self.style == "sphere" and len(self.center) != 3:
             raise ValueError("a sphere region needs center [x, y, z]")
         if self.style == "cylinder" and (
