@@ -1032,13 +1032,15 @@ def test_region_wall_error_names_its_key_not_the_region(wall, key, needle):
 def test_region_wall_missing_key_is_named_at_the_wall():
     text = scene("  w: {style: region, region: ball, potential: lj93, epsilon: 1, sigma: 1}\n", REGION)
     err = config_error(text)
-    assert str(err).startswith(where(line_of(text, "  w: "), col_of(text, "{style: region")) + " walls.w.cutoff: Field required")
+    at = where(line_of(text, "  w: "), col_of(text, "{style: region"))
+    assert str(err).startswith(at + " walls.w.cutoff: Field required")
 
 
 def test_region_wall_unknown_region_still_at_the_region_key():
     text = scene("  w: {style: region, region: nope, potential: lj93, epsilon: 1, sigma: 1, cutoff: 2.5}\n", REGION)
     err = config_error(text)
-    assert str(err).startswith(where(line_of(text, "  w: "), col_of(text, "nope")) + " walls.w.region: unknown region 'nope'")
+    at = where(line_of(text, "  w: "), col_of(text, "nope"))
+    assert str(err).startswith(at + " walls.w.region: unknown region 'nope'")
 
 
 def test_block_region_lo_above_hi_is_refused():
