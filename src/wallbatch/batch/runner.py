@@ -934,9 +934,10 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
                         elif out.layout != layout:
                             if parts is not None and not resume and parts.exists():
                                 shutil.rmtree(parts)  # an invalid sweep: leave nothing to resume
-                            a, b = sorted((i, layout_case))  # (named in plan order, as `check` names them)
-                            raise CaseError(layout_difference(plan.cases[b].label, out.layout if b == i else layout,
-                                                              plan.cases[a].label, layout if b == i else out.layout))
+                            seen = {i: out.layout, layout_case: layout}
+                            a, b = sorted(seen)  # (named in plan order, as `check` names them)
+                            raise CaseError(layout_difference(plan.cases[b].label, seen[b], plan.cases[a].label,
+                                                              seen[a]))
                         built += out.built
                         if out.dump is not None and output is not None:
                             write_dump(dump_path(output, plan.cases[i]), out.dump, res)

@@ -331,15 +331,16 @@ def _dims(sweep: Sweep, order: list[str], smap: SourceMap) -> list[SweepDim]:
             continue  # (a zip's coordinate is the position along it: repeated parameters are distinct cases)
         seen: dict[Any, int] = {}
         for i, v in enumerate(d.values):
-            if _same(v) in seen:
+            same = _same(v)
+            if same in seen:
                 key = next((k for k, e in sweep.product.items() if (k if isinstance(e, Param) else k.split(".")[-1])
                             == d.name), d.name)
                 at = ("sweep", "product", key) + (("values",) if isinstance(sweep.product.get(key), Param) else ())
-                raise ConfigError([smap.format(at, f"dimension {d.name}: values {seen[_same(v)] + 1} and {i + 1} are "
+                raise ConfigError([smap.format(at, f"dimension {d.name}: values {seen[same] + 1} and {i + 1} are "
                                                    f"the same ({v}): the two cases would be one case (one coordinate, "
                                                    f"one random stream); remove one, or use sweep.replicas for "
                                                    f"independent repeats")])
-            seen[_same(v)] = i
+            seen[same] = i
     if sweep.replicas:
         dims.append(SweepDim("replica", list(range(sweep.replicas)), ("seed",)))
     names = [d.name for d in dims] + [k for d in dims for k in d.extra]

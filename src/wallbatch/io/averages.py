@@ -194,8 +194,9 @@ def _pooled(v: Var, n: Var, dim: str) -> tuple[Var, Var, Var]:
     x, w = np.moveaxis(v.data, axis, -1), np.moveaxis(n.data, axis, -1)
     total = w.sum(axis=-1)
     with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.where(total > 0, (w * x).sum(axis=-1) / total, np.nan)
-        z = (w * x - ratio[..., None] * w) / (total[..., None] / w.shape[-1])
+        wx = w * x
+        ratio = np.where(total > 0, wx.sum(axis=-1) / total, np.nan)
+        z = (wx - ratio[..., None] * w) / (total[..., None] / w.shape[-1])
     res = block_average(z)
     none = ~(total > 0)
     return (Var(rest, ratio), Var(rest, np.where(none, np.nan, res.sem)),
