@@ -506,6 +506,40 @@ def test_region_walls_script(tmp_path):
     assert not any("colloid" in d or "closeness" in d for d in exp.decisions)
 
 
+OPEN_REGIONS = """\
+units: lj
+box: {lo: [0, 0, 0], hi: [8, 8, 8], boundary: [p, p, p]}
+regions:
+  slot: {style: block, lo: [-INF, 1, -INF], hi: [INF, 7, INF], units: box}
+  pipe: {style: cylinder, axis: z, center: [4, 4], radius: 3.5, lo: -INF, hi: INF, units: box}
+atoms:
+  - group: a
+    create: {positions: [[3.0, 2.5, 3.0], [5.0, 5.8, 5.0], [4.0, 4.0, 0.5], [5.5, 3.5, 7.5]]}
+    mass: 1.0
+    velocity: {values: [[0.3, -0.5, 0.1], [-0.2, 0.4, 0.0], [0.0, 0.1, -0.7], [0.5, 0.0, 0.2]]}
+walls:
+  slot: {style: region, region: slot, potential: lj93, epsilon: 1.0, sigma: 1.0, cutoff: 2.5, energy: true}
+  pipe: {style: region, region: pipe, potential: lj126, epsilon: 1.0, sigma: 1.0, cutoff: 2.5, energy: true}
+timestep: 0.002
+run: {steps: 100, thermo: 10}
+"""
+
+
+def test_region_with_an_open_side_is_written_with_lammps_inf(tmp_path):
+    # an infinite block or cylinder bound is LAMMPS's INF (-infinity as a lower bound, +infinity as an
+    # upper one; `-INF` is no number to LAMMPS); it was refused ("non-finite number -inf cannot be written")
+    cmds = script_lines(export_text(tmp_path, OPEN_REGIONS).script)
+    assert "region slot block INF INF 1.0 7.0 INF INF side in units box" in cmds
+    assert "region pipe cylinder z 4.0 4.0 3.5 INF INF side in units box" in cmds
+
+
+@requires_lammps
+def test_validate_region_with_an_open_side(tmp_path):
+    result = validate(write(tmp_path, OPEN_REGIONS))
+    assert result.exit_code == 0, result.output
+    assert "region_force[slot/y]" in result.output and "region_force[pipe/x]" in result.output
+
+
 def test_region_wall_with_a_time_dependent_parameter_is_refused(tmp_path):
     text = REGIONS.replace('al: "2.0"', 'al: "2.0 + ramp(0.0, 0.5)"')
     with pytest.raises(ExportError, match=r"walls.ball.alpha: LAMMPS takes a number here and v_al changes"):

@@ -589,6 +589,16 @@ def _reflect_wall(fid: str, wall: Any, spec: ReflectSpec, s: _Script) -> None:
         s.notes.append(f"reflect_count / reflect_impulse of {fid} are wallbatch outputs with no LAMMPS counterpart")
 
 
+def _bound(value: float, lo: bool) -> str:
+    """A block or cylinder bound: an infinite one (an open side, -inf for a lower bound, +inf for an
+    upper one) as LAMMPS's `INF`, which means -infinity as a lower bound and +infinity as an upper
+    one (`-INF` is no number to LAMMPS)."""
+    value = float(value)
+    if value == (-math.inf if lo else math.inf):
+        return "INF"
+    return _num(value)
+
+
 def _region_command(name: str, geom: Any, s: _Script) -> str:
     """The LAMMPS region of a wall (defined once per region), in box units: `region ID block xlo
     xhi ylo yhi zlo zhi`, `sphere xc yc zc R` or `cylinder dim c1 c2 R lo hi`, with its side."""
@@ -597,11 +607,12 @@ def _region_command(name: str, geom: Any, s: _Script) -> str:
         if rid != name:
             s.notes.append(f"region {name!r} written as {rid!r} (LAMMPS IDs: letters, digits, underscores)")
         if geom.style == "block":
-            args = " ".join(f"{_num(lo)} {_num(hi)}" for lo, hi in zip(geom.lo, geom.hi))
+            args = " ".join(f"{_bound(lo, True)} {_bound(hi, False)}" for lo, hi in zip(geom.lo, geom.hi))
         elif geom.style == "sphere":
             args = " ".join(_num(c) for c in (*geom.center, geom.radius))
         else:
-            args = "xyz"[geom.axis] + " " + " ".join(_num(c) for c in (*geom.center, geom.radius, geom.lo, geom.hi))
+            args = ("xyz"[geom.axis] + " " + " ".join(_num(c) for c in (*geom.center, geom.radius))
+                    + f" {_bound(geom.lo, True)} {_bound(geom.hi, False)}")
         s.regions[name] = f"region {rid} {geom.style} {args} side {geom.side} units box"
         if s.cfg.regions[name].units == "lattice":
             s.notes.append(f"region {name} is in lattice units: written in box units")
