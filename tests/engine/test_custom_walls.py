@@ -342,6 +342,31 @@ def test_cli_table_of_an_expression_matches_the_expression_wall(tmp_path):
     assert bad.exit_code == 2 and "depends on the particle radius" in bad.output
 
 
+def test_cli_table_append_refuses_a_keyword_the_file_already_has(tmp_path):
+    """LAMMPS (and read_table) read the first section of a keyword: appending a second section of
+    that keyword (a new epsilon, say) was silently never read. It is refused, naming the file
+    and the line of the first section, and the file is left unchanged."""
+    from typer.testing import CliRunner  # noqa: PLC0415
+
+    from wallbatch.cli import app  # noqa: PLC0415
+    from wallbatch.styles.table import read_table  # noqa: PLC0415
+
+    out = tmp_path / "w.table"
+    runner = CliRunner()
+    args = ["table", "lj93", "-p", "sigma=1", "-p", "cutoff=2.5", "--lo", "0.5", "--hi", "3.0", "-n", "50",
+            "-k", "LJ", "-o", str(out), "--append"]
+    assert runner.invoke(app, [*args, "-p", "epsilon=1"]).exit_code == 0
+    before = out.read_text()
+    res = runner.invoke(app, [*args, "-p", "epsilon=2"])
+    assert res.exit_code == 2
+    assert f"{out}:3: the file already has a section 'LJ'" in res.output
+    assert "choose another keyword (-k), or leave out --append" in res.output
+    assert out.read_text() == before
+    res = runner.invoke(app, [*args[:-4], "LJ2", "-o", str(out), "--append", "-p", "epsilon=2"])
+    assert res.exit_code == 0, res.output
+    np.testing.assert_array_equal(read_table(out, "LJ2").e, 2 * read_table(out, "LJ").e)
+
+
 def test_linear_expression_wall_constant_force_runs():
     """A wall E = g r (a constant force g towards the wall: gravity above a reflecting floor) runs
     (LAMMPS aborts on it, see test_lepton.py); every atom feels exactly -g, and etot changes only

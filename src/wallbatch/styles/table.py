@@ -409,12 +409,33 @@ def table_source(source: str, params: dict[str, float]):
     return (lambda r: expr.energy_force(r, p)), (lambda r: evaluate(dfdr, r, {**expr.defaults, **p}))
 
 
+def _section_line(path, keyword: str) -> int | None:
+    """The line (1-based) of the first section ``keyword`` of the table file at ``path``, found as
+    :func:`read_table` (and LAMMPS) find it: the first line whose first word is the keyword; None
+    if there is none or no such file."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            for k, line in enumerate(fh, start=1):
+                words = line.split("#", 1)[0].split()
+                if words and words[0] == keyword:
+                    return k
+    except (OSError, UnicodeDecodeError):
+        return None
+    return None
+
+
 def write_source_table(path, source: str, params: dict[str, float], lo: float, hi: float, n: int,
                        keyword: str, append: bool = False) -> None:
     """Tabulate a style or expression on n equally spaced points of [lo, hi] into a LAMMPS table
     section (with FP from the exact dF/dr for an expression)."""
     if not keyword or len(keyword.split()) != 1 or keyword.startswith("#"):
         raise TableError(f"keyword {keyword!r}: a section keyword is one word (LAMMPS reads the line's first word)")
+    if append:
+        taken = _section_line(path, keyword)
+        if taken is not None:
+            raise TableError(f"{_where(os.fspath(path), taken)}: the file already has a section {keyword!r}; LAMMPS "
+                             f"(and wallbatch) read the first section of a keyword, so the appended one would never "
+                             f"be read: choose another keyword (-k), or leave out --append to write a new file")
     energy_force, dfdr = table_source(source, params)
     with np.errstate(all="ignore"):  # (overflow near r = 0: refused just below, without NumPy's warning)
         r, e, f = tabulate(energy_force, lo, hi, n)
