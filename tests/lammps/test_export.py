@@ -540,6 +540,50 @@ def test_validate_region_with_an_open_side(tmp_path):
     assert "region_force[slot/y]" in result.output and "region_force[pipe/x]" in result.output
 
 
+TABLE_IN_A_FOLDER = """\
+units: lj
+box: {lo: [0, 0, 0], hi: [6, 6, 6], boundary: [p, p, f]}
+atoms:
+  - group: a
+    create: {positions: [[1.0, 2.0, 1.1], [4.0, 4.5, 5.2]]}
+    mass: 1.0
+    velocity: {values: [[0.1, 0.0, -0.6], [0.0, 0.2, 0.4]]}
+walls:
+  tab: {style: table, tabstyle: linear, N: 200, units: box, energy: true,
+        zlo: {coord: EDGE, file: w.table, keyword: H, cutoff: 1.5}, zhi: {coord: EDGE, file: w.table, keyword: H, cutoff: 1.5}}
+timestep: 0.002
+run: {steps: 100, thermo: 10}
+"""
+
+
+def _table_in(folder: Path) -> Path:
+    folder.mkdir()
+    result = runner.invoke(app, ["table", "k*(r-1.5)^2", "-p", "k=20", "--lo", "0.1", "--hi", "1.5", "-n", "100",
+                                 "-k", "H", "-o", str(folder / "w.table")])
+    assert result.exit_code == 0, result.output
+    return write(folder, TABLE_IN_A_FOLDER)
+
+
+def test_table_path_with_a_blank_is_quoted(tmp_path):
+    # was "unexpected ValueError: ... a table file path without spaces, quotes or '#' ... this is a
+    # wallbatch bug" for a config in a folder with a blank; LAMMPS reads a quoted word as one argument
+    cfg = _table_in(tmp_path / "my walls #1")
+    path = f'"{tmp_path / "my walls #1" / "w.table"}"'
+    cmds = script_lines(export_selected(load_plan(cfg), None, None).script)
+    assert f"fix tab all wall/table linear 200 zlo EDGE {path} H 1.5 zhi EDGE {path} H 1.5 units box" in cmds
+    bad = _table_in(tmp_path / 'say "hi"')
+    with pytest.raises(ExportError, match=r"walls.tab.zlo.file: a table file path without double quotes .* "
+                                          r"cannot be written in a LAMMPS script"):
+        export_selected(load_plan(bad), None, None)
+
+
+@requires_lammps
+def test_validate_table_path_with_a_blank(tmp_path):
+    result = validate(_table_in(tmp_path / "my walls"))
+    assert result.exit_code == 0, result.output
+    assert "wall_force[tab/zlo]" in result.output
+
+
 def test_region_wall_with_a_time_dependent_parameter_is_refused(tmp_path):
     text = REGIONS.replace('al: "2.0"', 'al: "2.0 + ramp(0.0, 0.5)"')
     with pytest.raises(ExportError, match=r"walls.ball.alpha: LAMMPS takes a number here and v_al changes"):

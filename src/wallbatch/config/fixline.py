@@ -847,6 +847,9 @@ def _stochastic_words(wall: Mapping, where: str) -> list[str]:
 
 
 def _check_path(value: Any, what: str) -> str:
-    if not isinstance(value, str) or not value or any(c.isspace() or c in "\"'#" for c in value):
-        raise ValueError(f"{what}: a table file path without spaces, quotes or '#', got {value!r}")
-    return value
+    """A table file path as one LAMMPS word: in double quotes when it has a blank, a quote, '#' or
+    '$' (which LAMMPS reads literally between quotes); a path with a double quote or a line break
+    cannot be written."""
+    if not isinstance(value, str) or not value or '"' in value or "\n" in value or "\r" in value:
+        raise ValueError(f"{what}: a table file path without double quotes or line breaks, got {value!r}")
+    return f'"{value}"' if any(c.isspace() or c in "'#$" for c in value) else value

@@ -403,7 +403,11 @@ class _Script:
         asks, its wall_energy column and one wall_force column per face (indices after the soft walls
         written before). `force_sign` -1: LAMMPS's vector is the force on the atoms, so each column
         reads a helper variable of the opposite sign."""
-        self.fixes.append(to_fix_line(lid, mapping))
+        try:
+            self.fixes.append(to_fix_line(lid, mapping))
+        except ValueError as exc:  # a value no LAMMPS word can hold (a table path with a double quote)
+            raise ExportError(f"{str(exc).replace(f'walls.{lid}', f'walls.{fid}', 1)}: it cannot be written "
+                              "in a LAMMPS script") from None
         if spec.energy:
             self.fixes.append(f"fix_modify {lid} energy yes")
         if spec.virial:
