@@ -20,7 +20,7 @@ from wallbatch.engine.engine import run_cases
 from wallbatch.scene.build import build_case
 from wallbatch.scene.case import structure_key
 from wallbatch.styles import STYLES
-from wallbatch.styles.table import tabulate, write_table
+from wallbatch.styles.table import TableError, WallTable, read_table, tabulate, write_table
 
 
 def _builtin(name: str):
@@ -181,8 +181,64 @@ def test_atom_nearer_than_the_table_fails_its_case(tmp_path):
                 f"keyword: LJ93, cutoff: 2.5}}}}\n" + TOP, steps=10)
     res = run_cases([build_case(load_config(write(tmp_path, text)))])[0]
     assert res.status == "failed"
-    assert "nearer than the table's first distance 0.4" in res.error
+    delta = (3.0 - 0.4) / 99
+    assert f"nearer than {0.4 - delta:g}, one table interval below the table's first distance 0.4" in res.error
     assert "Particle / wall distance < table inner cutoff" in res.error
+
+
+def _reach_scene(tmp_path: Path, tabstyle: str, zs: list[float], steps: int = 20) -> Path:
+    """Atoms at rest at distances zs from a zlo wall/table whose table (harmonic, epsilon 20,
+    cut-off 3: F = 40 (3 - r)) starts at r = 0.9 with N = 22 (delta = 0.1): the distances in
+    (0.8, 0.9) are in the first interval's extension."""
+    path = tmp_path / "reach.table"
+    r, e, f = tabulate(lambda r: harmonic(r, {"epsilon": 20.0, "cutoff": 3.0}), 0.9, 3.0, 50)
+    write_table(path, "LJ93", r, e, f)
+    pos = ", ".join(f"[{1.0 + k}, 4.0, {z!r}]" for k, z in enumerate(zs))
+    return write(tmp_path, textwrap.dedent(f"""\
+        name: reach
+        units: lj
+        box: {{lo: [0, 0, 0], hi: [8, 8, 6], boundary: [p, p, f]}}
+        atoms:
+          - {{group: a, create: {{positions: [{pos}]}}, mass: 1.0}}
+        walls:
+          t: {{style: table, tabstyle: {tabstyle}, N: 22, units: box, energy: true,
+              zlo: {{coord: 0.0, file: reach.table, keyword: LJ93, cutoff: 2.5}}}}
+          top: {{style: reflect, units: box, zhi: EDGE}}
+        run: {{steps: {steps}, thermo: 1}}
+        output: {{thermo: [step, pe, ke]}}
+        """))
+
+
+@pytest.mark.parametrize("tabstyle", ["linear", "spline"])
+def test_table_reaches_one_interval_below_its_first_distance(tmp_path, monkeypatch, tabstyle):
+    """As LAMMPS, an atom less than one table interval below the table's first distance lo gets
+    the first interval's lookup extrapolated (the index int((r - lo)/delta) truncates to 0):
+    force and energy at step 0 equal that extrapolation; the compiled path equals the NumPy
+    path bit for bit; at (r - lo)/delta = -1 or below the case fails."""
+    zs = [0.85, 0.8001, 0.95]
+    cases = [build_case(load_config(_reach_scene(tmp_path, tabstyle, zs)))]
+    ref, fast, engine = run_numpy_and_compiled(monkeypatch, cases)
+    assert engine.fast is not None and engine.fast.compiled_chunks > 0
+    assert ref[0].status == "ok", ref[0].error
+    assert_same_results(ref, fast)
+    t = WallTable.build(read_table(tmp_path / "reach.table", "LJ93"), tabstyle, 22)
+    e, f = t.lookup(np.array(zs))
+    i = np.array([0, 0, 0])  # the first interval for the two below lo, extrapolated
+    if tabstyle == "linear":  # linearly: f[0] + (r - lo)/delta (f[1] - f[0])
+        want = t.f[i] + (np.array(zs) - t.r[i]) * t.invdelta * t.df[i]
+        np.testing.assert_allclose(f, want, rtol=1e-14)
+    np.testing.assert_allclose(f, 40.0 * (3.0 - np.array(zs)), rtol=1e-9)  # a linear force: exact
+    assert ref[0].data["wall_energy"][0] == pytest.approx(e.sum() - 3 * t.offset(2.5), rel=1e-13)
+    assert ref[0].data["wall_force"][0, 0] == pytest.approx(-f.sum(), rel=1e-13)  # the atoms push the wall -z
+    assert t.below(t.inner()) and not t.below(np.nextafter(t.inner(), 1.0))
+    assert t.inner() == pytest.approx(0.8, abs=1e-14)
+    with pytest.raises(TableError, match="extension down to"):
+        t.lookup(np.array([0.79]))
+    for numba in ("0", "1"):
+        monkeypatch.setenv("WALLBATCH_NUMBA", numba)
+        bad = run_cases([build_case(load_config(_reach_scene(tmp_path, tabstyle, [0.85, 0.7999], steps=5)))])[0]
+        assert bad.status == "failed"
+        assert "atom 1 at distance 0.7999 from the wall at step 0 is nearer than 0.8, one table interval" in bad.error
 
 
 # ------------------------------------------------------------------------------ physics

@@ -186,6 +186,32 @@ def test_lammps_refuses_what_we_refuse(tmp_path):
         probe_wall(f"wall/table linear 50 zlo -5.0 {path} LJ93 4.5 units box", np.array([1.0]))
 
 
+@pytest.mark.lammps
+@requires_lammps
+@pytest.mark.parametrize("tabstyle", ["linear", "spline"])
+def test_lammps_extrapolates_the_first_interval_as_we_do(tmp_path, tabstyle):
+    """Below the table's first distance lo and above lo - delta, LAMMPS looks up the first
+    interval (its index truncates to 0) instead of stopping: its per-atom forces and the fix's
+    energy equal WallTable.lookup's there (lj93 from lo = 0.5, N = 50: delta = 3.5/49); at
+    (r - lo)/delta just below -1 both refuse."""
+    from lammps_walls import probe_wall  # noqa: PLC0415
+
+    path = _lj93_table(tmp_path)
+    t = WallTable.build(read_table(path, "LJ93"), tabstyle, 50)
+    r = np.array([t.lo - 0.999 * t.delta, t.lo - 0.5 * t.delta, t.lo - 1e-9, t.lo, t.lo + 0.3 * t.delta])
+    assert t.below(r).sum() == 0 and np.all(t.below(t.lo - 1.001 * t.delta))
+    got = probe_wall(f"wall/table {tabstyle} 50 zlo -5.0 {path} LJ93 2.5 units box", r)
+    e, f = t.lookup(r)
+    np.testing.assert_allclose(got["f"][:, 2], f, rtol=1e-12)
+    assert got["energy"] == pytest.approx(float(np.sum(e - t.offset(2.5))), rel=1e-12)
+    assert f[0] > f[1] > f[3]  # the extrapolated force keeps rising towards the wall
+    with pytest.raises(Exception, match="table inner cutoff"):
+        probe_wall(f"wall/table {tabstyle} 50 zlo -5.0 {path} LJ93 2.5 units box",
+                   np.array([t.lo - 1.001 * t.delta]))
+    with pytest.raises(TableError, match="outside the table"):
+        t.lookup(np.array([t.lo - 1.001 * t.delta]))
+
+
 @pytest.mark.parametrize("tabstyle", ["linear", "spline"])
 def test_kernel_rows_jitted_lookup_is_the_numpy_lookup_bit_for_bit(tabstyle):
     """WallTable.kernel_rows: the table as the compiled path's data (grid, F, dF or F2, E, dE or

@@ -587,7 +587,8 @@ if njit is not None:
         """One wall/table face over atoms u0..u1-1 (as `_face`, shift mode): F(r) by the table's
         linear or spline lookup (WallTable.lookup's arithmetic: the same functions, jitted) on
         its rows grid, tf (force), td (dF or F2). Returns the number of atoms nearer than the
-        table's first distance lo (the NumPy path then reports them). `linear` is a literal.
+        table's reach, one interval below its first distance lo (WallTable.below; the NumPy
+        path then reports them). `linear` is a literal.
 
         Two passes, so no branch depends on where an atom is (a gas near a wall: ~10% of the
         atoms, in random order, a mispredicted branch every few atoms): a branch-free pass marks
@@ -621,8 +622,9 @@ if njit is not None:
                 i = base + _trailing_zeros(bits)
                 bits &= bits - np.uint64(1)
                 r = (X[d, i] - coord) * sign
-                if r >= lo:
-                    j = min(int((r - lo) * invdelta), n2)
+                x = (r - lo) * invdelta
+                if x > -1.0:  # (WallTable.below) the first interval reaches one interval below lo
+                    j = min(int(x), n2)  # truncates toward 0, as LAMMPS's index
                     if linear:
                         fr = _table_linear(r, j, grid, tf, td, invdelta)
                     else:

@@ -298,15 +298,32 @@ class WallTable:
         f2 = spline_coefficients(grid, f, fplo, fphi)
         return cls(tabstyle, lo, hi, delta, invdelta, grid, e, f, de, df, e2, f2, delta * delta / 6.0)
 
+    def below(self, r) -> np.ndarray | bool:
+        """True where r [length] is too near for the table: (r - lo)/delta <= -1. As LAMMPS, the
+        first interval reaches one interval below lo (the index int((r - lo)/delta) truncates
+        toward 0 there, and the lookup extrapolates that interval)."""
+        return (r - self.lo) * self.invdelta <= -1.0
+
+    def inner(self) -> float:
+        """The largest distance :meth:`below` refuses [length] (about lo - delta): r <= inner()
+        exactly where below(r), as the lookup's arithmetic is monotone in r."""
+        t = self.lo - self.delta
+        while not self.below(t):
+            t = np.nextafter(t, -np.inf)
+        while self.below(np.nextafter(t, np.inf)):
+            t = np.nextafter(t, np.inf)
+        return float(t)
+
     def lookup(self, r, tabstyle: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(E, F) at distances r [length] (any shape), unshifted. Raises TableError outside
-        [lo, hi]."""
+        """(E, F) at distances r [length] (any shape), unshifted. Raises TableError below the
+        table's reach (:meth:`below`) or beyond its last distance hi."""
         style = tabstyle or self.tabstyle
         r = np.asarray(r, dtype=np.float64)
-        if np.any(r < self.lo) or np.any(r > self.hi):
-            bad = r[(r < self.lo) | (r > self.hi)].flat[0]
+        out = self.below(r) | (r > self.hi)
+        if np.any(out):
             raise TableError(
-                f"distance {bad!r} from the wall is outside the table [{self.lo!r}, {self.hi!r}]"
+                f"distance {r[out].flat[0]!r} from the wall is outside the table [{self.lo!r}, {self.hi!r}] "
+                f"and its first interval's extension down to {self.lo - self.delta!r}"
             )
         n = len(self.r)
         i = np.minimum(((r - self.lo) * self.invdelta).astype(np.int64), n - 2)  # as int() in the kernel
@@ -353,17 +370,20 @@ def tabulate(energy_force, lo: float, hi: float, n: int) -> tuple[np.ndarray, np
 
 @dataclass(frozen=True)
 class TableWallStyle(WallStyle):
-    """A face's table as a wall style; an atom nearer than the table's first r is refused."""
+    """A face's table as a wall style; an atom at one table interval or more below the table's
+    first r is refused (LAMMPS extrapolates the first interval down to there)."""
 
     lo: float = 0.0
+    delta: float = 0.0
+    inner: float = 0.0  # WallTable.inner(): r <= inner is refused
     table: WallTable | None = field(default=None, compare=False)  # arrays: not part of ==, hash
 
-    def too_close(self, p) -> float:  # r <= this  <=>  r < lo
-        return float(np.nextafter(self.lo, -np.inf))
+    def too_close(self, p) -> float:
+        return self.inner
 
     def too_close_message(self) -> str | None:
-        return (f"nearer than the table's first distance {self.lo:g} (LAMMPS: Particle / wall distance < table "
-                "inner cutoff)")
+        return (f"nearer than {self.lo - self.delta:g}, one table interval below the table's first distance "
+                f"{self.lo:g} (LAMMPS: Particle / wall distance < table inner cutoff)")
 
 
 def table_style(table: WallTable) -> TableWallStyle:
@@ -380,7 +400,8 @@ def table_style(table: WallTable) -> TableWallStyle:
         return table.lookup(r)[0] - table.lookup(a[-2], "linear")[0]
 
     return TableWallStyle("table", (cutoff_param(),), force=force, energy=energy, shifted_fn=shifted,
-                          region=False, compiled=False, doc="wall/table", lo=table.lo, table=table)
+                          region=False, compiled=False, doc="wall/table", lo=table.lo, delta=table.delta,
+                          inner=table.inner(), table=table)
 
 
 def table_source(source: str, params: dict[str, float]):
