@@ -550,7 +550,8 @@ atoms:
     velocity: {values: [[0.1, 0.0, -0.6], [0.0, 0.2, 0.4]]}
 walls:
   tab: {style: table, tabstyle: linear, N: 200, units: box, energy: true,
-        zlo: {coord: EDGE, file: w.table, keyword: H, cutoff: 1.5}, zhi: {coord: EDGE, file: w.table, keyword: H, cutoff: 1.5}}
+        zlo: {coord: EDGE, file: w.table, keyword: H, cutoff: 1.5},
+        zhi: {coord: EDGE, file: w.table, keyword: H, cutoff: 1.5}}
 timestep: 0.002
 run: {steps: 100, thermo: 10}
 """
