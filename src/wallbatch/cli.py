@@ -345,6 +345,7 @@ def table(source: str = typer.Argument(..., help="a wall style (lj93, lj126, lj1
           n: int = typer.Option(1000, "-n", help="number of points"),
           keyword: str = typer.Option("WALL", "--keyword", "-k", help="section keyword"),
           append: bool = typer.Option(False, help="add the section to an existing file"),
+          force: bool = typer.Option(False, "--force", help="replace an existing table file"),
           ) -> None:
     """Write a wall potential (a style or an expression) as a LAMMPS table for wall/table."""
     from wallbatch.styles.table import TableError, write_source_table
@@ -359,6 +360,10 @@ def table(source: str = typer.Argument(..., help="a wall style (lj93, lj126, lj1
         if not eq or not name.strip():
             typer.echo(f"error: --param {item!r}: write name=number", err=True)
             raise typer.Exit(2)
+    if output.exists() and not (append or force):
+        typer.echo(f"error: -o {output}: the file exists; add --append to add section {keyword} to it, or --force "
+                   "to replace it", err=True)
+        raise typer.Exit(2)
     try:
         write_source_table(output, source, params, lo, hi, n, keyword, append=append)
     except TableError as exc:

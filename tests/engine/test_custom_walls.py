@@ -394,7 +394,7 @@ def test_cli_table_of_an_expression_matches_the_expression_wall(tmp_path):
     assert np.max(np.abs(e - e_ref)) < 1e-8 and np.max(np.abs(f - f_ref)) < 1e-7
     lj = read_table(out, "LJ")
     np.testing.assert_array_equal(lj.e, lj93(lj.r, LJ)[0])
-    bad = runner.invoke(app, ["table", "colloid", "--lo", "1", "--hi", "2", "-o", str(out)])
+    bad = runner.invoke(app, ["table", "colloid", "--lo", "1", "--hi", "2", "-o", str(tmp_path / "c.table")])
     assert bad.exit_code == 2 and "depends on the particle radius" in bad.output
 
 
@@ -416,11 +416,41 @@ def test_cli_table_append_refuses_a_keyword_the_file_already_has(tmp_path):
     res = runner.invoke(app, [*args, "-p", "epsilon=2"])
     assert res.exit_code == 2
     assert f"{out}:3: the file already has a section 'LJ'" in res.output
-    assert "choose another keyword (-k), or leave out --append" in res.output
+    assert "choose another keyword (-k), or write a new file" in res.output
     assert out.read_text() == before
     res = runner.invoke(app, [*args[:-4], "LJ2", "-o", str(out), "--append", "-p", "epsilon=2"])
     assert res.exit_code == 0, res.output
     np.testing.assert_array_equal(read_table(out, "LJ2").e, 2 * read_table(out, "LJ").e)
+
+
+def test_cli_table_refuses_to_overwrite_and_a_table_short_of_the_cut_off(tmp_path):
+    """`wallbatch table -o FILE` on an existing file replaced it silently (a section written before
+    lost): refused unless --append or --force, naming -o; a built-in style tabulated only up to
+    --hi below its cut-off wrote a table every wall/table of that cut-off refuses later: refused
+    at once. Neither touches the file."""
+    from typer.testing import CliRunner  # noqa: PLC0415
+
+    from wallbatch.cli import app  # noqa: PLC0415
+    from wallbatch.styles.table import read_table  # noqa: PLC0415
+
+    out = tmp_path / "w.table"
+    runner = CliRunner()
+    args = ["table", "lj93", "-p", "epsilon=1", "-p", "sigma=1", "--lo", "0.5", "-n", "50", "-o", str(out)]
+    assert runner.invoke(app, [*args, "-p", "cutoff=2.5", "--hi", "3", "-k", "A"]).exit_code == 0
+    before = out.read_text()
+    res = runner.invoke(app, [*args, "-p", "cutoff=2.5", "--hi", "3", "-k", "B"])
+    assert res.exit_code == 2
+    assert f"-o {out}: the file exists; add --append to add section B to it, or --force to replace it" in res.output
+    assert out.read_text() == before
+    short = runner.invoke(app, [*args, "-p", "cutoff=2.5", "--hi", "2", "-k", "C", "--append"])
+    assert short.exit_code == 2
+    assert "hi = 2 is below the wall's cut-off 2.5" in short.output and "give --hi 2.5 or more" in short.output
+    assert out.read_text() == before
+    res = runner.invoke(app, [*args, "-p", "cutoff=2.0", "--hi", "2", "-k", "B", "--force"])
+    assert res.exit_code == 0, res.output
+    assert read_table(out, "B").r[-1] == 2.0
+    with pytest.raises(Exception, match="no table section 'A'"):
+        read_table(out, "A")
 
 
 def test_linear_expression_wall_constant_force_runs():

@@ -456,7 +456,12 @@ def write_source_table(path, source: str, params: dict[str, float], lo: float, h
         if taken is not None:
             raise TableError(f"{_where(os.fspath(path), taken)}: the file already has a section {keyword!r}; LAMMPS "
                              f"(and wallbatch) read the first section of a keyword, so the appended one would never "
-                             f"be read: choose another keyword (-k), or leave out --append to write a new file")
+                             f"be read: choose another keyword (-k), or write a new file")
+    cutoff = params.get("cutoff")
+    if source in STYLES and cutoff is not None and hi < cutoff:
+        raise TableError(f"hi = {hi:g} is below the wall's cut-off {cutoff:g}: wall/table needs the table to reach "
+                         f"the cut-off (LAMMPS: wall cutoff is larger than table outer cutoff); give --hi {cutoff:g} "
+                         "or more")
     energy_force, dfdr = table_source(source, params)
     with np.errstate(all="ignore"):  # (overflow near r = 0: refused just below, without NumPy's warning)
         r, e, f = tabulate(energy_force, lo, hi, n)
