@@ -275,6 +275,20 @@ def test_plot_errors(sweep_ds, tmp_path, kwargs, match):
     assert not (tmp_path / "x.png").exists()
 
 
+def test_plot_errors_of_a_single_case_name_no_sweep_dimension(sweep_ds, tmp_path):
+    """A file of one case (no sweep dimension): a variable without samples is not to be plotted
+    against a sweep dimension it does not have (the message used to offer x=<sweep dim>)."""
+    one = sweep_ds.isel(epsilon=0, sigma=0, replica=0, drop=True)
+    assert report.sweep_dims(one) == []
+    for var, sel, match in (("seconds", None, r"seconds has no sample dimension \(dims: none\): this file has no sweep "
+                             r"dimension to plot it against \(one case: `wallbatch show` prints it\)"),
+                            ("pe", {"step": "50"}, r"leaves pe a single sample: this file has no sweep dimension.*"
+                             r", or select fewer samples")):
+        with pytest.raises(ValueError, match=match) as err:
+            report.plot(one, var, tmp_path / "x.png", sel=sel)
+        assert "x=<" not in str(err.value)
+
+
 def test_select_by_coordinate(sweep_ds):
     sub = report.select(sweep_ds, {"step": "50", "face_name": "zlo", "sigma": "0.8"})
     assert "sample" not in sub.dims and int(sub["step"]) == 50

@@ -463,12 +463,13 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
     elif x is None or x in SAMPLE_AXES:
         if kind == "heatmap":
             raise ValueError("kind='heatmap' needs x and hue to be two sweep dimensions")
+        against = (f"plot it against a sweep dimension (x=<{'|'.join(sdims)}>)" if sdims else
+                   "this file has no sweep dimension to plot it against (one case: `wallbatch show` prints it)")
         if "sample" not in da.dims and "sample" in ds[var].dims:
-            raise ValueError(f"the selection {sel} leaves {var} a single sample: plot it against a sweep "
-                             f"dimension (x=<{'|'.join(sdims) or 'sweep dim'}>) or select fewer samples")
+            raise ValueError(f"the selection {sel} leaves {var} a single sample: {against}, or select fewer samples")
         if "sample" not in da.dims:
             raise ValueError(f"{var} has no sample dimension (dims: {', '.join(map(str, da.dims)) or 'none'}): "
-                             f"plot it against a sweep dimension with x=<{'|'.join(sdims) or 'sweep dim'}>")
+                             f"{against}")
         xname = _sample_axis(sub, x)
         along, xdata, xlabel, what = "sample", sub[xname], _axis_label(sub, xname), long_name
         marker = ""
