@@ -376,7 +376,7 @@ def table(source: str = typer.Argument(..., help="a wall style (lj93, lj126, lj1
 def export_lammps(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
                   output: Path = typer.Option(..., "-o", "--output", help="folder for in.NAME and data.NAME"),
                   case: str = typer.Option(None, "--case", help="one case of a sweep: index (0, 1, ...; -1: the last) "
-                                           "or coordinates name=value,name=value"),
+                                           "or coordinates name=value,name=value (a list value as [a, b])"),
                   steps: int = typer.Option(None, "--steps", help="run length in steps (default: the config's)"),
                   set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)"),
                   ) -> None:
@@ -401,7 +401,7 @@ def export_lammps(config: Path = typer.Argument(..., help="scene or sweep YAML f
 @app.command()
 def validate(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
              case: str = typer.Option(None, "--case", help="one case of a sweep: index (0, 1, ...; -1: the last) "
-                                      "or coordinates name=value,name=value"),
+                                      "or coordinates name=value,name=value (a list value as [a, b])"),
              steps: int = typer.Option(None, "--steps", help="run length in steps (default: the config's)"),
              rtol: float = typer.Option(1e-9, "--rtol", help="relative tolerance of every output"),
              set_: list[str] = typer.Option(None, "--set", help="override a value: path=value (repeatable)"),

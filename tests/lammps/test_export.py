@@ -860,6 +860,23 @@ def test_case_selection(tmp_path):
     assert "case epsilon=1.0, sigma=0.8" in exp.script
 
 
+def test_case_selection_by_a_list_valued_coordinate(tmp_path):
+    """A sweep of list values (a wall face's [coord, epsilon, sigma, cutoff]) is selected by the
+    list as typed: --case split at every comma, so `face=[EDGE, 2.0, 1.0, 2.5]` was "write
+    name=value"; now commas inside brackets stay in the value, compared element by element."""
+    text = SWEEP.split("sweep:")[0] + ("sweep:\n  product:\n    low: {path: walls.w.zlo, values: "
+                                       "[[EDGE, 1.0, 1.0, 2.5], [EDGE, 2.0, 1.0, 2.5]]}\n"
+                                       "    sigma: {path: walls.w.zhi.sigma, values: [0.8, 1.0]}\n")
+    plan = load_plan(write(tmp_path, text))
+    got = select_case(plan, "low=[EDGE, 2.0, 1.0, 2.5],sigma=0.8")
+    assert got.coords["low"] == ["EDGE", 2.0, 1.0, 2.5] and got.coords["sigma"] == 0.8
+    assert select_case(plan, "sigma=1.0, low=[EDGE,1,1,2.5]").coords["low"][1] == 1.0
+    with pytest.raises(ExportError, match="no case has these coordinates"):
+        select_case(plan, "low=[EDGE, 3.0, 1.0, 2.5],sigma=0.8")
+    exp = export_selected(plan, "low=[EDGE, 2.0, 1.0, 2.5],sigma=0.8")
+    assert "fix w all wall/lj93 zlo EDGE 2.0 1.0 2.5 zhi EDGE 1.0 0.8 2.5 units box" in script_lines(exp.script)
+
+
 def test_export_command_writes_files(tmp_path):
     cfg = write(tmp_path, SWEEP)
     out = tmp_path / "lmp"

@@ -183,9 +183,19 @@ MIN_RESULTS: dict[str, str] = {
 
 
 def _same(value: Any, text: str) -> bool:
-    """A sweep coordinate equals the text a user typed (numbers within 1e-9 relative)."""
+    """A sweep coordinate equals the text a user typed (numbers within 1e-9 relative; a list value,
+    `[0.7, 1.4]`, element by element)."""
     if str(value) == text:
         return True
+    if isinstance(value, (list, tuple)):
+        import yaml  # noqa: PLC0415 - only for list-valued coordinates
+
+        try:
+            typed = yaml.safe_load(text)
+        except yaml.YAMLError:
+            return False
+        return (isinstance(typed, list) and len(typed) == len(value)
+                and all(_same(v, str(t)) for v, t in zip(value, typed)))
     try:
         return math.isclose(float(value), float(text), rel_tol=1e-9, abs_tol=0.0)
     except (TypeError, ValueError):
@@ -214,7 +224,7 @@ def select_case(plan: SweepPlan, sel: str | None) -> SweepCase:
     extras = {k: d for d in plan.dims for k in d.extra}
     names = [d.name for d in plan.dims] + list(extras)
     wanted: list[tuple[str, str]] = []
-    for item in sel.split(","):
+    for item in re.split(r",(?![^\[]*\])", sel):  # commas outside a list value [0.7, 1.4]
         key, eq, value = item.partition("=")
         key, value = key.strip(), value.strip()
         if not eq or not key:
