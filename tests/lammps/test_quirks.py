@@ -198,6 +198,23 @@ def test_region_ees_lammps_per_axis_threshold():
     assert ds.wall_energy.values[0, 0] == pytest.approx(ees_energy(2.2, 2.0), rel=1e-12)
 
 
+@requires_lammps
+def test_validate_names_quirk_14_when_lammps_stops_on_region_ees():
+    """validate on the scene where LAMMPS's per-axis test stops (long axis across the normal, 0.5
+    clear of the surface): wallbatch runs, and the LAMMPS error row points to quirk #14 instead
+    of looking like a wallbatch defect."""
+    from wallbatch.config.sweep import SweepCase  # noqa: PLC0415
+    from wallbatch.lammps.validate import validate_case  # noqa: PLC0415
+
+    d, _ = _region_ees_scene(1.0, 45.0)
+    d["run"] = {"steps": 2, "thermo": 1}
+    report = validate_case(SweepCase((), {}, config_from_dict(d), ()), steps=2)
+    err = [e for e in report.errors if e.startswith("LAMMPS:")]
+    assert len(err) == 1 and "Particle on or inside surface of region used in fix wall/region/ees" in err[0]
+    assert "quirk #14 in docs/deviations.md" in err[0]
+    assert not [e for e in report.errors if e.startswith("wallbatch:")]
+
+
 # ----------------------------------------------------------------------------- quirk #18
 
 
