@@ -245,3 +245,50 @@ def test_a_wallbatch_warning_is_one_line_once_per_run(tmp_path, jobs):
     assert lines == ["warning: minimize: wall(s) quiet have energy: false, so (as in LAMMPS without fix_modify energy "
                      "yes) their forces act during minimization but their energy is not in the minimized quantity; "
                      "set energy: true on them for a consistent minimization"], res.stderr
+
+
+PACKED = """\
+name: packed
+units: lj
+box: {lo: [0, 0, 0], hi: [5, 5, 5], boundary: [p, p, f]}
+atoms:
+  - group: g
+    create: {random: {count: 20, overlap: 1.0}}
+    mass: 1.0
+walls:
+  w: {style: harmonic, units: box, zlo: [EDGE, 1.0, 1.0, 1.5], zhi: [EDGE, 1.0, 1.0, 1.5]}
+run: {steps: 10, thermo: 5}
+sweep:
+  product:
+    n:
+      path: atoms.0.create.random.count
+      values: [20, 400]
+    spec:
+      path: atoms.0.create.random
+      values: [{count: 20, overlap: 1.0}, {count: 300, overlap: 1.1}]
+"""
+
+
+def test_a_case_that_cannot_be_built_is_named_at_the_place_of_its_key(tmp_path):
+    """A case whose atoms cannot be placed (only built, not validated, can tell) named the key and
+    the case but not where the key was written: `check` and `run` now lead its message with the
+    key's file:line:col, or the sweep entry's place when the sweep wrote the key's whole value,
+    or the --set argument."""
+    path = tmp_path / "packed.yaml"
+    path.write_text(PACKED.replace("    spec:\n      path: atoms.0.create.random\n      values: [{count: 20, "
+                                   "overlap: 1.0}, {count: 300, overlap: 1.1}]\n", ""))
+    res = cli.invoke(app, ["check", str(path)])
+    assert res.exit_code == 1
+    assert (f"1 case(s) (n=400) cannot be built: {path}:6:22: atoms.0.create.random: placed only "
+            in res.output)
+    res = cli.invoke(app, ["run", str(path), "-o", str(tmp_path / "p.nc"), "-j", "1"])
+    assert f"failed (1 case: n=400): {path}:6:22: atoms.0.create.random: placed only" in res.output
+    swept = tmp_path / "swept.yaml"
+    swept.write_text(PACKED.replace("    n:\n      path: atoms.0.create.random.count\n      values: [20, 400]\n", ""))
+    res = cli.invoke(app, ["check", str(swept)])
+    assert f"cannot be built: {swept}:15:15: atoms.0.create.random: placed only" in res.output
+    single = tmp_path / "single.yaml"
+    single.write_text(PACKED.split("sweep:")[0])
+    res = cli.invoke(app, ["check", str(single), "--set", "atoms.0.create.random={count: 500, overlap: 1.0}"])
+    assert ("the case cannot be built: --set atoms.0.create.random={count: 500, overlap: 1.0}: "
+            "atoms.0.create.random: placed only" in res.output)

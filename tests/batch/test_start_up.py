@@ -36,9 +36,9 @@ def counting_builds(monkeypatch) -> list[tuple]:
     seen: list[tuple] = []
     real = runner.build_one
 
-    def build_one(sc):
+    def build_one(sc, plan=None):
         seen.append(tuple(sc.coords.values()))
-        return real(sc)
+        return real(sc, plan)
 
     monkeypatch.setattr(runner, "build_one", build_one)
     return seen

@@ -78,10 +78,10 @@ class Interrupted(Exception):
         super().__init__(f"interrupted: {saved}/{total} cases {where}")
 
 
-def build_one(sc: SweepCase) -> tuple[Case | None, str, float]:
+def build_one(sc: SweepCase, plan: SweepPlan | None = None) -> tuple[Case | None, str, float]:
     """Build one case: (case, "", seconds) or (None, why it cannot be built, seconds). A case that
     cannot be built (bad input, a variable that divides by zero, anything raised while building)
-    fails alone, its message kept."""
+    fails alone, its message kept, led by the place of the key it names (`plan.placed`)."""
     t0 = time.perf_counter()
     case, error = None, ""
     try:
@@ -94,6 +94,8 @@ def build_one(sc: SweepCase) -> tuple[Case | None, str, float]:
         case, error = None, f"cannot set up the case: {str(exc)[:300]}"
     except (ArithmeticError, TypeError, LookupError, MemoryError, RecursionError) as exc:
         case, error = None, f"cannot set up the case: {type(exc).__name__}: {str(exc)[:300]}"
+    if error and plan is not None:
+        error = plan.placed(error)
     return case, error, time.perf_counter() - t0
 
 
@@ -104,7 +106,7 @@ def build_cases(plan: SweepPlan, seconds: list[float] | None = None) -> tuple[li
     built: list[Case | None] = []
     errors: dict[int, str] = {}
     for i, sc in enumerate(plan.cases):
-        case, error, sec = build_one(sc)
+        case, error, sec = build_one(sc, plan)
         built.append(case)
         if case is None:
             errors[i] = error
@@ -301,7 +303,7 @@ def _window_parts(items: list, plan: SweepPlan | None) -> Iterator[tuple[list[in
     that cannot be built, then each same-structure batch as it finishes (`_run_window`; the
     local one-process run saves each batch's parts at once, so a kill loses no finished batch)."""
     source = plan if plan is not None else _PLAN
-    built = [build_one(source.cases[it]) if isinstance(it, int) else it for it in items]  # type: ignore[union-attr]
+    built = [build_one(source.cases[it], source) if isinstance(it, int) else it for it in items]  # type: ignore[union-attr]
     cases: dict[int, Case] = {}
     failed: list[int] = []
     for k, (case, _error, _sec) in enumerate(built):
@@ -909,7 +911,7 @@ def _run(plan: SweepPlan, output: Path | None, jobs: int, executor: str, schedul
             # forked local workers build their own cases from the plan they inherit; elsewhere the
             # cases travel to the workers
             local = executor == "local" and (jobs <= 1 or len(windows) <= 1 or _fork_context() is not None)
-            tasks = [w if local else [build_one(plan.cases[i]) for i in w] for w in windows]
+            tasks = [w if local else [build_one(plan.cases[i], plan) for i in w] for w in windows]
             layout: tuple | None = None
             layout_case = -1
             built = len(saved)  # cases built (or reused)
@@ -1011,7 +1013,7 @@ def _first_built(plan: SweepPlan, unbuilt: set[int], upto: list[int] | None = No
     for i, sc in enumerate(plan.cases[:last + 1]):
         if i in unbuilt:
             continue
-        case, error, sec = build_one(sc)
+        case, error, sec = build_one(sc, plan)
         if case is not None:
             return i, case, sec
         if failed is not None:

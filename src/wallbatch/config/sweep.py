@@ -190,10 +190,22 @@ class SweepPlan:
     base_text: str
     sweep_text: str
     inputs: tuple[str, ...] = ()  # resolved paths of the files the plan was read from
+    where: SourceMap | None = field(default=None, compare=False, repr=False)  # where each value was written
 
     @property
     def shape(self) -> tuple[int, ...]:
         return tuple(len(d.values) for d in self.dims)
+
+    def placed(self, message: str) -> str:
+        """A case's build error `KEY: why` led by the place KEY was written: file:line:col in the
+        config, the sweep entry of a swept value, or the `--set` argument. Unchanged when it does
+        not start with a key or the plan knows no place for it."""
+        m = _KEY_FIRST.match(message)
+        if self.where is None or m is None:
+            return message
+        loc = tuple(int(p) if p.isdigit() else p for p in m.group(1).split("."))
+        where = _where_text(self.where, loc)
+        return message if where == self.where.filename else f"{where}: {message}"
 
 
 def config_to_dict(cfg: Config) -> dict:
@@ -235,6 +247,7 @@ def set_path(data: dict, path: str, value: Any) -> None:
 
 
 _FIX_LINE_PATH = re.compile(r"walls\.([^.]+)\.fix")
+_KEY_FIRST = re.compile(r"([A-Za-z_][\w-]*(?:\.[\w/-]+)*): ")  # a message led by a config key: `atoms.0.create: ...`
 
 
 def set_value(data: dict, path: str, value: Any, raw: Any) -> None:
@@ -472,7 +485,8 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
                      + yaml.safe_dump(config_to_dict(base), sort_keys=False))
     base._base_dir = base_dir
     if raw_sweep is None:
-        return SweepPlan([], [SweepCase((), {}, base, ())], base_text, "", inputs)
+        return SweepPlan([], [SweepCase((), {}, base, ())], base_text, "", inputs,
+                         OverlayMap(srcmap, origins, config_to_dict(base)) if origins else srcmap)
     try:
         sweep = Sweep.model_validate(raw_sweep)
     except ValidationError as exc:
@@ -543,7 +557,7 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
     if problems:
         grouped = _group(problems, int(np.prod([len(d.values) for d in dims], dtype=int)))
         raise ConfigError(grouped[:20] + ([f"... and {len(grouped) - 20} more"] if len(grouped) > 20 else []))
-    return SweepPlan(dims, cases, base_text, yaml.safe_dump(raw_sweep, sort_keys=False), inputs)
+    return SweepPlan(dims, cases, base_text, yaml.safe_dump(raw_sweep, sort_keys=False), inputs, case_map)
 
 
 def _entries(d: Any) -> list[tuple[str | None, tuple[list, tuple[str, ...]]]]:
