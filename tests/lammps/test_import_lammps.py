@@ -314,18 +314,16 @@ def test_a_type_without_mass_stops_the_import_with_the_script_named(tmp_path: Pa
 
 
 def test_no_box_names_the_commands_it_could_not_import(tmp_path: Path) -> None:
-    """A 2-D script in the style of LAMMPS's examples (`lattice hex`, the box region in lattice
-    units): the region cannot be imported (hex scales x and y differently), so neither can
-    create_box. The import stops with "no box", and says why, line by line (it said only "no box")."""
+    """A script whose box region cannot be imported (a prism), so neither can create_box: the
+    import stops with "no box", and says why, line by line (it said only "no box")."""
     script = ("dimension 2\nunits lj\nboundary p f p\nlattice hex 0.7\n"
-              "region box block 0 20 0 10 -0.25 0.25\ncreate_box 1 box\ncreate_atoms 1 box\n"
+              "region box prism 0 20 0 10 -0.25 0.25 1 0 0\ncreate_box 1 box\ncreate_atoms 1 box\n"
               "mass 1 1.0\nfix 1 all nve\nfix 2 all enforce2d\nrun 10\n")
     with pytest.raises(LammpsImportError) as err:
         import_lammps_text(script, tmp_path)
     text = str(err.value)
     assert "in.script: no box (create_box or read_data) in the script; not imported:\n" in text, text
-    assert "in.script:5: region box block 0 20 0 10 -0.25 0.25  ->  lattice units of a hex lattice" in text
-    assert "write this command with units box" in text
+    assert "in.script:5: region box prism 0 20 0 10 -0.25 0.25 1 0 0  ->  region style prism" in text
     assert "in.script:6: create_box 1 box  ->  create_box needs a block region (got 'box')" in text
     res = CliRunner().invoke(app, ["import-lammps", str(tmp_path / "in.script")])
     assert res.exit_code == 2 and "in.script:5: region" in res.output and "Traceback" not in res.output
@@ -403,6 +401,55 @@ def test_lattice_region_create_atoms_variables_match_lammps(tmp_path: Path) -> N
     ref = _run_lammps_script(script, ["temp", "ke", "pe", "etotal"])
     ds = api.run(cfg)
     assert int(ds.sizes.get("atom", 0) or build_case(cfg).natoms) == _count_atoms(tmp_path, LATTICE_SLIT)
+    for j, key in enumerate(["temp", "ke", "pe", "etot"], start=1):
+        np.testing.assert_allclose(ds[key].values.ravel(), ref[:, j], rtol=1e-9, atol=1e-12)
+
+
+HEX_CHANNEL = """# a 2-D hex crystal between walls, every length in lattice units (x and y spacings differ)
+dimension       2
+units           lj
+boundary        p f p
+atom_style      atomic
+lattice         hex 0.7
+region          box block 0 12 0 8 -0.25 0.25
+create_box      1 box
+region          film block INF INF 1.2 4.8 INF INF
+create_atoms    1 region film
+region          ball sphere 6 3 0 1.45
+create_atoms    1 region ball
+region          rod cylinder z 9.5 3.5 1.2 INF INF
+create_atoms    1 region rod
+mass            1 1.0
+velocity        all set 0.3 -0.4 0.0
+create_atoms    1 single 3.3 6.5 0.0
+fix             1 all nve
+fix             2 all enforce2d
+fix             walls all wall/lj93 ylo 0.3 1.0 1.0 2.5 yhi 7.5 1.0 1.0 2.5
+fix_modify      walls energy yes
+""" + THERMO + """thermo          10
+run             60
+"""
+
+
+@pytest.mark.lammps
+@needs_lammps
+def test_hex_lattice_units_import_with_each_axis_spacing(tmp_path: Path) -> None:
+    """A 2-D script on a hex lattice with its box, regions, a single atom, velocities and walls in
+    lattice units (LAMMPS's default), whose x and y spacings differ (a, sqrt(3) a): imported in
+    box units, each length scaled as LAMMPS scales it (a sphere's radius and a z cylinder's by
+    xlattice); the import was refused. The same box, atoms (the ball and rod regions add atoms on
+    top of the film's: an ideal gas) and thermo as LAMMPS."""
+    script = tmp_path / "in.hex"
+    script.write_text(HEX_CHANNEL)
+    result = import_lammps(script, tmp_path / "hex.yaml")
+    assert result.complete, result.text
+    cfg = load_config_text(result.text, str(tmp_path / "hex.yaml"))
+    a = (2.0 / (3.0 ** 0.5 * 0.7)) ** 0.5  # hex: 2 atoms per a x sqrt(3) a cell at reduced density 0.7
+    assert cfg.box.hi[0] == pytest.approx(12 * a, rel=1e-14) and cfg.box.hi[1] == pytest.approx(8 * 3 ** 0.5 * a)
+    assert cfg.walls["walls"].yhi.coord == pytest.approx(7.5 * 3 ** 0.5 * a) and cfg.walls["walls"].units == "box"
+    assert build_case(cfg).natoms == _count_atoms(tmp_path, HEX_CHANNEL) == 99  # ball, rod: scaled as LAMMPS
+    ref = _run_lammps_script(script, ["temp", "ke", "pe", "etotal"])
+    ds = api.run(cfg)
     for j, key in enumerate(["temp", "ke", "pe", "etot"], start=1):
         np.testing.assert_allclose(ds[key].values.ravel(), ref[:, j], rtol=1e-9, atol=1e-12)
 

@@ -52,7 +52,7 @@ from wallbatch.scene.datafile import (
     read_data_file,
     select_ids,
 )
-from wallbatch.units import LATTICE_POSITIONS, UNIT_SYSTEMS, lattice_constant
+from wallbatch.units import LATTICE_CELL, LATTICE_POSITIONS, UNIT_SYSTEMS, lattice_constant
 
 __all__ = ["ImportResult", "Issue", "LammpsImportError", "import_lammps", "import_lammps_text"]
 
@@ -533,15 +533,15 @@ class _Importer:
         self.spacing = lattice_constant(style, scale, self.units)
         self.note_line("lattice")
 
-    def scale(self, units: str) -> float:
+    def scale(self, units: str) -> np.ndarray:
+        """LAMMPS's xlattice, ylattice, zlattice [length] for `units` lattice (1 for box): the
+        lattice constant times the cell's edges (hex: a, sqrt(3) a, a)."""
         if units == "box":
-            return 1.0
+            return np.ones(3)
         if self.spacing is None:
             raise Unsupported("units lattice (the LAMMPS default) needs a lattice command first (or add units box)")
-        if self.lattice is not None and self.lattice["style"] == "hex":
-            raise Unsupported("lattice units of a hex lattice scale x and y differently (a, sqrt(3) a): write this "
-                              "command with units box")
-        return self.spacing
+        style = self.lattice["style"] if self.lattice is not None else "none"
+        return self.spacing * np.asarray(LATTICE_CELL.get(style, (1.0, 1.0, 1.0)))
 
     def c_region(self, w: list[str]) -> None:
         if len(w) < 3:
@@ -572,23 +572,27 @@ class _Importer:
                 return float(self.box[1 if hi else 0][d])
             if word in ("INF", "+INF", "-INF"):
                 return -math.inf if word == "-INF" or (word == "INF" and not hi) else math.inf
-            return _num(word, "a region bound") * s
+            return _num(word, "a region bound") * float(s[d])
 
         if style == "block":
             lo = [bound(args[2 * d], d, False) for d in range(3)]
             hi = [bound(args[2 * d + 1], d, True) for d in range(3)]
             region = {"style": "block", "lo": lo, "hi": hi}
         elif style == "sphere":
-            region = {"style": "sphere", "center": [_num(a, "a sphere center") * s for a in args[:3]],
-                      "radius": _num(args[3], "the sphere radius") * s}
+            # as LAMMPS: the center by each axis's spacing, the radius by xlattice
+            region = {"style": "sphere", "center": [_num(a, "a sphere center") * float(s[k])
+                                                    for k, a in enumerate(args[:3])],
+                      "radius": _num(args[3], "the sphere radius") * float(s[0])}
         else:
             axis = args[0]
             if axis not in ("x", "y", "z"):
                 raise Unsupported("a cylinder's axis is x, y or z")
             d = "xyz".index(axis)
-            # LAMMPS scales c1, c2 by the lattice spacings of the two other axes (all equal here)
-            region = {"style": "cylinder", "axis": axis, "center": [_num(a, "a cylinder center") * s for a in args[1:3]],
-                      "radius": _num(args[3], "the cylinder radius") * s,
+            # as LAMMPS: c1, c2 by the spacings of the two other axes, the radius by c1's
+            across = [k for k in range(3) if k != d]
+            region = {"style": "cylinder", "axis": axis,
+                      "center": [_num(a, "a cylinder center") * float(s[k]) for k, a in zip(across, args[1:3])],
+                      "radius": _num(args[3], "the cylinder radius") * float(s[across[0]]),
                       "lo": bound(args[4], d, False), "hi": bound(args[5], d, True)}
         region["side"] = side
         region["units"] = "box"
@@ -673,7 +677,7 @@ class _Importer:
                 units, extra = extra[1], extra[2:]
             if extra:
                 raise Unsupported(f"create_atoms keywords {' '.join(extra)} are not supported")
-            x = np.array([[_num(v, "a coordinate") * self.scale(units) for v in rest[:3]]])
+            x = np.array([[_num(v, "a coordinate") * float(a) for v, a in zip(rest[:3], self.scale(units))]])
             chunk = _Chunk("single", {"positions": x.tolist()}, 1, self.cmd.line)
         elif style == "random":
             if len(rest) < 3:
@@ -846,7 +850,7 @@ class _Importer:
             if "NULL" in rest[:3]:
                 raise Unsupported("velocity set with NULL components is not supported")
             s = self.scale(units)
-            spec = {"values": [_num(v, "a velocity") * s for v in rest[:3]]}
+            spec = {"values": [_num(v, "a velocity") * float(a) for v, a in zip(rest[:3], s)]}
         else:
             raise Unsupported(f"velocity {style} is not supported (create, set)")
         self.atoms.velocities.append(spec)
@@ -1289,15 +1293,18 @@ class _Importer:
         return data, self.comments
 
     def lattice_free_units(self, wall: dict, fid: str) -> None:
-        """Walls in lattice units (LAMMPS's default) without a lattice: LAMMPS's `lattice none`
-        spacing (1.0 by default) scales them, so they are written in box units."""
-        if wall.get("style") in ("region", "region/ees") or self.lattice is not None:
+        """Walls in lattice units (LAMMPS's default) without a lattice, or with a hex lattice
+        (whose x and y spacings differ, which a config's lattice units cannot say): LAMMPS scales
+        each face's coordinate by its axis's spacing (`lattice none`: 1.0 by default), so they are
+        written in box units."""
+        hex_ = self.lattice is not None and self.lattice["style"] == "hex"
+        if wall.get("style") in ("region", "region/ees") or (self.lattice is not None and not hex_):
             return
         if wall.get("units", "lattice") == "lattice":
-            s = self.spacing if self.spacing is not None else 1.0
-            if s != 1.0:
+            spacing = self.scale("lattice") if hex_ else np.full(3, self.spacing if self.spacing is not None else 1.0)
+            if np.any(spacing != 1.0):
                 for face in ("xlo", "xhi", "ylo", "yhi", "zlo", "zhi"):
-                    f = wall.get(face)
+                    f, s = wall.get(face), float(spacing["xyz".index(face[0])])
                     c = f.get("coord") if isinstance(f, dict) else f
                     if isinstance(c, float):
                         if isinstance(f, dict):
@@ -1306,8 +1313,10 @@ class _Importer:
                             wall[face] = c * s
                     elif isinstance(c, str) and c.startswith("v_"):
                         self.unsupported.append(Issue(self.wall_lines[fid].line, self.wall_lines[fid].raw,
-                                                      "a variable coordinate in lattice units of lattice none"))
+                                                      f"a variable coordinate in lattice units of lattice "
+                                                      f"{'hex' if hex_ else 'none'} (write the wall with units box)"))
                 if wall.get("style") == "flow":
+                    s = float(spacing["xyz".index(wall["axis"])])
                     wall["coords"] = [c * s for c in wall["coords"]]
             wall["units"] = "box"
 
