@@ -112,3 +112,30 @@ def test_the_dataset_keeps_the_config_the_time_and_the_ladder_units(harmonic, tm
     real = convergence(HARMONIC, sets=["units=real", "timestep=1.0", "run.steps=40", "run.thermo=10"],
                        dts=[2.0, 1.0, 0.5])
     assert real.dataset["dt"].attrs["units"] == "fs"
+
+
+@pytest.mark.parametrize("rtol", ["-1", "0", "nan", "inf"])
+def test_cli_refuses_a_tolerance_that_is_no_positive_number_before_running(rtol):
+    """`--rtol nan` printed "cheapest dt with every error <= nan: 0.01" (every comparison false
+    reads as met); -1 ran the whole ladder to say that no dt meets it. Refused before any run."""
+    res = CliRunner().invoke(app, ["convergence", str(HARMONIC), "--rtol", rtol])
+    assert res.exit_code == 2
+    assert f"--rtol {float(rtol):g}: give a positive relative error, e.g. --rtol 1e-4" in res.output
+    assert "observed order" not in res.output
+
+
+def test_cli_output_and_plot_paths_as_run_treats_them(tmp_path):
+    """`-o` into a missing folder was "unexpected PermissionError ... a wallbatch bug" after the
+    whole ladder ran (and `--plot` likewise); an existing file was overwritten silently. Folders are
+    made, as by `run -o` and `plot -o`; an existing file needs --force; an input is refused."""
+    out, png = tmp_path / "new" / "conv.nc", tmp_path / "figs" / "conv.png"
+    args = ["convergence", str(HARMONIC), "--dt", "0.01,0.005,0.0025"]
+    res = CliRunner().invoke(app, [*args, "-o", str(out), "--plot", str(png)])
+    assert res.exit_code == 0, res.output
+    assert xr.open_dataset(out).sizes["dt"] == 3 and png.stat().st_size > 0
+    again = CliRunner().invoke(app, [*args, "-o", str(out)])
+    assert again.exit_code == 2 and f"{out} exists: add --force to overwrite it" in again.output
+    assert "observed order" not in again.output
+    assert CliRunner().invoke(app, [*args, "-o", str(out), "--force"]).exit_code == 0
+    inp = CliRunner().invoke(app, [*args, "-o", str(HARMONIC)])
+    assert inp.exit_code == 2 and "is an input of this run" in inp.output

@@ -492,15 +492,26 @@ def convergence(config: Path = typer.Argument(..., help="scene or sweep YAML fil
                 output: Path = typer.Option(None, "-o", "--output", help="write the runs as NetCDF with a dt "
                                             "(or xmax) dimension"),
                 plot_to: Path = typer.Option(None, "--plot", help="write a PNG of error and drift against cost"),
+                force: bool = typer.Option(False, "--force", help="overwrite an existing -o file"),
                 ) -> None:
     """Run one case at a ladder of timesteps over the same simulated time and print, per output,
     the error against the finest run, the observed order, the energy drift and the cost."""
+    import math
+
+    from wallbatch.batch.runner import RunError, check_output
     from wallbatch.convergence import ConvergenceError
     from wallbatch.convergence import convergence as run_ladder
     from wallbatch.convergence import plot as plot_ladder
     from wallbatch.lammps.export import ExportError
 
+    if rtol is not None and not (math.isfinite(rtol) and rtol > 0):  # before the ladder runs
+        raise _fail(f"--rtol {rtol:g}: give a positive relative error, e.g. --rtol 1e-4")
     plan = _plan(config, set_)
+    if output is not None:
+        try:
+            check_output(output, plan.inputs, overwrite=force)
+        except RunError as exc:
+            raise _fail(str(exc)) from None
     try:
         report = run_ladder(plan, case=case, dts=_floats(dt, "--dt"), xmaxs=_floats(xmax, "--xmax"))
     except (ConvergenceError, ExportError, CaseError, ConfigError) as exc:
@@ -508,6 +519,7 @@ def convergence(config: Path = typer.Argument(..., help="scene or sweep YAML fil
         raise typer.Exit(2) from None
     typer.echo(report.table())
     if output is not None:
+        output.parent.mkdir(parents=True, exist_ok=True)  # as `run -o` does
         report.dataset.to_netcdf(output)
         typer.echo(f"-> {output}")
     if plot_to is not None:

@@ -258,6 +258,7 @@ def plot(report: ConvergenceReport, path: str | os.PathLike) -> Path:
         ax.grid(True, which="both", alpha=0.3)
     if report.outputs:
         axes[0].legend(fontsize=8)
+    Path(path).parent.mkdir(parents=True, exist_ok=True)  # as `wallbatch plot` does
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return Path(path)
