@@ -783,6 +783,13 @@ def test_show_on_a_foreign_netcdf(tmp_path):
     junk.write_text("hello")
     res = run("show", junk)
     assert res.exit_code == 2 and f"cannot open {junk}: not a NetCDF file, or a damaged one" in res.output
+    assert "give the results file `wallbatch run -o` wrote" in res.output
+    config = tmp_path / "scene.yaml"
+    config.write_text("name: x\n")
+    res = run("show", config)  # a config given where a results file belongs: say what to do with it
+    assert res.exit_code == 2
+    assert (f"this looks like a config: `wallbatch check {config}` checks it, `wallbatch run {config} -o scene.nc` "
+            "writes a results file") in res.output
 
 
 def test_an_unknown_or_missing_style_is_named_at_its_key(tmp_path):

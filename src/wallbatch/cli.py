@@ -275,7 +275,11 @@ def _open(results: Path):
     try:
         ds = xr.open_dataset(results)
     except Exception as exc:  # noqa: BLE001 - any reader failure: not a readable NetCDF file
-        raise _fail(f"cannot open {results}: not a NetCDF file, or a damaged one ({type(exc).__name__})") from None
+        hint = (f"; this looks like a config: `wallbatch check {results}` checks it, `wallbatch run {results} -o "
+                f"{results.with_suffix('.nc').name}` writes a results file" if results.suffix in (".yaml", ".yml") else
+                "; give the results file `wallbatch run -o` wrote")
+        raise _fail(f"cannot open {results}: not a NetCDF file, or a damaged one ({type(exc).__name__}){hint}") \
+            from None
     if "wallbatch_version" not in ds.attrs or "status" not in ds:
         raise _fail(f"{results} is a NetCDF file but not a wallbatch results file (no wallbatch_version "
                     f"attribute or status variable)")
