@@ -387,6 +387,8 @@ def export_lammps(config: Path = typer.Argument(..., help="scene or sweep YAML f
     """Write one case as a LAMMPS input script and data file that reproduce it exactly."""
     from wallbatch.lammps.export import ExportError, export_selected, write_export
 
+    if output.exists() and not output.is_dir():
+        raise _fail(f"-o {output} is a file: give a folder for in.NAME and data.NAME (made if missing)")
     plan = _plan(config, set_)
     try:
         exp = export_selected(plan, case, steps)
@@ -412,9 +414,13 @@ def validate(config: Path = typer.Argument(..., help="scene or sweep YAML file")
              ) -> None:
     """Run one case in wallbatch and in LAMMPS (Python module) and compare every shared output.
     Exit 0 if all agree within --rtol, 1 if not, 2 if it cannot run (no LAMMPS, cannot export)."""
+    import math
+
     from wallbatch.lammps.export import ExportError, select_case
     from wallbatch.lammps.validate import LammpsMissing, validate_case
 
+    if not (math.isfinite(rtol) and rtol >= 0):
+        raise _fail(f"--rtol {rtol:g}: give a relative tolerance >= 0, e.g. --rtol 1e-9")
     plan = _plan(config, set_)
     try:
         report = validate_case(select_case(plan, case), steps=steps, rtol=rtol)
@@ -437,6 +443,7 @@ def import_lammps(script: Path = typer.Argument(..., help="LAMMPS input script (
                   strict: bool = typer.Option(False, "--strict", help="exit 1 if any command could not be imported"),
                   exact: bool = typer.Option(False, "--exact", help="run the setup in LAMMPS and start from its state "
                                              "(a data file beside the config): LAMMPS's random numbers"),
+                  force: bool = typer.Option(False, "--force", help="overwrite an existing -o file"),
                   ) -> None:
     """Turn a LAMMPS input script into an equivalent wallbatch config, commented with the original
     lines; what cannot be imported is listed at its end (exit 1 under --strict)."""
@@ -450,6 +457,15 @@ def import_lammps(script: Path = typer.Argument(..., help="LAMMPS input script (
             typer.echo(f"error: --var {item}: write name=value", err=True)
             raise typer.Exit(2)
         variables[key.strip()] = value.strip()
+    if output is not None:
+        if output.is_dir():
+            raise _fail(f"-o {output} is a folder: give the config's file name, e.g. {output / 'config.yaml'}")
+        if output.exists() and output.resolve() == script.resolve():
+            raise _fail(f"-o {output} is the script itself: choose another name, e.g. "
+                        f"{output.with_suffix('.yaml').name if output.suffix != '.yaml' else 'config.yaml'}")
+        if output.exists() and not force:
+            raise _fail(f"{output} exists: add --force to overwrite it, or choose another -o")
+        output.parent.mkdir(parents=True, exist_ok=True)
     try:
         result = do_import(script, output, variables, exact=exact)
     except (LammpsImportError, LammpsMissing) as exc:

@@ -247,7 +247,7 @@ def test_unsupported_commands_are_listed_by_line(tmp_path: Path) -> None:
     script = tmp_path / "in.script"
     res = runner.invoke(app, ["import-lammps", str(script), "-o", str(tmp_path / "c.yaml")])
     assert res.exit_code == 0
-    res = runner.invoke(app, ["import-lammps", str(script), "-o", str(tmp_path / "c.yaml"), "--strict"])
+    res = runner.invoke(app, ["import-lammps", str(script), "-o", str(tmp_path / "c.yaml"), "--strict", "--force"])
     assert res.exit_code == 1 and "in.script:11: fix 2 all npt" in res.output
 
 
@@ -770,3 +770,32 @@ def test_two_dimensional_script_matches_lammps(tmp_path: Path) -> None:
     assert (ds["status"] == "ok").all(), ds["error"].values
     for j, key in enumerate(["temp", "ke", "pe", "etot"], start=1):
         np.testing.assert_allclose(ds[key].values.ravel(), ref[:, j], rtol=1e-9, atol=1e-12)
+
+
+def test_cli_output_paths_of_import_export_and_validate(tmp_path: Path) -> None:
+    """import-lammps -o overwrote an existing config silently (a hand-edited one lost) and gave
+    "unexpected IsADirectoryError ... a wallbatch bug" for a folder; export-lammps -o naming a file
+    was a bug report too; validate took a negative --rtol. Now: --force to overwrite, the script
+    itself refused, missing folders made, and each refusal names its argument."""
+    script = tmp_path / "in.script"
+    script.write_text(HEX_CHANNEL)
+    out = tmp_path / "c.yaml"
+    runner = CliRunner()
+    assert runner.invoke(app, ["import-lammps", str(script), "-o", str(out)]).exit_code == 0
+    out.write_text("# edited by hand\n" + out.read_text())
+    res = runner.invoke(app, ["import-lammps", str(script), "-o", str(out)])
+    assert res.exit_code == 2 and f"{out} exists: add --force to overwrite it" in res.output
+    assert out.read_text().startswith("# edited by hand")
+    assert runner.invoke(app, ["import-lammps", str(script), "-o", str(out), "--force"]).exit_code == 0
+    assert not out.read_text().startswith("# edited by hand")
+    res = runner.invoke(app, ["import-lammps", str(script), "-o", str(tmp_path)])
+    assert res.exit_code == 2 and f"-o {tmp_path} is a folder: give the config's file name" in res.output
+    res = runner.invoke(app, ["import-lammps", str(script), "-o", str(script)])
+    assert res.exit_code == 2 and "is the script itself" in res.output and script.read_text() == HEX_CHANNEL
+    deep = tmp_path / "a" / "b" / "c.yaml"
+    assert runner.invoke(app, ["import-lammps", str(script), "-o", str(deep)]).exit_code == 0 and deep.exists()
+    res = runner.invoke(app, ["export-lammps", str(out), "-o", str(out)])
+    assert res.exit_code == 2 and f"-o {out} is a file: give a folder for in.NAME and data.NAME" in res.output
+    for bad in ("-1", "nan"):
+        res = runner.invoke(app, ["validate", str(out), "--rtol", bad])
+        assert res.exit_code == 2 and f"--rtol {float(bad):g}: give a relative tolerance >= 0" in res.output
