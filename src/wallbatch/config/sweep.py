@@ -94,6 +94,15 @@ def _untagged(loc: tuple) -> tuple:
     return tuple(out)
 
 
+def _sweep_message(error: dict) -> str:
+    """A sweep validation error's text: a linspace, logspace or range written with fewer than its
+    three numbers says which three (pydantic: "Field required")."""
+    form = next((k for k in ("linspace", "logspace", "range") if k in error["loc"]), None)
+    if form is not None and error["type"] == "missing":
+        return f"{form} takes three numbers: [a, b, {'step' if form == 'range' else 'n'}]"
+    return error["msg"].removeprefix("Value error, ")
+
+
 def _entry_kind(v: Any) -> str:
     """A product entry: {path: ..., values: ...} (a mapping with either key: the other is then
     reported missing), or the shorthand whose key is the path."""
@@ -490,8 +499,8 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
     try:
         sweep = Sweep.model_validate(raw_sweep)
     except ValidationError as exc:
-        raise ConfigError([smap.format(("sweep",) + _untagged(e["loc"]), e["msg"].removeprefix("Value error, "))
-                           for e in exc.errors(include_url=False)]) from None
+        raise ConfigError(list(dict.fromkeys(smap.format(("sweep",) + _untagged(e["loc"]), _sweep_message(e))
+                                             for e in exc.errors(include_url=False)))) from None
     order = [k for k in raw_sweep if k in ("product", "zip")]
     dims = _dims(sweep, order, smap)
     base_data = config_to_dict(base)
