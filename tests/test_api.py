@@ -18,6 +18,8 @@ def test_load_applies_sets_and_expands_the_sweep():
     assert len(plan.cases) == 27
     assert {sc.config.run.steps for sc in plan.cases} == {20}
     again = wallbatch.load(ROOT / "sweeps/lj93-epsilon-sigma-cutoff.yaml", sets={"run.steps": 20})
+    one = wallbatch.load(ROOT / "configs/quickstart.yaml", sets="run.steps=20")  # was "--set r: write path=value"
+    assert one.cases[0].config.run.steps == 20
     assert [sc.coords for sc in again.cases] == [sc.coords for sc in plan.cases]
 
 

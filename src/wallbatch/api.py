@@ -50,8 +50,11 @@ def load(config: ConfigLike, sets: Sequence[str] | Mapping[str, Any] = ()) -> Sw
     language (its numbers may be NumPy scalars and its lists NumPy arrays: sweep values from
     np.linspace, say), or a plan (returned as is when ``sets`` is empty). ``sets`` overrides values by
     dotted path, as ``--set`` does: ``["walls.zw.zlo.epsilon=2"]`` or ``{"walls.zw.zlo.epsilon": 2}``.
+    One ``"path=value"`` string is one override.
     Raises `wallbatch.config.source.ConfigError` (one line per problem, with file:line:col).
     """
+    if isinstance(sets, str):  # one override, not its characters one by one
+        sets = [sets]
     if isinstance(config, SweepPlan):
         if sets:
             raise ValueError("sets apply to a path, a Config or a mapping, not to a loaded plan")
