@@ -824,3 +824,16 @@ def test_output_written_as_a_folder_and_an_interrupt_with_nothing_saved(scene, t
         "interrupted: 0/50 cases finished: nothing to resume, rerun to start again"
     assert str(Interrupted(3, 50, tmp_path / "k.nc.parts")) == \
         f"interrupted: 3/50 cases saved in {tmp_path / 'k.nc.parts'}; rerun with --resume"
+
+
+@pytest.mark.parametrize("fields,text", [
+    ("[]", "give the per-atom fields to write: [x], [v] or [x, v]"),
+    ("[x, x]", "['x', 'x']: each field once ([x], [v] or [x, v])"),
+])
+def test_a_dump_without_fields_is_refused_at_its_key(tmp_path, fields, text):
+    """`output.dump.fields: []` passed check and then failed the run with "unexpected ValueError:
+    nothing to write ... a wallbatch bug"; now refused at the key, as a field named twice is."""
+    path = tmp_path / "scene.yaml"
+    path.write_text(SCENE + f"output:\n  dump: {{every: 10, fields: {fields}}}\n")
+    (msg,) = config_error(path)
+    assert msg.startswith(f"{path}:") and f"output.dump.fields: {text}" in msg, msg

@@ -683,6 +683,16 @@ class Dump(Model):
     every: PositiveInt
     fields: list[Literal["x", "v"]] = ["x", "v"]
 
+    @field_validator("fields")
+    @classmethod
+    def _some_fields(cls, v: list[str]) -> list[str]:
+        """At least one of x, v, each once (an empty list had nothing to write: the run failed)."""
+        if not v:
+            raise ValueError("give the per-atom fields to write: [x], [v] or [x, v]")
+        if len(set(v)) != len(v):
+            raise ValueError(f"{v}: each field once ([x], [v] or [x, v])")
+        return v
+
 
 class Output(Model):
     thermo: list[Literal[THERMO_KEYWORDS]] = ["step", "time", "dt", "temp", "ke", "pe", "etot"]  # type: ignore[valid-type]
