@@ -354,6 +354,17 @@ def test_a_bad_values_form_is_one_problem_at_its_key(tmp_path, values, where, te
     assert msg.startswith(f"{p}:4:") and f"sweep.product.eps.{where}: {text}" in msg, msg
 
 
+def test_a_zip_dimension_name_that_is_no_word_says_what_a_name_is(tmp_path):
+    """It was pydantic's "String should match pattern '^[A-Za-z_][A-Za-z0-9_]*$'"."""
+    p = sweep_file(tmp_path, """\
+        sweep:
+          zip: {dim: 'a b', params: {e: {path: walls.zwalls.zlo.epsilon, values: [1.0]}}}
+        """)
+    (msg,) = config_error(p)
+    assert msg == (f"{p}:3:14: sweep.zip.dim: 'a b': a dimension name is letters, digits and underscores, not "
+                   f"starting with a digit (it names a dimension of the results file)")
+
+
 def test_a_product_entry_without_its_path_says_so(tmp_path):
     p = sweep_file(tmp_path, """\
         sweep:

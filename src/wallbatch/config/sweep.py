@@ -100,6 +100,9 @@ def _sweep_message(error: dict) -> str:
     form = next((k for k in ("linspace", "logspace", "range") if k in error["loc"]), None)
     if form is not None and error["type"] == "missing":
         return f"{form} takes three numbers: [a, b, {'step' if form == 'range' else 'n'}]"
+    if error["type"] == "string_pattern_mismatch":  # a zip's dim: a name in the results file
+        return (f"{error['input']!r}: a dimension name is letters, digits and underscores, not starting with a "
+                f"digit (it names a dimension of the results file)")
     return error["msg"].removeprefix("Value error, ")
 
 
