@@ -848,3 +848,15 @@ def test_a_dump_without_fields_is_refused_at_its_key(tmp_path, fields, text):
     path.write_text(SCENE + f"output:\n  dump: {{every: 10, fields: {fields}}}\n")
     (msg,) = config_error(path)
     assert msg.startswith(f"{path}:") and f"output.dump.fields: {text}" in msg, msg
+
+
+def test_a_cylinder_with_lo_above_hi_is_refused_at_its_region(tmp_path):
+    """A cylinder with lo > hi is empty: LAMMPS accepts it, and a wall/region on it (side out)
+    then touches no atom, while wallbatch's contacts ignored the order (validate: every output
+    differed). Refused at the region's line, like a block with lo > hi (decisions table)."""
+    path = tmp_path / "scene.yaml"
+    path.write_text(SCENE.replace("regions:\n", "regions:\n  rod: {style: cylinder, axis: z, center: [2, 2], "
+                                  "radius: 1.0, lo: 7, hi: -1, side: out, units: box}\n", 1))
+    (msg,) = config_error(path)
+    assert msg.startswith(f"{path}:") and "regions.rod: a cylinder region needs lo <= hi along its axis: lo = 7 > " \
+        "hi = -1 (an empty cylinder; LAMMPS accepts it and its wall then touches no atom): swap them" in msg, msg

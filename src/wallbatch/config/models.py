@@ -282,6 +282,9 @@ class Region(Model):
             len(self.center) != 2 or isinstance(self.lo, tuple) or isinstance(self.hi, tuple)
         ):
             raise ValueError("a cylinder region needs center [c1, c2] and numbers lo, hi along its axis")
+        if self.style == "cylinder" and self.lo > self.hi:  # LAMMPS accepts it: an empty cylinder (decisions table)
+            raise ValueError(f"a cylinder region needs lo <= hi along its axis: lo = {self.lo:g} > hi = {self.hi:g} "
+                             f"(an empty cylinder; LAMMPS accepts it and its wall then touches no atom): swap them")
         return self
 
 
