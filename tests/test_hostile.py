@@ -860,3 +860,17 @@ def test_a_cylinder_with_lo_above_hi_is_refused_at_its_region(tmp_path):
     (msg,) = config_error(path)
     assert msg.startswith(f"{path}:") and "regions.rod: a cylinder region needs lo <= hi along its axis: lo = 7 > " \
         "hi = -1 (an empty cylinder; LAMMPS accepts it and its wall then touches no atom): swap them" in msg, msg
+
+
+def test_a_sweep_file_as_the_base_is_named_as_such(tmp_path):
+    """A sweep file whose base is itself or another sweep file gave "box: Field required",
+    "atoms: Field required", ... and "base: unknown key" at the base's line 1."""
+    own = tmp_path / "own.yaml"
+    own.write_text("base: own.yaml\nsweep:\n  replicas: 2\n")
+    (msg,) = config_error(own)
+    assert msg == (f"{own}:1:7: base: own.yaml is this sweep file itself, not a scene: give the scene config that "
+                   f"the sweep varies (a sweep file's base is one scene file)")
+    chained = tmp_path / "chained.yaml"
+    chained.write_text("base: own.yaml\n")
+    (msg,) = config_error(chained)
+    assert msg.startswith(f"{chained}:1:7: base: own.yaml is a sweep file, not a scene")

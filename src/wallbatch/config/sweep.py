@@ -620,10 +620,15 @@ def load_plan(path: str | Path, overrides: list[str] = ()) -> SweepPlan:
         sets = {str(k): v for k, v in (data.get("set") or {}).items()}
         origins = {str(k): _where_text(srcmap, ("set", k)) for k in (data.get("set") or {})}
         sweep_map = srcmap if "sweep" in data else None
+        base_where = _where_text(srcmap, ("base",))
         scene, srcmap = load_yaml(base_text, str(base_path))
         if not isinstance(scene, dict):
             raise ConfigError([srcmap.format((), f"the base scene must be a mapping of keys, "
                                                  f"not a {type(scene).__name__}")])
+        if "base" in scene:  # a sweep file (or this one) as the base: one level only
+            what = "this sweep file itself" if base_path == path.resolve() else "a sweep file"
+            raise ConfigError([f"{base_where}: base: {data['base']} is {what}, not a scene: give the scene config "
+                               f"that the sweep varies (a sweep file's base is one scene file)"])
         base_dir = base_path.parent
         if "sweep" in data:  # the sweep file's sweep replaces one of the scene
             scene["sweep"] = data["sweep"]
