@@ -339,8 +339,8 @@ def test_set_on_a_swept_path_is_refused(tmp_path):
     ("{lnspace: [0.5, 1.5, 3]}", "values", "values: give a list, {linspace: [a, b, n]}"),
     ("3", "values", "values: give a list, {linspace: [a, b, n]}"),
     ("[]", "values", "List should have at least 1 item"),
-    ("{linspace: [0.5, 1.5]}", "values.linspace", "linspace takes three numbers: [a, b, n]"),  # "Field required"
-    ("{range: [1.0]}", "values.range", "range takes three numbers: [a, b, step]"),  # once, not per number missing
+    ("{linspace: [0.5, 1.5]}", "values.linspace", "linspace expects 3 values [a, b, n], got 2"),  # "Field required"
+    ("{range: [1.0]}", "values.range", "range expects 3 values [a, b, step], got 1"),  # once, not per number missing
 ])
 def test_a_bad_values_form_is_one_problem_at_its_key(tmp_path, values, where, text):
     """A mistake inside one form of `values` is reported once, at that form's key (it came with an

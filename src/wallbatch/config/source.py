@@ -48,6 +48,32 @@ def _a_key(part: str) -> bool:
     return part not in WALL_TAGS and not any(c in part for c in "[]()") and not _UNION_MEMBER.fullmatch(part)
 
 
+def tuple_length_errors(errors: list[dict]) -> list[dict]:
+    """Pydantic errors with a fixed-length list of the wrong length said plainly: the `missing`
+    errors pydantic gives per absent item of a too-short tuple become one error at the list
+    ("expects 3 values, got 2"), and its "Tuple should have at most ..." of a too-long one too."""
+    out: list[dict] = []
+    short: dict[tuple, dict] = {}  # the list's loc -> its one error
+    for err in errors:
+        loc, given = tuple(err["loc"]), err.get("input")
+        if err["type"] == "missing" and loc and isinstance(loc[-1], int) and isinstance(given, (list, tuple)) \
+                and loc[-1] >= len(given):
+            need = loc[-1] + 1
+            if loc[:-1] in short:
+                short[loc[:-1]]["need"] = max(short[loc[:-1]]["need"], need)
+                continue
+            short[loc[:-1]] = new = {**err, "loc": loc[:-1], "need": need, "got": len(given)}
+            out.append(new)
+        elif err["type"] == "too_long" and (err.get("ctx") or {}).get("field_type") == "Tuple":
+            ctx = err["ctx"]
+            out.append({**err, "msg": f"expects {ctx['max_length']} values, got {ctx['actual_length']}"})
+        else:
+            out.append(err)
+    for err in short.values():
+        err["msg"] = f"expects {err.pop('need')} values, got {err.pop('got')}"
+    return out
+
+
 KEY = "<key>"  # last part of a path that means the mapping key itself (a problem of a name: shown at the key)
 
 

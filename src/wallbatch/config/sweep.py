@@ -22,7 +22,8 @@ import yaml
 from pydantic import ConfigDict, Discriminator, Field, PositiveInt, Tag, ValidationError, field_validator
 
 from wallbatch.config.models import Config, Model, validate_data
-from wallbatch.config.source import FACES, ConfigError, SourceMap, _Loader, load_yaml, read_config_text
+from wallbatch.config.source import (FACES, ConfigError, SourceMap, _Loader, load_yaml, read_config_text,
+                                     tuple_length_errors)
 
 # ----------------------------------------------------------------------------- the sweep models
 
@@ -98,8 +99,8 @@ def _sweep_message(error: dict) -> str:
     """A sweep validation error's text: a linspace, logspace or range written with fewer than its
     three numbers says which three (pydantic: "Field required")."""
     form = next((k for k in ("linspace", "logspace", "range") if k in error["loc"]), None)
-    if form is not None and error["type"] == "missing":
-        return f"{form} takes three numbers: [a, b, {'step' if form == 'range' else 'n'}]"
+    if form is not None and error["type"] == "missing" and isinstance(error.get("input"), (list, tuple)):
+        return f"{form} expects 3 values [a, b, {'step' if form == 'range' else 'n'}], got {len(error['input'])}"
     if error["type"] == "string_pattern_mismatch":  # a zip's dim: a name in the results file
         return (f"{error['input']!r}: a dimension name is letters, digits and underscores, not starting with a "
                 f"digit (it names a dimension of the results file)")
@@ -503,7 +504,7 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
         sweep = Sweep.model_validate(raw_sweep)
     except ValidationError as exc:
         raise ConfigError(list(dict.fromkeys(smap.format(("sweep",) + _untagged(e["loc"]), _sweep_message(e))
-                                             for e in exc.errors(include_url=False)))) from None
+                                             for e in tuple_length_errors(exc.errors(include_url=False))))) from None
     order = [k for k in raw_sweep if k in ("product", "zip")]
     dims = _dims(sweep, order, smap)
     base_data = config_to_dict(base)
