@@ -636,9 +636,17 @@ def load_plan(path: str | Path, overrides: list[str] = ()) -> SweepPlan:
         data = scene
     else:
         sets = {}
+    given: dict[str, str] = {}  # path -> its --set argument, as typed
     for item in overrides:
         key, value = parse_set(item)
+        shown = f"--set {item if len(item) <= 200 else item[:197] + '...'}"
+        for other, other_shown in given.items():  # two --set on one value: which one wins is no guess to make
+            if _overlaps(key, other):
+                what = "is also set by" if key == other else \
+                    ("lies inside " if key.startswith(other + ".") else "contains ") + f"{other}, set by"
+                raise ConfigError([f"{shown}: {key} {what} {other_shown}: give each value once"])
+        given[key] = shown
         sets[key] = value
-        origins[key] = f"--set {item if len(item) <= 200 else item[:197] + '...'}"
+        origins[key] = shown
     return expand(data, srcmap, base_text, base_dir, sets, sweep_map=sweep_map, origins=origins,
                   inputs=tuple(inputs))
