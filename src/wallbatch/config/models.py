@@ -31,7 +31,8 @@ from pydantic import (
 from wallbatch.config.base import NoBoolNumbers
 from wallbatch.config.ondemand import tagged_on_demand
 from wallbatch.config.profiles import Averages, Profile, check_profiles
-from wallbatch.config.source import FACES, ConfigError, SourceMap, load_yaml, tuple_length_errors
+from wallbatch.config.source import (FACES, ConfigError, SourceMap, load_yaml, model_type_errors,
+                                     tuple_length_errors)
 from wallbatch.styles import STYLES, WallStyle, region_styles
 from wallbatch.styles import Param as StyleParam
 from wallbatch.styles.cutoff import CUTOFF_MODES
@@ -779,7 +780,7 @@ def validate_data(data: Any, srcmap: SourceMap, base: Path | None = None, *, cro
         cfg = Config.model_validate(data)
     except ValidationError as exc:
         problems = []
-        for err in tuple_length_errors(exc.errors(include_url=False)):
+        for err in model_type_errors(tuple_length_errors(exc.errors(include_url=False))):
             msg = err["msg"]
             msg = msg.removeprefix("Value error, ")
             if err["type"] == "extra_forbidden" and err["loc"][-1] == "fld":

@@ -74,6 +74,27 @@ def tuple_length_errors(errors: list[dict]) -> list[dict]:
     return out
 
 
+def model_type_errors(errors: list[dict]) -> list[dict]:
+    """Pydantic's "Input should be a valid dictionary or instance of Run" (a scalar or a list where
+    a section of keys belongs) said without the class name: "expected a mapping of keys, got 5"."""
+    out = []
+    for err in errors:
+        loc, given = tuple(err["loc"]), err.get("input")
+        if err["type"] == "model_type" and loc and loc[-1] == (err.get("ctx") or {}).get("class_name") \
+                and isinstance(given, (int, float)) and not isinstance(given, bool) \
+                and any(tuple(e["loc"][:-1]) == loc[:-1] and e is not err for e in errors):
+            continue  # a number given to a union of a number and a section: the number's error says it
+        if err["type"] == "model_type":
+            kind = {list: "a list", str: "text", bool: "true/false", type(None): "nothing (null)"}.get(
+                type(given), "a number" if isinstance(given, (int, float)) else type(given).__name__)
+            shown = "" if given is None else f" {shorten(repr(given) if isinstance(given, str) else given, 80)}"
+            face = str((err.get("ctx") or {}).get("class_name", "")).endswith("Face")
+            also = " or the positional list of the LAMMPS command (coord epsilon sigma cutoff ...)" if face else ""
+            err = {**err, "msg": f"expected a mapping of keys (key: value){also}, got {kind}{shown}"}
+        out.append(err)
+    return out
+
+
 KEY = "<key>"  # last part of a path that means the mapping key itself (a problem of a name: shown at the key)
 
 

@@ -23,7 +23,7 @@ from pydantic import ConfigDict, Discriminator, Field, PositiveInt, Tag, Validat
 
 from wallbatch.config.models import Config, Model, validate_data
 from wallbatch.config.source import (FACES, ConfigError, SourceMap, _Loader, load_yaml, read_config_text,
-                                     tuple_length_errors)
+                                     model_type_errors, tuple_length_errors)
 
 # ----------------------------------------------------------------------------- the sweep models
 
@@ -503,8 +503,9 @@ def expand(data: dict, srcmap: SourceMap, base_text: str = "", base_dir: Path = 
     try:
         sweep = Sweep.model_validate(raw_sweep)
     except ValidationError as exc:
+        errors = model_type_errors(tuple_length_errors(exc.errors(include_url=False)))
         raise ConfigError(list(dict.fromkeys(smap.format(("sweep",) + _untagged(e["loc"]), _sweep_message(e))
-                                             for e in tuple_length_errors(exc.errors(include_url=False))))) from None
+                                             for e in errors))) from None
     order = [k for k in raw_sweep if k in ("product", "zip")]
     dims = _dims(sweep, order, smap)
     base_data = config_to_dict(base)
