@@ -21,7 +21,8 @@ run: {steps: 10}
 
 
 @pytest.mark.parametrize("sets, message", [
-    (["run.steps=5", "run.steps=6"], "--set run.steps=6: run.steps is also set by --set run.steps=5: give each value once"),
+    (["run.steps=5", "run.steps=6"],
+     "--set run.steps=6: run.steps is also set by --set run.steps=5: give each value once"),
     (["run={steps: 5}", "run.steps=6"],
      "--set run.steps=6: run.steps lies inside run, set by --set run={steps: 5}: give each value once"),
     (["run.steps=6", "run={steps: 5}"],
