@@ -313,6 +313,27 @@ def test_a_type_without_mass_stops_the_import_with_the_script_named(tmp_path: Pa
     assert res.exit_code == 2 and "atom type 1 has no mass" in res.output and "Traceback" not in res.output
 
 
+@pytest.mark.lammps
+@needs_lammps
+def test_set_mass_on_atomic_atoms_is_refused_as_lammps_stops_there(tmp_path: Path) -> None:
+    """`set type 2 mass 5.0` with atom_style atomic: LAMMPS stops ("Cannot set attribute mass"); the
+    import gave the atoms mass 5 silently. Now the line is listed, with what to do; sphere atoms
+    keep their per-atom masses."""
+    script = MALFORMED.split("lattice fcc 0")[0] + "set type 1 mass 5.0\nfix 1 all nve\nrun 10\n"
+    got = [(i.line, i.reason) for i in import_lammps_text(script, tmp_path).unsupported]
+    assert got == [(6, "set mass: LAMMPS stops here (atom_style atomic has per-type masses only): give the "
+                       "atoms their own type and use 'mass TYPE VALUE', or use atom_style sphere")], got
+    from wallbatch.lammps.validate import load_lammps
+
+    lmp = load_lammps().lammps(cmdargs=["-screen", "none", "-log", "none", "-nocite"])
+    with pytest.raises(Exception, match="Cannot set attribute mass for atom style atomic"):
+        lmp.commands_string(script.replace("run 10\n", ""))
+    lmp.close()
+    sphere = script.replace("units lj\n", "units lj\natom_style sphere\n")
+    r = import_lammps_text(sphere, tmp_path)
+    assert r.unsupported == [] and "mass: 5.0" in r.text
+
+
 def test_no_box_names_the_commands_it_could_not_import(tmp_path: Path) -> None:
     """A script whose box region cannot be imported (a prism), so neither can create_box: the
     import stops with "no box", and says why, line by line (it said only "no box")."""

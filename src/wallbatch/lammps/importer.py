@@ -733,7 +733,11 @@ class _Importer:
         k = 3
         while k < len(w):
             key = w[k]
-            if key == "mass" and k + 1 < len(w):
+            if key == "mass" and k + 1 < len(w) and self.atom_style == "atomic":
+                raise Unsupported("set mass: LAMMPS stops here (atom_style atomic has per-type masses only): "
+                                  "give the atoms their own type and use 'mass TYPE VALUE', "
+                                  "or use atom_style sphere")
+            elif key == "mass" and k + 1 < len(w):
                 self.atoms.mass[sel] = _num(w[k + 1], "mass")
             elif key == "diameter" and k + 1 < len(w) and self.atom_style == "sphere":
                 self.atoms.radius[sel] = 0.5 * _num(w[k + 1], "diameter")
