@@ -10,6 +10,7 @@ normalisation).
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -309,6 +310,37 @@ def test_flow_temperature_not_positive():
     assert ref["v_vx"][0] == 1.0 and np.isnan(ref["v_vx"][1])
     with pytest.raises(LammpsRunError, match="Non-numeric atom coords"):
         oracle(d, bad, ["v_vx"], {"vx": "vx[1]"}, steps=2)
+
+
+THERMAL = {"style": "reflect/stochastic", "seed": 77, "units": "box"}
+
+
+@requires_lammps
+def test_stochastic_temperature_and_accommodation_out_of_range():
+    """Decisions table, wall/reflect/stochastic temperature <= 0 or accommodation outside [0, 1]:
+    wallbatch refuses them; LAMMPS takes them and fails at the first reflection (an atom 0.001
+    from xlo at vx = -1 crosses in step 1: T = 0 'Invalid Rayleigh parameter', T = -1 NaN
+    coordinates, a ccl normal coefficient 1.5 'Invalid Bessel exponential distribution
+    parameters') or runs on (maxwell accom 1.5 acts as 1: every reflection diffusive)."""
+    d = scene([point([(0.001, 5, 5)], [(-1.0, 0, 0)])], {}, steps=2)
+    refused = [("diffusive", {"temp": 0.0}, "temp"), ("diffusive", {"temp": -1.0}, "temp"),
+               ("maxwell", {"temp": 1.5, "accom": 1.5}, "between 0 and 1"),
+               ("ccl", {"temp": 1.5, "accom": [0.5, 0.5, -0.2]}, "between 0 and 1")]
+    for rstyle, face, match in refused:
+        d["walls"] = {"t": dict(THERMAL, rstyle=rstyle, xlo=dict(face, coord=0.0))}
+        with pytest.raises(ConfigError, match=match):
+            config_from_dict(d)
+    d["walls"] = {}
+    line = "fix t all wall/reflect/stochastic {} 77 xlo 0.0 {} units box"
+    for rstyle, args, message in (("diffusive", "0.0 0 0 0", "Invalid Rayleigh parameter"),
+                                  ("diffusive", "-1.0 0 0 0", "Non-numeric atom coords"),
+                                  ("ccl", "1.5 0 0 0 1.5 0.5 0.5", "Invalid Bessel exponential")):
+        with pytest.raises(LammpsRunError, match=message):
+            oracle(d, [line.format(rstyle, args)], ["v_vx"], {"vx": "vx[1]"}, steps=2)
+    ref = oracle(d, [line.format("maxwell", "1.5 0 0 0 1.5")], ["v_vx"], {"vx": "vx[1]"}, steps=2)
+    assert ref["v_vx"][0] == -1.0 and 0.0 < ref["v_vx"][1] != 1.0  # left diffusively, not mirrored
+    text = (Path(__file__).parents[2] / "docs" / "deviations.md").read_text()
+    assert "test_stochastic_temperature_and_accommodation_out_of_range" in text
 
 
 # ----------------------------------------------------------------------------- colloid R >= rc (§4.6)
