@@ -219,6 +219,36 @@ run: {steps: 5}
     assert "boundary p p p" in cmds
 
 
+PBC_STOCHASTIC = """\
+name: pbc-thermal
+units: lj
+box: {lo: [0, 0, 0], hi: [10, 10, 10], boundary: [p, p, p]}
+atoms:
+  - group: a
+    create: {positions: [[5, 5, 5], [6, 6, 6]]}
+    mass: 1.0
+walls:
+  th: {style: reflect/stochastic, rstyle: diffusive, seed: 7, units: box, pbc: true, zlo: {coord: 1.0, temp: 1.0}}
+run: {steps: 5}
+"""
+
+
+def test_stochastic_wall_with_pbc_is_refused_as_lammps_refuses_it(tmp_path):
+    """wallbatch runs a thermal wall in a periodic dimension (pbc: true); LAMMPS has no pbc keyword
+    for it and stops, so export says so instead of writing a script LAMMPS refuses."""
+    with pytest.raises(ExportError, match=r"walls\.th: wall/reflect/stochastic on a periodic dimension"):
+        export_text(tmp_path, PBC_STOCHASTIC)
+
+
+@pytest.mark.lammps
+@requires_lammps
+def test_lammps_refuses_a_stochastic_wall_in_a_periodic_dimension():
+    from lammps_oracle import LammpsRunError, lammps_log
+    with pytest.raises(LammpsRunError, match="Cannot use fix wall/reflect/stochastic in periodic dimension"):
+        lammps_log(["units lj", "boundary p p p", "region b block 0 10 0 10 0 10", "create_box 1 b", "mass 1 1.0",
+                    "fix th all wall/reflect/stochastic diffusive 7 zlo 1.0 1.0 0 0 0 units box"])
+
+
 def test_time_based_run_is_converted_to_steps(tmp_path):
     text = GOLDEN.replace("dt_reset: {every: 5, tmin: null, tmax: INF, xmax: 0.01}\n", "").replace(
         "run: {steps: 100, thermo: 10}", "run: {time: 0.5, thermo: {time: 0.125}}")

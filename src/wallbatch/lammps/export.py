@@ -721,6 +721,9 @@ def _stochastic_wall(fid: str, wall: Any, spec: Any, s: _Script) -> None:
     """fix wall/reflect/stochastic rstyle seed face pos temp vx vy vz [accom ...] units box. The
     random numbers differ (decisions table): LAMMPS and wallbatch agree statistically only."""
     lid = s.fix_id(fid)
+    if wall.pbc and any(s.case.periodic[f.dim] for f in spec.faces):
+        raise ExportError(f"walls.{fid}: wall/reflect/stochastic on a periodic dimension (pbc: true) is refused by "
+                          "LAMMPS ('Cannot use fix wall/reflect/stochastic in periodic dimension')")
     written = dict(wall.faces())
     mapping: dict[str, Any] = {"style": "reflect/stochastic", "group": s.group(wall.group), "rstyle": wall.rstyle,
                                "seed": int(wall.seed), "units": "box"}
