@@ -309,6 +309,7 @@ def plot(results: Path = typer.Argument(..., help="results NetCDF written by wal
         raise _fail("plot needs matplotlib: pip install matplotlib (the extra 'plot')") from None
     from wallbatch.io.report import plot as make_plot
 
+    _check_image_path(output, var)
     selection = {}
     for item in sel or []:
         key, eq, value = item.partition("=")
@@ -326,6 +327,23 @@ def plot(results: Path = typer.Argument(..., help="results NetCDF written by wal
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2) from None
     typer.echo(f"wrote {path}")
+
+
+def _check_image_path(output: Path, var: str) -> None:
+    """Exit 2 naming `-o` unless it is a file name whose extension is an image format matplotlib
+    writes (matplotlib would append .png to a name without one, or fail late on an unknown one)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = sorted(FigureCanvasBase.get_supported_filetypes())
+    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in var) or "plot"
+    if output.is_dir():
+        raise _fail(f"-o {output} is a directory: give a file name, e.g. {output / (safe + '.png')}")
+    suffix = output.suffix.lower().lstrip(".")
+    if not suffix:
+        raise _fail(f"-o {output}: give the image format as the file's extension, e.g. {output}.png")
+    if suffix not in formats:
+        raise _fail(f"-o {output}: .{suffix} is not an image format matplotlib writes: use one of "
+                    f"{', '.join(formats)}")
 
 
 @app.command()
