@@ -438,6 +438,9 @@ class OverlayMap(SourceMap):
         where = self.origin(dotted)
         if where is not None:
             return f"{where}: {dotted}: {message}"
+        inside = [p for p in self.where if path and p.startswith(dotted + ".")]
+        if inside:  # a check of a section that holds a value written elsewhere (`--set run.steps=`)
+            return f"{super().format(loc, message)} (with {inside[0]} from {self.where[inside[0]]})"
         return super().format(loc, message)
 
 
