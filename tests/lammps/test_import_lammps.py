@@ -350,6 +350,21 @@ def test_no_box_names_the_commands_it_could_not_import(tmp_path: Path) -> None:
     assert res.exit_code == 2 and "in.script:5: region" in res.output and "Traceback" not in res.output
 
 
+def test_no_atoms_names_the_creation_commands_it_could_not_import(tmp_path: Path) -> None:
+    """`create_atoms ... basis 1 1` is not imported, so the script creates no atoms: the import
+    stopped with "the script creates no atoms" only, not saying which line or why."""
+    script = ("units lj\nboundary p p f\nlattice fcc 0.8442\nregion box block 0 4 0 4 0 6\ncreate_box 1 box\n"
+              "create_atoms 1 box basis 1 1\nmass 1 1.0\nfix 1 all nve\nrun 10\n")
+    with pytest.raises(LammpsImportError) as err:
+        import_lammps_text(script, tmp_path)
+    text = str(err.value).replace(f"{tmp_path}/", "")
+    assert text == ("in.script: the script creates no atoms (create_atoms or read_data); not imported:\n"
+                    "  in.script:6: create_atoms 1 box basis 1 1  ->  create_atoms keywords basis 1 1 are "
+                    "not supported"), text
+    res = CliRunner().invoke(app, ["import-lammps", str(tmp_path / "in.script")])
+    assert res.exit_code == 2 and "in.script:6: create_atoms" in res.output and "Traceback" not in res.output
+
+
 # ----------------------------------------------------------------------------- scripts vs LAMMPS
 
 

@@ -1125,7 +1125,11 @@ class _Importer:
         """Disjoint wallbatch atom groups: (name, mask, entry without group)."""
         a = self.atoms
         if a.n == 0:
-            raise LammpsImportError(f"{self.script}: the script creates no atoms")
+            why = [i for i in self.unsupported
+                   if i.text.split()[:1] and i.text.split()[0] in ("create_atoms", "read_data", "region", "lattice")]
+            because = "".join(f"\n  {i.file or self.script}:{i.line}: {i.text.strip()}  ->  {i.reason}" for i in why)
+            raise LammpsImportError(f"{self.script}: the script creates no atoms (create_atoms or read_data)"
+                                    + (f"; not imported:{because}" if because else ""))
         # one row of integer keys per atom; equal rows = one wallbatch group
         single = np.array([c.kind == "single" for c in a.chunks])[a.chunk]
         cols = [np.where(single, -1, a.chunk), a.types, _codes(a.mass), _codes(a.radius), a.vel]
