@@ -77,6 +77,8 @@ def config_error(path: Path, sets=()) -> list[str]:
     ("walls:\n  ~: a\n", "f.yaml:2:3: walls:", "the key ~ reads as null: write a name"),
     ("a: \x07\n", "f.yaml:1:4:", "the character U+0007 is not allowed in YAML"),
     ("a: [1, 2\n", "f.yaml:2:1:", "YAML syntax error"),
+    ("a:\n\tb: 1\n", "f.yaml:2:1:", "YAML syntax error: found character '\\t' that cannot start any token: indent "
+     "with spaces (YAML does not allow tabs there)"),
     ("", "f.yaml:", "the file is empty"),
 ])
 def test_yaml_refused_with_location(text, where, words):

@@ -228,6 +228,15 @@ def _reader_error(exc: Any, text: str, filename: str) -> str:
     return f"{filename}:{line}:{col}: the character {code} is not allowed in YAML (a control character?)"
 
 
+def _syntax_hint(problem: str) -> str:
+    """What to do about the YAML syntax errors people make most."""
+    if "'\\t'" in problem:
+        return ": indent with spaces (YAML does not allow tabs there)"
+    if "mapping values are not allowed" in problem:
+        return ": a 'key: value' inside a value? quote the value, or start a new line for the key"
+    return ""
+
+
 def load_yaml(text: str, filename: str = "<config>") -> tuple[Any, SourceMap]:
     """Parse YAML (safe: plain data only) and keep the line/column of every value.
 
@@ -249,7 +258,8 @@ def load_yaml(text: str, filename: str = "<config>") -> tuple[Any, SourceMap]:
         except yaml.YAMLError as exc:
             mark = getattr(exc, "problem_mark", None)
             where = f"{filename}:{mark.line + 1}:{mark.column + 1}" if mark else filename
-            raise ConfigError([f"{where}: YAML syntax error: {shorten(getattr(exc, 'problem', None) or exc)}"]) \
+            problem = str(getattr(exc, "problem", None) or exc)
+            raise ConfigError([f"{where}: YAML syntax error: {shorten(problem)}{_syntax_hint(problem)}"]) \
                 from None
         except RecursionError:
             raise ConfigError([f"{filename}: the YAML is nested too deeply (limit {MAX_DEPTH} levels)"]) from None
