@@ -157,8 +157,9 @@ def test_table_errors(tmp_path):
     tab = lj93_tables(tmp_path)
     cases = [
         ("nothere.table", "LJ93", 2.5, "file", "cannot read table file"),
-        (tab.name, "NOPE", 2.5, "file", "no table section 'NOPE'"),
-        (tab.name, "LJ93", 3.5, "cutoff", "beyond the table's last distance 3"),
+        (tab.name, "NOPE", 2.5, "keyword", "no table section 'NOPE': give one of LJ93, HARM"),
+        (tab.name, "LJ93", 3.5, "cutoff", "beyond the table's last distance 3 (LAMMPS: Fix wall/table wall cutoff "
+                                          "is larger than table outer cutoff): give a cutoff <= 3, or a table"),
     ]
     for file, keyword, cutoff, field, needle in cases:
         text = slit(f"t:\n  style: table\n  tabstyle: spline\n  N: 100\n  units: box\n"
@@ -173,6 +174,20 @@ def test_table_errors(tmp_path):
                 "  zlo: {coord: EDGE, file: bad.table, keyword: LJ93, cutoff: 2.5}\n")
     with pytest.raises(ConfigError, match=r"bad.table:5: bad table line '2 x 0 0'"):
         load_config(write(tmp_path, text))
+
+
+def test_swept_table_keyword_missing_is_named_at_the_sweep_line(tmp_path):
+    """A swept section keyword the file lacks is the keyword's error, at its line in the sweep."""
+    tab = lj93_tables(tmp_path)
+    text = slit(f"t:\n  style: table\n  tabstyle: spline\n  N: 100\n  units: box\n"
+                f"  zlo: {{coord: EDGE, file: {tab.name}, keyword: LJ93, cutoff: 2.5}}\n")
+    text += "sweep:\n  product:\n    kw: {path: walls.t.zlo.keyword, values: [LJ93, NOPE]}\n"
+    line = len(text.splitlines())
+    with pytest.raises(ConfigError) as err:
+        load_plan(write(tmp_path, text))
+    assert str(err.value).splitlines()[-1] == (
+        f"{tmp_path / 'c.yaml'}:{line}:45: walls.t.zlo.keyword: {tab}: no table section 'NOPE': give one of LJ93, "
+        "HARM (case kw=NOPE)")
 
 
 def test_atom_nearer_than_the_table_fails_its_case(tmp_path):

@@ -71,7 +71,8 @@ def test_reader_errors_name_file_and_line(tmp_path, text, needle):
         read_table(path, "A")
     msg = str(err.value)
     if needle.startswith(":1: no table"):
-        assert msg == f"{path}: no table section 'A'"
+        assert msg == f"{path}: no table section 'A': give one of X"  # (and the error is the keyword's)
+        assert err.value.key == "keyword"
     else:
         assert f"{path}{needle}" in msg
 

@@ -58,7 +58,12 @@ MAX_TABLE_POINTS = 10_000_000  # points of a table (a written one, or the N it i
 
 
 class TableError(ValueError):
-    """A missing or malformed table file or section, or a distance outside the table."""
+    """A missing or malformed table file or section, or a distance outside the table. ``key``
+    names the face key at fault (``file``, or ``keyword`` for a section the file lacks)."""
+
+    def __init__(self, message: str, key: str = "file") -> None:
+        super().__init__(message)
+        self.key = key
 
 
 @dataclass(frozen=True)
@@ -157,7 +162,21 @@ def read_table(path: str | os.PathLike, keyword: str) -> TableData:
         if r[0] <= 0.0:
             raise TableError(f"{_where(path, start)}: section {keyword!r}: r must be > 0")
         return TableData(keyword, r, e, f, fplo, fphi, path, start)
-    raise TableError(f"{path}: no table section {keyword!r}")
+    raise TableError(f"{path}: no table section {keyword!r}: {_sections(lines)}", "keyword")
+
+
+def _sections(lines: list[str]) -> str:
+    """The section keywords of a table file (a word whose next non-blank line is 'N n ...'), said
+    as what to write instead."""
+    found, last = [], None
+    for line in lines:
+        words = line.split("#", 1)[0].split()
+        if not words:
+            continue
+        if words[0] == "N" and last is not None and len(last) == 1:
+            found.append(last[0])
+        last = words
+    return f"give one of {', '.join(found)}" if found else "the file has no section ('KEYWORD' then 'N n')"
 
 
 def write_table(
@@ -506,7 +525,7 @@ class TableEntry(WallStyle):
         try:
             table = _table(path, face["keyword"], wall["tabstyle"], int(wall["N"]))
         except TableError as exc:
-            raise FaceError("file", str(exc)) from None
+            raise FaceError(exc.key, str(exc)) from None
         return table_style(table), {"cutoff": float(face["cutoff"])}, (path, face["keyword"], wall["tabstyle"],
                                                                         int(wall["N"]))
 
@@ -515,10 +534,11 @@ class TableEntry(WallStyle):
         try:
             data = read_table(_file(face, base_dir), face["keyword"])
         except TableError as exc:
-            return [("file", str(exc))]
+            return [(exc.key, str(exc))]
         if face["cutoff"] > data.r[-1]:
             return [("cutoff", f"cutoff {face['cutoff']:g} is beyond the table's last distance {data.r[-1]:g} "
-                               "(LAMMPS: Fix wall/table wall cutoff is larger than table outer cutoff)")]
+                               "(LAMMPS: Fix wall/table wall cutoff is larger than table outer cutoff): give a "
+                               f"cutoff <= {data.r[-1]:g}, or a table that reaches further")]
         return []
 
     def lammps_face(self, face: Mapping, params: Mapping[str, float], signature: object) -> dict:
