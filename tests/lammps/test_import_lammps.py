@@ -719,6 +719,21 @@ run             200
 """
 
 
+def test_a_config_problem_points_at_its_line_in_the_written_config(tmp_path: Path) -> None:
+    """`fix nve` on all and `fix nvt` on a group integrate some atoms twice: the problem names the
+    config's line and column. It named those of the config without its comments (c.yaml:14:34 for
+    a `fixes:` line that is line 29 of the file written)."""
+    script = NVT_FROZEN.replace("fix             1 fluid nvt", "fix             0 all nve\nfix             1 fluid nvt")
+    r = import_lammps_text(script, tmp_path, output=tmp_path / "c.yaml")
+    lines = r.text.splitlines()
+    row = next(i for i, line in enumerate(lines) if line.startswith("fixes:")) + 1
+    col = lines[row - 1].index("'1': fix 1 fluid nvt") + 6
+    where = f"{tmp_path / 'c.yaml'}:{row}:{col}"
+    assert r.problems == [f"line 18: fix             1 fluid nvt temp 1.5 1.5 0.1  ->  {where}: "
+                          "fixes.1.group: group 'fluid' is already integrated by fix '0': an atom integrated twice "
+                          "moves twice per step (LAMMPS only warns); give each atom one integrator"], r.problems
+
+
 def test_thermostats_and_frozen_groups_go_to_fixes(tmp_path: Path) -> None:
     r = import_lammps_text(NVT_FROZEN, tmp_path)
     assert r.complete, r.text

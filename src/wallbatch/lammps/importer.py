@@ -1544,7 +1544,8 @@ def import_lammps(script: str | Path, output: str | Path | None = None, variable
               "Add a sweep: block to run it over parameters (docs/howto/sweep-a-wall.md)."]
     problems: list[str] = []
     try:
-        load_config_text(_yaml(data, {}, [], []), str(output or "<imported config>"), base=out_dir)
+        # the text as written (the tail comes last), so that FILE:LINE:COL points into the written config
+        load_config_text(_yaml(data, comments, header, []), str(output or "<imported config>"), base=out_dir)
     except ConfigError as exc:
         problems = [_with_line(p, imp) for p in exc.problems]
     tail = []
