@@ -305,12 +305,14 @@ class _Importer:
     def note_line(self, key: str) -> None:
         """Keep the current command as a comment above config section `key`."""
         c = self.cmd
-        self.comments.setdefault(key, []).append(f"{c.line}: {c.raw}")
+        where = f"{c.line}" if c.file == str(self.script) else f"{Path(c.file).name}:{c.line}"  # an include file's
+        self.comments.setdefault(key, []).append(f"{where}: {c.raw}")
 
     def issue_at(self, topic: str, text: str, reason: str) -> None:
         """An issue found while writing the config, pointed at the command of `topic`."""
         c = self.where.get(topic)
-        self.unsupported.append(Issue(c.line, c.raw, reason) if c else Issue(0, text, reason))
+        self.unsupported.append(Issue(c.line, c.raw, reason, c.file if c.file != str(self.script) else "") if c
+                                else Issue(0, text, reason))
 
     def unsupported_here(self, reason: str) -> None:
         c = self.cmd
@@ -1469,7 +1471,9 @@ def _with_line(problem: str, imp: _Importer) -> str:
     """A validation problem of walls.ID / fixes.ID prefixed with the script line of fix ID."""
     m = re.search(r": (?:walls|fixes)\.([A-Za-z0-9_]+)", problem)
     c = imp.where.get(f"fix:{m.group(1)}") if m else None
-    return f"line {c.line}: {c.raw}  ->  {problem}" if c else problem
+    if c is None:
+        return problem
+    return Issue(c.line, c.raw, problem, c.file if c.file != str(imp.script) else "").format()
 
 
 def _relative(path: str, base: Path) -> str:
