@@ -281,6 +281,21 @@ def test_malformed_commands_are_listed_by_line_not_raised(tmp_path: Path) -> Non
     assert res.exit_code == 0 and "Traceback" not in res.output
 
 
+def test_velocity_and_set_lines_not_imported_say_to_use_exact(tmp_path: Path) -> None:
+    """`velocity ... sum yes`, `velocity ... NULL`, `velocity scale` and `set ... type`: the reasons
+    said only "not supported"; --exact (LAMMPS builds the state) imports such scripts."""
+    script = MALFORMED.split("lattice fcc 0")[0] + ("velocity all set 0.1 0.0 0.0 sum yes\n"
+                                                    "velocity all set NULL 0.0 0.0\nvelocity all scale 1.5\n"
+                                                    "set type 1 type 1\nfix 1 all nve\nrun 10\n")
+    got = [(i.line, i.reason) for i in import_lammps_text(script, tmp_path).unsupported]
+    hint = "; import with --exact to start from the velocities LAMMPS gives the atoms"
+    assert got == [(6, "velocity set keywords {'sum': 'yes'} are not supported" + hint),
+                   (7, "velocity set with NULL components is not supported" + hint),
+                   (8, "velocity scale is not supported (create, set)" + hint),
+                   (9, "set keyword 'type' is not supported (mass; diameter for spheres); import with --exact to "
+                       "start from the atoms LAMMPS sets")], got
+
+
 def test_an_undefined_variable_is_reported_at_the_line_that_uses_it(tmp_path: Path) -> None:
     """A wall coordinate v_top with no `variable top` (and a variable using an undefined one): the
     issue points at the wall fix (and at that variable), not at line 0 (found by fuzzing)."""

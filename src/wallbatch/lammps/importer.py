@@ -113,6 +113,9 @@ class ImportResult:
         return not self.unsupported and not self.problems
 
 
+EXACT_VELOCITIES = "; import with --exact to start from the velocities LAMMPS gives the atoms"
+
+
 @dataclass
 class _Cmd:
     line: int
@@ -744,7 +747,8 @@ class _Importer:
             elif key == "diameter" and k + 1 < len(w) and self.atom_style == "sphere":
                 self.atoms.radius[sel] = 0.5 * _num(w[k + 1], "diameter")
             else:
-                raise Unsupported(f"set keyword {key!r} is not supported (mass; diameter for spheres)")
+                raise Unsupported(f"set keyword {key!r} is not supported (mass; diameter for spheres); import with "
+                                  f"--exact to start from the atoms LAMMPS sets")
             k += 2
         self.note_line("atoms")
 
@@ -824,6 +828,7 @@ class _Importer:
         self.note_line("atoms")
 
     def c_velocity(self, w: list[str]) -> None:
+        """`velocity G create T SEED` / `velocity G set vx vy vz` (velocities in lattice or box units)."""
         if self.exact_state is not None:
             self.note_line("atoms")
             return
@@ -840,7 +845,7 @@ class _Importer:
                                                                   ("loop", "geom"), ("loop", "local")}}
             if bad:
                 raise Unsupported(f"velocity create keywords {bad} are not supported (wallbatch: zero momentum, no "
-                                  f"rotation removal)")
+                                  f"rotation removal){EXACT_VELOCITIES}")
             self.seed = self.seed if self.seed is not None else seed
             spec = {"temperature": temp}
             self.notes.append(f"line {self.cmd.line}: velocity create: wallbatch draws Gaussian velocities with zero "
@@ -852,13 +857,13 @@ class _Importer:
             kw = dict(zip(rest[3::2], rest[4::2]))
             units = kw.pop("units", "lattice")
             if kw.get("sum", "no") != "no" or set(kw) - {"sum"}:
-                raise Unsupported(f"velocity set keywords {kw} are not supported")
+                raise Unsupported(f"velocity set keywords {kw} are not supported{EXACT_VELOCITIES}")
             if "NULL" in rest[:3]:
-                raise Unsupported("velocity set with NULL components is not supported")
+                raise Unsupported(f"velocity set with NULL components is not supported{EXACT_VELOCITIES}")
             s = self.scale(units)
             spec = {"values": [_num(v, "a velocity") * float(a) for v, a in zip(rest[:3], s)]}
         else:
-            raise Unsupported(f"velocity {style} is not supported (create, set)")
+            raise Unsupported(f"velocity {style} is not supported (create, set){EXACT_VELOCITIES}")
         self.atoms.velocities.append(spec)
         self.atoms.vel[sel] = len(self.atoms.velocities) - 1
         self.note_line("atoms")
