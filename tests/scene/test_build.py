@@ -118,3 +118,21 @@ def test_point_atoms_beside_ellipsoids_are_unrotated_and_still():
     assert np.array_equal(both.angmom[:3], np.zeros((3, 3)))
     assert np.array_equal(both.quat[3:], alone.quat) and not np.array_equal(alone.quat[0], [1.0, 0.0, 0.0, 0.0])
     assert np.allclose(np.linalg.norm(alone.quat, axis=1), 1.0, rtol=0, atol=1e-15)
+
+
+def test_a_pair_cutoff_of_half_the_periodic_box_is_a_case_error_naming_pair_cutoff():
+    """A cutoff of half a periodic length or more (a real-units script: lj/cut 8.5 in a 15.78 box,
+    which LAMMPS runs with ghost images) failed the run as an "internal error (ValueError ...);
+    please report it". It is now the case's error, naming pair.cutoff and what to change."""
+    from wallbatch.scene.case import CaseError
+
+    cfg = gas()
+    cfg["pair"] = {"style": "lj/cut", "epsilon": 1.0, "sigma": 1.0, "cutoff": 2.4999999}
+    case_of(cfg)  # 2 x 2.4999999 < 5 and 6: builds
+    cfg["pair"]["cutoff"] = 2.5
+    with pytest.raises(CaseError) as err:
+        case_of(cfg)
+    assert str(err.value).endswith(
+        "pair.cutoff: 2.5 must be less than half the periodic box length 5 along y (wallbatch takes each "
+        "pair's nearest image; LAMMPS would use more than one): make the box longer than 5 along y or the cutoff "
+        "shorter"), str(err.value)

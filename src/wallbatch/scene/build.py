@@ -641,6 +641,13 @@ def _pair_spec(cfg: Config) -> PairSpec | None:
     if cfg.pair is None:
         return None
     p = cfg.pair
+    length = np.asarray(cfg.box.hi, float) - np.asarray(cfg.box.lo, float)
+    for d, b in enumerate(cfg.box.boundary):
+        if b == "p" and 2.0 * p.cutoff >= length[d]:  # pair forces use the minimum image
+            raise CaseError(f"pair.cutoff: {p.cutoff} must be less than half the periodic box length {length[d]:g} "
+                            f"along {'xyz'[d]} (wallbatch takes each pair's nearest image; LAMMPS would use more "
+                            f"than one): make the box longer than {2.0 * p.cutoff:g} along {'xyz'[d]} or the cutoff "
+                            f"shorter")
     skin = 0.3 if cfg.units == "lj" else 2.0  # LAMMPS's default neighbor skin
     return PairSpec(p.epsilon, p.sigma, p.cutoff, p.shift, skin)
 
