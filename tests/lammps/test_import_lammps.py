@@ -798,10 +798,10 @@ run 10
 
 
 def test_lines_of_an_include_file_are_named_with_that_file(tmp_path: Path) -> None:
-    """Comments and config problems of commands read from an include file named only the line, so
+    """Comments, notes and config problems of commands read from an include file named only the line, so
     `# 1: fix w ...` and `line 2: fix bad ...` pointed at lines of the main script."""
     (tmp_path / "walls.in").write_text("fix w all wall/harmonic zlo EDGE 20.0 1.0 2.0 units box\n"
-                                       "fix bad all nvt temp 1.0 1.0 -0.1\n")
+                                       "fix bad all nvt temp 1.0 1.0 -0.1\nvelocity all create 1.0 4242\n")
     text = ("units lj\nboundary p p f\nregion box block 0 10 0 10 0 10 units box\ncreate_box 1 box\n"
             "create_atoms 1 single 5 5 5 units box\nmass 1 1.0\ninclude walls.in\nrun 10\n")
     r = import_lammps_text(text, tmp_path)
@@ -809,6 +809,7 @@ def test_lines_of_an_include_file_are_named_with_that_file(tmp_path: Path) -> No
     assert len(r.problems) == 1 and r.problems[0].startswith(
         f"{tmp_path / 'walls.in'}:2: fix bad all nvt temp 1.0 1.0 -0.1  ->  <imported config>:"), r.problems
     assert r.problems[0].endswith(": fixes.bad.damp: Input should be greater than 0"), r.problems
+    assert r.notes[0].startswith(f"{tmp_path / 'walls.in'}:3: velocity create: wallbatch draws"), r.notes
 
 
 TWO_D = """# 2-D: an sq2 lattice between harmonic walls

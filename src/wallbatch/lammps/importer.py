@@ -305,6 +305,11 @@ class _Importer:
 
     # -- bookkeeping ------------------------------------------------------------------------
 
+    def here(self) -> str:
+        """The current command's place for notes: `line N`, or `FILE:N` in an include file."""
+        c = self.cmd
+        return f"line {c.line}" if c.file == str(self.script) else f"{c.file}:{c.line}"
+
     def note_line(self, key: str) -> None:
         """Keep the current command as a comment above config section `key`."""
         c = self.cmd
@@ -704,7 +709,7 @@ class _Importer:
                     raise Unsupported(f"create_atoms random keyword {extra[k]!r} is not supported")
                 k += 2
             self.seed = self.seed if self.seed is not None else seed
-            self.notes.append(f"line {self.cmd.line}: create_atoms random: wallbatch draws its own random positions "
+            self.notes.append(f"{self.here()}: create_atoms random: wallbatch draws its own random positions "
                               f"(same distribution, other numbers); --exact uses LAMMPS's")
             x = np.full((count, 3), np.nan)
             chunk = _Chunk("random", {"random": spec}, count, self.cmd.line)
@@ -848,7 +853,7 @@ class _Importer:
                                   f"rotation removal){EXACT_VELOCITIES}")
             self.seed = self.seed if self.seed is not None else seed
             spec = {"temperature": temp}
-            self.notes.append(f"line {self.cmd.line}: velocity create: wallbatch draws Gaussian velocities with zero "
+            self.notes.append(f"{self.here()}: velocity create: wallbatch draws Gaussian velocities with zero "
                               f"momentum at exactly T per atom group (other random numbers than LAMMPS); --exact uses "
                               f"LAMMPS's")
         elif style == "set":
@@ -1042,7 +1047,7 @@ class _Importer:
             else:
                 dropped.append(word)
         if dropped:
-            self.notes.append(f"line {self.cmd.line}: thermo columns {' '.join(dropped)} have no wallbatch output "
+            self.notes.append(f"{self.here()}: thermo columns {' '.join(dropped)} have no wallbatch output "
                               f"and are left out")
         self.thermo_style = list(dict.fromkeys(out))
         self.note_line("output")
@@ -1066,7 +1071,7 @@ class _Importer:
             elif c in ("vx", "vy", "vz"):
                 fields.add("v")
         self.dump = {"every": _int(w[4], "N"), "fields": [f for f in ("x", "v") if f in fields] or ["x"]}
-        self.notes.append(f"line {self.cmd.line}: dump {w[1]}: wallbatch stores the trajectory in its results file "
+        self.notes.append(f"{self.here()}: dump {w[1]}: wallbatch stores the trajectory in its results file "
                           f"(output.dump), not in {w[5]}")
         self.note_line("output")
 
