@@ -613,6 +613,28 @@ def test_read_data_groups_minimize_match_lammps(tmp_path: Path) -> None:
         np.testing.assert_allclose(ds[key].values.ravel(), ref[:, j], rtol=1e-9, atol=1e-12)
 
 
+@pytest.mark.lammps
+@needs_lammps
+def test_a_run_after_minimize_without_reset_timestep_is_listed(tmp_path: Path) -> None:
+    """After `minimize` LAMMPS's run starts at the minimizer's last step, wallbatch's at step 0; the
+    import said nothing (thermo samples and `step` in a wall's variable then differ). The run line is
+    now listed, saying to add `reset_timestep 0`; with it nothing is listed."""
+    base = ("units lj\nboundary p p f\nregion box block 0 6 0 6 0 6 units box\ncreate_box 1 box\n"
+            "create_atoms 1 single 3 3 1.5 units box\nmass 1 1.0\nfix 1 all nve\n"
+            "fix w all wall/lj93 zlo EDGE 1.0 1.0 2.5 units box\nminimize 0.0 1.0e-12 20 200\n")
+    from wallbatch.lammps.validate import load_lammps
+
+    lmp = load_lammps().lammps(cmdargs=["-screen", "none", "-log", "none", "-nocite"])
+    lmp.commands_string(base)
+    assert lmp.extract_global("ntimestep") > 0  # where LAMMPS's next run starts
+    lmp.close()
+    got = [(i.line, i.reason) for i in import_lammps_text(base + "run 10\n", tmp_path).unsupported]
+    assert got == [(10, "after minimize, LAMMPS's run starts at the step the minimizer stopped at, so its thermo "
+                        "samples and 'step' in variables differ from wallbatch's run, which starts at step 0: add "
+                        "'reset_timestep 0' after minimize (as export-lammps writes)")], got
+    assert import_lammps_text(base + "reset_timestep 0\nrun 10\n", tmp_path).unsupported == []
+
+
 def test_substitutions_and_var_override(tmp_path: Path) -> None:
     text = """variable a index 2.0
 variable b equal 1/3

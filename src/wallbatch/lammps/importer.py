@@ -294,6 +294,7 @@ class _Importer:
         self.min_style = "cg"
         self.dmax: float | None = None
         self.minimize: dict | None = None
+        self.steps_after_min = False  # a minimize not yet followed by reset_timestep 0: LAMMPS's run starts later
         self.run: int | None = None
         self.seed: int | None = None
         self.dump: dict | None = None
@@ -938,6 +939,7 @@ class _Importer:
     def c_reset_timestep(self, w: list[str]) -> None:
         if w[1:2] != ["0"] or w[2:] not in ([], ["time", "0.0"], ["time", "0"]):
             raise Unsupported("reset_timestep other than to 0 is not supported")
+        self.steps_after_min = False
         self.ignore_here("wallbatch runs start at step 0 and time 0")
 
     def c_compute(self, w: list[str]) -> None:
@@ -1103,6 +1105,7 @@ class _Importer:
                          "maxiter": _int(w[3], "maxiter"), "maxeval": _int(w[4], "maxeval")}
         if self.dmax is not None:
             self.minimize["dmax"] = self.dmax
+        self.steps_after_min = True
         self.note_line("minimize")
 
     def c_run(self, w: list[str]) -> None:
@@ -1113,6 +1116,10 @@ class _Importer:
             self.unsupported_here(f"run keywords {' '.join(w[2:])} are not supported; the run length is kept")
         self.run = _int(w[1], "the number of steps")
         self.note_line("run")
+        if self.steps_after_min:
+            self.unsupported_here("after minimize, LAMMPS's run starts at the step the minimizer stopped at, so its "
+                                  "thermo samples and 'step' in variables differ from wallbatch's run, which starts "
+                                  "at step 0: add 'reset_timestep 0' after minimize (as export-lammps writes)")
 
     def mark_first_run(self) -> None:
         if self.first_run_line is None:
