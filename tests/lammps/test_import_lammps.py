@@ -724,7 +724,10 @@ fix w all wall/lj93 zlo v_nowhere 1.0 1.0 2.5 units box
 """
     r = import_lammps_text(text, tmp_path)
     got = {i.line: i.reason for i in r.unsupported}
-    assert "several lj/cut coefficient sets" in got[10]
+    assert got[10] == ("several lj/cut coefficient sets (types 1 1: 1 1, types 2 2: 0.5 1): wallbatch has one "
+                       "epsilon and sigma for all atom pairs (per-type coefficients are not supported yet); the "
+                       "config uses epsilon 1 sigma 1 (types 1 1) for every pair")
+    assert r.data["pair"]["epsilon"] == 1.0
     assert "no run command" in got[14]
     assert any(p.startswith("line 13: fix 2 one nve") for p in r.problems), r.problems  # integrated twice
     assert any("v_nowhere" in i.text and "not defined" in i.reason for i in r.unsupported)

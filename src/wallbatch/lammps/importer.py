@@ -1257,11 +1257,13 @@ class _Importer:
             coeffs = set(self.pair_coeffs.values())
             if not coeffs:
                 raise LammpsImportError(f"{self.script}: pair_style lj/cut without pair_coeff")
+            (ti, tj), (eps, sig) = next(iter(self.pair_coeffs.items()))
             if len(coeffs) > 1:
-                self.issue_at("pair_coeff", "pair_coeff", f"several lj/cut coefficient sets {sorted(coeffs)}: "
+                sets = ", ".join(f"types {i} {j}: {e:g} {s:g}" for (i, j), (e, s) in self.pair_coeffs.items())
+                self.issue_at("pair_coeff", "pair_coeff", f"several lj/cut coefficient sets ({sets}): "
                                               f"wallbatch has one epsilon and sigma for all atom pairs (per-type "
-                                              f"coefficients are not supported yet); the first is used")
-            eps, sig = next(iter(self.pair_coeffs.values()))
+                                              f"coefficients are not supported yet); the config uses epsilon {eps:g} "
+                                              f"sigma {sig:g} (types {ti} {tj}) for every pair")
             data["pair"] = {"style": "lj/cut", "epsilon": eps, "sigma": sig, "cutoff": self.pair["cutoff"],
                             **({"shift": True} if self.pair.get("shift") else {})}
         if self.timestep is not None:
