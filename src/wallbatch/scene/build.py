@@ -642,7 +642,7 @@ def _pair_spec(cfg: Config) -> PairSpec | None:
         return None
     p = cfg.pair
     length = np.asarray(cfg.box.hi, float) - np.asarray(cfg.box.lo, float)
-    for d, b in enumerate(cfg.box.boundary):
+    for d, b in enumerate(cfg.box.boundary[:cfg.dimension]):  # (2-D: no pairs across z)
         if b == "p" and 2.0 * p.cutoff >= length[d]:  # pair forces use the minimum image
             raise CaseError(f"pair.cutoff: {p.cutoff} must be less than half the periodic box length {length[d]:g} "
                             f"along {'xyz'[d]} (wallbatch takes each pair's nearest image; LAMMPS would use more "
