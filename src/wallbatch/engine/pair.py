@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wallbatch.engine import backend
+from wallbatch.engine import backend, pages
 from wallbatch.engine.lj import lj_terms, min_image
 
 # LAMMPS's default neighbor skin per unit style [length] (0.3 sigma in lj; 2 Angstrom in real/metal)
@@ -261,7 +261,7 @@ class PairLJCut:
 
     def _grow(self, capacity: int) -> None:
         """Grow every case's row of the pair array to at least `capacity` (keeps the content)."""
-        grown = np.empty((self.ncases, capacity), dtype=np.int32)
+        grown = pages.empty((self.ncases, capacity), np.int32)  # (4 kB pages: pages.py)
         grown[:, :self._neigh.shape[1]] = self._neigh
         self._neigh = grown
 
@@ -269,7 +269,7 @@ class PairLJCut:
         """A one-case batch's spare pair array (capacity of the current one), for a compiled chunk
         to build into while the current list stays intact (`adopt_list` swaps them)."""
         if len(self._spare) < self._neigh.shape[1]:
-            self._spare = np.empty(self._neigh.shape[1], dtype=np.int32)
+            self._spare = pages.empty(self._neigh.shape[1], np.int32)
         return self._spare
 
     def adopt_list(self, c: int, neigh: np.ndarray) -> None:

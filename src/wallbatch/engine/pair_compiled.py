@@ -60,7 +60,7 @@ import numpy as np
 
 from wallbatch.engine import backend
 from wallbatch.engine import compiled as _compiled
-from wallbatch.engine import threads
+from wallbatch.engine import pages, threads
 from wallbatch.engine.lj import lj_terms, min_image
 from wallbatch.engine.state import landing_tol
 
@@ -1191,8 +1191,8 @@ Buffer = Callable[[str, tuple, Any], np.ndarray]
 
 
 def _fresh(name: str, shape: tuple, dtype: Any) -> np.ndarray:
-    """A new array (the default `Buffer`: nothing kept)."""
-    return np.empty(shape, dtype)
+    """A new array (the default `Buffer`: nothing kept; large ones in 4 kB pages, pages.py)."""
+    return pages.empty(shape, dtype)
 
 
 def fix_buffers(n: int, nlang: int, buffer: Buffer = _fresh) -> tuple[np.ndarray, ...]:
@@ -1449,7 +1449,7 @@ class Workspace:
         """A C-contiguous array kept under `name` (new if the shape or type differs; content undefined)."""
         b = self._bufs.get(name)
         if b is None or b.shape != tuple(shape) or b.dtype != np.dtype(dtype):
-            b = self._bufs[name] = np.empty(shape, dtype)
+            b = self._bufs[name] = pages.empty(shape, dtype)  # (large ones in 4 kB pages: pages.py)
         return b
 
     def crew(self, parts: int) -> "Crew":
@@ -1626,7 +1626,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
             m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows, shares,
                                buffer)
             while m < 0:
-                target = np.empty(2 * len(target) + 4 * N, np.int32)
+                target = pages.empty(2 * len(target) + 4 * N, np.int32)
                 marks[:] = 0
                 m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows,
                                    shares, buffer)
@@ -1997,7 +1997,7 @@ class PairChunks(_compiled.KernelPath):
             for b, a in zip((x, v, f, xref, owner, first), (s.x, s.v, s.f, pair._xref, pair._owner, pair._first)):
                 np.copyto(b, a[c])
             neigh = pair._neigh[c]  # read only: a build in the chunk writes into `spare`
-            spare = pair.spare_list() if C == 1 else np.empty(pair._neigh.shape[1], np.int32)
+            spare = pair.spare_list() if C == 1 else pages.empty(pair._neigh.shape[1], np.int32)
             if fk is None:
                 fl = _compiled._NO_FLOW
             else:
