@@ -139,3 +139,26 @@ def test_cli_output_and_plot_paths_as_run_treats_them(tmp_path):
     assert CliRunner().invoke(app, [*args, "-o", str(out), "--force"]).exit_code == 0
     inp = CliRunner().invoke(app, [*args, "-o", str(HARMONIC)])
     assert inp.exit_code == 2 and "is an input of this run" in inp.output
+
+
+def test_an_unknown_output_is_refused_after_the_first_run_not_the_ladder(monkeypatch):
+    """`outputs` (the CLI's --var) naming no compared output stops after the warm-up run, naming
+    the outputs there are; before, the whole ladder ran and `recommend` refused it at the end."""
+    import wallbatch.convergence as conv
+
+    calls = []
+    real = conv.run_plan
+    monkeypatch.setattr(conv, "run_plan", lambda *a, **k: calls.append(1) or real(*a, **k))
+    with pytest.raises(conv.UnknownOutput, match=r"no output named nope; outputs: .*\bke\b"):
+        convergence(reflect_scene(), dts=[0.005, 0.0025, 0.00125], outputs=["ke", "nope"])
+    assert len(calls) == 1
+    calls.clear()
+    ok = convergence(reflect_scene(), dts=[0.005, 0.0025, 0.00125], outputs=["ke"])
+    assert len(calls) == 4 and ok.recommend(1.0, ["ke"]) is not None
+
+
+def test_cli_unknown_var_names_the_option():
+    res = CliRunner().invoke(app, ["convergence", str(HARMONIC), "--var", "nope", "--rtol", "1e-3"])
+    assert res.exit_code == 2
+    assert "error: --var nope: no output named nope; outputs: " in res.output
+    assert "observed order" not in res.output  # the ladder did not run

@@ -537,7 +537,7 @@ def convergence(config: Path = typer.Argument(..., help="scene or sweep YAML fil
     import math
 
     from wallbatch.batch.runner import RunError, check_output
-    from wallbatch.convergence import ConvergenceError
+    from wallbatch.convergence import ConvergenceError, UnknownOutput
     from wallbatch.convergence import convergence as run_ladder
     from wallbatch.convergence import plot as plot_ladder
     from wallbatch.lammps.export import ExportError
@@ -551,7 +551,10 @@ def convergence(config: Path = typer.Argument(..., help="scene or sweep YAML fil
         except RunError as exc:
             raise _fail(str(exc)) from None
     try:
-        report = run_ladder(plan, case=case, dts=_floats(dt, "--dt"), xmaxs=_floats(xmax, "--xmax"))
+        report = run_ladder(plan, case=case, dts=_floats(dt, "--dt"), xmaxs=_floats(xmax, "--xmax"),
+                            outputs=output_var or None)
+    except UnknownOutput as exc:  # (checked after the first run, before the ladder)
+        raise _fail(f"--var {' --var '.join(output_var)}: {exc}") from None
     except (ConvergenceError, ExportError, CaseError, ConfigError) as exc:
         typer.echo(f"error: {config}: {exc}", err=True)
         raise typer.Exit(2) from None

@@ -59,6 +59,10 @@ class Point:
         return self.natoms * self.steps / self.seconds if self.seconds > 0 else math.nan
 
 
+class UnknownOutput(ConvergenceError):
+    """An output name (`recommend`'s, `convergence`'s ``outputs``) that the ladder does not compare."""
+
+
 @dataclass
 class ConvergenceReport:
     """The ladder's runs, the observed orders, and the results with a ``dt`` (or ``xmax``) dimension."""
@@ -78,7 +82,7 @@ class ConvergenceReport:
         names = list(outputs) if outputs else self.outputs
         unknown = [n for n in names if n not in self.orders]
         if unknown:
-            raise ConvergenceError(f"no output named {', '.join(unknown)}; outputs: {', '.join(self.outputs)}")
+            raise UnknownOutput(f"no output named {', '.join(unknown)}; outputs: {', '.join(self.outputs)}")
         ok = [p for p in self.points[:-1] if p.status == "ok"
               and all(not (p.errors.get(n, math.nan) > rtol) for n in names)]
         return max(ok, key=lambda p: p.h) if ok else None
@@ -157,13 +161,14 @@ def _drift(ds: xr.Dataset, natoms: int) -> float:
 
 def convergence(config: Any, *, case: str | None = None, dts: Sequence[float] | None = None,
                 xmaxs: Sequence[float] | None = None, sets: Sequence[str] | Mapping[str, Any] = (),
-                jobs: int = 1) -> ConvergenceReport:
+                jobs: int = 1, outputs: Sequence[str] | None = None) -> ConvergenceReport:
     """Run one case of ``config`` at a ladder of timesteps (or dt/reset ``xmax`` values) and
     measure errors against the finest run; see the module docstring for the definitions.
 
     ``dts``/``xmaxs``: the ladder (any order; the smallest is the reference); default: the
     scene's value times 2, 1, 1/2, 1/4, 1/8. ``case`` selects a case of a sweep (an index or
-    ``name=value,...``).
+    ``name=value,...``). ``outputs``: names the caller will ask `recommend` about, checked against
+    the compared outputs after the first (warm-up) run, before the ladder runs.
     """
     plan = load(config, sets)
     sc: SweepCase = select_case(plan, case)
@@ -196,7 +201,11 @@ def convergence(config: Any, *, case: str | None = None, dts: Sequence[float] | 
         one = SweepPlan([], [SweepCase((), {}, c, sc.seed_key)], "", "")
         natoms = build_case(c, sc.seed_key).natoms
         if i == 0:  # warm-up: load (or compile) the kernels before anything is timed
-            run_plan(one, None, jobs=1, progress=False)
+            first = run_plan(one, None, jobs=1, progress=False)
+            compared = list(_errors(first, first))
+            unknown = [n for n in outputs or () if n not in compared]
+            if unknown:
+                raise UnknownOutput(f"no output named {', '.join(unknown)}; outputs: {', '.join(compared)}")
         runs.append(run_plan(one, None, jobs=1, progress=False))
     ref = runs[-1]
     if str(ref["status"].values) != "ok":
