@@ -876,3 +876,16 @@ def test_a_sweep_file_as_the_base_is_named_as_such(tmp_path):
     chained.write_text("base: own.yaml\n")
     (msg,) = config_error(chained)
     assert msg.startswith(f"{chained}:1:7: base: own.yaml is a sweep file, not a scene")
+
+
+def test_swept_wall_past_the_box_is_refused_at_its_sweep_line(tmp_path):
+    """A lo face above the box's top (or a hi face below its bottom) puts every atom behind the
+    wall: refused by `check` at the swept value, not a failure at step 0 of the run."""
+    p = sweep_file(tmp_path, """\
+        sweep:
+          product:
+            c: {path: walls.zwalls.zlo.coord, values: [0.0, 50.0]}
+        """)
+    (msg,) = config_error(p)
+    assert msg == (f"{p}:4:47: walls.zwalls.zlo.coord: the zlo wall at 50 (box units) lies past the box (0 .. 10 "
+                   "in z): every atom would be behind it; put it inside the box or use EDGE (case c=50.0)")

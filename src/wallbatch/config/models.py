@@ -914,6 +914,15 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
                 add(("walls", fid, face),
                     f"cannot use a {face} wall in periodic {face[0]} dimension: make box.boundary "
                     f"{face[0]} 'f', or set pbc: true on this wall")
+            scale = 1.0 if wall.units == "box" else lattice_spacing(cfg)
+            coord = getattr(spec, "coord", None)
+            if isinstance(coord, float) and scale is not None and not getattr(wall, "pbc", False) \
+                    and math.isfinite(coord):
+                lo, hi, at = float(cfg.box.lo[dim]), float(cfg.box.hi[dim]), coord * scale
+                if (face.endswith("lo") and at > hi) or (face.endswith("hi") and at < lo):
+                    add(("walls", fid, face, "coord"),
+                        f"the {face} wall at {at:g} (box units) lies past the box ({lo:g} .. {hi:g} in "
+                        f"{face[0]}): every atom would be behind it; put it inside the box or use EDGE")
             for key, value in spec.model_dump().items():
                 if key == "coord" or entry is None or entry.param(key).numeric:
                     check_var(("walls", fid, face, key), value)
