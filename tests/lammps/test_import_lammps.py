@@ -505,6 +505,41 @@ def test_hex_lattice_units_import_with_each_axis_spacing(tmp_path: Path) -> None
         np.testing.assert_allclose(ds[key].values.ravel(), ref[:, j], rtol=1e-9, atol=1e-12)
 
 
+NO_LATTICE = """# lattice units (LAMMPS's default) with no lattice command: LAMMPS's lattice none 1.0
+units           lj
+boundary        p p f
+region          box block 0 10 0 10 0 10
+create_box      1 box
+create_atoms    1 single 4.0 5.0 5.0
+create_atoms    1 single 6.0 5.0 5.5
+mass            1 1.0
+velocity        all set 0.5 0.0 0.0
+region          cav sphere 5 5 5 3.0 side in
+fix             1 all nve
+fix             w all wall/region cav harmonic 1.0 1.0 2.0
+fix_modify      w energy yes
+""" + THERMO + """thermo          20
+run             200
+"""
+
+
+@pytest.mark.lammps
+@needs_lammps
+def test_lattice_units_without_a_lattice_command_are_box_units_as_in_lammps(tmp_path: Path) -> None:
+    script = tmp_path / "in.nolat"
+    script.write_text(NO_LATTICE)
+    result = import_lammps(script, tmp_path / "nolat.yaml")
+    assert result.complete, result.text
+    assert "line 4: units lattice (the LAMMPS default) before any lattice command" in result.text
+    cfg = load_config_text(result.text, tmp_path / "nolat.yaml")
+    assert cfg.regions["cav"].radius == 3.0
+    ref = _run_lammps_script(script, ["temp", "ke", "pe", "etotal"])
+    assert ref[-1, 3] > 0  # the atoms reach the wall
+    ds = api.run(cfg)
+    for j, key in enumerate(["temp", "ke", "pe", "etot"], start=1):
+        np.testing.assert_allclose(ds[key].values.ravel(), ref[:, j], rtol=1e-9, atol=1e-12)
+
+
 def _count_atoms(folder: Path, text: str) -> int:
     from wallbatch.lammps.validate import load_lammps
 

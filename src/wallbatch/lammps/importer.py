@@ -550,7 +550,12 @@ class _Importer:
         if units == "box":
             return np.ones(3)
         if self.spacing is None:
-            raise Unsupported("units lattice (the LAMMPS default) needs a lattice command first (or add units box)")
+            # LAMMPS's default lattice is `lattice none 1.0`: lattice units are then box units
+            note = (f"{self.here()}: units lattice (the LAMMPS default) before any lattice command: "
+                    f"LAMMPS's default lattice none 1.0 makes them box units, as written here")
+            if note not in self.notes:
+                self.notes.append(note)
+            return np.ones(3)
         style = self.lattice["style"] if self.lattice is not None else "none"
         return self.spacing * np.asarray(LATTICE_CELL.get(style, (1.0, 1.0, 1.0)))
 
