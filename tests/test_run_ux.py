@@ -292,3 +292,23 @@ def test_a_case_that_cannot_be_built_is_named_at_the_place_of_its_key(tmp_path):
     res = cli.invoke(app, ["check", str(single), "--set", "atoms.0.create.random={count: 500, overlap: 1.0}"])
     assert ("the case cannot be built: --set atoms.0.create.random={count: 500, overlap: 1.0}: "
             "atoms.0.create.random: placed only" in res.output)
+
+
+def test_a_build_error_is_placed_by_the_key_it_carries(tmp_path, monkeypatch):
+    """`SweepPlan.placed` read the key out of the message text; a build error now carries its key
+    (`CaseError.key`), which places the message also when its text does not start with the key.
+    Without a key, a key leading the text is still used, and other text is left as it is."""
+    from wallbatch.scene.case import CaseError
+
+    single = tmp_path / "single.yaml"
+    single.write_text(PACKED.split("sweep:")[0])
+    plan = load_plan(single)
+
+    def fail(cfg, seed_key):
+        raise CaseError("too many atoms for the box", key="atoms.0.create.random")
+
+    monkeypatch.setattr(runner, "build_case", fail)
+    case, error, _ = runner.build_one(plan.cases[0], plan)
+    assert case is None and error == f"{single}:6:22: too many atoms for the box"
+    assert plan.placed("atoms.0.create.random: x") == f"{single}:6:22: atoms.0.create.random: x"
+    assert plan.placed("the scene has no atoms: check atoms:") == "the scene has no atoms: check atoms:"

@@ -7,6 +7,7 @@ master seed and the case's seed key only."""
 from __future__ import annotations
 
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -136,3 +137,6 @@ def test_a_pair_cutoff_of_half_the_periodic_box_is_a_case_error_naming_pair_cuto
         "pair.cutoff: 2.5 must be less than half the periodic box length 5 along y (wallbatch takes each "
         "pair's nearest image; LAMMPS would use more than one): make the box longer than 5 along y or the cutoff "
         "shorter"), str(err.value)
+    assert err.value.key == "pair.cutoff"  # (placed by it in a run: file:line:col of pair.cutoff)
+    copy = pickle.loads(pickle.dumps(err.value))  # (as a case built in another process)
+    assert (str(copy), copy.key) == (str(err.value), "pair.cutoff")

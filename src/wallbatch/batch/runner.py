@@ -83,19 +83,19 @@ def build_one(sc: SweepCase, plan: SweepPlan | None = None) -> tuple[Case | None
     cannot be built (bad input, a variable that divides by zero, anything raised while building)
     fails alone, its message kept, led by the place of the key it names (`plan.placed`)."""
     t0 = time.perf_counter()
-    case, error = None, ""
+    case, error, key = None, "", None
     try:
         case = build_case(sc.config, sc.seed_key)
         structure_key(case)  # evaluates constant variables: a division by zero fails this case here
         check_size(case)
     except CaseError as exc:
-        case, error = None, str(exc)
+        case, error, key = None, str(exc), exc.key
     except ValueError as exc:  # a variable that cannot be evaluated, a bad value met while building
         case, error = None, f"cannot set up the case: {str(exc)[:300]}"
     except (ArithmeticError, TypeError, LookupError, MemoryError, RecursionError) as exc:
         case, error = None, f"cannot set up the case: {type(exc).__name__}: {str(exc)[:300]}"
     if error and plan is not None:
-        error = plan.placed(error)
+        error = plan.placed(error, key)
     return case, error, time.perf_counter() - t0
 
 

@@ -209,14 +209,17 @@ class SweepPlan:
     def shape(self) -> tuple[int, ...]:
         return tuple(len(d.values) for d in self.dims)
 
-    def placed(self, message: str) -> str:
+    def placed(self, message: str, key: str | None = None) -> str:
         """A case's build error `KEY: why` led by the place KEY was written: file:line:col in the
-        config, the sweep entry of a swept value, or the `--set` argument. Unchanged when it does
-        not start with a key or the plan knows no place for it."""
-        m = _KEY_FIRST.match(message)
-        if self.where is None or m is None:
+        config, the sweep entry of a swept value, or the `--set` argument. `key` is the KEY the
+        error was raised with (`CaseError.key`); without one, a KEY leading the message is used.
+        Unchanged when there is no key or the plan knows no place for it."""
+        if key is None:
+            m = _KEY_FIRST.match(message)
+            key = m.group(1) if m is not None else None
+        if self.where is None or key is None:
             return message
-        loc = tuple(int(p) if p.isdigit() else p for p in m.group(1).split("."))
+        loc = tuple(int(p) if p.isdigit() else p for p in key.split("."))
         where = _where_text(self.where, loc)
         return message if where == self.where.filename else f"{where}: {message}"
 

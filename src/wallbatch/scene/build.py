@@ -43,7 +43,7 @@ from wallbatch.units import LATTICE_BASIS, LATTICE_CELL, LATTICE_POSITIONS, LATT
 
 
 def _fail(path: str, msg: str) -> CaseError:
-    return CaseError(f"{path}: {msg}")
+    return CaseError(f"{path}: {msg}", key=path)
 
 
 def _fail_at(cfg: Config, path: str, msg: str) -> CaseError:
@@ -421,7 +421,7 @@ def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]
     outside = np.nonzero(np.any((x < lo) | (x > hi), axis=1))[0]
     if len(outside):
         i = outside[0]
-        raise CaseError(f"atoms: atom ID {i + 1} at {x[i].tolist()} is outside the box {lo.tolist()} - {hi.tolist()}")
+        raise _fail("atoms", f"atom ID {i + 1} at {x[i].tolist()} is outside the box {lo.tolist()} - {hi.tolist()}")
     out = {"x": x, "v": np.concatenate(vs), "mass": np.concatenate(ms),
            "radius": np.concatenate(rs), "group": np.concatenate(gid)}
     shape = np.concatenate(shapes)
@@ -526,12 +526,12 @@ def build_case(cfg: Config, seed_key: tuple[int, ...] = ()) -> Case:
         entry = STYLES[wall.potential] if wall.style == "region" else STYLES.get(wall.style)
         if entry is not None or wall.style == "region/ees":
             if entry is not None and entry.needs_radius and np.any(atoms["radius"][group] <= 0):
-                raise CaseError(f"walls.{fid}: wall/{wall.style} {entry.name} requires extended particles "
-                                f"(radius > 0)")
+                raise _fail(f"walls.{fid}", f"wall/{wall.style} {entry.name} requires extended particles "
+                            f"(radius > 0)")
             needs_shape = wall.style == "region/ees" or entry.needs_shape
             if needs_shape and ("shape" not in atoms or np.any(atoms["shape"][group] <= 0)):
-                raise CaseError(f"walls.{fid}: wall/{wall.style} requires extended particles: every atom of group "
-                                f"{wall.group} needs a shape (ellipsoid semi-axes)")
+                raise _fail(f"walls.{fid}", f"wall/{wall.style} requires extended particles: every atom of group "
+                            f"{wall.group} needs a shape (ellipsoid semi-axes)")
         fix_order.append(fid)
         if entry is not None and entry.per_face:
             soft.append(_per_face_spec(cfg, fid, wall, entry, group))
@@ -598,7 +598,7 @@ def _per_face_spec(cfg: Config, fid: str, wall: Any, entry: WallStyle, group: np
         try:
             style, params, sig = entry.face_style(spec.model_dump(), values, str(cfg._base_dir))
         except ValueError as exc:
-            raise CaseError(f"walls.{fid}.{face.name}.{getattr(exc, 'key', 'expression')}: {exc}") from None
+            raise _fail(f"walls.{fid}.{face.name}.{getattr(exc, 'key', 'expression')}", str(exc)) from None
         styles.append(style)
         signature.append(sig)
         faces.append(Face(face.label, face.name, face.dim, face.side, face.coord, face.scale, params))
@@ -644,10 +644,10 @@ def _pair_spec(cfg: Config) -> PairSpec | None:
     length = np.asarray(cfg.box.hi, float) - np.asarray(cfg.box.lo, float)
     for d, b in enumerate(cfg.box.boundary[:cfg.dimension]):  # (2-D: no pairs across z)
         if b == "p" and 2.0 * p.cutoff >= length[d]:  # pair forces use the minimum image
-            raise CaseError(f"pair.cutoff: {p.cutoff} must be less than half the periodic box length {length[d]:g} "
-                            f"along {'xyz'[d]} (wallbatch takes each pair's nearest image; LAMMPS would use more "
-                            f"than one): make the box longer than {2.0 * p.cutoff:g} along {'xyz'[d]} or the cutoff "
-                            f"shorter")
+            raise _fail("pair.cutoff", f"{p.cutoff} must be less than half the periodic box length {length[d]:g} "
+                        f"along {'xyz'[d]} (wallbatch takes each pair's nearest image; LAMMPS would use more "
+                        f"than one): make the box longer than {2.0 * p.cutoff:g} along {'xyz'[d]} or the cutoff "
+                        f"shorter")
     skin = 0.3 if cfg.units == "lj" else 2.0  # LAMMPS's default neighbor skin
     return PairSpec(p.epsilon, p.sigma, p.cutoff, p.shift, skin)
 

@@ -56,7 +56,19 @@ class MinimizeWarning(UserWarning):
 
 
 class CaseError(RuntimeError):
-    """A case cannot run (bad input found while building, or a failure during the run)."""
+    """A case cannot run (bad input found while building, or a failure during the run).
+
+    `key`: the dotted config key (`atoms.0.create.random`) the message is led by (`KEY: why`), for
+    a message not yet placed in the config's text: `SweepPlan.placed` puts the file:line:col (or
+    the sweep entry, or the `--set` argument) in front of it. None for a message that names no
+    key, or that already starts with its place."""
+
+    def __init__(self, message: str, key: str | None = None):
+        super().__init__(message)
+        self.key = key
+
+    def __reduce__(self):  # (kept across processes: the default would drop `key`)
+        return type(self), (str(self), self.key)
 
 
 @dataclass(frozen=True)

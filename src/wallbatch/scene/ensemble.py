@@ -66,8 +66,9 @@ def build_fixes(cfg: Any, mask: Callable[[str], np.ndarray],
             if isinstance(f, (NvtFix, LangevinFix, BerendsenFix, RescaleFix)) and not group.any():
                 msg = f"group '{f.group}' has no atoms: fix {f.style} needs atoms to thermostat"
                 where = getattr(cfg, "_srcmap", None)
-                raise CaseError(where.format(("fixes", fid, "group"), msg) if where is not None
-                                else f"fixes.{fid}.group: {msg}")
+                if where is not None:  # (placed here already)
+                    raise CaseError(where.format(("fixes", fid, "group"), msg))
+                raise CaseError(f"fixes.{fid}.group: {msg}", key=f"fixes.{fid}.group")
             kw: dict[str, Any] = {}
             if isinstance(f, NvtFix):
                 kw = {"t_start": f.temp[0], "t_stop": f.temp[1], "damp": f.damp, "tchain": f.tchain,
