@@ -322,7 +322,7 @@ def plot(results: Path = typer.Argument(..., help="results NetCDF written by wal
             raise typer.Exit(2)
         selection[key.strip()] = value.strip()
     try:
-        path = make_plot(_open(results), var, output, x=x, hue=hue, sel=selection, kind=kind)
+        path = make_plot(_open(results), var, output, x=x, hue=hue, sel=selection, kind=kind, cli=True)
     except ValueError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2) from None

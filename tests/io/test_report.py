@@ -250,7 +250,7 @@ def test_auto_heatmap_for_many_hue_values(tmp_path):
 @pytest.mark.parametrize("kwargs, match", [
     (dict(var="nope"), r"unknown variable 'nope'; plottable variables: .*temp.*pe"),
     (dict(var="status"), r"unknown variable 'status'"),
-    (dict(var="pe", x="volume"), r"x=volume: give one of sample, step, time, epsilon, sigma, replica"),
+    (dict(var="pe", x="volume"), r"^x=volume: give one of sample, step, time, epsilon, sigma, replica"),
     (dict(var="pe", hue="colour"), r"hue=colour: unknown dimension; valid: epsilon, sigma, replica"),
     (dict(var="pe", x="epsilon", hue="epsilon"), r"hue and x are both epsilon"),
     (dict(var="pe", sel={"temperature": "1"}), r"no dimension or coordinate temperature; valid: .*epsilon"),
@@ -266,12 +266,42 @@ def test_auto_heatmap_for_many_hue_values(tmp_path):
     (dict(var="pe", x="epsilon", kind="heatmap"), r"needs hue to be a second sweep dimension"),
     (dict(var="wall_force", x="epsilon", hue="sigma", kind="heatmap"),
      r"more dimensions left: face; pick one value of each with --sel DIM=VALUE \(sel= in Python\)"),
+    (dict(var="pe", kind="heatmap"), r"^kind='heatmap' needs x and hue to be two"),
     (dict(var="pe", x="epsilon", sel={"epsilon": "1"}), r"x=epsilon: epsilon was selected away"),
 ])
 def test_plot_errors(sweep_ds, tmp_path, kwargs, match):
     var = kwargs.pop("var")
     with pytest.raises(ValueError, match=match):
         report.plot(sweep_ds, var, tmp_path / "x.png", **kwargs)
+    assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["pe", "--x", "volume"], "error: --x volume: give one of sample, step, time, epsilon, sigma, replica"),
+    (["pe", "--hue", "colour"],
+     "error: --hue colour: unknown dimension; valid: epsilon, sigma, replica, sample, fix, face"),
+    (["pe", "--x", "epsilon", "--hue", "epsilon"], "error: --hue and --x are both epsilon: give different dimensions"),
+    (["pe", "--x", "epsilon", "--sel", "epsilon=1"],
+     "error: --x epsilon: epsilon was selected away by --sel; drop epsilon from the selection"),
+    (["pe", "--kind", "pie"], "error: --kind pie: choose one of auto, line, heatmap"),
+    (["pe", "--kind", "heatmap"], "error: --kind heatmap needs --x and --hue to be two sweep dimensions"),
+    (["seconds"], "error: seconds has no sample dimension (dims: epsilon, sigma, replica): plot it against a "
+                  "sweep dimension (--x <epsilon|sigma|replica>)"),
+    (["wall_force", "--x", "epsilon", "--hue", "sigma", "--kind", "heatmap"],
+     "error: a heat map of wall_force over (epsilon, sigma) has more dimensions left: face; pick one value of "
+     "each with --sel DIM=VALUE"),
+])
+def test_cli_plot_errors_name_the_options_typed(sweep_ds, tmp_path, args, message):
+    """`wallbatch plot` errors name the option as typed (`--x volume`); they said `x=volume`, the
+    Python keyword, which the command line has no spelling for."""
+    from typer.testing import CliRunner
+
+    from wallbatch.cli import app
+
+    results = write_netcdf(sweep_ds, tmp_path / "r.nc")
+    got = CliRunner().invoke(app, ["plot", str(results), *args, "-o", str(tmp_path / "x.png")])
+    assert got.exit_code == 2
+    assert " ".join(got.output.split()) == message
     assert not (tmp_path / "x.png").exists()
 
 

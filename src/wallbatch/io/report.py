@@ -355,11 +355,16 @@ def _colors(n: int) -> list:
     return [colormaps["viridis"](k / (n - 1)) for k in range(n)]
 
 
-def _sample_axis(ds: xr.Dataset, x: str | None) -> str:
+def _opt(name: str, value: Any, cli: bool) -> str:
+    """An argument as the user wrote it: `--x time` on the command line, `x=time` in Python."""
+    return f"--{name} {value}" if cli else f"{name}={value}"
+
+
+def _sample_axis(ds: xr.Dataset, x: str | None, cli: bool = False) -> str:
     """Name of the variable/coordinate giving the x values of a time series."""
     if x in ("step", "time"):
         if x not in ds.variables:
-            raise ValueError(f"x={x}: this results file has no {x}")
+            raise ValueError(f"{_opt('x', x, cli)}: this results file has no {x}")
         return x
     for name in ("step", "time"):
         if name in ds.coords and ds[name].dims == ("sample",):
@@ -388,7 +393,7 @@ def _wrap(text: str, width: int = 80) -> str:
 
 def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: str | None = None,
          sel: dict[str, str] | None = None, kind: str = "auto", return_figure: bool = False,
-         title: str | None = None):
+         title: str | None = None, cli: bool = False):
     """Plot `var` of a results Dataset to `out` (format from its suffix, PNG by default).
 
     `sel` (strings, as from `--sel epsilon=1.0`) picks cases/entries first, by exact value (see
@@ -406,13 +411,14 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
       averaged;
     - failed cases are marked (a red x at their x in sweep plots; named in a note otherwise).
 
-    Returns the written path, or `(path, figure)` when `return_figure` is true.
+    Returns the written path, or `(path, figure)` when `return_figure` is true. `cli` (for
+    `wallbatch plot`): errors name the options as typed there (`--x time`), not `x=time`.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     if kind not in KINDS:
-        raise ValueError(f"kind={kind!r}: choose one of {', '.join(KINDS)}")
+        raise ValueError(f"{_opt('kind', kind if cli else repr(kind), cli)}: choose one of {', '.join(KINDS)}")
     plottable = [str(n) for n, v in ds.data_vars.items() if not _is_text(v)]
     if var not in ds.data_vars or var not in plottable:
         raise ValueError(f"unknown variable {var!r}; plottable variables: {', '.join(plottable)}")
@@ -422,16 +428,17 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
         x = None if bins else next((d for d in sdims if d in ds[var].dims), None)  # a mean against the sweep
     var_bins = [str(d) for d in ds[var].dims if _is_bin_dim(ds, str(d))]
     if x is not None and x not in SAMPLE_AXES and x not in sdims and x not in var_bins:
-        raise ValueError(f"x={x}: give one of {', '.join(list(SAMPLE_AXES) + sdims + var_bins)}")
+        raise ValueError(f"{_opt('x', x, cli)}: give one of {', '.join(list(SAMPLE_AXES) + sdims + var_bins)}")
     if hue is not None and hue not in ds.dims:
-        raise ValueError(f"hue={hue}: unknown dimension; valid: {', '.join(map(str, ds.dims))}")
+        raise ValueError(f"{_opt('hue', hue, cli)}: unknown dimension; valid: {', '.join(map(str, ds.dims))}")
     if hue is not None and hue == x:
-        raise ValueError(f"hue and x are both {x}: give different dimensions")
+        raise ValueError(f"{'--hue and --x' if cli else 'hue and x'} are both {x}: give different dimensions")
     sub = select(ds, sel)
     if x is not None and x in sdims and x not in sub[var].dims:
-        raise ValueError(f"x={x}: {x} was selected away by sel; drop {x} from the selection")
+        raise ValueError(f"{_opt('x', x, cli)}: {x} was selected away by {'--sel' if cli else 'sel'}; "
+                         f"drop {x} from the selection")
     if hue is not None and hue not in sub[var].dims:
-        raise ValueError(f"hue={hue}: {var} has no dimension {hue} after selection; "
+        raise ValueError(f"{_opt('hue', hue, cli)}: {var} has no dimension {hue} after selection; "
                          f"remaining: {', '.join(map(str, sub[var].dims)) or 'none'}")
     ok = ok_mask(sub)
     da = sub[var].where(ok) if "status" in sub else sub[var]
@@ -449,7 +456,8 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
     bins = [str(d) for d in da.dims if _is_bin_dim(ds, str(d))]
     if bins and (x is None or x == bins[0]):  # a profile against its bin centres
         if kind == "heatmap":
-            raise ValueError("kind='heatmap' needs x and hue to be two sweep dimensions")
+            raise ValueError(f"{_opt('kind', 'heatmap' if cli else repr('heatmap'), cli)} needs "
+                             f"{'--x and --hue' if cli else 'x and hue'} to be two sweep dimensions")
         base = var[:-5] if var.endswith("_mean") else var
         if f"{base}_mean" in sub and f"{base}_sem" in sub:  # the window mean with its standard error
             da, sem, sem_name = sub[f"{base}_mean"], sub[f"{base}_sem"], f"{base}_sem"
@@ -462,15 +470,16 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
         along, xdata, xlabel, marker = bins[0], sub[bins[0]], _axis_label(sub, bins[0]), "o"
     elif x is None or x in SAMPLE_AXES:
         if kind == "heatmap":
-            raise ValueError("kind='heatmap' needs x and hue to be two sweep dimensions")
-        against = (f"plot it against a sweep dimension (x=<{'|'.join(sdims)}>)" if sdims else
+            raise ValueError(f"{_opt('kind', 'heatmap' if cli else repr('heatmap'), cli)} needs "
+                             f"{'--x and --hue' if cli else 'x and hue'} to be two sweep dimensions")
+        against = (f"plot it against a sweep dimension ({_opt('x', '<' + '|'.join(sdims) + '>', cli)})" if sdims else
                    "this file has no sweep dimension to plot it against (one case: `wallbatch show` prints it)")
         if "sample" not in da.dims and "sample" in ds[var].dims:
             raise ValueError(f"the selection {sel} leaves {var} a single sample: {against}, or select fewer samples")
         if "sample" not in da.dims:
             raise ValueError(f"{var} has no sample dimension (dims: {', '.join(map(str, da.dims)) or 'none'}): "
                              f"{against}")
-        xname = _sample_axis(sub, x)
+        xname = _sample_axis(sub, x, cli)
         along, xdata, xlabel, what = "sample", sub[xname], _axis_label(sub, xname), long_name
         marker = ""
     else:
@@ -500,7 +509,8 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
     FigureCanvasAgg(fig)
     if kind == "heatmap":
         if hue is None or hue not in sdims:
-            raise ValueError(f"kind='heatmap' needs hue to be a second sweep dimension; "
+            raise ValueError(f"{_opt('kind', 'heatmap' if cli else repr('heatmap'), cli)} needs "
+                             f"{'--hue' if cli else 'hue'} to be a second sweep dimension; "
                              f"sweep dims: {', '.join(sdims)}")
         mean = da
         if "replica" in mean.dims and "replica" not in (x, hue):
@@ -509,8 +519,8 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
         extra = [d for d in mean.dims if d not in (x, hue) and mean.sizes[d] > 1]
         if extra:
             raise ValueError(f"a heat map of {var} over ({x}, {hue}) has more dimensions left: "
-                             f"{', '.join(map(str, extra))}; pick one value of each with --sel DIM=VALUE "
-                             f"(sel= in Python)")
+                             f"{', '.join(map(str, extra))}; pick one value of each with --sel DIM=VALUE"
+                             f"{'' if cli else ' (sel= in Python)'}")
         mean = mean.squeeze([d for d in mean.dims if d not in (x, hue)], drop=True)
         ax = fig.add_subplot()
         _heatmap(ax, fig, sub, mean.transpose(hue, x), x, hue, _axis_label(sub, var))
@@ -522,7 +532,8 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
     points = along != "sample"  # markers with error bars against a sweep dim or bin centres
     facet = None if points else next((d for d in FACET_DIMS if d in rest and d != hue), None)
     if facet is not None and da.sizes[facet] > MAX_FACETS:
-        raise ValueError(f"{var} has {da.sizes[facet]} {facet} entries: pick some with sel {facet}=...")
+        raise ValueError(f"{var} has {da.sizes[facet]} {facet} entries: pick one with "
+                         f"{'--sel ' + facet + '=VALUE' if cli else 'sel={' + repr(facet) + ': VALUE}'}")
     lines = [d for d in rest if d != facet and d != "replica"]
     lines = [d for d in lines if d in FACET_DIMS] + [d for d in lines if d not in FACET_DIMS]  # never averaged
     if hue is None:
