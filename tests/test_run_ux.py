@@ -312,3 +312,60 @@ def test_a_build_error_is_placed_by_the_key_it_carries(tmp_path, monkeypatch):
     assert case is None and error == f"{single}:6:22: too many atoms for the box"
     assert plan.placed("atoms.0.create.random: x") == f"{single}:6:22: atoms.0.create.random: x"
     assert plan.placed("the scene has no atoms: check atoms:") == "the scene has no atoms: check atoms:"
+
+
+THERMOSTAT_DT_RESET = """\
+units: lj
+seed: 3
+box: {lo: [0, 0, 0], hi: [8, 8, 10], boundary: [p, p, f]}
+atoms:
+  - group: gas
+    create: {random: {count: 50, region: middle, overlap: 0.9}}
+    mass: 1.0
+    velocity: {temperature: 1.0}
+regions:
+  middle: {style: block, lo: [0, 0, 2], hi: [8, 8, 8], units: box}
+variables:
+  top: "10.0 - ramp(0.0, 1.0)"
+walls:
+  zwalls:
+    style: lj93
+    units: box
+    zlo: {coord: EDGE, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}
+    zhi: {coord: TOP, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}
+fixes:
+  t: "fix t all temp/berendsen 1.0 1.0 0.5"
+dt_reset: {every: 1, tmin: 1.0e-6, tmax: 0.005, xmax: 0.02, units: box}
+run: {steps: 40, thermo: 10}
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("top, path", [
+    ("EDGE", "engine: ran compiled (numba) for 1 case(s)"),
+    # a wall moved by a variable with fix dt/reset: the compiled kernels hand every chunk back
+    ("v_top", "engine: ran on the NumPy path for 1 case(s)"),
+])
+def test_verbose_run_reports_the_path_the_steps_took(tmp_path, monkeypatch, top, path):
+    """`run -v` with WALLBATCH_NUMBA=1 on a thermostat + fix dt/reset scene (50 atoms, 40 steps):
+    the line before the run says compiled where the scene allows, the line after it the path the
+    steps took (it said 'compiled' though a scene the kernels do not take ran in NumPy)."""
+    pytest.importorskip("numba")
+    monkeypatch.setenv("WALLBATCH_NUMBA", "1")
+    config = tmp_path / "s.yaml"
+    config.write_text(THERMOSTAT_DT_RESET.replace("TOP", top))
+    got = cli.invoke(app, ["run", str(config), "-o", str(tmp_path / "s.nc"), "-j", "1", "-v"])
+    assert got.exit_code == 0, got.output
+    lines = [line for line in got.output.splitlines() if line.startswith("engine:")]
+    assert lines == ["engine: compiled (numba) where the scene allows (the NumPy path runs the rest), as "
+                     "WALLBATCH_NUMBA=1 asks", path]
+
+
+def test_ran_counts_cases_by_the_path_of_their_steps():
+    from wallbatch.engine import backend
+
+    assert backend.ran([]) == "engine: no step was run"
+    assert backend.ran([(0, 0), (0, 40)]) == "engine: ran on the NumPy path for 1 case(s)"
+    assert backend.ran([(40, 0), (30, 10), (39, 1), (0, 40)]) == (
+        "engine: ran compiled (numba) for 1 case(s); partly compiled for 2 case(s) (11 of their 80 steps on the "
+        "NumPy path); on the NumPy path for 1 case(s)")

@@ -185,7 +185,7 @@ def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
         fresh: bool = typer.Option(False, help="discard the cases left by an interrupted run and start over"),
         force: bool = typer.Option(False, "--force", help="overwrite an existing results file"),
         verbose: bool = typer.Option(False, "--verbose", "-v", help="say which engine runs the plan (NumPy or "
-                                     "compiled) and why"),
+                                     "compiled) and why, and after the run which path its steps took"),
         ) -> None:
     """Run the scene (and its sweep) of CONFIG and write the results as NetCDF.
 
@@ -207,6 +207,7 @@ def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
 
     _start_up_done()
     out = Path(output) if output else Path(config.stem + ".nc")
+    steps: list[tuple[int, int]] = []  # per case run: (compiled steps, NumPy steps), for -v
     if verbose:
         from wallbatch.engine import backend
 
@@ -215,7 +216,9 @@ def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
         # the plain results (xarray is not imported: a third of a small run's start-up)
         ds = run_plan(plan, out, jobs=jobs, executor=executor, scheduler=scheduler, resume=resume, fresh=fresh,
                       overwrite=force, log=lambda msg: typer.echo(msg, err=True), as_xarray=False,
-                      summary=True)  # the file is written block by block: only status and errors come back
+                      summary=True,  # the file is written block by block: only status and errors come back
+                      on_result=(lambda i, res: steps.append((res.compiled_steps, res.numpy_steps))) if verbose
+                      else None)
     except Interrupted as exc:
         typer.echo(str(exc), err=True)
         raise typer.Exit(130) from None
@@ -223,6 +226,8 @@ def run(config: Path = typer.Argument(..., help="scene or sweep YAML file"),
         raise _fail(str(exc)) from None
     except CaseError as exc:
         raise _fail(f"{config}: {exc}") from None
+    if verbose and (steps or not resume):  # (cases reused by --resume ran before: their path is not known)
+        typer.echo(backend.ran(steps), err=True)
     failed = int((ds["status"].values == "failed").sum())
     total = int(ds["status"].values.size)
     typer.echo(f"{total - failed} of {total} case(s) ok -> {out}")

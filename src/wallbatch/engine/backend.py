@@ -417,13 +417,38 @@ def choose(plan: SweepPlan) -> bool:
     return plan_work(plan) >= SMALL_RUN
 
 
+WHERE_IT_CAN = "where the scene allows (the NumPy path runs the rest)"
+
+
 def describe(plan: SweepPlan) -> str:
-    """One line: the path the plan runs on and why."""
+    """One line, before the run: the path the plan is to run on and why (`ran`: after it, the
+    path its steps took)."""
     env = env_choice()
     if env is not None:
-        return f"engine: {'compiled (numba)' if env else 'NumPy'}, as WALLBATCH_NUMBA={os.environ['WALLBATCH_NUMBA']} asks"
+        return (f"engine: {'compiled (numba) ' + WHERE_IT_CAN if env else 'NumPy'}, as "
+                f"WALLBATCH_NUMBA={os.environ['WALLBATCH_NUMBA']} asks")
     work = plan_work(plan)
     if work >= SMALL_RUN:
-        return f"engine: compiled (numba): work {work:.3g} atom-steps, at least {SMALL_RUN:.3g}"
+        return f"engine: compiled (numba) {WHERE_IT_CAN}: work {work:.3g} atom-steps, at least {SMALL_RUN:.3g}"
     return (f"engine: NumPy: work {work:.3g} atom-steps, below {SMALL_RUN:.3g} (numba's start-up would cost "
             f"more; WALLBATCH_NUMBA=1 forces it)")
+
+
+def ran(steps: list[tuple[int, int]]) -> str:
+    """One line, after a run: the path the cases' steps took, from each case's (compiled steps,
+    NumPy steps) (engine.CaseResult: those of its batch). A scene the compiled kernels do not take
+    (or a chunk they hand back) runs on the NumPy path even when the plan chose compiled."""
+    compiled = [c for c, n in steps if c and not n]
+    mixed = [(c, n) for c, n in steps if c and n]
+    numpy = [n for c, n in steps if n and not c]
+    if not (compiled or mixed or numpy):
+        return "engine: no step was run"
+    parts = []
+    if compiled:
+        parts.append(f"compiled (numba) for {len(compiled)} case(s)")
+    if mixed:
+        n, total = sum(n for _, n in mixed), sum(c + n for c, n in mixed)
+        parts.append(f"partly compiled for {len(mixed)} case(s) ({n} of their {total} steps on the NumPy path)")
+    if numpy:
+        parts.append(f"on the NumPy path for {len(numpy)} case(s)")
+    return "engine: ran " + "; ".join(parts)

@@ -57,6 +57,9 @@ class CaseResult:
     seconds: float
     data: dict[str, np.ndarray] = field(default_factory=dict)
     frames: dict[str, np.ndarray] = field(default_factory=dict)  # output.dump: time (F,), x/v (F, N, 3)
+    # steps of the case's batch run by compiled kernels and by the NumPy loop (`wallbatch run -v`)
+    compiled_steps: int = 0
+    numpy_steps: int = 0
 
 
 class Engine:
@@ -107,6 +110,8 @@ class Engine:
         # between wall/ees faces: asphere_compiled.eligible)
         # (imported only then: numba and the kernels cost ~0.6 s; backend.py: small plans run NumPy)
         self.fast = None
+        self.compiled_steps = 0  # steps the compiled path ran (`_compiled`), and the NumPy loop (`step`)
+        self.numpy_steps = 0
         if backend.numba_allowed():
             from wallbatch.engine.asphere_compiled import attach_asphere_path
             from wallbatch.engine.compiled import attach_fast_path
@@ -264,6 +269,7 @@ class Engine:
     def step(self, dt: np.ndarray, outputs: bool, active: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """One velocity-Verlet step of every live case (`active` cases only advance in time)."""
         s = self.state
+        self.numpy_steps += 1
         s.step += 1 if active is None else active
         s.var_step = {}
         s.ctx = None
@@ -431,9 +437,20 @@ class Engine:
 
     def advance(self, nsteps: int, sample: bool = True) -> None:
         """Advance every live case by nsteps steps, then sample (outputs computed on the last step)."""
-        if self.fast is not None and self.fast.advance(nsteps, sample):
+        if self.fast is not None and self._compiled(self.fast.advance, nsteps, sample):
             return
         self.advance_numpy(nsteps, sample)
+
+    def _compiled(self, call: Callable[..., Any], *args: Any) -> Any:
+        """`call(*args)`, a call of the compiled path, counting the steps its kernels ran in
+        `compiled_steps`: the steps the live cases advanced less those the NumPy loop ran inside it
+        (a chunk handed back in part)."""
+        s = self.state
+        before, numpy_before = (int(s.step.max()) if s.ncases else 0), self.numpy_steps
+        done = call(*args)
+        if done and s.ncases:
+            self.compiled_steps += max(0, int(s.step.max()) - before - (self.numpy_steps - numpy_before))
+        return done
 
     def advance_numpy(self, nsteps: int, sample: bool = True) -> None:
         """Engine.advance in NumPy, step by step."""
@@ -451,7 +468,7 @@ class Engine:
 
     def advance_to_time(self, target: float) -> None:
         """Step until every live case's time reaches `target`, clipping the last dt to land on it."""
-        if self.fast is not None and self.fast.advance_to_time(target):
+        if self.fast is not None and self._compiled(self.fast.advance_to_time, target):
             return
         s = self.state
         tol = landing_tol(target)
@@ -556,7 +573,7 @@ class Engine:
                             self.advance(lead, sample=False)
                             done += lead
                         if self.state.ncases:
-                            ran = sampled(np.array(instants[i:j], np.int64) - done)
+                            ran = self._compiled(sampled, np.array(instants[i:j], np.int64) - done)
                     if ran:
                         done = instants[i + ran - 1]
                         i += ran
@@ -620,6 +637,7 @@ class Engine:
             else:
                 results.append(CaseResult("ok", "", float(seconds[c]), {k: v[c] for k, v in stacked.items()},
                                           frames[c]))
+            results[-1].compiled_steps, results[-1].numpy_steps = self.compiled_steps, self.numpy_steps
             results[-1].data.update(self.min_info.get(c, {}))
             if self.profiles is not None:
                 results[-1].data.update(self.profiles.case_data(c, failed=c in self.errors))
