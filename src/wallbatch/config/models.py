@@ -859,6 +859,7 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
     for name, region in cfg.regions.items():
         if region.units == "lattice" and cfg.lattice is None:
             add(("regions", name, "units"), _LATTICE_MSG)
+    _check_creation_regions(cfg, add)
 
     try:
         Variables(cfg.variables)
@@ -994,6 +995,49 @@ def _check_cutoff_mode(fid: str, wall: Any, entry: WallStyle | None, add: Any) -
             if isinstance(rc, float) and not r_on < rc:
                 add(("walls", fid, "switch_on"), f"switch_on = {r_on:g} must be smaller than the cut-off{where} "
                     f"{rc:g}")
+
+
+def _check_creation_regions(cfg: "Config", add: Any) -> None:
+    """A region atoms are created in (create.random.region, create.lattice.region) with no volume
+    inside the box creates no atom: refused at the region. One lying partly outside is fine (the
+    atoms are placed in the part inside, as LAMMPS clips)."""
+    users: dict[str, list[str]] = {}
+    for i, g in enumerate(cfg.atoms):
+        for key in ("random", "lattice"):
+            spec = getattr(g.create, key)
+            if spec is not None and spec.region in cfg.regions:
+                users.setdefault(spec.region, []).append(f"atoms.{i}.create.{key} (group {g.group})")
+    if not users:
+        return
+    from wallbatch.geometry.regions import RegionGeom  # noqa: PLC0415 - numpy geometry, only when needed
+
+    lo, hi = list(cfg.box.lo), list(cfg.box.hi)
+    if cfg.dimension == 2:  # atoms are created in the plane z = 0
+        lo[2] = hi[2] = 0.0
+    for name, used_by in users.items():
+        region = cfg.regions[name]
+        if region.units == "lattice" and cfg.lattice is None:
+            continue  # reported above
+        geom = RegionGeom.from_config(region, None if region.units == "box" else lattice_spacing(cfg))
+        if not geom.misses_box(lo, hi):
+            continue
+        box = f"box lo {_fmt_vec(cfg.box.lo)} hi {_fmt_vec(cfg.box.hi)}"
+        if region.units == "lattice":
+            box += f"; the region's numbers are lattice units, times the lattice spacing {lattice_spacing(cfg):g}"
+        if cfg.dimension == 2:
+            box += "; a 2-D run creates its atoms in the plane z = 0"
+        users_text = " and ".join(used_by)
+        if region.side == "in":
+            add(("regions", name), f"region {name} lies wholly outside the box ({box}), so {users_text} would create "
+                f"no atom: move or resize the region so that part of it is in the box, or enlarge the box")
+        else:
+            add(("regions", name), f"region {name} (side: out) leaves nothing of the box: its {region.style} holds "
+                f"the whole box ({box}), so {users_text} would create no atom: shrink or move the "
+                f"{region.style}, or use side: in")
+
+
+def _fmt_vec(v: Any) -> str:
+    return "[" + ", ".join(f"{float(x):g}" for x in v) + "]"
 
 
 def _check_region_wall(cfg: "Config", fid: str, wall: Any, add: Any, check_var: Any) -> None:

@@ -104,6 +104,26 @@ class RegionGeom:
         depth = np.minimum(self.radius - rho, np.minimum(a - self.lo, self.hi - a))
         return np.where(self.inside(x), depth, np.sqrt(radial * radial + axial * axial))
 
+    def misses_box(self, lo: Any, hi: Any) -> bool:
+        """True when no point of the closed box [lo, hi] (box units) is on the allowed side: a
+        side-in region lying wholly outside it (not even touching it), or a side-out region whose
+        shape holds it whole. An axis with lo == hi (the z = 0 plane of a 2-D run) is a plane."""
+        lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+        if self.side == "out":  # strictly outside the shape: nothing is left when the shape holds the box
+            corners = np.array(np.meshgrid(*zip(lo, hi), indexing="ij")).reshape(3, -1).T
+            return bool(np.all(self.inside(corners)))
+
+        def gap(centre: np.ndarray, dims: list[int]) -> float:  # distance from a point to the box (those dims)
+            return float(_norm(centre - np.clip(centre, lo[dims], hi[dims])))
+
+        if self.style == "block":
+            return any(max(self.lo[d], lo[d]) > min(self.hi[d], hi[d]) for d in range(3))
+        if self.style == "sphere":
+            return gap(np.asarray(self.center, float), [0, 1, 2]) > self.radius
+        others = [d for d in range(3) if d != self.axis]
+        return (max(self.lo, lo[self.axis]) > min(self.hi, hi[self.axis])
+                or gap(np.asarray(self.center, float), others) > self.radius)
+
     def _cyl(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Radial distance from the axis and axial coordinate of x."""
         o1, o2 = (d for d in range(3) if d != self.axis)
