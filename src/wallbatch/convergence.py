@@ -63,6 +63,13 @@ class UnknownOutput(ConvergenceError):
     """An output name (`recommend`'s, `convergence`'s ``outputs``) that the ladder does not compare."""
 
 
+def _check_names(names: Sequence[str], compared: Sequence[str]) -> None:
+    """UnknownOutput naming those of `names` not among the `compared` outputs (and listing them)."""
+    unknown = [n for n in names if n not in compared]
+    if unknown:
+        raise UnknownOutput(f"no output named {', '.join(unknown)}; outputs: {', '.join(compared)}")
+
+
 @dataclass
 class ConvergenceReport:
     """The ladder's runs, the observed orders, and the results with a ``dt`` (or ``xmax``) dimension."""
@@ -80,9 +87,7 @@ class ConvergenceReport:
         """The cheapest (largest h) non-reference run whose error is <= rtol for every output
         (or for the named ones); None when none meets it."""
         names = list(outputs) if outputs else self.outputs
-        unknown = [n for n in names if n not in self.orders]
-        if unknown:
-            raise UnknownOutput(f"no output named {', '.join(unknown)}; outputs: {', '.join(self.outputs)}")
+        _check_names(names, self.outputs)
         ok = [p for p in self.points[:-1] if p.status == "ok"
               and all(not (p.errors.get(n, math.nan) > rtol) for n in names)]
         return max(ok, key=lambda p: p.h) if ok else None
@@ -202,10 +207,7 @@ def convergence(config: Any, *, case: str | None = None, dts: Sequence[float] | 
         natoms = build_case(c, sc.seed_key).natoms
         if i == 0:  # warm-up: load (or compile) the kernels before anything is timed
             first = run_plan(one, None, jobs=1, progress=False)
-            compared = list(_errors(first, first))
-            unknown = [n for n in outputs or () if n not in compared]
-            if unknown:
-                raise UnknownOutput(f"no output named {', '.join(unknown)}; outputs: {', '.join(compared)}")
+            _check_names(outputs or (), list(_errors(first, first)))
         runs.append(run_plan(one, None, jobs=1, progress=False))
     ref = runs[-1]
     if str(ref["status"].values) != "ok":

@@ -360,6 +360,12 @@ def _opt(name: str, value: Any, cli: bool) -> str:
     return f"--{name} {value}" if cli else f"{name}={value}"
 
 
+def _heatmap_needs(options: tuple[str, ...], what: str, cli: bool) -> str:
+    """"kind='heatmap' needs x and hue ..." (`--kind heatmap needs --x and --hue ...` on the command line)."""
+    names = " and ".join(f"--{o}" if cli else o for o in options)
+    return f"{_opt('kind', 'heatmap' if cli else repr('heatmap'), cli)} needs {names} {what}"
+
+
 def _sample_axis(ds: xr.Dataset, x: str | None, cli: bool = False) -> str:
     """Name of the variable/coordinate giving the x values of a time series."""
     if x in ("step", "time"):
@@ -456,8 +462,7 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
     bins = [str(d) for d in da.dims if _is_bin_dim(ds, str(d))]
     if bins and (x is None or x == bins[0]):  # a profile against its bin centres
         if kind == "heatmap":
-            raise ValueError(f"{_opt('kind', 'heatmap' if cli else repr('heatmap'), cli)} needs "
-                             f"{'--x and --hue' if cli else 'x and hue'} to be two sweep dimensions")
+            raise ValueError(_heatmap_needs(("x", "hue"), "to be two sweep dimensions", cli))
         base = var[:-5] if var.endswith("_mean") else var
         if f"{base}_mean" in sub and f"{base}_sem" in sub:  # the window mean with its standard error
             da, sem, sem_name = sub[f"{base}_mean"], sub[f"{base}_sem"], f"{base}_sem"
@@ -470,8 +475,7 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
         along, xdata, xlabel, marker = bins[0], sub[bins[0]], _axis_label(sub, bins[0]), "o"
     elif x is None or x in SAMPLE_AXES:
         if kind == "heatmap":
-            raise ValueError(f"{_opt('kind', 'heatmap' if cli else repr('heatmap'), cli)} needs "
-                             f"{'--x and --hue' if cli else 'x and hue'} to be two sweep dimensions")
+            raise ValueError(_heatmap_needs(("x", "hue"), "to be two sweep dimensions", cli))
         against = (f"plot it against a sweep dimension ({_opt('x', '<' + '|'.join(sdims) + '>', cli)})" if sdims else
                    "this file has no sweep dimension to plot it against (one case: `wallbatch show` prints it)")
         if "sample" not in da.dims and "sample" in ds[var].dims:
@@ -509,9 +513,8 @@ def plot(ds: xr.Dataset, var: str, out: str | Path, x: str | None = None, hue: s
     FigureCanvasAgg(fig)
     if kind == "heatmap":
         if hue is None or hue not in sdims:
-            raise ValueError(f"{_opt('kind', 'heatmap' if cli else repr('heatmap'), cli)} needs "
-                             f"{'--hue' if cli else 'hue'} to be a second sweep dimension; "
-                             f"sweep dims: {', '.join(sdims)}")
+            raise ValueError(_heatmap_needs(("hue",), f"to be a second sweep dimension; sweep dims: "
+                                                        f"{', '.join(sdims)}", cli))
         mean = da
         if "replica" in mean.dims and "replica" not in (x, hue):
             mean = mean.mean("replica", skipna=True, keep_attrs=True)
