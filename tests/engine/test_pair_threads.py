@@ -68,6 +68,41 @@ def test_threaded_build_and_forces_are_the_one_thread_bits(parts):
 
 
 @pytest.mark.parametrize("parts", [2, 3, 5])
+@pytest.mark.parametrize("xper", [True, False])
+@pytest.mark.parametrize("shift", [0.0, 0.37])
+def test_row_zones_hold_every_mixed_row(parts, xper, shift):
+    """The build's `row_zones` (the only rows RowSplit checks for partners of another part) hold
+    every row that has one: the split from them has the mixed rows and log lengths of the split
+    that checks every row, with x periodic (rows wrapping to layers 0 and 1) or not, and parts
+    starting mid-layer (shares moved by `shift`); with two parts the zones leave rows out."""
+    x, lo, length, per = liquid()
+    per = per.copy()
+    per[0] = xper
+    N = len(x)
+    owner, first, neigh = np.empty(N, np.int32), np.empty(N + 1, np.int64), np.zeros(80 * N, np.int32)
+    marks, rows = np.zeros((parts, N), np.uint8), np.empty(parts + 1, np.int64)
+    zones = np.full((parts, 2, 2), -1, np.int64)
+    shares = np.arange(parts + 1) / parts
+    shares[1:-1] += shift / parts
+    assert pair_compiled.build_threaded(x, lo, length, per, 2.8, owner, first, neigh, parts, marks=marks, rows=rows,
+                                        shares=shares, zones=zones) > 30 * N
+    full = pair_compiled.RowSplit(owner, first, neigh, parts, marks=marks, rows=rows)
+    zoned = pair_compiled.RowSplit(owner, first, neigh, parts, marks=marks, rows=rows, zones=zones)
+    assert full.mixed.sum() > 0.05 * N
+    np.testing.assert_array_equal(zoned.mixed, full.mixed)
+    np.testing.assert_array_equal(zoned.logs, full.logs)
+    checked = (zones[1:, :, 1] - zones[1:, :, 0]).sum()
+    assert (zones[:, :, 1] >= zones[:, :, 0]).all() and zones[0].sum() == 0
+    assert checked <= N - rows[1]
+    if parts == 2 and shift == 0.0:  # ~17 layers of cells: part 1 holds ~8, its zones ~5
+        assert checked < 0.8 * (N - rows[1])
+    f1, f2 = np.zeros_like(x), np.zeros_like(x)
+    pair_compiled.forces_case(x, f1, owner, first, neigh, E24, E4, SIG2, RC2, OFF, length, per, False)
+    pair_compiled.forces_threaded(x, f2, owner, first, neigh, zoned, E24, E4, SIG2, RC2, OFF, length, per)
+    np.testing.assert_array_equal(f2, f1)
+
+
+@pytest.mark.parametrize("parts", [2, 3, 5])
 @pytest.mark.parametrize("scene", ["liquid", "clumped"])
 def test_threaded_binning_is_the_counting_sort_of_one_thread(parts, scene):
     """bin_threaded (runs of atoms: extent, cells and counts, scatter) gives `_bin`'s owner, sorted

@@ -605,21 +605,27 @@ if njit is not None:
         return esum, wsum
 
     @jit
-    def _mixed(fr: np.ndarray, nc: np.ndarray, ow: np.ndarray, s_lo: int, s_hi: int, rb: np.ndarray,
+    def _mixed(fr: np.ndarray, nc: np.ndarray, ow: np.ndarray, runs: np.ndarray, rb: np.ndarray,
                firstp: np.ndarray, mixed: np.ndarray, room: np.ndarray) -> None:
-        """mixed[s] = some partner of row s (s_lo <= s < s_hi) is first touched by a part before the
-        row's own (rows rb[p] .. rb[p+1] - 1 are part p's); room[p] += the additions part p's rows
-        here log in `forces_part` (partners and owners whose first part is another): its exact
-        log length."""
-        p = 0
-        for s in range(s_lo, s_hi):
-            while rb[p + 1] <= s:
+        """For the rows of runs (k, 2) (each [s_lo, s_hi)): mixed[s] = some partner of row s is
+        first touched by a part before the row's own (rows rb[p] .. rb[p+1] - 1 are part p's);
+        room[p] += the additions part p's rows here log in `forces_part` (partners and owners
+        whose first part is another): its exact log length."""
+        for r in range(runs.shape[0]):
+            s_lo, s_hi = runs[r, 0], runs[r, 1]
+            if s_lo >= s_hi:
+                continue
+            p = 0
+            while rb[p + 1] <= s_lo:
                 p += 1
-            m = 0
-            for k in range(fr[s], fr[s + 1]):
-                m += firstp[nc[k]] != p
-            mixed[s] = m > 0
-            room[p] += m + (firstp[ow[s]] != p)
+            for s in range(s_lo, s_hi):
+                while rb[p + 1] <= s:
+                    p += 1
+                m = 0
+                for k in range(fr[s], fr[s + 1]):
+                    m += firstp[nc[k]] != p
+                mixed[s] = m > 0
+                room[p] += m + (firstp[ow[s]] != p)
 
     @jit
     def _replay_atoms(fc: np.ndarray, lj: np.ndarray, lv: np.ndarray, starts: np.ndarray, ends: np.ndarray,
@@ -1237,7 +1243,8 @@ def bin_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: 
 def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic: np.ndarray, reach: float,
                    owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int,
                    run: Callable[[list], list] = threads._in_threads, marks: np.ndarray | None = None,
-                   rows: np.ndarray | None = None, shares: np.ndarray | None = None, buffer: Buffer = _fresh) -> int:
+                   rows: np.ndarray | None = None, shares: np.ndarray | None = None, buffer: Buffer = _fresh,
+                   zones: np.ndarray | None = None) -> int:
     """`build_case` with its binning in runs of atoms (`bin_threaded`) and its scan of the cells cut
     in `parts` runs of cells (about equal atoms), one per thread (`run`: threads._in_threads or a
     `Crew`): part 0 writes its rows into neigh, part p >= 1 into its share of a second array (in
@@ -1247,7 +1254,8 @@ def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic
     atoms part p's rows touch (all `RowSplit` needs: not those owned by part p or before, whose
     first part is known without), rows = the parts' first rows (for `RowSplit`). `shares` (parts +
     1,), from 0 up to 1: part p starts at about atom shares[p] N (default p / parts). Work arrays
-    from `buffer` (`bin_threaded`)."""
+    from `buffer` (`bin_threaded`). With `zones` (parts, 2, 2): each part's runs of rows [lo, hi)
+    that may have partners another part touches first (`row_zones`; for `RowSplit`)."""
     N = pos.shape[0]
     if N < 2 * parts:  # (no marks: RowSplit marks itself)
         if rows is not None:
@@ -1288,10 +1296,57 @@ def build_threaded(pos: np.ndarray, lo: np.ndarray, length: np.ndarray, periodic
     first[N] = m
     if rows is not None:
         rows[:] = rs
+    if zones is not None:
+        row_zones(qb, cstart, nb, bool(periodic[0]), zones)
     return m
 
 
+def row_zones(qb: np.ndarray, cstart: np.ndarray, nb: np.ndarray, xper: bool, zones: np.ndarray) -> None:
+    """zones[p] = two runs of rows [lo, hi) of part p (cells qb[p] .. qb[p+1] - 1 of `_scan`'s grid
+    nb, cell starts cstart) outside which no row has a partner, or an owner, that a part before p
+    touches first (`RowSplit` checks only these). A row of a cell in x layer c (x slowest: a
+    layer is nb[1] nb[2] cells) has its partners in layers c .. c + 2 (half stencil), and in
+    layers 0 and 1 if c + 2 wraps a periodic x. So the atoms the parts before p touch are in
+    layers up to c' + 2 (c': the layer of cell qb[p] - 1), and in layers 0 and 1 through a wrap:
+    part p's rows that can meet them are those of layers up to c' + 2 (run 0) and, with a periodic
+    x, those of layers n0 - 2 and up (run 1). With a periodic x and a part 0 of less than two
+    layers (the atoms of layers 0 and 1 may then be another part's), all rows: run 0."""
+    layer = int(nb[1] * nb[2])
+    n0 = int(nb[0])
+    zones[0] = 0
+    for p in range(1, len(qb) - 1):
+        a, b = int(qb[p]), int(qb[p + 1])
+        if xper and int(qb[1]) < 2 * layer:  # a thin part 0 (or one layer): every row
+            head, wrap = b, b
+        else:
+            head = min(b, ((a - 1) // layer + 3) * layer)
+            wrap = max(a, (n0 - 2) * layer) if xper else b
+        head = max(a, head)
+        zones[p, 0] = cstart[a], cstart[head]
+        zones[p, 1] = cstart[max(head, min(wrap, b))], cstart[b]
+
+
 _NO_ROWS = np.empty((0, 2))
+
+
+def _share_runs(runs: np.ndarray, parts: int) -> list[np.ndarray]:
+    """The runs of rows runs (k, 2) ([lo, hi) each, in order) cut into `parts` lists of runs of
+    about equal rows, in order (each thread's share of `_mixed`)."""
+    runs = runs[runs[:, 1] > runs[:, 0]]
+    sizes = runs[:, 1] - runs[:, 0]
+    ends = np.cumsum(sizes)
+    total = int(ends[-1]) if len(ends) else 0
+    out = []
+    for t in range(parts):
+        a, b = total * t // parts, total * (t + 1) // parts  # rows a .. b - 1 of the runs laid end to end
+        piece = []
+        for (lo, hi), e in zip(runs.tolist(), ends.tolist()):
+            s0 = e - (hi - lo)  # where this run starts, end to end
+            u, v = max(a, s0), min(b, e)
+            if u < v:
+                piece.append((lo + u - s0, lo + v - s0))
+        out.append(np.array(piece, np.int64).reshape(-1, 2))
+    return out
 
 
 class RowSplit:
@@ -1301,14 +1356,17 @@ class RowSplit:
     logs[p+1] - 1, exactly as many as its rows log) for `replay`. `reuse`: an earlier split whose
     arrays this one may take (it must not be used after); `buffer`: where the log arrays and the
     rows' outputs come from when not reused (scratch, consumed within a pass: a `Workspace`'s
-    kept arrays may serve every split of one pair)."""
+    kept arrays may serve every split of one pair); `zones`: with the build's marks and rows, its
+    `row_zones`, the only rows that can have partners of another part (else all but part 0's)."""
 
     def __init__(self, owner: np.ndarray, first: np.ndarray, neigh: np.ndarray, parts: int,
                  run: Callable[[list], list] = threads._in_threads, marks: np.ndarray | None = None,
-                 rows: np.ndarray | None = None, reuse: "RowSplit | None" = None, buffer: "Buffer" = _fresh):
+                 rows: np.ndarray | None = None, reuse: "RowSplit | None" = None, buffer: "Buffer" = _fresh,
+                 zones: np.ndarray | None = None):
         nrow = len(owner)
         total = int(first[nrow])
-        if marks is None or rows is None or rows[0] < 0:  # parts of about equal pairs, marked here
+        built = not (marks is None or rows is None or rows[0] < 0)
+        if not built:  # parts of about equal pairs, marked here
             self.rb = np.append(np.searchsorted(first[:nrow + 1], [total * p // parts for p in range(parts)]),
                                 nrow).astype(np.int64)
             marks = np.zeros((parts, nrow), np.uint8)
@@ -1323,10 +1381,11 @@ class RowSplit:
         cut = [nrow * p // parts for p in range(parts + 1)]
         run([lambda p=p: _first_marks(marks, cut[p], cut[p + 1], self.firstp) for p in range(parts)])
         self.mixed = reuse.mixed if keep else np.empty(nrow, np.uint8)
-        self.mixed[:rb[1]] = 0  # rows of part 0 have none; the others' rows shared out
-        cut = [int(rb[1]) + (nrow - int(rb[1])) * p // parts for p in range(parts + 1)]
+        self.mixed[:] = 0  # rows of part 0 have none; the others' rows that may have, shared out
+        runs = zones[1:].reshape(-1, 2) if built and zones is not None else np.array([[rb[1], nrow]], np.int64)
         rooms = np.zeros((parts, parts), np.int64)  # per thread: each part's logged additions
-        run([lambda p=p: _mixed(first, neigh, owner, cut[p], cut[p + 1], rb, self.firstp, self.mixed, rooms[p])
+        shared = _share_runs(runs, parts)
+        run([lambda p=p: _mixed(first, neigh, owner, shared[p], rb, self.firstp, self.mixed, rooms[p])
              for p in range(parts)])
         room = rooms.sum(axis=0)  # exact: part 0 logs nothing, the others only their mixed rows' additions
         self.logs = np.concatenate(([0], np.cumsum(room))).astype(np.int64)
@@ -1588,6 +1647,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
     built = False  # the list is this chunk's build: its marks and parts serve RowSplit
     fast = None  # each part's least CPU time of a pass on this chunk's latest list (`_rebalance`)
     marks, rows = buffer("marks", (parts, N), np.uint8), np.empty(parts + 1, np.int64)
+    zones = np.zeros((parts, 2, 2), np.int64)  # the build's `row_zones` (for RowSplit)
     shares = held.get("shares")
     if shares is None or len(shares) != parts + 1:
         shares = np.arange(parts + 1) / parts
@@ -1624,12 +1684,12 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
             target = neigh if builds > 0 else spare
             marks[:] = 0
             m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows, shares,
-                               buffer)
+                               buffer, zones)
             while m < 0:
                 target = pages.empty(2 * len(target) + 4 * N, np.int32)
                 marks[:] = 0
                 m = build_threaded(x, lo, length, per, a["reach"], owner, first, target, parts, crew, marks, rows,
-                                   shares, buffer)
+                                   shares, buffer, zones)
             neigh = target
             xref[:] = x
             builds += 1
@@ -1637,7 +1697,7 @@ def _chunk_steps(kernel: Any, args: tuple, parts: int, crew: Crew, held: dict,
             built, fast = True, None
         if split is None:
             split = RowSplit(owner, first, neigh, parts, crew, *((marks, rows) if built else (None, None)), reuse=old,
-                             buffer=buffer)
+                             buffer=buffer, zones=zones)
         last = sample and step == nsteps - 1  # the sample's pair pass: also the energy and virial
         isample = due.get(step)
         cpu, e, w = forces_threaded(x, f, owner, first, neigh, split, *lj, length, per, crew, replay=False,
