@@ -533,8 +533,8 @@ if njit is not None:
         terms and each row's sum as there; an addition to an atom this part touches first (firstp)
         goes into fc at once, any other waits in the log (lj: the atom, lv: the value added, from
         q0 on for atoms j < cut, from q1 - 1 down for the others, so that a thread replaying the
-        atoms below cut or those above reads only theirs; only rows with mixed[s] have partners of
-        other parts) for `_replay_atoms`, which adds it after the parts before. With outputs, rowew[s] =
+        atoms below cut or those above reads only theirs; mixed[s] (`_mixed`) says which rows have
+        partners, or an owner, of other parts) for `_replay_atoms`, which adds it after the parts before. With outputs, rowew[s] =
         the row's energy and virial sums (as forces_case's; `_row_sums` adds them in row order).
         Returns the ends of the log written: (up, down).
         Parts run at once in threads: each writes only its own atoms of fc and its own rows."""
@@ -548,7 +548,8 @@ if njit is not None:
             n = fr[s + 1] - k0
             _row_terms(xc, nc, i, k0, n, buf, outputs, e24, e4, s2c, rcut2, off, img)
             fi0, fi1, fi2 = 0.0, 0.0, 0.0
-            if mixed[s]:  # some partner is another part's first: its additions wait in the log
+            ms = mixed[s]
+            if ms & 1:  # some partner is another part's first: its additions wait in the log
                 for k in range(n):
                     j = nc[k0 + k]
                     a, b, c = tx[k], ty[k], tz[k]
@@ -571,12 +572,12 @@ if njit is not None:
                     fc[j, 0] -= a
                     fc[j, 1] -= b
                     fc[j, 2] -= c
-            if firstp[i] == part:
+            if ms & 2:  # the owner is another part's first
+                q, qd = _defer(lj, lv, q, qd, cut, i, fi0, fi1, fi2)
+            else:
                 fc[i, 0] += fi0
                 fc[i, 1] += fi1
                 fc[i, 2] += fi2
-            else:
-                q, qd = _defer(lj, lv, q, qd, cut, i, fi0, fi1, fi2)
             if outputs:
                 rowew[s, 0], rowew[s, 1] = _row_ew(buf, n)
         return q, qd
@@ -607,8 +608,9 @@ if njit is not None:
     @jit
     def _mixed(fr: np.ndarray, nc: np.ndarray, ow: np.ndarray, runs: np.ndarray, rb: np.ndarray,
                firstp: np.ndarray, mixed: np.ndarray, room: np.ndarray) -> None:
-        """For the rows of runs (k, 2) (each [s_lo, s_hi)): mixed[s] = some partner of row s is
-        first touched by a part before the row's own (rows rb[p] .. rb[p+1] - 1 are part p's);
+        """For the rows of runs (k, 2) (each [s_lo, s_hi)): mixed[s] = 1 if some partner of row s
+        is first touched by a part before the row's own (rows rb[p] .. rb[p+1] - 1 are part p's),
+        + 2 if its owner is (0: the row adds everything at once);
         room[p] += the additions part p's rows here log in `forces_part` (partners and owners
         whose first part is another): its exact log length."""
         for r in range(runs.shape[0]):
@@ -624,8 +626,9 @@ if njit is not None:
                 m = 0
                 for k in range(fr[s], fr[s + 1]):
                     m += firstp[nc[k]] != p
-                mixed[s] = m > 0
-                room[p] += m + (firstp[ow[s]] != p)
+                own = firstp[ow[s]] != p
+                mixed[s] = (m > 0) | (own << 1)
+                room[p] += m + own
 
     @jit
     def _replay_atoms(fc: np.ndarray, lj: np.ndarray, lv: np.ndarray, starts: np.ndarray, ends: np.ndarray,
