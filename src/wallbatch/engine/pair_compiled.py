@@ -534,8 +534,9 @@ if njit is not None:
         goes into fc at once, any other waits in the log (lj: the atom, lv: the value added, from
         q0 on for atoms j < cut, from q1 - 1 down for the others, so that a thread replaying the
         atoms below cut or those above reads only theirs; mixed[s] (`_mixed`) says which rows have
-        partners, or an owner, of other parts) for `_replay_atoms`, which adds it after the parts before. With outputs, rowew[s] =
-        the row's energy and virial sums (as forces_case's; `_row_sums` adds them in row order).
+        partners, or an owner, of other parts) for `_replay_atoms`, which adds it after the parts
+        before. With outputs, rowew[s] = the row's energy and virial sums (as forces_case's;
+        `_row_sums` adds them in row order).
         Returns the ends of the log written: (up, down).
         Parts run at once in threads: each writes only its own atoms of fc and its own rows."""
         buf = _row_buffers(fr, s_lo, s_hi, outputs)
