@@ -596,6 +596,59 @@ def test_random_script_with_exact_and_dt_reset_matches_lammps(tmp_path: Path) ->
         np.testing.assert_allclose(ds[key].values.ravel(), ref[:, j], rtol=1e-9, atol=1e-12)
 
 
+TWO_TYPES_ONE_DRAW = """# two atom types, only one walled: velocity all create spans two wallbatch groups
+units           lj
+boundary        p p f
+atom_style      atomic
+region          box block 0 6 0 6 0 6 units box
+create_box      2 box
+region          mid block EDGE EDGE EDGE EDGE 1.5 4.5 units box
+create_atoms    1 random 24 4821 mid
+create_atoms    2 random 16 3907 mid
+mass            1 1.0
+mass            2 3.0
+group           heavy type 2
+velocity        all create 0.5 4928459
+fix             1 all nve
+fix             w heavy wall/lj93 zlo EDGE 1.0 1.0 2.5 zhi EDGE 1.0 1.0 2.5 units box
+""" + THERMO + """thermo          5
+run             10
+"""
+
+
+def test_velocity_create_over_several_groups_is_one_draw(tmp_path: Path) -> None:
+    """`velocity all create T` over atoms the importer splits into two groups (the walled type and
+    the other): both velocity entries share the label `all`, so the start has zero momentum and
+    exactly T over all 40 atoms, as LAMMPS's; each group apart would lose 3 dof (T 0.487)."""
+    script = tmp_path / "in.two"
+    script.write_text(TWO_TYPES_ONE_DRAW)
+    result = import_lammps(script, tmp_path / "two.yaml")
+    assert result.complete, result.text
+    cfg = load_config_text(result.text, tmp_path / "two.yaml")
+    vels = [g.velocity for g in cfg.atoms]
+    assert len(vels) == 2 and all(v is not None and v.temperature == 0.5 and v.shared == "all" for v in vels)
+    assert "over the LAMMPS group all" in result.text
+    case = build_case(cfg)
+    m, v = case.mass, case.v
+    assert np.abs((m[:, None] * v).sum(axis=0)).max() < 1e-13
+    assert float((m[:, None] * v * v).sum()) / (3 * 40 - 3) == pytest.approx(0.5, rel=1e-13)
+
+
+@pytest.mark.lammps
+@needs_lammps
+def test_velocity_create_over_several_groups_starts_at_lammps_temperature(tmp_path: Path) -> None:
+    """The imported config's step-0 temperature is LAMMPS's (both exactly T over the LAMMPS group;
+    the draws differ)."""
+    script = tmp_path / "in.two"
+    script.write_text(TWO_TYPES_ONE_DRAW)
+    ref = _run_lammps_script(script, ["temp", "ke", "pe", "etotal"])
+    result = import_lammps(script, tmp_path / "two.yaml")
+    (tmp_path / "two.yaml").write_text(result.text)
+    ds = api.run(load_config(tmp_path / "two.yaml"))
+    assert ref[0, 0] == 0 and ref[0, 1] == pytest.approx(0.5, rel=1e-12)
+    assert float(ds["temp"].values.ravel()[0]) == pytest.approx(ref[0, 1], rel=1e-10)
+
+
 READ_DATA_MIN = """# read_data, groups by type and region, a minimize, then a run
 units           lj
 boundary        p p f

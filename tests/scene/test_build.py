@@ -78,6 +78,63 @@ def test_thermal_velocities_have_zero_momentum_and_the_exact_temperature(tempera
         assert abs(var - temperature) < 4 * temperature * math.sqrt(2.0 / (n - 1)), (d, var)
 
 
+def two_groups(shared: tuple = ("all", "all"), temps: tuple = (0.5, 0.5), n: tuple = (30, 50)) -> dict:
+    """Two groups of different masses in a periodic box, each velocity drawn at temps[k], with
+    the label shared[k] (None: no label)."""
+    rng = np.random.default_rng(3)
+    groups = []
+    for k, (name, mass) in enumerate((("light", 1.0), ("heavy", 3.0))):
+        vel = {"temperature": temps[k]} | ({"shared": shared[k]} if shared[k] else {})
+        groups.append({"group": name, "create": {"positions": (rng.random((n[k], 3)) * 10.0).tolist()},
+                       "mass": mass, "velocity": vel})
+    return {"units": "lj", "seed": 11, "box": {"lo": [0, 0, 0], "hi": [10.0, 10.0, 10.0], "boundary": ["p"] * 3},
+            "atoms": groups, "timestep": 0.005, "run": {"steps": 1, "thermo": 1}}
+
+
+def test_a_shared_velocity_set_has_zero_momentum_and_the_temperature_over_all_its_atoms():
+    """Two groups sharing one label are drawn as one set (LAMMPS `velocity all create`): zero net
+    momentum and exactly T over their 80 atoms (3 n - 3 dof), while each group alone has neither;
+    without the label each group has both on its own, so the whole's temperature is lower, by
+    the 3 dof the second group's momentum removes."""
+    lj, T = UNIT_SYSTEMS["lj"], 0.5
+
+    def temp(m, v, dof):
+        return lj.mvv2e * float((m[:, None] * v * v).sum()) / (dof * lj.boltz)
+
+    case = case_of(two_groups())
+    m, v = case.mass, case.v  # the groups' atoms in order: 30 light, then 50 heavy
+    assert len(m) == 80 and m[29] == 1.0 and m[30] == 3.0
+    assert np.abs((m[:, None] * v).sum(axis=0)).max() < 1e-13
+    assert temp(m, v, 3 * 80 - 3) == pytest.approx(T, rel=1e-13)
+    light = slice(0, 30)
+    assert np.abs((m[light, None] * v[light]).sum(axis=0)).max() > 1e-3  # a part of the set only
+    apart = case_of(two_groups(shared=(None, None)))
+    for sel in (slice(0, 30), slice(30, 80)):
+        n = sel.stop - sel.start
+        assert np.abs((apart.mass[sel, None] * apart.v[sel]).sum(axis=0)).max() < 1e-13
+        assert temp(apart.mass[sel], apart.v[sel], 3 * n - 3) == pytest.approx(T, rel=1e-13)
+    assert temp(apart.mass, apart.v, 3 * 80 - 3) == pytest.approx(T * (3 * 80 - 6) / (3 * 80 - 3), rel=1e-13)
+
+
+def test_a_shared_set_of_one_group_draws_what_a_group_without_the_label_draws():
+    """The label changes nothing for a group alone in its set (the same draws, the same bits), and
+    the groups after it draw the same numbers."""
+    alone = case_of(two_groups(shared=("a", "b")))
+    plain = case_of(two_groups(shared=(None, None)))
+    assert np.array_equal(alone.v, plain.v) and np.array_equal(alone.x, plain.x)
+
+
+def test_groups_of_one_shared_set_must_give_the_same_temperature():
+    with pytest.raises(Exception) as err:
+        config_of(two_groups(temps=(0.5, 0.7)))
+    text = str(err.value)
+    assert "atoms.1.velocity.temperature" in text and "shares the velocity set 'all'" in text
+    assert "group light" in text and "0.5" in text and "0.7" in text
+    with pytest.raises(Exception, match="needs a temperature, not values"):
+        config_of(box_scene([{"group": "a", "create": {"positions": [[1.0, 1.0, 1.0], [2.0, 2.0, 2.0]]},
+                              "mass": 1.0, "velocity": {"values": [0.0, 0.0, 1.0], "shared": "s"}}]))
+
+
 def test_random_creation_fills_the_region_uniformly():
     case = case_of(gas(n=3000))
     x = case.x

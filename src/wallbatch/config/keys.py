@@ -87,6 +87,10 @@ KEYS: dict[str, Key] = {
                                         "`velocity G create T SEED dist gaussian mom yes`"),
     "atoms[].velocity.values": Key("One 3-vector for every atom of the group, or one per atom.", "velocity",
                                    "`velocity G set vx vy vz`, a data file"),
+    "atoms[].velocity.shared": Key("A label: the groups whose velocities give the same label (and the same "
+                                   "temperature) are drawn as one set, zero net momentum and exactly the "
+                                   "temperature over all their atoms.", "",
+                                   "`velocity G create` on a group spanning several wallbatch groups"),
     "pair": Key("Particle-particle forces; omitted: none (an ideal gas).", "", "`pair_style`"),
     "pair.style": Key("The only pair style.", "", "`pair_style lj/cut`"),
     "pair.epsilon": Key("Depth of the Lennard-Jones well.", "energy", "`pair_coeff * * EPS SIGMA`"),

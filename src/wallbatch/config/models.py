@@ -202,15 +202,22 @@ class Create(Model):
 
 
 class Velocity(Model):
-    """Initial velocities: Maxwell-Boltzmann at `temperature` (zero net momentum), or explicit values."""
+    """Initial velocities: Maxwell-Boltzmann at `temperature` (zero net momentum), or explicit
+    values. `shared`: groups whose velocities name the same label are drawn as one set (zero net
+    momentum and exactly `temperature` over the set: LAMMPS's `velocity G create` on a LAMMPS group
+    that spans several wallbatch groups)."""
 
     temperature: NonNegativeFloat | None = None
     values: Union[Vec3, list[Vec3], None] = None
+    shared: Annotated[str, Field(pattern=NAME_RE)] | None = None
 
     @model_validator(mode="after")
     def _one(self) -> "Velocity":
         if (self.temperature is None) == (self.values is None):
             raise ValueError("give exactly one of temperature or values")
+        if self.shared is not None and self.temperature is None:
+            raise ValueError("shared draws the velocities of several groups as one set: it needs a temperature, "
+                             "not values")
         return self
 
 
@@ -860,6 +867,7 @@ def check_scene(cfg: Config) -> list[tuple[tuple, str]]:
         if region.units == "lattice" and cfg.lattice is None:
             add(("regions", name, "units"), _LATTICE_MSG)
     _check_creation_regions(cfg, add)
+    _check_shared_velocities(cfg, add)
 
     try:
         Variables(cfg.variables)
@@ -1034,6 +1042,24 @@ def _check_creation_regions(cfg: "Config", add: Any) -> None:
             add(("regions", name), f"region {name} (side: out) leaves nothing of the box: its {region.style} holds "
                 f"the whole box ({box}), so {users_text} would create no atom: shrink or move the "
                 f"{region.style}, or use side: in")
+
+
+def _check_shared_velocities(cfg: "Config", add: Any) -> None:
+    """The groups of one `velocity.shared` set are drawn at one temperature: each gives the same."""
+    first: dict[str, tuple[int, str, float]] = {}
+    for i, g in enumerate(cfg.atoms):
+        vel = g.velocity
+        if vel is None or vel.shared is None:
+            continue
+        if vel.shared not in first:
+            first[vel.shared] = (i, g.group, float(vel.temperature))
+            continue
+        j, other, temp = first[vel.shared]
+        if float(vel.temperature) != temp:
+            add(("atoms", i, "velocity", "temperature"),
+                f"group {g.group} shares the velocity set '{vel.shared}' with group {other} (atoms.{j}), drawn at "
+                f"temperature {temp:g}, but gives {float(vel.temperature):g}: give every group of a set the same "
+                f"temperature, or another shared label")
 
 
 def _fmt_vec(v: Any) -> str:

@@ -226,6 +226,7 @@ class _Atoms:
         self.mass = np.zeros(0)  # NaN: the type's mass (mass command / Masses section)
         self.vel = np.zeros(0, np.int64)  # index into velocity specs (0: none)
         self.velocities: list[Any] = [None]
+        self.vel_group: dict[int, str] = {}  # velocity spec index -> the LAMMPS group of its `velocity create`
         self.radius = np.zeros(0)  # NaN: as created
         self.groups: dict[str, np.ndarray] = {}
 
@@ -859,8 +860,10 @@ class _Importer:
                                   f"rotation removal){EXACT_VELOCITIES}")
             self.seed = self.seed if self.seed is not None else seed
             spec = {"temperature": temp}
+            self.atoms.vel_group[len(self.atoms.velocities)] = w[1]
             self.notes.append(f"{self.here()}: velocity create: wallbatch draws Gaussian velocities with zero "
-                              f"momentum at exactly T per atom group (other random numbers than LAMMPS); --exact uses "
+                              f"momentum at exactly T over the LAMMPS group {w[1]} (the wallbatch groups it spans "
+                              f"share one draw: velocity.shared; other random numbers than LAMMPS); --exact uses "
                               f"LAMMPS's")
         elif style == "set":
             if len(rest) < 3:
@@ -1166,6 +1169,17 @@ class _Importer:
             key = (None, int(a.types[i]), None if np.isnan(a.mass[i]) else float(a.mass[i]),
                    None if np.isnan(a.radius[i]) else float(a.radius[i]), int(a.vel[i]))
             keys[key + (int(k),)] = np.flatnonzero(inverse == k)
+        spans: dict[int, int] = {}  # velocity spec -> the groups it is given to
+        for key in keys:
+            spans[key[4]] = spans.get(key[4], 0) + 1
+        labels: dict[int, str] = {}  # a shared set's label: the LAMMPS group (made unique, a valid name)
+        for k in sorted(k for k in a.vel_group if spans.get(k, 0) > 1):
+            base = re.sub(r"[^A-Za-z0-9_\-]", "_", a.vel_group[k])
+            base = base if re.match(r"[A-Za-z_]", base) else "v_" + base
+            label, n = base, 2
+            while label in labels.values():
+                label, n = f"{base}_{n}", n + 1
+            labels[k] = label
         names: set[str] = set()
         out = []
         for key, idx in keys.items():
@@ -1202,7 +1216,9 @@ class _Importer:
                 if t in self.type_mass:
                     entry["mass"] = self.type_mass[t]
             if key[4]:
-                entry["velocity"] = a.velocities[key[4]]
+                entry["velocity"] = dict(a.velocities[key[4]])
+                if key[4] in labels:  # one `velocity create` over several groups: one draw
+                    entry["velocity"]["shared"] = labels[key[4]]
             name = self.part_name(mask, used, t, names)
             names.add(name)
             out.append((name, mask, entry))

@@ -327,18 +327,51 @@ def _thermal_velocities(n: int, mass: np.ndarray, temperature: float, u: UnitSys
     degrees of freedom (LAMMPS `velocity create T seed dist gaussian mom yes`); in 2-D vz = 0."""
     if n < 2 or temperature == 0.0:
         return np.zeros((n, 3))
-    v = rng.standard_normal((n, 3)) * np.sqrt(u.boltz * temperature / u.mvv2e / mass)[:, None]
+    return _to_temperature(_gaussian_velocities(mass, temperature, u, rng, dimension), mass, temperature, u,
+                           dimension)
+
+
+def _gaussian_velocities(mass: np.ndarray, temperature: float, u: UnitSystem, rng: np.random.Generator,
+                         dimension: int) -> np.ndarray:
+    """Gaussian components of variance kT/m per atom [velocity] (vz = 0 in 2-D), as drawn."""
+    v = rng.standard_normal((len(mass), 3)) * np.sqrt(u.boltz * temperature / u.mvv2e / mass)[:, None]
     if dimension == 2:
         v[:, 2] = 0.0
-    v -= (mass[:, None] * v).sum(axis=0) / mass.sum()
+    return v
+
+
+def _to_temperature(v: np.ndarray, mass: np.ndarray, temperature: float, u: UnitSystem,
+                    dimension: int) -> np.ndarray:
+    """v less its centre-of-mass velocity, scaled to exactly `temperature` over d n - d degrees of
+    freedom (n >= 2 atoms)."""
+    v = v - (mass[:, None] * v).sum(axis=0) / mass.sum()
+    n = len(mass)
     t_now = (u.mvv2e * mass[:, None] * v * v).sum() / ((dimension * n - dimension) * u.boltz)
     return v * np.sqrt(temperature / t_now)
+
+
+def _shared_velocities(vs: list[np.ndarray], ms: list[np.ndarray], sets: dict[str, list[int]],
+                       cfg: Config, u: UnitSystem) -> None:
+    """Each `velocity.shared` set (label -> its groups' indices): the groups' Gaussian draws
+    (vs[i], as drawn) made one set's, in place: zero net momentum and exactly the temperature over
+    all their atoms (d n - d degrees of freedom; zeros below 2 atoms)."""
+    for idx in sets.values():
+        temperature = float(cfg.atoms[idx[0]].velocity.temperature)
+        mass = np.concatenate([ms[i] for i in idx])
+        if len(mass) < 2 or temperature == 0.0:
+            v = np.zeros((len(mass), 3))
+        else:
+            v = _to_temperature(np.concatenate([vs[i] for i in idx]), mass, temperature, u, cfg.dimension)
+        cut = np.cumsum([0] + [len(ms[i]) for i in idx])
+        for k, i in enumerate(idx):
+            vs[i] = v[cut[k]:cut[k + 1]]
 
 
 def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]:
     u = UNIT_SYSTEMS[cfg.units]
     xs, vs, ms, rs, gid = [], [], [], [], []
     shapes, quats, angmoms = [], [], []
+    shared: dict[str, list[int]] = {}  # velocity.shared label -> its groups
     existing = np.zeros((0, 3))
     for i, g in enumerate(cfg.atoms):
         path = f"atoms.{i}"
@@ -405,6 +438,9 @@ def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]
             v = np.zeros((n, 3))
         elif g.velocity.values is not None:
             v = _per_atom(g.velocity.values, n, 3, f"{path}.velocity.values")
+        elif g.velocity.shared is not None:  # drawn here, made the set's once every group is drawn
+            v = _gaussian_velocities(mass, g.velocity.temperature, u, rng, cfg.dimension)
+            shared.setdefault(g.velocity.shared, []).append(i)
         else:
             v = _thermal_velocities(n, mass, g.velocity.temperature, u, rng, cfg.dimension)
         xs.append(x)
@@ -416,6 +452,7 @@ def _build_atoms(cfg: Config, rng: np.random.Generator) -> dict[str, np.ndarray]
         angmoms.append(angmom)
         gid.append(np.full(n, i))
         existing = np.concatenate([existing, x])
+    _shared_velocities(vs, ms, shared, cfg, u)
     x = np.concatenate(xs)
     lo, hi = np.asarray(cfg.box.lo), np.asarray(cfg.box.hi)
     outside = np.nonzero(np.any((x < lo) | (x > hi), axis=1))[0]
