@@ -494,3 +494,43 @@ def test_result_type_and_settings_validation():
         MinSettings(0.0, 0.0, 10, 10, style="sd")
     with pytest.raises(ValueError, match="etol"):
         MinSettings(-1.0, 0.0, 10, 10)
+
+
+# ----------------------------------------------------------------------------- an objective that moves
+
+
+@pytest.mark.parametrize("moving", [True, False])
+def test_an_objective_that_moves_with_the_iteration_is_evaluated_again_where_cg_gives_up(moving):
+    """A harmonic well whose centre moves by 0.3 per iteration (a wall whose variable uses
+    `step`, which LAMMPS's minimizer advances once per iteration): `at_iteration` gives 0 for the
+    set-up evaluation and k for every evaluation of iteration k. With `moving`, where the line
+    search gives up (its start no longer the minimum of a well that moved), the start is evaluated
+    again, as LAMMPS does: the final energy and forces are the well's at the final iteration.
+    Without it they are those of the iteration before (right for a well that does not move)."""
+    seen: list[int] = []
+    state = {"k": 0}
+
+    def at_iteration(iterations):
+        state["k"] = int(iterations[0])
+
+    def objective(x, rows):
+        seen.append(state["k"])
+        centre = 1.0 + 0.3 * state["k"]
+        d = x[:, 0, 2] - centre
+        f = np.zeros_like(x)
+        f[:, 0, 2] = -2.0 * d
+        return d * d, f
+
+    x = np.array([[[0.0, 0.0, 0.9]]])  # (dmax 0.1: it cannot keep up)
+    res = minimize(x, objective, MinSettings(0.0, 1e-12, 50, 1000), at_iteration=at_iteration, moving=moving)
+    assert seen[0] == 0 and seen == sorted(seen) and max(seen) == res.iterations[0] >= 1
+    assert res.stop_reason[0] in ("linesearch alpha is zero", "quadratic factors are zero", "max iterations")
+    z = res.x[0, 0, 2]
+    k = int(res.iterations[0])
+    if res.stop_reason[0] == "max iterations":
+        pytest.skip("the line search never gave up")  # (not the case here: a guard)
+    here = (z - (1.0 + 0.3 * k)) ** 2  # the well at the final iteration, at the final position
+    before = (z - (1.0 + 0.3 * (k - 1))) ** 2
+    assert here != pytest.approx(before, rel=1e-6)  # the two differ: the test can tell them apart
+    assert res.energy_after[0] == pytest.approx(here if moving else before, rel=1e-12, abs=1e-15)
+    assert res.fnorm2[0] == pytest.approx(2.0 * abs(z - (1.0 + 0.3 * (k if moving else k - 1))), rel=1e-12)

@@ -1277,6 +1277,29 @@ def test_validate_minimize_walls_only(tmp_path):
 
 
 @requires_lammps
+@pytest.mark.parametrize(("style", "zw"), [("cg", "6.0 - 0.02*step"), ("fire", "6.0 - 0.02*step"),
+                                           ("cg", "ramp(6.0,5.7) - 0.4*time")])
+def test_validate_minimize_with_a_wall_moved_by_step(tmp_path, style, zw):
+    """A wall whose variable uses step (or ramp and time) moves during minimize in LAMMPS: its
+    minimizer advances the step once per iteration, ramp runs over maxiter and time with the
+    step. wallbatch evaluates the wall at the same steps (and, where cg's line search gives up,
+    evaluates its start again at that step, as LAMMPS): every min_* result agrees, counts
+    exactly. Before, the wall stood still: 15 iterations (the most) against LAMMPS's 5, min_energy
+    off by 27%."""
+    text = WALLMIN.replace("energy: true, zlo: [EDGE, 1.0, 1.0, 2.5], zhi: [EDGE, 1.5, 1.2, 3.0]",
+                           "energy: true, zlo: [EDGE, 1.0, 1.0, 2.5], zhi: [v_zw, 1.5, 1.2, 3.0]")
+    text = text.replace("minimize: {style: cg, etol: 0.0, ftol: 1.0e-10, maxiter: 1000,",
+                        f"variables: {{zw: \"{zw}\"}}\nminimize: {{style: {style}, etol: 0.0, ftol: 1.0e-10, "
+                        f"maxiter: 15,")
+    assert "v_zw" in text and "maxiter: 15" in text
+    result = validate(write(tmp_path, text))
+    assert result.exit_code == 0, result.output
+    rows = report_rows(result.output)
+    assert all(r[3] == "ok" for r in rows.values()) and len(rows) == 15, result.output
+    assert float(rows["min_iterations"][1]) == 0.0 and float(rows["min_energy"][1]) < 1e-12
+
+
+@requires_lammps
 def test_validate_minimize_forces_are_zero(tmp_path):
     """Atoms beyond every cut-off: wallbatch says `forces are zero`, LAMMPS `search direction is
     not downhill` (decisions table): the stopping criterion is expected to differ, not a failure."""

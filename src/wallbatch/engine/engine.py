@@ -512,7 +512,25 @@ class Engine:
                     energy += out[w.fix_id][0]
             return energy[rows], s.f[rows].copy()
 
-        res = minimize(s.x.copy(), objective, self.cases[0].minimize, mass=s.mass, ftm2v=s.units.ftm2v)
+        # LAMMPS's minimizer advances the step counter at the start of each iteration, and its
+        # ramp(x, y) runs over maxiter iterations: a wall's variable sees step + k (and the time
+        # and elapsed that go with it) during iteration k; the run then starts at the step before
+        start, kept = s.step.copy(), (s.end_step, s.run_time)
+        s.end_step, s.run_time, s.minimizing = int(self.cases[0].minimize.maxiter), None, True
+
+        def at_iteration(iterations: np.ndarray) -> None:
+            step = start + iterations
+            if not np.array_equal(step, s.step):
+                s.step = step
+                s.var_step, s.ctx = {}, None
+
+        try:
+            moving = any(s.variables.depends_on_time(name) for name in s.variables.names())
+            res = minimize(s.x.copy(), objective, self.cases[0].minimize, mass=s.mass, ftm2v=s.units.ftm2v,
+                           at_iteration=at_iteration, moving=moving)
+        finally:
+            s.step = start
+            (s.end_step, s.run_time), s.var_step, s.ctx, s.minimizing = kept, {}, None, False
         s.x[:] = res.x
         self.wrap()
         for j, row in enumerate(s.rows.tolist()):

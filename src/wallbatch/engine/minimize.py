@@ -105,7 +105,7 @@ FIRE_TMIN = 0.02  # dtmin = tmin * timestep
 FIRE_VDFMAX = 2000  # consecutive iterations with v.f <= 0 before giving up
 
 # per-case phase: which evaluation the case is waiting for
-_DONE, _SETUP, _TRIAL, _QUAD, _V0, _STEP = -1, 0, 1, 2, 3, 4
+_DONE, _SETUP, _TRIAL, _QUAD, _V0, _STEP, _REEVAL = -1, 0, 1, 2, 3, 4, 5
 
 
 @dataclass
@@ -175,9 +175,11 @@ class _CG(_Minimizer):
     otherwise accept if E fell by 0.4 alpha f.h, else halve alpha.
     """
 
-    def __init__(self, x0, settings, hook):
+    def __init__(self, x0, settings, hook, moving: bool = False):
         super().__init__(x0, settings, hook)
         c, m = self.x.shape
+        self.moving = moving  # the objective changes with the iteration (a wall's step variable)
+        self.why = [""] * c  # the stop reason of a row re-evaluated at its line search's start
         self.nlimit = max(m, 1)
         self.x0 = self.x.copy()
         self.f0 = np.zeros((c, m))
@@ -199,6 +201,8 @@ class _CG(_Minimizer):
         setup = rows[phase == _SETUP]
         trial = rows[phase == _TRIAL]
         quad = rows[phase == _QUAD]
+        for r in rows[phase == _REEVAL].tolist():  # (counted when the line search gave up)
+            self.stop(np.array([r]), self.why[r])
         self.neval[trial] += 1
         self.neval[quad] += 1
         if setup.size:
@@ -226,8 +230,7 @@ class _CG(_Minimizer):
         delfh = fh - self.fhprev[rows]
         zero = (np.abs(fh) < EPS_QUAD) | (np.abs(delfh) < EPS_QUAD)
         self.neval[rows[zero]] += 1  # LAMMPS re-evaluates the starting point
-        self._reset(rows[zero])
-        self.stop(rows[zero], "quadratic factors are zero")
+        self._give_up(rows[zero], "quadratic factors are zero")
         keep = ~zero
         rows, fh, delfh = rows[keep], fh[keep], delfh[keep]
         self.fh[rows] = fh
@@ -267,8 +270,7 @@ class _CG(_Minimizer):
         self.alpha[more] = alpha
         zero = (alpha <= 0.0) | (de_ideal[~ok] >= -EMACH)
         self.neval[more[zero]] += 1  # LAMMPS re-evaluates the starting point
-        self._reset(more[zero])
-        self.stop(more[zero], "linesearch alpha is zero")
+        self._give_up(more[zero], "linesearch alpha is zero")
         go = more[~zero]
         self.x[go] = self.x0[go] + alpha[~zero][:, None] * self.h[go]
         self.phase[go] = _TRIAL
@@ -279,6 +281,19 @@ class _CG(_Minimizer):
         self.x[rows] = self.x0[rows]
         self.f[rows] = self.f0[rows]
         self.e[rows] = self.e0[rows]
+
+    def _give_up(self, rows: np.ndarray, reason: str) -> None:
+        """The line search stops: back to its start, and LAMMPS evaluates E and F there again.
+        With a static objective those are the start's; with a `moving` one (its walls at this
+        iteration's step) the rows are evaluated once more (phase _REEVAL), then stop."""
+        if not self.moving:
+            self._reset(rows)
+            self.stop(rows, reason)
+            return
+        self.x[rows] = self.x0[rows]
+        self.phase[rows] = _REEVAL
+        for r in rows.tolist():
+            self.why[r] = reason
 
     # --- outer iteration
     def _end_iteration(self, rows: np.ndarray) -> np.ndarray:
@@ -484,6 +499,8 @@ def minimize(
     mass: np.ndarray | float = 1.0,
     ftm2v: float = 1.0,
     callback: IterationHook | None = None,
+    at_iteration: Callable[[np.ndarray], None] | None = None,
+    moving: bool = False,
 ) -> MinResult:
     """Minimise every active case from ``x0`` (C, N, 3) [length].
 
@@ -495,6 +512,12 @@ def minimize(
     successful line search of cg, the step of fire) with the cases' new energies.
     Inactive cases are not touched: x unchanged, NaN energies, stop reason ``inactive``.
     Positions are passed to the objective as they are: periodic wrapping is the caller's.
+    ``at_iteration(iterations)``, if given, is called before each objective call with every
+    case's iteration count (C,): 0 for the set-up evaluation, k for every evaluation of iteration
+    k (LAMMPS advances its step counter at the start of each iteration, so a fix's variable sees
+    step + k there). ``moving``: the objective changes from one iteration to the next (such a
+    variable): where cg's line search gives up, the start it returns to is evaluated again, as
+    LAMMPS does, instead of taking the values it had one iteration before.
     """
     x0 = np.asarray(x0, dtype=np.float64)
     if x0.ndim != 3 or x0.shape[2] != 3:
@@ -504,12 +527,14 @@ def minimize(
     if active.shape != (c,):
         raise ValueError(f"active must have shape ({c},), not {active.shape}")
     if settings.style == "cg":
-        mz: _CG | _Fire = _CG(x0, settings, callback)
+        mz: _CG | _Fire = _CG(x0, settings, callback, moving)
     else:
         mz = _Fire(x0, settings, callback, mass, ftm2v)
     mz.phase[active] = _SETUP
     rows = np.flatnonzero(active)
     while rows.size:
+        if at_iteration is not None:
+            at_iteration(mz.niter.copy())
         energy, force = objective(mz.x[rows].reshape(rows.size, n, 3), rows)
         energy = np.asarray(energy, dtype=np.float64).reshape(rows.size)
         force = np.asarray(force, dtype=np.float64)

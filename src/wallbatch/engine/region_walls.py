@@ -136,7 +136,7 @@ class RegionWallKernel:
 
         def message(c: int) -> str:
             a, k, d = info[c]
-            head = f"walls.{self.fix_id} ({what}): atom ID {a + 1} at step {int(state.step[c])}"
+            head = f"walls.{self.fix_id} ({what}): atom ID {a + 1} {state.at(c)}"
             if k == 0:
                 body = (f"is {side} region {self.region_name} (side {self.geom.side}), {d:.6g} from its "
                         f"surface: it is on the wrong side")

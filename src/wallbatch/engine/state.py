@@ -51,6 +51,7 @@ class BatchState:
         # vdisplace/swiggle/cwiggle: LAMMPS's (n - b) dt, or elapsed simulated time when dt varies
         self.elapsed_is_time = c0.dt_reset is not None or c0.run_time is not None
         self.end_step = c0.steps or 0
+        self.minimizing = False  # during Engine.minimize: messages say the iteration, not the step
         self.run_time = c0.run_time
         self.failed: dict[int, str] = {}  # live row -> message, pending removal
         # ellipsoids only (None otherwise): quaternions (C,N,4), angular momentum, torque, semi-axes
@@ -106,6 +107,12 @@ class BatchState:
             self.ctx = ctx
         return ctx
 
+    def at(self, c: int) -> str:
+        """When case c is, for messages: "at step N", or during `minimize` (which advances the
+        step once per iteration, as LAMMPS's minimizer does) "in minimize iteration N"."""
+        n = int(self.step[c])
+        return f"in minimize iteration {n}" if self.minimizing else f"at step {n}"
+
     def variable(self, name: str) -> np.ndarray:
         """Value (C,) of an equal-style variable at the current step; constants are evaluated once."""
         cache = self.var_step if self.variables.depends_on_time(name) else self.var_static
@@ -127,7 +134,7 @@ class BatchState:
             try:
                 out[c] = self.variables.evaluate(name, one)[0]
             except VariableError as exc:
-                self.fail(np.array([c]), lambda _c, e=exc: f"variables.{name} at step {int(self.step[_c])}: {e}")
+                self.fail(np.array([c]), lambda _c, e=exc: f"variables.{name} {self.at(_c)}: {e}")
         return out
 
     # -- failures --------------------------------------------------------------------------

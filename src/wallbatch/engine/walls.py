@@ -128,7 +128,7 @@ class SoftWallKernel:
             first.setdefault(c, (a, d))
         state.fail(np.array(sorted(first)), lambda c: (
             f"walls.{self.fix_id} (wall/{self.style.name} {face}): atom ID {first[c][0] + 1} at distance "
-            f"{first[c][1]:.6g} from the wall at step {int(state.step[c])}: {what} "
+            f"{first[c][1]:.6g} from the wall {state.at(c)}: {what} "
             f"(LAMMPS: Particle on or inside fix wall surface)"))
 
 
@@ -205,7 +205,7 @@ class CustomWallKernel(SoftWallKernel):
             first.setdefault(c, (a, d))
         state.fail(np.array(sorted(first)), lambda c: (
             f"walls.{self.fix_id} ({self.style.lammps} {face}): atom {first[c][0]} at distance {first[c][1]:.6g} "
-            f"from the wall at step {int(state.step[c])} is {nearer}"))
+            f"from the wall {state.at(c)} is {nearer}"))
 
 
 class ReflectKernel:
