@@ -46,6 +46,9 @@ class FakeState:
     def variable(self, name):
         return self.vars[name]
 
+    def at(self, c) -> str:  # (State.at outside minimize)
+        return f"at step {int(self.step[c])}"
+
 
 def make_kernel(geom, style, params, n, group=None, fix_id="rw", region="R", virial=False):
     """params: one dict per case."""
