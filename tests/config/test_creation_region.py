@@ -89,3 +89,40 @@ def test_misses_box_geometry():
     assert RegionGeom("block", lo=(0, 0, 0.5), hi=(10, 10, 1)).misses_box([0, 0, 0], [10, 10, 0]) is True
     assert RegionGeom("block", side="out", lo=(-1, -1, -1), hi=(11, 11, 13)).misses_box(*box) is True
     assert RegionGeom("block", side="out", lo=(-1, -1, -1), hi=(11, 11, 11)).misses_box(*box) is False
+
+
+WALL_SCENE = """\
+box: {{lo: [0, 0, 0], hi: [10, 10, 12], boundary: [p, p, f]}}
+atoms:
+  - group: gas
+    create: {{random: {{count: 10}}}}
+    mass: 1.0
+regions:
+  pore: {region}
+walls:
+  w: {{style: lj93, units: box, zlo: [EDGE, 1.0, 1.0, 2.5], zhi: [EDGE, 1.0, 1.0, 2.5]}}
+  cav: {{style: region, region: pore, potential: lj93, epsilon: 1.0, sigma: 1.0, cutoff: 2.5}}
+run: {{steps: 10, thermo: 5}}
+"""
+
+
+@pytest.mark.parametrize("region, refused", [
+    ("{style: sphere, center: [25, 5, 6], radius: 4, units: box}", "lies wholly outside the box"),
+    ("{style: sphere, side: out, center: [5, 5, 6], radius: 20, units: box}", "(side: out) leaves nothing of"),
+    ("{style: sphere, center: [5, 5, 6], radius: 20, units: box}", None),  # holds the box: fine
+    ("{style: cylinder, axis: z, center: [12, 5], radius: 3, lo: -1, hi: 13, units: box}", None),  # partly in
+])
+def test_a_wall_region_with_no_room_in_the_box_is_refused_at_the_region(tmp_path, region, refused):
+    """A wall/region whose region has no room in the box would find every atom outside its surface
+    (LAMMPS stops at setup: Particle outside surface of region used in fix wall/region); `check`
+    says so at the region, naming the wall. A region partly in the box passes."""
+    config = tmp_path / "s.yaml"
+    config.write_text(WALL_SCENE.format(region=region))
+    got = CliRunner().invoke(app, ["check", str(config)])
+    if refused is None:
+        assert got.exit_code == 0, got.output
+        return
+    assert got.exit_code == 2, got.output
+    assert f"{config}:7:9: regions.pore: region pore {refused}" in got.output, got.output
+    assert ("so walls.cav (wall/region) would find every atom outside its surface (LAMMPS stops: Particle "
+            "outside surface of region used in fix wall/region)") in got.output

@@ -1007,22 +1007,28 @@ def _check_cutoff_mode(fid: str, wall: Any, entry: WallStyle | None, add: Any) -
 
 def _check_creation_regions(cfg: "Config", add: Any) -> None:
     """A region atoms are created in (create.random.region, create.lattice.region) with no volume
-    inside the box creates no atom: refused at the region. One lying partly outside is fine (the
-    atoms are placed in the part inside, as LAMMPS clips)."""
+    inside the box creates no atom, and one a wall/region acts from has every atom outside its
+    surface (LAMMPS stops: Particle outside surface of region used in fix wall/region): refused at
+    the region. One lying partly outside the box is fine (the atoms are placed in the part inside,
+    as LAMMPS clips; a wall/region acts where its surface is)."""
     users: dict[str, list[str]] = {}
+    walls: dict[str, list[str]] = {}
     for i, g in enumerate(cfg.atoms):
         for key in ("random", "lattice"):
             spec = getattr(g.create, key)
             if spec is not None and spec.region in cfg.regions:
                 users.setdefault(spec.region, []).append(f"atoms.{i}.create.{key} (group {g.group})")
-    if not users:
+    for fid, wall in cfg.walls.items():
+        if getattr(wall, "style", None) in ("region", "region/ees") and wall.region in cfg.regions:
+            walls.setdefault(wall.region, []).append(f"walls.{fid} (wall/{wall.style})")
+    if not users and not walls:
         return
     from wallbatch.geometry.regions import RegionGeom  # noqa: PLC0415 - numpy geometry, only when needed
 
     lo, hi = list(cfg.box.lo), list(cfg.box.hi)
     if cfg.dimension == 2:  # atoms are created in the plane z = 0
         lo[2] = hi[2] = 0.0
-    for name, used_by in users.items():
+    for name in list(users) + [n for n in walls if n not in users]:
         region = cfg.regions[name]
         if region.units == "lattice" and cfg.lattice is None:
             continue  # reported above
@@ -1034,14 +1040,19 @@ def _check_creation_regions(cfg: "Config", add: Any) -> None:
             box += f"; the region's numbers are lattice units, times the lattice spacing {lattice_spacing(cfg):g}"
         if cfg.dimension == 2:
             box += "; a 2-D run creates its atoms in the plane z = 0"
-        users_text = " and ".join(used_by)
+        effects = []
+        if name in users:
+            effects.append(f"{' and '.join(users[name])} would create no atom")
+        if name in walls:
+            effects.append(f"{' and '.join(walls[name])} would find every atom outside its surface (LAMMPS stops: "
+                           f"Particle outside surface of region used in fix wall/region)")
+        what = ", and ".join(effects)
         if region.side == "in":
-            add(("regions", name), f"region {name} lies wholly outside the box ({box}), so {users_text} would create "
-                f"no atom: move or resize the region so that part of it is in the box, or enlarge the box")
+            add(("regions", name), f"region {name} lies wholly outside the box ({box}), so {what}: move or resize "
+                f"the region so that part of it is in the box, or enlarge the box")
         else:
             add(("regions", name), f"region {name} (side: out) leaves nothing of the box: its {region.style} holds "
-                f"the whole box ({box}), so {users_text} would create no atom: shrink or move the "
-                f"{region.style}, or use side: in")
+                f"the whole box ({box}), so {what}: shrink or move the {region.style}, or use side: in")
 
 
 def _check_shared_velocities(cfg: "Config", add: Any) -> None:
