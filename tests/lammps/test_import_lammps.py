@@ -993,3 +993,69 @@ def test_cli_output_paths_of_import_export_and_validate(tmp_path: Path) -> None:
     for bad in ("-1", "nan"):
         res = runner.invoke(app, ["validate", str(out), "--rtol", bad])
         assert res.exit_code == 2 and f"--rtol {float(bad):g}: give a relative tolerance >= 0" in res.output
+
+
+TWO_TYPES = """# two atom types, one velocity create over all: the heavy type is walled, the light one not
+units           lj
+boundary        p p f
+atom_style      atomic
+lattice         fcc 0.8442
+region          box block 0 3 0 3 0 4
+create_box      2 box
+region          low block INF INF INF INF 0.2 1.9
+region          high block INF INF INF INF 2 INF
+create_atoms    1 region low
+create_atoms    2 region high
+mass            1 1.0
+mass            2 2.0
+group           heavy type 2
+velocity        all create 0.5 4928459
+fix             1 all nve
+fix             w heavy wall/lj93 zhi EDGE 1.0 1.0 2.5
+fix_modify      w energy yes
+""" + THERMO + """thermo          10
+run             10
+"""
+
+
+@pytest.mark.lammps
+@needs_lammps
+@pytest.mark.parametrize("dimension", [3, 2])
+def test_shared_velocity_draw_starts_at_lammps_temperature(dimension: int, tmp_path: Path) -> None:
+    """The imported config of `velocity all create 0.5 SEED` over two atom groups starts at LAMMPS's
+    thermo temp (step 0) within 1e-10, with zero total momentum: one draw over all atoms. With a draw
+    per group (before `shared:`) it started at 0.5 (3N - 6) / (3N - 3) (0.4828 on a small scene)."""
+    text = TWO_TYPES
+    if dimension == 2:  # the same in the x-y plane: y fixed, the wall at yhi, enforce2d
+        for old, new in (("units           lj\n", "dimension       2\nunits           lj\n"),
+                         ("boundary        p p f", "boundary        p f p"), ("fcc 0.8442", "sq2 0.7"),
+                         ("0 3 0 3 0 4", "0 4 0 4 -0.5 0.5"),
+                         ("INF INF INF INF 0.2 1.9", "INF INF 0.2 1.9 INF INF"),
+                         ("INF INF INF INF 2 INF", "INF INF 2 INF INF INF"),
+                         ("heavy wall/lj93 zhi", "heavy wall/lj93 yhi"),
+                         ("fix             1 all nve\n", "fix             1 all nve\nfix 2d all enforce2d\n")):
+            text = text.replace(old, new)
+    script = tmp_path / "in.two"
+    script.write_text(text)
+    result = import_lammps(script, tmp_path / "two.yaml")
+    assert result.complete, result.text
+    (tmp_path / "two.yaml").write_text(result.text)
+    cfg = load_config(tmp_path / "two.yaml")
+    assert [g.velocity.shared for g in cfg.atoms] == ["all", "all"] and cfg.dimension == dimension
+    case = build_case(cfg)
+    n = case.natoms
+    assert n == _count_atoms(tmp_path, text) and len(set(case.mass.tolist())) == 2
+    assert np.abs((case.mass[:, None] * case.v).sum(axis=0)).max() < 1e-12
+    ref = _run_lammps_script(script, ["temp", "ke", "pe", "etotal"])
+    ds = api.run(cfg)
+    assert (ds["status"] == "ok").all(), ds["error"].values
+    t0 = float(ds["temp"].values.ravel()[0])
+    assert ref[0, 0] == 0 and abs(t0 - ref[0, 1]) < 1e-10, (t0, ref[0, 1])
+    # the draw per group (no label) is what LAMMPS does not do: it starts colder
+    d = dimension
+    apart = config_from_dict({**config_to_dict(cfg), "atoms": [
+        {**config_to_dict(cfg)["atoms"][i], "velocity": {"temperature": 0.5}} for i in range(2)]})
+    m, v = build_case(apart).mass, build_case(apart).v
+    t_apart = float((m[:, None] * v * v).sum()) / (d * n - d)
+    assert t_apart == pytest.approx(0.5 * (d * n - 2 * d) / (d * n - d), rel=1e-12)
+    assert abs(t_apart - ref[0, 1]) > 1e-4

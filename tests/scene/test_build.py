@@ -197,3 +197,54 @@ def test_a_pair_cutoff_of_half_the_periodic_box_is_a_case_error_naming_pair_cuto
     assert err.value.key == "pair.cutoff"  # (placed by it in a run: file:line:col of pair.cutoff)
     copy = pickle.loads(pickle.dumps(err.value))  # (as a case built in another process)
     assert (str(copy), copy.key) == (str(err.value), "pair.cutoff")
+
+
+def _two_groups(velocity_a: dict, velocity_b: dict, *, dimension: int = 3, seed: int = 7) -> dict:
+    """A light and a heavy group (7 and 5 atoms) created at random, then a third group without
+    velocities created after them (its positions come later in the random stream)."""
+    hi = [6.0, 5.0, 8.0] if dimension == 3 else [6.0, 5.0, 0.5]
+    lo = [0.0, 0.0, 0.0] if dimension == 3 else [0.0, 0.0, -0.5]
+    boundary = ["p", "p", "f" if dimension == 3 else "p"]
+    d = {"units": "lj", "seed": seed, "box": {"lo": lo, "hi": hi, "boundary": boundary},
+         "atoms": [{"group": "a", "create": {"random": {"count": 7}}, "mass": 1.0, "velocity": velocity_a},
+                   {"group": "b", "create": {"random": {"count": 5}}, "mass": 3.0, "velocity": velocity_b},
+                   {"group": "c", "create": {"random": {"count": 4}}, "mass": 1.0}],
+         "run": {"steps": 1, "thermo": 1}}
+    if dimension == 2:
+        d["dimension"] = 2
+    return d
+
+
+def _set_temperature(case, dimension: int = 3) -> tuple[np.ndarray, float]:
+    """Net momentum and kinetic temperature (d N - d degrees of freedom) of groups a and b."""
+    lj = UNIT_SYSTEMS["lj"]
+    m, v = case.mass[:12], case.v[:12]
+    t = lj.mvv2e * float((m[:, None] * v * v).sum()) / ((dimension * 12 - dimension) * lj.boltz)
+    return (m[:, None] * v).sum(axis=0), t
+
+
+@pytest.mark.parametrize("dimension", [3, 2])
+def test_a_shared_velocity_set_has_zero_momentum_and_exactly_its_temperature(dimension):
+    """Two groups with `shared: all` are one draw (LAMMPS's `velocity all create 0.5 SEED` over
+    two atom types): zero net momentum of the set and exactly T over d N - d degrees of freedom of
+    the set. Without the key each group is scaled on its own, so the set's temperature is
+    T (d N - 2d) / (d N - d) (0.4545... for 12 atoms in 3-D): not LAMMPS's start temperature."""
+    shared = {"temperature": 0.5, "shared": "all"}
+    case = case_of(_two_groups(shared, shared, dimension=dimension))
+    p, t = _set_temperature(case, dimension)
+    assert np.abs(p).max() < 1e-13 and abs(t - 0.5) < 1e-12, (p, t)
+    if dimension == 2:
+        assert np.all(case.v[:, 2] == 0.0)
+    assert np.all(case.v[12:] == 0.0)  # group c: at rest
+    # the groups' own momenta are not zero (one draw, not two)
+    assert np.abs(case.v[:7].sum(axis=0)).max() > 1e-3
+    alone = case_of(_two_groups({"temperature": 0.5}, {"temperature": 0.5}, dimension=dimension))
+    _, t_alone = _set_temperature(alone, dimension)
+    assert t_alone == pytest.approx(0.5 * (dimension * 12 - 2 * dimension) / (dimension * 12 - dimension), rel=1e-13)
+    # the draws take the same numbers from the stream: the later group's positions are unchanged
+    assert np.array_equal(case.x, alone.x)
+    again = case_of(_two_groups(shared, shared, dimension=dimension))
+    assert np.array_equal(case.v, again.v)  # bit-identical for the same config and seed
+    other = case_of(_two_groups(shared, shared, dimension=dimension), (1,))
+    assert np.array_equal(other.v, case_of(_two_groups(shared, shared, dimension=dimension), (1,)).v)
+    assert not np.array_equal(other.v, case.v)
