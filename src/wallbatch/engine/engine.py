@@ -497,8 +497,10 @@ class Engine:
         """LAMMPS `minimize` before the run (issue 8): pair and soft/region wall forces act; the
         objective holds the pair energy and the energies of walls with `energy: true` only (LAMMPS:
         fix_modify energy). Reflect, flow and dt/reset are skipped; orientations are not minimized.
-        Per case: min_iterations, min_evaluations, min_stop_reason, min_energy_before, min_energy,
-        min_fnorm."""
+        Walls with variables that change with the step see LAMMPS's clock at each evaluation (the
+        minimizer's iteration as the step, ramp over maxiter, fire's dt; BatchState.set_min_clock);
+        the clock is back at step 0 and the case's dt afterwards. Per case: min_iterations,
+        min_evaluations, min_stop_reason, min_energy_before, min_energy, min_fnorm."""
         s = self.state
         scalar_fixes = self.soft + self.region_walls
 
@@ -512,25 +514,25 @@ class Engine:
                     energy += out[w.fix_id][0]
             return energy[rows], s.f[rows].copy()
 
-        # LAMMPS's minimizer advances the step counter at the start of each iteration, and its
-        # ramp(x, y) runs over maxiter iterations: a wall's variable sees step + k (and the time
-        # and elapsed that go with it) during iteration k; the run then starts at the step before
-        start, kept = s.step.copy(), (s.end_step, s.run_time)
-        s.end_step, s.run_time, s.minimizing = int(self.cases[0].minimize.maxiter), None, True
+        settings = self.cases[0].minimize
+        clock = None
+        if self._walls_use_time():  # LAMMPS's step (and fire's dt) at each evaluation: the wall moves
+            step0, dt0 = s.step.copy(), s.dt.copy()
 
-        def at_iteration(iterations: np.ndarray) -> None:
-            step = start + iterations
-            if not np.array_equal(step, s.step):
-                s.step = step
-                s.var_step, s.ctx = {}, None
+            def clock(steps: np.ndarray, dt: np.ndarray | None) -> None:
+                s.set_min_clock(steps, dt, settings.maxiter)
 
+        def counted(iterations: np.ndarray) -> None:  # (messages: "in minimize iteration N")
+            s.min_iteration = iterations
+
+        s.min_iteration = np.zeros(s.ncases, np.int64)
         try:
-            moving = any(s.variables.depends_on_time(name) for name in s.variables.names())
-            res = minimize(s.x.copy(), objective, self.cases[0].minimize, mass=s.mass, ftm2v=s.units.ftm2v,
-                           at_iteration=at_iteration, moving=moving)
+            res = minimize(s.x.copy(), objective, settings, mass=s.mass, ftm2v=s.units.ftm2v, clock=clock,
+                           counted=counted)
         finally:
-            s.step = start
-            (s.end_step, s.run_time), s.var_step, s.ctx, s.minimizing = kept, {}, None, False
+            s.min_iteration = None
+            if clock is not None:
+                s.end_min_clock(step0, dt0)
         s.x[:] = res.x
         self.wrap()
         for j, row in enumerate(s.rows.tolist()):
@@ -540,6 +542,13 @@ class Engine:
                 "min_energy": np.float64(res.energy_after[j]), "min_fnorm": np.float64(res.fnorm2[j]),
             }
         self.drop_failed()
+
+    def _walls_use_time(self) -> bool:
+        """A wall acting in `minimize` (flat soft or region wall) has a position or parameter from a
+        variable that changes with the step (step, time, ramp, ... transitively)."""
+        names = [v for w in self.soft for face in w.faces for v in [face.coord, *face.params.values()]]
+        names += [v for w in self.region_walls for v in w.params.values()]
+        return any(self.state.variables.depends_on_time(n) for n in names if isinstance(n, str))
 
     def _charge(self, since: float) -> float:
         """Share the wall-clock seconds since `since` among the live cases (each case's `seconds`

@@ -39,6 +39,11 @@ Deliberate deviation from LAMMPS: an all-zero search direction (all forces exact
 with ``forces are zero``; LAMMPS tests the downhill condition first and so reports
 ``search direction is not downhill`` (its ``forces are zero`` is unreachable for atoms).
 
+Walls that move with LAMMPS's step (variables of ``step``, ``time``, ``ramp``, ...): LAMMPS's
+minimizer counts each iteration as a timestep, and ``minimize(..., clock=...)`` hands the caller
+that count per case (and fire's adaptive timestep) before every objective call; see
+:func:`minimize`.
+
 Energies inside the algorithm are divided by N when ``MinSettings.norm`` is true, as LAMMPS
 does with ``thermo_modify norm yes`` (its default in lj units); this changes only the absolute
 thresholds (1e-8 in the energy tolerance, ``EMACH``, ``EPS_QUAD``). Reported energies are
@@ -71,6 +76,7 @@ __all__ = ["STOP_REASONS", "MinResult", "MinSettings", "minimize"]
 
 Objective = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 IterationHook = Callable[[np.ndarray, np.ndarray, np.ndarray], None]
+Clock = Callable[[np.ndarray, "np.ndarray | None"], None]
 
 STOP_REASONS = (
     "max iterations",
@@ -104,8 +110,9 @@ FIRE_TMAX = 10.0  # dtmax = tmax * timestep
 FIRE_TMIN = 0.02  # dtmin = tmin * timestep
 FIRE_VDFMAX = 2000  # consecutive iterations with v.f <= 0 before giving up
 
-# per-case phase: which evaluation the case is waiting for
-_DONE, _SETUP, _TRIAL, _QUAD, _V0, _STEP, _REEVAL = -1, 0, 1, 2, 3, 4, 5
+# per-case phase: which evaluation the case is waiting for (_FINAL: the last one, at the step of
+# a stop that comes after the step counter advanced, with a clock only)
+_DONE, _SETUP, _TRIAL, _QUAD, _V0, _STEP, _FINAL = -1, 0, 1, 2, 3, 4, 5
 
 
 @dataclass
@@ -129,11 +136,14 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 class _Minimizer:
     """State shared by both styles; arrays are (C, M) with M = 3N, or (C,)."""
 
-    def __init__(self, x0: np.ndarray, settings: MinSettings, hook: IterationHook | None):
+    def __init__(self, x0: np.ndarray, settings: MinSettings, hook: IterationHook | None,
+                 reevaluate: bool = False):
         c, n = x0.shape[:2]
         m = 3 * n
         self.s = settings
         self.hook = hook
+        self.reevaluate = reevaluate  # a clock: stops after the step advanced evaluate once more
+        self.pending = [""] * c  # the stop reason of a case in _FINAL
         self.n = n
         self.nrm = float(n) if settings.norm and n > 0 else 1.0
         self.x = x0.reshape(c, m).copy()
@@ -149,6 +159,23 @@ class _Minimizer:
         self.phase[rows] = _DONE
         for r in rows.tolist():
             self.reason[r] = reason
+
+    def stop_at_step(self, rows: np.ndarray, reason: str) -> None:
+        """Stop in an iteration whose step had no evaluation at the positions kept. LAMMPS
+        evaluates them once more at that step (not counted); without a clock nothing moves with the
+        step and the energy and forces in memory are those numbers, so the stop is immediate."""
+        if not self.reevaluate:
+            self.stop(rows, reason)
+            return
+        self.phase[rows] = _FINAL
+        for r in rows.tolist():
+            self.pending[r] = reason
+
+    def receive_final(self, rows: np.ndarray) -> None:
+        """The last evaluation of cases in _FINAL arrived (in e, f): stop with their reason."""
+        final = rows[self.phase[rows] == _FINAL]
+        for r in final.tolist():
+            self.stop(np.array([r]), self.pending[r])
 
     def finish_iteration(self, rows: np.ndarray) -> None:
         if self.hook is not None and rows.size:
@@ -175,11 +202,9 @@ class _CG(_Minimizer):
     otherwise accept if E fell by 0.4 alpha f.h, else halve alpha.
     """
 
-    def __init__(self, x0, settings, hook, moving: bool = False):
-        super().__init__(x0, settings, hook)
+    def __init__(self, x0, settings, hook, reevaluate=False):
+        super().__init__(x0, settings, hook, reevaluate)
         c, m = self.x.shape
-        self.moving = moving  # the objective changes with the iteration (a wall's step variable)
-        self.why = [""] * c  # the stop reason of a row re-evaluated at its line search's start
         self.nlimit = max(m, 1)
         self.x0 = self.x.copy()
         self.f0 = np.zeros((c, m))
@@ -197,12 +222,11 @@ class _CG(_Minimizer):
 
     # --- results of one round of evaluations
     def receive(self, rows: np.ndarray) -> None:
+        self.receive_final(rows)
         phase = self.phase[rows]
         setup = rows[phase == _SETUP]
         trial = rows[phase == _TRIAL]
         quad = rows[phase == _QUAD]
-        for r in rows[phase == _REEVAL].tolist():  # (counted when the line search gave up)
-            self.stop(np.array([r]), self.why[r])
         self.neval[trial] += 1
         self.neval[quad] += 1
         if setup.size:
@@ -216,7 +240,7 @@ class _CG(_Minimizer):
         self._start_iteration(np.concatenate([setup, cont]))
 
     def fail_nan(self, rows: np.ndarray) -> None:
-        searching = rows[self.phase[rows] != _SETUP]
+        searching = rows[(self.phase[rows] != _SETUP) & (self.phase[rows] != _FINAL)]
         self.neval[searching] += 1
         self._reset(searching)
         self.stop(rows, "NaN")
@@ -230,7 +254,8 @@ class _CG(_Minimizer):
         delfh = fh - self.fhprev[rows]
         zero = (np.abs(fh) < EPS_QUAD) | (np.abs(delfh) < EPS_QUAD)
         self.neval[rows[zero]] += 1  # LAMMPS re-evaluates the starting point
-        self._give_up(rows[zero], "quadratic factors are zero")
+        self._reset(rows[zero])
+        self.stop_at_step(rows[zero], "quadratic factors are zero")
         keep = ~zero
         rows, fh, delfh = rows[keep], fh[keep], delfh[keep]
         self.fh[rows] = fh
@@ -270,7 +295,8 @@ class _CG(_Minimizer):
         self.alpha[more] = alpha
         zero = (alpha <= 0.0) | (de_ideal[~ok] >= -EMACH)
         self.neval[more[zero]] += 1  # LAMMPS re-evaluates the starting point
-        self._give_up(more[zero], "linesearch alpha is zero")
+        self._reset(more[zero])
+        self.stop_at_step(more[zero], "linesearch alpha is zero")
         go = more[~zero]
         self.x[go] = self.x0[go] + alpha[~zero][:, None] * self.h[go]
         self.phase[go] = _TRIAL
@@ -281,19 +307,6 @@ class _CG(_Minimizer):
         self.x[rows] = self.x0[rows]
         self.f[rows] = self.f0[rows]
         self.e[rows] = self.e0[rows]
-
-    def _give_up(self, rows: np.ndarray, reason: str) -> None:
-        """The line search stops: back to its start, and LAMMPS evaluates E and F there again.
-        With a static objective those are the start's; with a `moving` one (its walls at this
-        iteration's step) the rows are evaluated once more (phase _REEVAL), then stop."""
-        if not self.moving:
-            self._reset(rows)
-            self.stop(rows, reason)
-            return
-        self.x[rows] = self.x0[rows]
-        self.phase[rows] = _REEVAL
-        for r in rows.tolist():
-            self.why[r] = reason
 
     # --- outer iteration
     def _end_iteration(self, rows: np.ndarray) -> np.ndarray:
@@ -333,10 +346,10 @@ class _CG(_Minimizer):
         h = self.h[rows]
         hmax = np.abs(h).max(axis=1) if h.shape[1] else np.zeros(rows.size)
         zero = hmax == 0.0
-        self.stop(rows[zero], "forces are zero")
+        self.stop_at_step(rows[zero], "forces are zero")
         fdoth = _dot(self.f[rows], h) / self.nrm
         downhill = fdoth > 0.0
-        self.stop(rows[~zero & ~downhill], "search direction is not downhill")
+        self.stop_at_step(rows[~zero & ~downhill], "search direction is not downhill")
         ok = ~zero & downhill
         rows, hmax = rows[ok], hmax[ok]
         self.fdoth[rows] = fdoth[ok]
@@ -365,8 +378,8 @@ class _Fire(_Minimizer):
     than dmax (judged from v = dt (ftm2v/m) f after a reset, which costs one evaluation).
     """
 
-    def __init__(self, x0, settings, hook, mass, ftm2v):
-        super().__init__(x0, settings, hook)
+    def __init__(self, x0, settings, hook, mass, ftm2v, reevaluate=False):
+        super().__init__(x0, settings, hook, reevaluate)
         c, m = self.x.shape
         self.mass = np.repeat(np.broadcast_to(mass, (c, self.n)), 3, axis=1).astype(float)
         self.ftm2v = float(ftm2v)
@@ -386,6 +399,7 @@ class _Fire(_Minimizer):
         self.e_prev = np.zeros(c)
 
     def receive(self, rows: np.ndarray) -> None:
+        self.receive_final(rows)
         phase = self.phase[rows]
         setup = rows[phase == _SETUP]
         v0 = rows[phase == _V0]
@@ -400,7 +414,7 @@ class _Fire(_Minimizer):
         self._start_iteration(np.concatenate([setup, self._tests(step)]))
 
     def fail_nan(self, rows: np.ndarray) -> None:
-        moved = rows[self.phase[rows] != _SETUP]
+        moved = rows[(self.phase[rows] != _SETUP) & (self.phase[rows] != _FINAL)]
         self.neval[moved] += 1
         self.x[moved] = self.x_prev[moved]
         self.f[moved] = self.f_prev[moved]
@@ -458,12 +472,12 @@ class _Fire(_Minimizer):
             self.dt[shrink] *= FIRE_DTSHRINK
             self.negatives[q] += 1
             stuck = self.negatives[q] > FIRE_VDFMAX
-            self.stop(q[stuck], "max iterations with v.f negative")
+            self.stop_at_step(q[stuck], "max iterations with v.f negative")
             q = q[~stuck]
             self.x[q] -= 0.5 * self.dt[q][:, None] * self.v[q]
             self.v[q] = 0.0
             self.flagv0[q] = True
-        rows = rows[self.phase[rows] != _DONE]
+        rows = rows[(self.phase[rows] != _DONE) & (self.phase[rows] != _FINAL)]
         reset = self.flagv0[rows]
         self.phase[rows[reset]] = _V0  # forces at the reset position first
         self._step(rows[~reset])
@@ -499,8 +513,8 @@ def minimize(
     mass: np.ndarray | float = 1.0,
     ftm2v: float = 1.0,
     callback: IterationHook | None = None,
-    at_iteration: Callable[[np.ndarray], None] | None = None,
-    moving: bool = False,
+    clock: Clock | None = None,
+    counted: Callable[[np.ndarray], None] | None = None,
 ) -> MinResult:
     """Minimise every active case from ``x0`` (C, N, 3) [length].
 
@@ -512,12 +526,19 @@ def minimize(
     successful line search of cg, the step of fire) with the cases' new energies.
     Inactive cases are not touched: x unchanged, NaN energies, stop reason ``inactive``.
     Positions are passed to the objective as they are: periodic wrapping is the caller's.
-    ``at_iteration(iterations)``, if given, is called before each objective call with every
-    case's iteration count (C,): 0 for the set-up evaluation, k for every evaluation of iteration
-    k (LAMMPS advances its step counter at the start of each iteration, so a fix's variable sees
-    step + k there). ``moving``: the objective changes from one iteration to the next (such a
-    variable): where cg's line search gives up, the start it returns to is evaluated again, as
-    LAMMPS does, instead of taking the values it had one iteration before.
+
+    ``clock(steps, dt)``, for an objective that changes with LAMMPS's step (a wall moved by a
+    variable of ``step``, ``time``, ``ramp``, ...), is called before every objective call with
+    each case's step (C,) as LAMMPS's minimizer counts it (0 at the initial evaluation, k during
+    iteration k: its line search, or its reset and fire step) and, for fire, each case's current
+    fire timestep (C,) (LAMMPS's ``dt`` and ``time`` follow it), None for cg. With a clock, a stop
+    that keeps positions last evaluated at an earlier step (a failed line search reset to its start,
+    ``search direction is not downhill``, ``forces are zero``, ``max iterations with v.f negative``)
+    evaluates them once more at the current step, as LAMMPS does, without counting it; the final
+    energy and forces are then those of the moved objective. Without a clock nothing changes with
+    the step and those stops keep the numbers in memory (the same numbers, no extra call).
+    ``counted(iterations)``, if given, is called before every objective call with each case's
+    iteration count (C,) (for messages; it changes nothing).
     """
     x0 = np.asarray(x0, dtype=np.float64)
     if x0.ndim != 3 or x0.shape[2] != 3:
@@ -526,15 +547,18 @@ def minimize(
     active = np.ones(c, dtype=bool) if active is None else np.asarray(active, dtype=bool)
     if active.shape != (c,):
         raise ValueError(f"active must have shape ({c},), not {active.shape}")
+    reevaluate = clock is not None
     if settings.style == "cg":
-        mz: _CG | _Fire = _CG(x0, settings, callback, moving)
+        mz: _CG | _Fire = _CG(x0, settings, callback, reevaluate)
     else:
-        mz = _Fire(x0, settings, callback, mass, ftm2v)
+        mz = _Fire(x0, settings, callback, mass, ftm2v, reevaluate)
     mz.phase[active] = _SETUP
     rows = np.flatnonzero(active)
     while rows.size:
-        if at_iteration is not None:
-            at_iteration(mz.niter.copy())
+        if clock is not None:
+            clock(mz.niter.copy(), mz.dt.copy() if isinstance(mz, _Fire) else None)
+        if counted is not None:
+            counted(mz.niter.copy())
         energy, force = objective(mz.x[rows].reshape(rows.size, n, 3), rows)
         energy = np.asarray(energy, dtype=np.float64).reshape(rows.size)
         force = np.asarray(force, dtype=np.float64)

@@ -51,8 +51,10 @@ class BatchState:
         # vdisplace/swiggle/cwiggle: LAMMPS's (n - b) dt, or elapsed simulated time when dt varies
         self.elapsed_is_time = c0.dt_reset is not None or c0.run_time is not None
         self.end_step = c0.steps or 0
-        self.minimizing = False  # during Engine.minimize: messages say the iteration, not the step
+        self.min_iteration: np.ndarray | None = None  # during Engine.minimize: each case's iteration (C,)
         self.run_time = c0.run_time
+        # during `minimize` (set_min_clock): its maxiter, LAMMPS's run length while it minimizes
+        self.min_maxiter: int | None = None
         self.failed: dict[int, str] = {}  # live row -> message, pending removal
         # ellipsoids only (None otherwise): quaternions (C,N,4), angular momentum, torque, semi-axes
         # and principal moments of inertia (C,N,3)
@@ -95,23 +97,49 @@ class BatchState:
         step = self.step if steps is None else steps
         time = self.atime + (step - self.atimestep) * self.dt
         steps_done = step.astype(float)
-        if self.run_time is not None:
-            ramp = time / self.run_time
+        end_step = self.end_step
+        if self.min_maxiter is not None:  # minimize: a run of maxiter steps, (n - b) dt elapsed
+            end_step = self.min_maxiter
+            ramp = steps_done / end_step if end_step > 0 else np.zeros(self.ncases)
+            elapsed = steps_done * self.dt
         else:
-            ramp = steps_done / self.end_step if self.end_step > 0 else np.zeros(self.ncases)
-        elapsed = time if self.elapsed_is_time else steps_done * self.dt
-        ctx = EvalContext(step=step, begin_step=0, end_step=self.end_step, dt=self.dt, time=time,
+            if self.run_time is not None:
+                ramp = time / self.run_time
+            else:
+                ramp = steps_done / self.end_step if self.end_step > 0 else np.zeros(self.ncases)
+            elapsed = time if self.elapsed_is_time else steps_done * self.dt
+        ctx = EvalContext(step=step, begin_step=0, end_step=end_step, dt=self.dt, time=time,
                           elapsed_time=elapsed, ramp_fraction=ramp, box_lo=tuple(self.box_lo),
                           box_hi=tuple(self.box_hi), atoms=self.x.shape[1], values=self.var_values)
         if steps is None:
             self.ctx = ctx
         return ctx
 
+    def set_min_clock(self, steps: np.ndarray, dt: np.ndarray | None, maxiter: int) -> None:
+        """What variables see at a force evaluation of `minimize` (LAMMPS's clock there): the step
+        counter at the minimizer's count (0, then one more per iteration), `ramp` over maxiter
+        steps, and with fire its current timestep as `dt` (`time` = step dt, as LAMMPS's fire,
+        which changes the timestep without closing the time accumulator). Before a run only: the
+        time accumulator is still at step 0, time 0. `end_min_clock` puts the clock back."""
+        self.step = np.asarray(steps, np.int64)
+        if dt is not None:
+            self.dt = np.asarray(dt, float)
+        self.min_maxiter = int(maxiter)
+        self.var_step = {}
+        self.ctx = None
+
+    def end_min_clock(self, step: np.ndarray, dt: np.ndarray) -> None:
+        """Back to the run's clock (`step`, `dt`: what they were before `minimize`)."""
+        self.step, self.dt, self.min_maxiter = step, dt, None
+        self.var_step = {}
+        self.ctx = None
+
     def at(self, c: int) -> str:
-        """When case c is, for messages: "at step N", or during `minimize` (which advances the
-        step once per iteration, as LAMMPS's minimizer does) "in minimize iteration N"."""
-        n = int(self.step[c])
-        return f"in minimize iteration {n}" if self.minimizing else f"at step {n}"
+        """When case c is, for messages: "at step N", or during `minimize` "in minimize iteration
+        N" (LAMMPS's minimizer counts its iterations as steps)."""
+        if self.min_iteration is not None:
+            return f"in minimize iteration {int(self.min_iteration[c])}"
+        return f"at step {int(self.step[c])}"
 
     def variable(self, name: str) -> np.ndarray:
         """Value (C,) of an equal-style variable at the current step; constants are evaluated once."""

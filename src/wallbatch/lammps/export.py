@@ -951,10 +951,6 @@ def _minimize(s: _Script) -> list[str]:
         keep = ["fix             wb_v0 all store/state 0 vx vy vz"]
         restore = [*(f"variable        wb_v{c} atom f_wb_v0[{k}]" for k, c in enumerate("xyz", 1)),
                    "velocity        all set v_wb_vx v_wb_vy v_wb_vz units box", "unfix           wb_v0"]
-    moving = [v for v in s.case.variables.names() if s.case.variables.constant_value(v) is None]
-    if moving:
-        s.notes.append(f"minimize: LAMMPS evaluates variables ({', '.join(moving)}) at the minimizer's step (its "
-                       f"iteration count), wallbatch at step 0: walls that move with them differ during minimize")
     s.columns += [Column(label, where, label, source="min") for label, where in MIN_RESULTS.items()]
     return [*keep, f"min_style       {m.style}", f"min_modify      dmax {_num(m.dmax)}",
             f"minimize        {_num(m.etol)} {_num(m.ftol)} {int(m.maxiter)} {int(m.maxeval)}",
