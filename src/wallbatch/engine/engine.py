@@ -515,23 +515,20 @@ class Engine:
             return energy[rows], s.f[rows].copy()
 
         settings = self.cases[0].minimize
-        clock = None
-        if self._walls_use_time():  # LAMMPS's step (and fire's dt) at each evaluation: the wall moves
-            step0, dt0 = s.step.copy(), s.dt.copy()
+        moving = self._walls_use_time()  # LAMMPS's step (and fire's dt) at each evaluation: the wall moves
+        step0, dt0 = s.step.copy(), s.dt.copy()
 
-            def clock(steps: np.ndarray, dt: np.ndarray | None) -> None:
+        def clock(steps: np.ndarray, dt: np.ndarray | None) -> None:
+            s.min_iteration = steps  # (messages: "in minimize iteration N")
+            if moving:
                 s.set_min_clock(steps, dt, settings.maxiter)
 
-        def counted(iterations: np.ndarray) -> None:  # (messages: "in minimize iteration N")
-            s.min_iteration = iterations
-
-        s.min_iteration = np.zeros(s.ncases, np.int64)
         try:
             res = minimize(s.x.copy(), objective, settings, mass=s.mass, ftm2v=s.units.ftm2v, clock=clock,
-                           counted=counted)
+                           moving=moving)
         finally:
             s.min_iteration = None
-            if clock is not None:
+            if moving:
                 s.end_min_clock(step0, dt0)
         s.x[:] = res.x
         self.wrap()

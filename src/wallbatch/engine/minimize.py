@@ -514,7 +514,7 @@ def minimize(
     ftm2v: float = 1.0,
     callback: IterationHook | None = None,
     clock: Clock | None = None,
-    counted: Callable[[np.ndarray], None] | None = None,
+    moving: bool = True,
 ) -> MinResult:
     """Minimise every active case from ``x0`` (C, N, 3) [length].
 
@@ -537,8 +537,8 @@ def minimize(
     evaluates them once more at the current step, as LAMMPS does, without counting it; the final
     energy and forces are then those of the moved objective. Without a clock nothing changes with
     the step and those stops keep the numbers in memory (the same numbers, no extra call).
-    ``counted(iterations)``, if given, is called before every objective call with each case's
-    iteration count (C,) (for messages; it changes nothing).
+    ``moving=False``: the clock only follows the count (e.g. for messages), the objective does not
+    change with it, and those stops keep the numbers in memory as without a clock.
     """
     x0 = np.asarray(x0, dtype=np.float64)
     if x0.ndim != 3 or x0.shape[2] != 3:
@@ -547,7 +547,7 @@ def minimize(
     active = np.ones(c, dtype=bool) if active is None else np.asarray(active, dtype=bool)
     if active.shape != (c,):
         raise ValueError(f"active must have shape ({c},), not {active.shape}")
-    reevaluate = clock is not None
+    reevaluate = clock is not None and moving
     if settings.style == "cg":
         mz: _CG | _Fire = _CG(x0, settings, callback, reevaluate)
     else:
@@ -557,8 +557,6 @@ def minimize(
     while rows.size:
         if clock is not None:
             clock(mz.niter.copy(), mz.dt.copy() if isinstance(mz, _Fire) else None)
-        if counted is not None:
-            counted(mz.niter.copy())
         energy, force = objective(mz.x[rows].reshape(rows.size, n, 3), rows)
         energy = np.asarray(energy, dtype=np.float64).reshape(rows.size)
         force = np.asarray(force, dtype=np.float64)
