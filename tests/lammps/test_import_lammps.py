@@ -383,6 +383,17 @@ def test_no_atoms_names_the_creation_commands_it_could_not_import(tmp_path: Path
 # ----------------------------------------------------------------------------- scripts vs LAMMPS
 
 
+def _import_script(tmp_path: Path, text: str, name: str):
+    """Write `text` as tmp_path/in.NAME, import it (complete) into NAME.yaml beside it and load
+    that: (the script's path, the import result, the loaded config)."""
+    script = tmp_path / f"in.{name}"
+    script.write_text(text)
+    result = import_lammps(script, tmp_path / f"{name}.yaml")
+    assert result.complete, result.text
+    (tmp_path / f"{name}.yaml").write_text(result.text)
+    return script, result, load_config(tmp_path / f"{name}.yaml")
+
+
 def _run_lammps_script(script: Path, columns: list[str], variables: dict[str, str] | None = None) -> np.ndarray:
     """Run a script in LAMMPS (its folder as working directory); the last thermo table (columns
     `step` + `columns`, 17 digits via thermo_modify)."""
@@ -440,13 +451,7 @@ run             200
 @pytest.mark.lammps
 @needs_lammps
 def test_lattice_region_create_atoms_variables_match_lammps(tmp_path: Path) -> None:
-    script = tmp_path / "in.slit"
-    script.write_text(LATTICE_SLIT)
-    result = import_lammps(script, tmp_path / "slit.yaml")
-    assert result.complete, result.text
-    cfg_path = tmp_path / "slit.yaml"
-    cfg_path.write_text(result.text)
-    cfg = load_config(cfg_path)
+    script, result, cfg = _import_script(tmp_path, LATTICE_SLIT, "slit")
     assert cfg.lattice.scale == 0.5 and cfg.atoms[0].create.lattice is not None
     assert cfg.walls["walls"].zhi.cutoff == 2.5 and cfg.variables["top"] == "12-ramp(0.0,1.5)"
     ref = _run_lammps_script(script, ["temp", "ke", "pe", "etotal"])
@@ -639,12 +644,9 @@ def test_velocity_create_over_several_groups_is_one_draw(tmp_path: Path) -> None
 def test_velocity_create_over_several_groups_starts_at_lammps_temperature(tmp_path: Path) -> None:
     """The imported config's step-0 temperature is LAMMPS's (both exactly T over the LAMMPS group;
     the draws differ)."""
-    script = tmp_path / "in.two"
-    script.write_text(TWO_TYPES_ONE_DRAW)
+    script, _, cfg = _import_script(tmp_path, TWO_TYPES_ONE_DRAW, "two")
     ref = _run_lammps_script(script, ["temp", "ke", "pe", "etotal"])
-    result = import_lammps(script, tmp_path / "two.yaml")
-    (tmp_path / "two.yaml").write_text(result.text)
-    ds = api.run(load_config(tmp_path / "two.yaml"))
+    ds = api.run(cfg)
     assert ref[0, 0] == 0 and ref[0, 1] == pytest.approx(0.5, rel=1e-12)
     assert float(ds["temp"].values.ravel()[0]) == pytest.approx(ref[0, 1], rel=1e-10)
 
@@ -683,12 +685,7 @@ def test_read_data_groups_minimize_match_lammps(tmp_path: Path) -> None:
     write_data_file(tmp_path / "start.data", (0, 0, 0), (6.4, 6.4, 6.4), x, mass, types=types,
                     v=rng.normal(0, 0.5, (64, 3)))
     text = READ_DATA_MIN.replace("group           low region lowz\nregion", "region")
-    script = tmp_path / "in.min"
-    script.write_text(text)
-    result = import_lammps(script, tmp_path / "min.yaml")
-    assert result.complete, result.text
-    (tmp_path / "min.yaml").write_text(result.text)
-    cfg = load_config(tmp_path / "min.yaml")
+    script, result, cfg = _import_script(tmp_path, text, "min")
     assert cfg.minimize.dmax == 0.05 and cfg.minimize.maxiter == 50
     # heavy/light x low/high: four groups of atom IDs in the data file
     assert sorted(g.group for g in cfg.atoms) == ["heavy_low", "heavy_only", "low_only", "type1"]
@@ -877,12 +874,7 @@ def test_thermostats_and_frozen_groups_go_to_fixes(tmp_path: Path) -> None:
 @pytest.mark.lammps
 @needs_lammps
 def test_nvt_with_a_frozen_layer_matches_lammps(tmp_path: Path) -> None:
-    script = tmp_path / "in.nvt"
-    script.write_text(NVT_FROZEN)
-    result = import_lammps(script, tmp_path / "nvt.yaml")
-    assert result.complete, result.text
-    (tmp_path / "nvt.yaml").write_text(result.text)
-    cfg = load_config(tmp_path / "nvt.yaml")
+    script, result, cfg = _import_script(tmp_path, NVT_FROZEN, "nvt")
     ref = _run_lammps_script(script, ["temp", "ke", "pe", "etotal", "ecouple"])
     ds = api.run(cfg)
     assert (ds["status"] == "ok").all(), ds["error"].values
@@ -951,13 +943,8 @@ run             200
 @pytest.mark.lammps
 @needs_lammps
 def test_two_dimensional_script_matches_lammps(tmp_path: Path) -> None:
-    script = tmp_path / "in.2d"
-    script.write_text(TWO_D)
-    result = import_lammps(script, tmp_path / "2d.yaml")
-    assert result.complete, result.text
+    script, result, cfg = _import_script(tmp_path, TWO_D, "2d")
     assert result.data["dimension"] == 2 and result.data["lattice"]["style"] == "sq2"
-    (tmp_path / "2d.yaml").write_text(result.text)
-    cfg = load_config(tmp_path / "2d.yaml")
     ref = _run_lammps_script(script, ["temp", "ke", "pe", "etotal"])
     assert build_case(cfg).natoms == _count_atoms(tmp_path, TWO_D)
     ds = api.run(cfg)
@@ -1035,12 +1022,7 @@ def test_shared_velocity_draw_starts_at_lammps_temperature(dimension: int, tmp_p
                          ("heavy wall/lj93 zhi", "heavy wall/lj93 yhi"),
                          ("fix             1 all nve\n", "fix             1 all nve\nfix 2d all enforce2d\n")):
             text = text.replace(old, new)
-    script = tmp_path / "in.two"
-    script.write_text(text)
-    result = import_lammps(script, tmp_path / "two.yaml")
-    assert result.complete, result.text
-    (tmp_path / "two.yaml").write_text(result.text)
-    cfg = load_config(tmp_path / "two.yaml")
+    script, result, cfg = _import_script(tmp_path, text, "two")
     assert [g.velocity.shared for g in cfg.atoms] == ["all", "all"] and cfg.dimension == dimension
     case = build_case(cfg)
     n = case.natoms
